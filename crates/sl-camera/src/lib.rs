@@ -1,0 +1,2 @@
+//! Camera and projector models (in progress).
+#![deny(missing_docs)]

@@ -1,0 +1,2 @@
+//! Point clouds (in progress).
+#![deny(missing_docs)]

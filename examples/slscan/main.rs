@@ -1,0 +1,2 @@
+//! `slscan`: the structured-light scanner's command line.
+fn main() {}

@@ -1,0 +1,26 @@
+//! Structured-light 3-D scanning with a projector, a camera and a turntable, in pure Rust.
+//!
+//! This crate re-exports the crates of the workspace under short names, so that an application
+//! needs one dependency:
+//!
+//! | module | crate | what it holds |
+//! |---|---|---|
+//! | [`camera`] | `sl-camera` | pinhole intrinsics, OpenCV distortion, projection, poses, calibration files |
+//! | [`cloud`] | `sl-cloud` | point clouds, PLY, voxel grid, neighbours, normals, outliers |
+//! | [`codec`] | `sl-codec` | pattern sequences and decoders (placeholder) |
+//! | [`calib`] | `sl-calib` | checkerboards, camera/projector/turntable calibration (placeholder) |
+//! | [`tri`] | `sl-tri` | triangulation into metric clouds (placeholder) |
+//! | [`icp`] | `sl-icp` | ICP and turntable merging (placeholder) |
+//! | [`rig`] | `sl-rig` | hardware and the virtual rig (placeholder) |
+//!
+//! The command line `slscan` (in `examples/slscan`) composes them; run
+//! `cargo run --release --example slscan -- --help`.
+#![deny(missing_docs)]
+
+pub use sl_calib as calib;
+pub use sl_camera as camera;
+pub use sl_cloud as cloud;
+pub use sl_codec as codec;
+pub use sl_icp as icp;
+pub use sl_rig as rig;
+pub use sl_tri as tri;
