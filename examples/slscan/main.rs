@@ -1,2 +1,42 @@
-//! `slscan`: the structured-light scanner's command line.
-fn main() {}
+//! `slscan`: the command line of the structured-light scanner.
+//!
+//! Thin by design: each subcommand parses its arguments, calls the libraries of the workspace
+//! and writes files. Conventions shared by every subcommand (see `common.rs`):
+//! - outputs go to the folder given by `--out` (created when missing);
+//! - a `report.json` there holds the figures and the per-stage timings in milliseconds;
+//! - anything that can take more than a second shows a progress bar on stderr;
+//! - a bad input ends with one line `slscan: error: …` naming the file or parameter, and exit
+//!   code 1 (2 for a malformed command line, as clap does).
+
+mod common;
+mod info;
+
+use clap::{Parser, Subcommand};
+
+/// Structured-light 3-D scanning with a projector, a camera and a turntable.
+#[derive(Debug, Parser)]
+#[command(name = "slscan", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Summarise a point cloud (PLY) or a calibration file (JSON, OpenCV YAML/XML).
+    Info(info::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Info(args) => info::run(&args),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(err) => {
+            common::print_error(&err);
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
