@@ -1,10 +1,35 @@
 //! The hardware of a structured-light rig, and a virtual rig with ground truth.
-//!
-//! **Status: placeholder.** This crate exists so that the workspace has its final shape; it
-//! contains no code yet, and nothing in it pretends to work.
-//!
-//! It will hold the device traits (camera, projector, turntable), the virtual rig that renders
-//! captures of known scenes with their ground truth (issue 4), and the real drivers: a Dynamixel
-//! turntable, a V4L2 camera and a full-screen projector window, with resumable capture sessions
-//! (issue 8). It is the top of the workspace: no other crate depends on it.
 #![deny(missing_docs)]
+
+mod blur;
+mod board;
+mod config;
+mod device;
+mod error;
+mod geometry;
+mod image;
+mod raycast;
+mod render;
+mod scene;
+mod sensor;
+mod truth;
+mod virtual_rig;
+
+pub use board::{BOARD_DARK_ALBEDO, BOARD_LIGHT_ALBEDO, Checkerboard};
+pub use config::{
+    DEFAULT_AIM_HEIGHT_MM, DEFAULT_BASELINE_MM, DEFAULT_TILT_DEG, DEFAULT_WORKING_DISTANCE_MM,
+    MAX_SUPERSAMPLING, RenderConfig, RigConfig,
+};
+pub use device::{Camera, Projector, Turntable, capture_sequence};
+pub use error::RigError;
+pub use geometry::ViewGeometry;
+pub use image::{GreyImage, Pixels};
+pub use raycast::{Hit, PlacedScene};
+pub use render::{Illumination, ProjectorSampling};
+pub use scene::{
+    DEFAULT_ALBEDO, DUMBBELL_CENTRE_DISTANCE_MM, Mount, Scene, SceneObject, Shape, Texture,
+    upright_facing_camera,
+};
+pub use sensor::{BitDepth, CameraEffects, Defocus, GlobalIllumination, NoiseKey, SensorConfig};
+pub use truth::{NO_OBJECT, ObjectPose, ViewTruth};
+pub use virtual_rig::{View, VirtualCamera, VirtualProjector, VirtualRig, VirtualTurntable};

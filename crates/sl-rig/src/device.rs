@@ -1,0 +1,53 @@
+//! The device traits that real drivers and the virtual rig both implement, and capture code
+//! written once against them.
+
+use crate::{GreyImage, RigError};
+
+/// A camera that captures grey frames.
+pub trait Camera {
+    /// Frame size in pixels, `(width, height)`.
+    fn frame_size(&self) -> (u32, u32);
+
+    /// Captures one frame of what the camera sees now.
+    fn capture(&mut self) -> Result<GreyImage, RigError>;
+}
+
+/// A projector that shows grey images full screen.
+pub trait Projector {
+    /// Size of the projector's frame buffer in pixels, `(width, height)`.
+    fn image_size(&self) -> (u32, u32);
+
+    /// Shows `image` until the next call. The image must have the projector's size.
+    fn show(&mut self, image: &GreyImage) -> Result<(), RigError>;
+}
+
+/// A turntable that rotates the objects standing on it about its axis.
+pub trait Turntable {
+    /// Rotates to `angle_deg` degrees (absolute, in the turntable's own zero) and returns the
+    /// angle actually reached, as the turntable reports it.
+    fn rotate_to(&mut self, angle_deg: f64) -> Result<f64, RigError>;
+
+    /// The current angle in degrees, as the turntable reports it.
+    fn angle_deg(&mut self) -> Result<f64, RigError>;
+}
+
+/// Shows each image of `patterns` in turn and captures one camera frame under each: the core of
+/// every structured-light capture, written once for real and virtual devices.
+///
+/// Returns the frames in the order of `patterns`.
+pub fn capture_sequence<C, P>(
+    camera: &mut C,
+    projector: &mut P,
+    patterns: &[GreyImage],
+) -> Result<Vec<GreyImage>, RigError>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+{
+    let mut frames = Vec::with_capacity(patterns.len());
+    for pattern in patterns {
+        projector.show(pattern)?;
+        frames.push(camera.capture()?);
+    }
+    Ok(frames)
+}

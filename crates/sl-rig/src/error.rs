@@ -1,0 +1,105 @@
+//! The one error type of the crate.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong in `sl-rig`: a bad parameter, a bad scene, a device that cannot
+/// do what it was asked, or a file that cannot be written or read.
+///
+/// Messages name the parameter, object, frame or file at fault.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RigError {
+    /// A configuration value is out of its valid range.
+    #[error("parameter `{name}`: {reason}")]
+    InvalidParameter {
+        /// Name of the parameter (as the field or command-line option is called).
+        name: String,
+        /// What is wrong with its value.
+        reason: String,
+    },
+    /// A scene object cannot be built (degenerate size, bad mesh, ...).
+    #[error("scene object `{object}`: {reason}")]
+    InvalidScene {
+        /// Name of the object.
+        object: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// An image handed to a device has the wrong size.
+    #[error("{what}: expected {expected_width}x{expected_height} pixels, got {width}x{height}")]
+    ImageSize {
+        /// Which image (e.g. `projector image`, `frame 12`).
+        what: String,
+        /// Width the device needs.
+        expected_width: u32,
+        /// Height the device needs.
+        expected_height: u32,
+        /// Width it got.
+        width: u32,
+        /// Height it got.
+        height: u32,
+    },
+    /// A pixel buffer does not hold `width × height` values.
+    #[error("{what}: {len} pixel values for a {width}x{height} image")]
+    BufferLength {
+        /// Which image.
+        what: String,
+        /// Number of values in the buffer.
+        len: usize,
+        /// Declared width.
+        width: u32,
+        /// Declared height.
+        height: u32,
+    },
+    /// A device could not do what it was asked (a real driver's failure, or a virtual device
+    /// used out of order).
+    #[error("{device}: {reason}")]
+    Device {
+        /// The device (`camera`, `projector`, `turntable`).
+        device: String,
+        /// What went wrong.
+        reason: String,
+    },
+    /// A file could not be written or read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A JSON file could not be written or parsed.
+    #[error("{}: {source}", path.display())]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: serde_json::Error,
+    },
+}
+
+impl RigError {
+    /// Shorthand for [`RigError::InvalidParameter`].
+    pub(crate) fn param(name: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self::InvalidParameter {
+            name: name.into(),
+            reason: reason.into(),
+        }
+    }
+
+    /// Shorthand for [`RigError::InvalidScene`].
+    pub(crate) fn scene(object: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self::InvalidScene {
+            object: object.into(),
+            reason: reason.into(),
+        }
+    }
+
+    /// Shorthand for [`RigError::Io`].
+    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Self::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}

@@ -1,0 +1,201 @@
+//! The per-view geometry cache: every camera ray cast once per view, so that each projected
+//! image renders as a cheap lookup; and the ground truth at pixel centres.
+
+use nalgebra::{Isometry3, Point2, Point3, Vector3};
+use rayon::prelude::*;
+
+use crate::PlacedScene;
+
+/// What the virtual rig needs of a camera or projector model: its image size, projection of a
+/// point of its frame to a pixel, and the ray through a pixel.
+pub(crate) trait Lens: Sync {
+    /// Image size `(width, height)` in pixels.
+    fn size(&self) -> (u32, u32);
+    /// Pixel of `p` (a point in the device frame, mm), with distortion; `None` when the model
+    /// cannot project it (behind, or outside the region where the model is valid).
+    fn project(&self, p: &Point3<f64>) -> Option<Point2<f64>>;
+    /// Direction (device frame, any positive length) of the ray through pixel `px`.
+    fn ray(&self, px: &Point2<f64>) -> Option<Vector3<f64>>;
+}
+
+/// Sentinel of [`ViewGeometry`]'s projector pixel index for a sample the projector does not
+/// light (background, shadow, outside the projector's image, or facing away).
+pub(crate) const UNLIT: u32 = u32::MAX;
+
+/// Farthest distance a camera ray is followed (mm): 100 m, far beyond any rig.
+const MAX_RAY_MM: f64 = 1e5;
+
+/// Everything the renderer needs about one view, per camera sub-sample.
+///
+/// Sub-sample `k` of pixel `(x, y)` is at index `(y · width + x) · s² + k`; the sub-samples of a
+/// pixel sit on a regular `s × s` grid at offsets `(i + ½)/s − ½` from the pixel centre.
+#[derive(Debug, Clone)]
+pub struct ViewGeometry {
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) supersampling: u32,
+    pub(crate) projector_width: u32,
+    pub(crate) projector_height: u32,
+    /// Continuous projector coordinate of each sub-sample (NaN when unlit).
+    pub(crate) proj_xy: Vec<[f32; 2]>,
+    /// Index `y · projector_width + x` of the projector pixel whose square contains the
+    /// coordinate, or [`UNLIT`].
+    pub(crate) proj_index: Vec<u32>,
+    /// `albedo · cos(angle to the projector)` (0 when unlit).
+    pub(crate) lit_weight: Vec<f32>,
+    /// `albedo` (0 when the ray hits nothing).
+    pub(crate) ambient_weight: Vec<f32>,
+    /// Depth at pixel centres (mm; NaN where nothing was hit), for the defocus blur.
+    pub(crate) depth_mm: Vec<f32>,
+}
+
+impl ViewGeometry {
+    /// Camera image width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Camera image height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    /// Sub-samples per pixel along each axis (`s`; `s²` per pixel).
+    pub fn supersampling(&self) -> u32 {
+        self.supersampling
+    }
+    /// Fraction of sub-samples lit by the projector.
+    pub fn lit_fraction(&self) -> f64 {
+        if self.proj_index.is_empty() {
+            return 0.0;
+        }
+        self.proj_index.iter().filter(|&&i| i != UNLIT).count() as f64
+            / self.proj_index.len() as f64
+    }
+}
+
+/// Result of one camera ray: where it went, and how the projector sees that point.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Sample {
+    pub(crate) hit: Option<crate::Hit>,
+    /// Projector pixel coordinate (continuous) when the point is lit.
+    pub(crate) proj: Option<Point2<f64>>,
+    /// `cos` of the angle between the normal and the direction to the projector (when lit).
+    pub(crate) cos: f64,
+}
+
+/// The camera, the projector and the scene of one view.
+pub(crate) struct Caster<'a, C: Lens, P: Lens> {
+    pub(crate) scene: &'a PlacedScene,
+    pub(crate) camera: &'a C,
+    pub(crate) projector: &'a P,
+    /// `T_cam_proj`.
+    pub(crate) t_cam_proj: &'a Isometry3<f64>,
+}
+
+impl<C: Lens, P: Lens> Caster<'_, C, P> {
+    /// Casts the camera ray through pixel coordinate `px`.
+    pub(crate) fn sample(&self, px: &Point2<f64>) -> Sample {
+        let none = Sample {
+            hit: None,
+            proj: None,
+            cos: 0.0,
+        };
+        let Some(d) = self.camera.ray(px).and_then(|d| d.try_normalize(0.0)) else {
+            return none;
+        };
+        let Some(hit) = self.scene.cast(&Point3::origin(), &d, MAX_RAY_MM) else {
+            return none;
+        };
+        let unlit = Sample {
+            hit: Some(hit),
+            proj: None,
+            cos: 0.0,
+        };
+        let centre = Point3::from(self.t_cam_proj.translation.vector);
+        let to_proj = centre - hit.point;
+        let Some(l) = to_proj.try_normalize(0.0) else {
+            return unlit;
+        };
+        let cos = hit.normal.dot(&l);
+        if cos <= 0.0 {
+            return unlit;
+        }
+        let p_proj = self.t_cam_proj.inverse_transform_point(&hit.point);
+        let Some(q) = self.projector.project(&p_proj) else {
+            return unlit;
+        };
+        let (pw, ph) = self.projector.size();
+        // The projector's image spans [-0.5, w - 0.5) x [-0.5, h - 0.5) (pixel centres at
+        // integers).
+        if !(q.x >= -0.5 && q.y >= -0.5 && q.x < f64::from(pw) - 0.5 && q.y < f64::from(ph) - 0.5) {
+            return unlit;
+        }
+        if self.scene.occluded(&hit.point, &hit.normal, &centre) {
+            return unlit;
+        }
+        Sample {
+            hit: Some(hit),
+            proj: Some(q),
+            cos,
+        }
+    }
+
+    /// Casts every sub-sample of the view.
+    pub(crate) fn geometry(&self, supersampling: u32) -> ViewGeometry {
+        let (w, h) = self.camera.size();
+        let (pw, ph) = self.projector.size();
+        let s = supersampling.max(1);
+        let per_pixel = (s * s) as usize;
+        let n = w as usize * h as usize * per_pixel;
+        let offsets: Vec<f64> = (0..s)
+            .map(|i| (f64::from(i) + 0.5) / f64::from(s) - 0.5)
+            .collect();
+        let mut proj_xy = vec![[f32::NAN; 2]; n];
+        let mut proj_index = vec![UNLIT; n];
+        let mut lit_weight = vec![0.0f32; n];
+        let mut ambient_weight = vec![0.0f32; n];
+        let row_len = (w as usize * per_pixel).max(1);
+        proj_xy
+            .par_chunks_mut(row_len)
+            .zip(proj_index.par_chunks_mut(row_len))
+            .zip(lit_weight.par_chunks_mut(row_len))
+            .zip(ambient_weight.par_chunks_mut(row_len))
+            .enumerate()
+            .for_each(|(y, (((xy, idx), lit), amb))| {
+                let mut k = 0usize;
+                for x in 0..w {
+                    for oy in &offsets {
+                        for ox in &offsets {
+                            let px = Point2::new(f64::from(x) + ox, y as f64 + oy);
+                            let smp = self.sample(&px);
+                            if let (Some(hit), Some(a)) = (smp.hit, amb.get_mut(k)) {
+                                *a = hit.albedo as f32;
+                                if let (Some(q), Some(l), Some(i), Some(c)) =
+                                    (smp.proj, lit.get_mut(k), idx.get_mut(k), xy.get_mut(k))
+                                {
+                                    *l = (hit.albedo * smp.cos) as f32;
+                                    *c = [q.x as f32, q.y as f32];
+                                    // Nearest projector pixel: the square containing q.
+                                    let qx = ((q.x + 0.5).floor() as u32).min(pw.saturating_sub(1));
+                                    let qy = ((q.y + 0.5).floor() as u32).min(ph.saturating_sub(1));
+                                    *i = qy * pw + qx;
+                                }
+                            }
+                            k += 1;
+                        }
+                    }
+                }
+            });
+        ViewGeometry {
+            width: w,
+            height: h,
+            supersampling: s,
+            projector_width: pw,
+            projector_height: ph,
+            proj_xy,
+            proj_index,
+            lit_weight,
+            ambient_weight,
+            depth_mm: Vec::new(),
+        }
+    }
+}

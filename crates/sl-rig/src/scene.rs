@@ -1,0 +1,501 @@
+//! Scene description: shapes, textures, and where each object is mounted.
+
+use std::sync::Arc;
+
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use parry3d_f64::shape::TriMesh;
+
+use crate::{Checkerboard, RigError};
+
+/// Geometry of one object, in its own frame (millimetres).
+#[derive(Debug, Clone)]
+pub enum Shape {
+    /// A flat rectangle in the object's `z = 0` plane spanning `[x_min, x_max] × [y_min, y_max]`;
+    /// seen from either side. Intersected in closed form.
+    Rectangle {
+        /// Lowest `x` (mm).
+        x_min: f64,
+        /// Lowest `y` (mm).
+        y_min: f64,
+        /// Highest `x` (mm).
+        x_max: f64,
+        /// Highest `y` (mm).
+        y_max: f64,
+    },
+    /// A sphere centred on the origin.
+    Sphere {
+        /// Radius (mm).
+        radius: f64,
+    },
+    /// A box centred on the origin, edges along the axes.
+    Cuboid {
+        /// Full side lengths along `x`, `y`, `z` (mm).
+        size: Vector3<f64>,
+    },
+    /// A closed cylinder centred on the origin, axis along `z`, from `z = -height/2` to
+    /// `z = height/2`.
+    Cylinder {
+        /// Radius (mm).
+        radius: f64,
+        /// Height (mm).
+        height: f64,
+    },
+    /// A triangle mesh (vertices in mm); shared, so cloning a scene is cheap.
+    Mesh(Arc<TriMesh>),
+}
+
+impl Shape {
+    /// A rectangle of `width × height` mm centred on the origin of the `z = 0` plane.
+    pub fn rectangle(width: f64, height: f64) -> Self {
+        Self::Rectangle {
+            x_min: -width / 2.0,
+            y_min: -height / 2.0,
+            x_max: width / 2.0,
+            y_max: height / 2.0,
+        }
+    }
+
+    /// A triangle mesh from vertices (mm) and triangles (indices into `vertices`).
+    ///
+    /// Fails with [`RigError::InvalidScene`] naming `name` when the mesh is empty, an index is
+    /// out of range or a vertex is not finite.
+    pub fn mesh(
+        name: &str,
+        vertices: Vec<Point3<f64>>,
+        triangles: Vec<[u32; 3]>,
+    ) -> Result<Self, RigError> {
+        if triangles.is_empty() {
+            return Err(RigError::scene(name, "the mesh has no triangle"));
+        }
+        if let Some(i) = vertices
+            .iter()
+            .position(|v| !v.coords.iter().all(|c| c.is_finite()))
+        {
+            return Err(RigError::scene(name, format!("vertex {i} is not finite")));
+        }
+        let n = vertices.len();
+        if let Some((t, tri)) = triangles
+            .iter()
+            .enumerate()
+            .find(|(_, tri)| tri.iter().any(|&i| i as usize >= n))
+        {
+            return Err(RigError::scene(
+                name,
+                format!("triangle {t} {tri:?} refers to a vertex beyond the {n} vertices"),
+            ));
+        }
+        let mesh = TriMesh::new(vertices, triangles)
+            .map_err(|e| RigError::scene(name, format!("{e:?}")))?;
+        Ok(Self::Mesh(Arc::new(mesh)))
+    }
+
+    fn validate(&self, name: &str) -> Result<(), RigError> {
+        let positive = |what: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(RigError::scene(
+                    name,
+                    format!("{what} {v} is not a positive length"),
+                ))
+            }
+        };
+        match self {
+            Self::Rectangle {
+                x_min,
+                y_min,
+                x_max,
+                y_max,
+            } => {
+                positive("rectangle width", x_max - x_min)?;
+                positive("rectangle height", y_max - y_min)
+            }
+            Self::Sphere { radius } => positive("sphere radius", *radius),
+            Self::Cuboid { size } => {
+                positive("box size x", size.x)?;
+                positive("box size y", size.y)?;
+                positive("box size z", size.z)
+            }
+            Self::Cylinder { radius, height } => {
+                positive("cylinder radius", *radius)?;
+                positive("cylinder height", *height)
+            }
+            Self::Mesh(_) => Ok(()),
+        }
+    }
+}
+
+/// The Lambertian albedo (fraction of light reflected, in `[0, 1]`) over an object's surface.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Texture {
+    /// The same albedo everywhere.
+    Uniform(f64),
+    /// A solid 3-D checker in the object frame: cubes of side `period_mm` alternate between
+    /// `dark` and `light` (a texture that varies on every shape, to test albedo robustness).
+    Checker3d {
+        /// Side of a checker cube (mm).
+        period_mm: f64,
+        /// Albedo of the cubes containing the origin's diagonal neighbours.
+        dark: f64,
+        /// Albedo of the other cubes.
+        light: f64,
+    },
+    /// A printed checkerboard in the object's `z = 0` plane (the object frame is the board
+    /// frame).
+    Board(Checkerboard),
+}
+
+impl Texture {
+    /// The albedo at `p`, a point of the surface in the object frame (mm).
+    pub fn albedo_at(&self, p: &Point3<f64>) -> f64 {
+        match self {
+            Self::Uniform(a) => *a,
+            Self::Checker3d {
+                period_mm,
+                dark,
+                light,
+            } => {
+                let s = (p.x / period_mm).floor()
+                    + (p.y / period_mm).floor()
+                    + (p.z / period_mm).floor();
+                if s.rem_euclid(2.0) < 0.5 {
+                    *dark
+                } else {
+                    *light
+                }
+            }
+            Self::Board(b) => b.albedo_at(p.x, p.y),
+        }
+    }
+
+    fn validate(&self, name: &str) -> Result<(), RigError> {
+        let check = |a: f64| {
+            if (0.0..=1.0).contains(&a) {
+                Ok(())
+            } else {
+                Err(RigError::scene(
+                    name,
+                    format!("albedo {a} is not in [0, 1]"),
+                ))
+            }
+        };
+        match self {
+            Self::Uniform(a) => check(*a),
+            Self::Checker3d {
+                period_mm,
+                dark,
+                light,
+            } => {
+                if !(period_mm.is_finite() && *period_mm > 0.0) {
+                    return Err(RigError::scene(
+                        name,
+                        format!("checker period {period_mm} is not positive"),
+                    ));
+                }
+                check(*dark)?;
+                check(*light)
+            }
+            Self::Board(b) => b
+                .validate()
+                .map_err(|e| RigError::scene(name, e.to_string())),
+        }
+    }
+}
+
+/// What an object is fixed to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mount {
+    /// Stands on the turntable: its pose is `T_table_object` and it turns with the table.
+    Turntable,
+    /// Fixed in the camera frame (e.g. a board held in front of the rig): its pose is
+    /// `T_cam_object`.
+    Camera,
+}
+
+/// One object of a scene.
+#[derive(Debug, Clone)]
+pub struct SceneObject {
+    /// Name, used in messages and in the ground truth.
+    pub name: String,
+    /// Geometry in the object frame.
+    pub shape: Shape,
+    /// Albedo over the surface.
+    pub texture: Texture,
+    /// What the object is fixed to.
+    pub mount: Mount,
+    /// Pose of the object frame in the mount frame: `T_table_object` or `T_cam_object`.
+    pub pose: Isometry3<f64>,
+}
+
+impl SceneObject {
+    /// An object standing on the turntable at `T_table_object`.
+    pub fn on_table(
+        name: &str,
+        shape: Shape,
+        texture: Texture,
+        t_table_object: Isometry3<f64>,
+    ) -> Self {
+        Self {
+            name: name.to_owned(),
+            shape,
+            texture,
+            mount: Mount::Turntable,
+            pose: t_table_object,
+        }
+    }
+
+    /// An object fixed in the camera frame at `T_cam_object`.
+    pub fn in_camera(
+        name: &str,
+        shape: Shape,
+        texture: Texture,
+        t_cam_object: Isometry3<f64>,
+    ) -> Self {
+        Self {
+            name: name.to_owned(),
+            shape,
+            texture,
+            mount: Mount::Camera,
+            pose: t_cam_object,
+        }
+    }
+
+    /// A printed checkerboard whose board frame is at `pose` in the mount frame.
+    pub fn board(name: &str, board: Checkerboard, mount: Mount, pose: Isometry3<f64>) -> Self {
+        let (x_min, y_min, x_max, y_max) = board.extent();
+        Self {
+            name: name.to_owned(),
+            shape: Shape::Rectangle {
+                x_min,
+                y_min,
+                x_max,
+                y_max,
+            },
+            texture: Texture::Board(board),
+            mount,
+            pose,
+        }
+    }
+}
+
+/// Default albedo of the preset objects: bright matte plaster.
+pub const DEFAULT_ALBEDO: f64 = 0.8;
+
+/// A set of objects in front of the rig.
+///
+/// # Table frame
+/// Objects mounted on the turntable are placed in the `table` frame: origin on the axis at the
+/// table top, `z` up along the axis, `x` towards the camera's right and `y` away from the
+/// camera when the table is at angle 0 (see [`RigConfig`](crate::RigConfig)).
+#[derive(Debug, Clone, Default)]
+pub struct Scene {
+    /// The objects.
+    pub objects: Vec<SceneObject>,
+}
+
+/// Rotation taking the `table` frame to the frame of an upright panel facing the camera at
+/// angle 0: panel `x` = table `x`, panel `y` = table `-z` (down), panel `z` = table `y` (away
+/// from the camera, "into the board" as the board convention wants).
+pub fn upright_facing_camera() -> UnitQuaternion<f64> {
+    let m = Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0);
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m))
+}
+
+impl Scene {
+    /// An empty scene.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds an object.
+    pub fn with(mut self, object: SceneObject) -> Self {
+        self.objects.push(object);
+        self
+    }
+
+    /// Checks every object (positive sizes, albedos in `[0, 1]`, valid boards).
+    pub fn validate(&self) -> Result<(), RigError> {
+        if self.objects.is_empty() {
+            return Err(RigError::scene("scene", "the scene has no object"));
+        }
+        for o in &self.objects {
+            o.shape.validate(&o.name)?;
+            o.texture.validate(&o.name)?;
+        }
+        Ok(())
+    }
+
+    /// A 300 × 200 mm white plane standing upright on the axis, facing the camera at angle 0.
+    pub fn plane() -> Self {
+        let pose =
+            Isometry3::from_parts(Translation3::new(0.0, 0.0, 60.0), upright_facing_camera());
+        Self::new().with(SceneObject::on_table(
+            "plane",
+            Shape::rectangle(300.0, 200.0),
+            Texture::Uniform(DEFAULT_ALBEDO),
+            pose,
+        ))
+    }
+
+    /// A sphere of radius 50 mm standing on the table, centred on the axis.
+    pub fn sphere() -> Self {
+        Self::new().with(SceneObject::on_table(
+            "sphere",
+            Shape::Sphere { radius: 50.0 },
+            Texture::Uniform(DEFAULT_ALBEDO),
+            Isometry3::translation(0.0, 0.0, 50.0),
+        ))
+    }
+
+    /// Two spheres of radius 25 mm whose centres are [`DUMBBELL_CENTRE_DISTANCE_MM`] apart,
+    /// side by side at 60 mm above the table (the sphere-bar test of VDI/VDE 2634).
+    pub fn dumbbell() -> Self {
+        let half = DUMBBELL_CENTRE_DISTANCE_MM / 2.0;
+        let ball = |name: &str, x: f64| {
+            SceneObject::on_table(
+                name,
+                Shape::Sphere { radius: 25.0 },
+                Texture::Uniform(DEFAULT_ALBEDO),
+                Isometry3::translation(x, 0.0, 60.0),
+            )
+        };
+        Self::new()
+            .with(ball("sphere_left", -half))
+            .with(ball("sphere_right", half))
+    }
+
+    /// A 100 mm cube standing on the table, turned 30° about the axis so that the camera sees
+    /// two of its sides and its top.
+    pub fn cuboid() -> Self {
+        let pose = Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, 50.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 30f64.to_radians()),
+        );
+        Self::new().with(SceneObject::on_table(
+            "box",
+            Shape::Cuboid {
+                size: Vector3::new(100.0, 100.0, 100.0),
+            },
+            Texture::Uniform(DEFAULT_ALBEDO),
+            pose,
+        ))
+    }
+
+    /// A cylinder of radius 40 mm and height 120 mm standing on the table, with a 3-D checker
+    /// texture.
+    pub fn cylinder() -> Self {
+        Self::new().with(SceneObject::on_table(
+            "cylinder",
+            Shape::Cylinder {
+                radius: 40.0,
+                height: 120.0,
+            },
+            Texture::Checker3d {
+                period_mm: 15.0,
+                dark: 0.3,
+                light: DEFAULT_ALBEDO,
+            },
+            Isometry3::translation(0.0, 0.0, 60.0),
+        ))
+    }
+
+    /// A checkerboard standing upright on the turntable, facing the camera at angle 0, its
+    /// grid centred on the axis at 60 mm above the table (the turntable-axis calibration
+    /// target).
+    pub fn board_on_table(board: Checkerboard) -> Self {
+        let s = board.square_mm;
+        let w = f64::from(board.inner_cols - 1) * s;
+        let h = f64::from(board.inner_rows - 1) * s;
+        // Board frame origin (first inner corner) so that the grid centre is at (0, 0, 60).
+        let pose = Isometry3::from_parts(
+            Translation3::new(-w / 2.0, 0.0, 60.0 + h / 2.0),
+            upright_facing_camera(),
+        );
+        Self::new().with(SceneObject::board("board", board, Mount::Turntable, pose))
+    }
+
+    /// A triangle mesh standing on the turntable: scaled by `scale` (e.g. 1000 for a mesh in
+    /// metres), turned so that `up` (in the mesh's own axes) is the table's `z`, then moved so
+    /// that its lowest point touches the table and its bounding box is centred on the axis.
+    pub fn standing_mesh(
+        name: &str,
+        vertices: &[Point3<f64>],
+        triangles: Vec<[u32; 3]>,
+        scale: f64,
+        up: Vector3<f64>,
+        texture: Texture,
+    ) -> Result<Self, RigError> {
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(RigError::param(
+                "mesh scale",
+                format!("{scale} is not positive"),
+            ));
+        }
+        let rot = UnitQuaternion::rotation_between(&up, &Vector3::z()).unwrap_or_else(|| {
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+        });
+        let moved: Vec<Point3<f64>> = vertices
+            .iter()
+            .map(|v| rot * Point3::from(v.coords * scale))
+            .collect();
+        let mut lo = Vector3::repeat(f64::INFINITY);
+        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+        for v in &moved {
+            lo = lo.inf(&v.coords);
+            hi = hi.sup(&v.coords);
+        }
+        let shift = Vector3::new(-(lo.x + hi.x) / 2.0, -(lo.y + hi.y) / 2.0, -lo.z);
+        let placed: Vec<Point3<f64>> = moved.iter().map(|v| v + shift).collect();
+        let shape = Shape::mesh(name, placed, triangles)?;
+        Ok(Self::new().with(SceneObject::on_table(
+            name,
+            shape,
+            texture,
+            Isometry3::identity(),
+        )))
+    }
+}
+
+/// Distance between the two sphere centres of [`Scene::dumbbell`] (mm).
+pub const DUMBBELL_CENTRE_DISTANCE_MM: f64 = 120.0;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn upright_rotation_maps_axes() {
+        let r = upright_facing_camera();
+        assert!((r * Vector3::x() - Vector3::x()).norm() < 1e-15);
+        assert!((r * Vector3::y() + Vector3::z()).norm() < 1e-15);
+        assert!((r * Vector3::z() - Vector3::y()).norm() < 1e-15);
+    }
+
+    #[test]
+    fn presets_validate() {
+        for s in [
+            Scene::plane(),
+            Scene::sphere(),
+            Scene::dumbbell(),
+            Scene::cuboid(),
+            Scene::cylinder(),
+        ] {
+            s.validate().unwrap();
+        }
+        Scene::board_on_table(Checkerboard::default())
+            .validate()
+            .unwrap();
+        assert!(Scene::new().validate().is_err());
+    }
+
+    #[test]
+    fn mesh_rejects_bad_indices() {
+        let v = vec![
+            Point3::origin(),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+        ];
+        assert!(Shape::mesh("m", v.clone(), vec![[0, 1, 3]]).is_err());
+        assert!(Shape::mesh("m", v, vec![[0, 1, 2]]).is_ok());
+    }
+}

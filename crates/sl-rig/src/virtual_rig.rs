@@ -1,0 +1,303 @@
+//! The virtual rig: casts each view once, renders frames as lookups, and exposes itself
+//! through the device traits.
+
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use crate::geometry::Caster;
+use crate::sensor::{NoiseKey, expose};
+use crate::truth::ObjectPose;
+use crate::{
+    Camera, GreyImage, Mount, PlacedScene, Projector, ProjectorSampling, RenderConfig, RigConfig,
+    RigError, Scene, Turntable, ViewGeometry, ViewTruth,
+};
+
+/// A virtual structured-light rig looking at a scene.
+///
+/// Use it directly ([`VirtualRig::view`] casts a view, [`View::capture`] renders frames), or
+/// through the device traits with [`VirtualRig::devices`], exactly like real hardware.
+#[derive(Debug, Clone)]
+pub struct VirtualRig {
+    config: Arc<RigConfig>,
+    scene: Arc<Scene>,
+}
+
+/// One view of the scene (one turntable position): the geometry cache, the ground truth, and
+/// what is needed to render frames.
+#[derive(Debug, Clone)]
+pub struct View {
+    /// Per-sub-sample geometry: every projected image renders from it.
+    pub geometry: ViewGeometry,
+    /// Ground truth at pixel centres.
+    pub truth: ViewTruth,
+    /// Index of the view (keys the noise).
+    pub index: u64,
+    render: RenderConfig,
+    fx: f64,
+}
+
+impl VirtualRig {
+    /// A rig looking at `scene`; fails when the configuration or the scene is invalid.
+    pub fn new(config: RigConfig, scene: Scene) -> Result<Self, RigError> {
+        config.validate()?;
+        scene.validate()?;
+        Ok(Self {
+            config: Arc::new(config),
+            scene: Arc::new(scene),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &RigConfig {
+        &self.config
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Casts the view with the turntable motor at `motor_angle_deg`: the geometry cache (with
+    /// the configured super-sampling) and the ground truth. `index` keys the view's noise.
+    pub fn view(&self, motor_angle_deg: f64, index: u64) -> Result<View, RigError> {
+        if !motor_angle_deg.is_finite() {
+            return Err(RigError::param(
+                "turntable angle",
+                format!("{motor_angle_deg} is not finite"),
+            ));
+        }
+        let t_cam_table = self.config.t_cam_table_at(motor_angle_deg);
+        let placed = PlacedScene::new(&self.scene, &t_cam_table);
+        let caster = Caster {
+            scene: &placed,
+            camera: &self.config.camera,
+            projector: &self.config.projector,
+            t_cam_proj: &self.config.t_cam_proj,
+        };
+        let mut truth = caster.truth_maps();
+        let mut geometry = caster.geometry(self.config.render.supersampling);
+        geometry.depth_mm = truth.depth_mm.iter().map(|&d| d as f32).collect();
+        truth.motor_angle_deg = motor_angle_deg;
+        truth.platter_angle_deg = self.config.platter_angle_deg(motor_angle_deg);
+        truth.t_cam_table = t_cam_table;
+        truth.objects = self
+            .scene
+            .objects
+            .iter()
+            .map(|o| ObjectPose {
+                name: o.name.clone(),
+                t_cam_object: match o.mount {
+                    Mount::Turntable => t_cam_table * o.pose,
+                    Mount::Camera => o.pose,
+                },
+            })
+            .collect();
+        Ok(View {
+            geometry,
+            truth,
+            index,
+            render: self.config.render,
+            fx: self.config.camera.intrinsics.fx,
+        })
+    }
+
+    /// The rig as three devices sharing one state: showing an image on the projector changes
+    /// what the camera captures, turning the table changes the view.
+    pub fn devices(&self) -> (VirtualCamera, VirtualProjector, VirtualTurntable) {
+        let state = Arc::new(Mutex::new(DeviceState::default()));
+        (
+            VirtualCamera {
+                rig: self.clone(),
+                state: state.clone(),
+            },
+            VirtualProjector {
+                state: state.clone(),
+                size: (
+                    self.config.projector.size.width,
+                    self.config.projector.size.height,
+                ),
+            },
+            VirtualTurntable { state },
+        )
+    }
+}
+
+impl View {
+    /// Renders the frame the camera captures while the projector shows `image`; `frame`
+    /// keys the noise (the same frame index gives the same noise).
+    pub fn capture(&self, image: &GreyImage, frame: u64) -> Result<GreyImage, RigError> {
+        let radiance = self
+            .geometry
+            .render_image(image, &self.render.illumination)?;
+        Ok(self.expose(radiance, frame))
+    }
+
+    /// Renders the frame the camera captures while the projector shows the pattern `pattern`
+    /// (a function of the projector coordinate returning a value in `[0, 1]`).
+    pub fn capture_fn<F>(&self, pattern: F, sampling: ProjectorSampling, frame: u64) -> GreyImage
+    where
+        F: Fn(f64, f64) -> f64 + Sync,
+    {
+        let radiance = self
+            .geometry
+            .render_fn(pattern, sampling, &self.render.illumination);
+        self.expose(radiance, frame)
+    }
+
+    /// Renders one frame per projector image, frame `k` under `images[k]`.
+    pub fn capture_all(&self, images: &[GreyImage]) -> Result<Vec<GreyImage>, RigError> {
+        images
+            .iter()
+            .enumerate()
+            .map(|(k, img)| {
+                self.capture(img, k as u64).map_err(|e| match e {
+                    RigError::ImageSize {
+                        expected_width,
+                        expected_height,
+                        width,
+                        height,
+                        ..
+                    } => RigError::ImageSize {
+                        what: format!("projector image {k}"),
+                        expected_width,
+                        expected_height,
+                        width,
+                        height,
+                    },
+                    other => other,
+                })
+            })
+            .collect()
+    }
+
+    fn expose(&self, radiance: Vec<f32>, frame: u64) -> GreyImage {
+        let key = NoiseKey {
+            seed: self.render.seed,
+            view: self.index,
+            frame,
+        };
+        expose(
+            radiance,
+            self.geometry.width as usize,
+            self.geometry.height as usize,
+            &self.geometry.depth_mm,
+            self.fx,
+            &self.render.effects,
+            key,
+        )
+    }
+}
+
+#[derive(Debug, Default)]
+struct DeviceState {
+    motor_angle_deg: f64,
+    shown: Option<GreyImage>,
+    view: Option<Arc<View>>,
+    views_cast: u64,
+    frames_in_view: u64,
+}
+
+fn lock(state: &Mutex<DeviceState>) -> MutexGuard<'_, DeviceState> {
+    // A panic in another thread while holding the lock leaves a state that is still
+    // consistent (every field is replaced whole), so a poisoned lock is safe to reuse.
+    state
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// The virtual rig's camera ([`Camera`]).
+#[derive(Debug, Clone)]
+pub struct VirtualCamera {
+    rig: VirtualRig,
+    state: Arc<Mutex<DeviceState>>,
+}
+
+/// The virtual rig's projector ([`Projector`]).
+#[derive(Debug, Clone)]
+pub struct VirtualProjector {
+    state: Arc<Mutex<DeviceState>>,
+    size: (u32, u32),
+}
+
+/// The virtual rig's turntable ([`Turntable`]).
+#[derive(Debug, Clone)]
+pub struct VirtualTurntable {
+    state: Arc<Mutex<DeviceState>>,
+}
+
+impl VirtualCamera {
+    /// The view the camera sees now (cast on first use after the turntable moved).
+    pub fn current_view(&mut self) -> Result<Arc<View>, RigError> {
+        let mut st = lock(&self.state);
+        if let Some(v) = &st.view {
+            return Ok(v.clone());
+        }
+        let v = Arc::new(self.rig.view(st.motor_angle_deg, st.views_cast)?);
+        st.views_cast += 1;
+        st.frames_in_view = 0;
+        st.view = Some(v.clone());
+        Ok(v)
+    }
+}
+
+impl Camera for VirtualCamera {
+    fn frame_size(&self) -> (u32, u32) {
+        let s = self.rig.config.camera.size;
+        (s.width, s.height)
+    }
+
+    fn capture(&mut self) -> Result<GreyImage, RigError> {
+        let view = self.current_view()?;
+        let (shown, frame) = {
+            let mut st = lock(&self.state);
+            let frame = st.frames_in_view;
+            st.frames_in_view += 1;
+            (st.shown.clone(), frame)
+        };
+        match shown {
+            Some(img) => view.capture(&img, frame),
+            // Nothing shown yet: the projector is dark.
+            None => Ok(view.capture_fn(|_, _| 0.0, ProjectorSampling::Nearest, frame)),
+        }
+    }
+}
+
+impl Projector for VirtualProjector {
+    fn image_size(&self) -> (u32, u32) {
+        self.size
+    }
+
+    fn show(&mut self, image: &GreyImage) -> Result<(), RigError> {
+        if (image.width, image.height) != self.size {
+            return Err(RigError::ImageSize {
+                what: "projector image".to_owned(),
+                expected_width: self.size.0,
+                expected_height: self.size.1,
+                width: image.width,
+                height: image.height,
+            });
+        }
+        lock(&self.state).shown = Some(image.clone());
+        Ok(())
+    }
+}
+
+impl Turntable for VirtualTurntable {
+    fn rotate_to(&mut self, angle_deg: f64) -> Result<f64, RigError> {
+        if !angle_deg.is_finite() {
+            return Err(RigError::Device {
+                device: "turntable".to_owned(),
+                reason: format!("cannot rotate to {angle_deg} degrees"),
+            });
+        }
+        let mut st = lock(&self.state);
+        if st.motor_angle_deg != angle_deg || st.view.is_none() {
+            st.motor_angle_deg = angle_deg;
+            st.view = None;
+        }
+        Ok(angle_deg)
+    }
+
+    fn angle_deg(&mut self) -> Result<f64, RigError> {
+        Ok(lock(&self.state).motor_angle_deg)
+    }
+}
