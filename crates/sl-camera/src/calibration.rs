@@ -1,0 +1,636 @@
+//! The calibration of a whole rig (camera, projector, extrinsics, turntable) and its files.
+
+use std::fmt;
+use std::path::Path;
+
+use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
+
+use crate::filestorage::{parse_xml, parse_yaml, to_xml, to_yaml};
+use crate::opencv_io::{calibration_from_document, calibration_to_items};
+use crate::pose::PoseRepr;
+use crate::{CameraError, CameraModel, DistortionModel, ProjectorModel, TurntableAxis};
+
+/// Version of the JSON calibration format this build writes and reads. Files with another
+/// version are refused with [`CameraError::UnsupportedVersion`].
+pub const CALIBRATION_FORMAT_VERSION: u32 = 1;
+
+/// How far the turntable direction may be from unit length in a validated calibration:
+/// a few ulps of rounding after normalisation, nothing a human would type.
+const UNIT_TOLERANCE: f64 = 1e-9;
+
+/// The calibration of a structured-light rig: the camera, and optionally the projector, the
+/// camera–projector extrinsics and the turntable axis, with RMS errors and metadata.
+///
+/// Frames and units: `t_cam_proj` maps projector coordinates into camera coordinates
+/// (`p_cam = T_cam_proj * p_proj`), translations in millimetres; the turntable axis is given
+/// in the camera frame.
+///
+/// Files: [`Calibration::load`] and [`Calibration::save`] pick the format from the
+/// extension: `.json` is this project's own format (versioned, lossless); `.yml`/`.yaml` and
+/// `.xml` are OpenCV FileStorage in the layouts of OpenCV's calibration sample
+/// (`camera_matrix`, `distortion_coefficients`, `image_width`, `image_height`) when there is
+/// no projector, and of SLStudio (`Kc kc Kp kp Rp Tp`, where `Rp`/`Tp` map camera coordinates
+/// into projector coordinates, i.e. `T_proj_cam = T_cam_proj⁻¹`) when there is one.
+///
+/// ```
+/// use sl_camera::{Calibration, CameraModel, Distortion, ImageSize, Intrinsics};
+/// let camera = CameraModel::new(
+///     Intrinsics::new(1440.4, 1437.1, 667.8, 354.2),
+///     Distortion::from_opencv(&[0.5466, -20.20, -0.02203, 0.008259, 211.1])?,
+///     ImageSize::new(1280, 720),
+/// )?;
+/// let mut calib = Calibration::new(camera);
+/// calib.rms.camera = Some(0.21);
+/// let dir = tempfile::tempdir().unwrap();
+/// for name in ["c.json", "c.yml", "c.xml"] {
+///     let path = dir.path().join(name);
+///     calib.save(&path)?;
+///     assert_eq!(Calibration::load(&path)?.camera, calib.camera);
+/// }
+/// println!("{calib}"); // readable summary, as `slscan info` prints it
+/// # Ok::<(), sl_camera::CameraError>(())
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct Calibration {
+    /// The camera.
+    pub camera: CameraModel,
+    /// The projector, modelled as an inverse camera.
+    pub projector: Option<ProjectorModel>,
+    /// Pose of the projector in the camera frame: `p_cam = T_cam_proj * p_proj` (mm).
+    pub t_cam_proj: Option<Isometry3<f64>>,
+    /// The turntable axis in the camera frame.
+    pub turntable: Option<TurntableAxis>,
+    /// RMS reprojection errors.
+    pub rms: RmsErrors,
+    /// Who wrote the file, when, and notes.
+    pub metadata: Metadata,
+}
+
+/// RMS reprojection errors in pixels (square root of the mean squared 2-D residual norm, as
+/// OpenCV reports them), when known.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RmsErrors {
+    /// Camera calibration RMS (px).
+    #[serde(default)]
+    pub camera: Option<f64>,
+    /// Projector calibration RMS (projector px).
+    #[serde(default)]
+    pub projector: Option<f64>,
+    /// Stereo (camera–projector) calibration RMS (px).
+    #[serde(default)]
+    pub stereo: Option<f64>,
+}
+
+/// Free-form information about a calibration file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Metadata {
+    /// The tool that wrote it; defaults to `sl-camera <version>`.
+    #[serde(default = "default_tool_version")]
+    pub tool_version: String,
+    /// Creation time as an RFC 3339 string (`2024-06-11T10:21:07Z`), supplied by the caller;
+    /// this crate never reads the clock.
+    #[serde(default)]
+    pub created: Option<String>,
+    /// Notes.
+    #[serde(default)]
+    pub notes: String,
+}
+
+fn default_tool_version() -> String {
+    format!("sl-camera {}", env!("CARGO_PKG_VERSION"))
+}
+
+impl Default for Metadata {
+    fn default() -> Self {
+        Self {
+            tool_version: default_tool_version(),
+            created: None,
+            notes: String::new(),
+        }
+    }
+}
+
+/// File formats of [`Calibration::load`] and [`Calibration::save`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum CalibrationFormat {
+    /// This project's JSON (`.json`).
+    Json,
+    /// OpenCV FileStorage YAML (`.yml`, `.yaml`).
+    OpenCvYaml,
+    /// OpenCV FileStorage XML (`.xml`).
+    OpenCvXml,
+}
+
+impl CalibrationFormat {
+    /// The format of a path, by its (case-insensitive) extension.
+    ///
+    /// # Errors
+    /// [`CameraError::UnknownExtension`] for another extension.
+    pub fn from_path(path: &Path) -> Result<Self, CameraError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("json") => Ok(Self::Json),
+            Some("yml" | "yaml") => Ok(Self::OpenCvYaml),
+            Some("xml") => Ok(Self::OpenCvXml),
+            _ => Err(CameraError::UnknownExtension {
+                path: path.to_owned(),
+            }),
+        }
+    }
+}
+
+/// The JSON file.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CalibrationJson {
+    version: u32,
+    camera: CameraModel,
+    #[serde(default)]
+    projector: Option<CameraModel>,
+    #[serde(default, rename = "T_cam_proj")]
+    t_cam_proj: Option<PoseRepr>,
+    #[serde(default)]
+    turntable: Option<TurntableAxis>,
+    #[serde(default)]
+    rms: RmsErrors,
+    #[serde(default)]
+    metadata: Metadata,
+}
+
+#[derive(Deserialize)]
+struct VersionProbe {
+    version: Option<serde_json::Value>,
+}
+
+impl Calibration {
+    /// A calibration of a camera alone, with default metadata.
+    pub fn new(camera: CameraModel) -> Self {
+        Self {
+            camera,
+            projector: None,
+            t_cam_proj: None,
+            turntable: None,
+            rms: RmsErrors::default(),
+            metadata: Metadata::default(),
+        }
+    }
+
+    /// The projector-to-camera pose inverted: `p_proj = T_proj_cam * p_cam`.
+    pub fn t_proj_cam(&self) -> Option<Isometry3<f64>> {
+        self.t_cam_proj.map(|t| t.inverse())
+    }
+
+    /// Loads a calibration, choosing the format by extension (`.json`, `.yml`/`.yaml`,
+    /// `.xml`).
+    ///
+    /// # Errors
+    /// [`CameraError::Io`] if the file cannot be read, [`CameraError::UnknownExtension`],
+    /// and the errors of [`Calibration::from_json`], [`Calibration::from_opencv_yaml`] and
+    /// [`Calibration::from_opencv_xml`], which name the file, the line and the key.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, CameraError> {
+        let path = path.as_ref();
+        let format = CalibrationFormat::from_path(path)?;
+        let text = std::fs::read_to_string(path).map_err(|source| CameraError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let name = path.display().to_string();
+        match format {
+            CalibrationFormat::Json => Self::from_json(&text, &name),
+            CalibrationFormat::OpenCvYaml => Self::from_opencv_yaml(&text, &name),
+            CalibrationFormat::OpenCvXml => Self::from_opencv_xml(&text, &name),
+        }
+    }
+
+    /// Saves the calibration, choosing the format by extension (see [`Calibration::load`]).
+    /// FileStorage files keep everything except the distinction between a 4- and a
+    /// 5-coefficient distortion (both are the same model).
+    ///
+    /// # Errors
+    /// [`CameraError::UnknownExtension`], [`CameraError::Io`], or the error of
+    /// [`Calibration::validate`].
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), CameraError> {
+        let path = path.as_ref();
+        let text = match CalibrationFormat::from_path(path)? {
+            CalibrationFormat::Json => self.to_json()?,
+            CalibrationFormat::OpenCvYaml => self.to_opencv_yaml()?,
+            CalibrationFormat::OpenCvXml => self.to_opencv_xml()?,
+        };
+        std::fs::write(path, text).map_err(|source| CameraError::Io {
+            path: path.to_owned(),
+            source,
+        })
+    }
+
+    /// Reads this project's JSON format; `file` names the text in error messages.
+    ///
+    /// # Errors
+    /// [`CameraError::MissingKey`] without a `version`, [`CameraError::UnsupportedVersion`]
+    /// for another version, [`CameraError::Json`] (with line and column) for syntax and
+    /// schema errors, [`CameraError::BadValue`] for invalid values.
+    pub fn from_json(text: &str, file: &str) -> Result<Self, CameraError> {
+        let json_err = |source| CameraError::Json {
+            file: file.to_owned(),
+            source,
+        };
+        let probe: VersionProbe = serde_json::from_str(text).map_err(json_err)?;
+        let version = probe.version.ok_or_else(|| CameraError::MissingKey {
+            file: file.to_owned(),
+            key: "version".into(),
+            hint: Some(format!(
+                "sl-camera calibration files start with \"version\": {CALIBRATION_FORMAT_VERSION}"
+            )),
+        })?;
+        let found = version.as_u64().ok_or_else(|| CameraError::BadValue {
+            file: file.to_owned(),
+            line: None,
+            key: "version".into(),
+            message: format!("expected a positive integer, found {version}"),
+        })?;
+        if found != u64::from(CALIBRATION_FORMAT_VERSION) {
+            return Err(CameraError::UnsupportedVersion {
+                file: file.to_owned(),
+                found,
+                supported: CALIBRATION_FORMAT_VERSION,
+            });
+        }
+        let repr: CalibrationJson = serde_json::from_str(text).map_err(json_err)?;
+        let t_cam_proj = match repr.t_cam_proj {
+            Some(p) => Some(p.to_isometry().map_err(|e| e.in_file(file, "T_cam_proj", None))?),
+            None => None,
+        };
+        let mut turntable = repr.turntable;
+        if let Some(axis) = &mut turntable {
+            axis.normalize().map_err(|e| match e {
+                CameraError::InvalidParameter { parameter, message } => CameraError::BadValue {
+                    file: file.to_owned(),
+                    line: None,
+                    key: parameter.replace("turntable", "turntable.direction"),
+                    message,
+                },
+                other => other,
+            })?;
+        }
+        let calibration = Self {
+            camera: repr.camera,
+            projector: repr.projector,
+            t_cam_proj,
+            turntable,
+            rms: repr.rms,
+            metadata: repr.metadata,
+        };
+        calibration.validate().map_err(|e| e.in_file(file, "", None))?;
+        Ok(calibration)
+    }
+
+    /// Writes this project's JSON format (pretty-printed).
+    ///
+    /// # Errors
+    /// The error of [`Calibration::validate`].
+    pub fn to_json(&self) -> Result<String, CameraError> {
+        self.validate()?;
+        let repr = CalibrationJson {
+            version: CALIBRATION_FORMAT_VERSION,
+            camera: self.camera,
+            projector: self.projector,
+            t_cam_proj: self.t_cam_proj.as_ref().map(PoseRepr::from_isometry),
+            turntable: self.turntable,
+            rms: self.rms,
+            metadata: self.metadata.clone(),
+        };
+        let mut text = serde_json::to_string_pretty(&repr).map_err(|source| CameraError::Json {
+            file: "(calibration being written)".into(),
+            source,
+        })?;
+        text.push('\n');
+        Ok(text)
+    }
+
+    /// Reads an OpenCV FileStorage YAML file (see the type docs for the layouts).
+    ///
+    /// # Errors
+    /// [`CameraError::Syntax`] and [`CameraError::BadValue`] with the line,
+    /// [`CameraError::MissingKey`].
+    pub fn from_opencv_yaml(text: &str, file: &str) -> Result<Self, CameraError> {
+        calibration_from_document(&parse_yaml(text, file)?)
+    }
+
+    /// Reads an OpenCV FileStorage XML file (see the type docs for the layouts).
+    ///
+    /// # Errors
+    /// As [`Calibration::from_opencv_yaml`].
+    pub fn from_opencv_xml(text: &str, file: &str) -> Result<Self, CameraError> {
+        calibration_from_document(&parse_xml(text, file)?)
+    }
+
+    /// Writes OpenCV FileStorage YAML that `cv::FileStorage` reads.
+    ///
+    /// # Errors
+    /// The error of [`Calibration::validate`].
+    pub fn to_opencv_yaml(&self) -> Result<String, CameraError> {
+        self.validate()?;
+        Ok(to_yaml(&calibration_to_items(self)))
+    }
+
+    /// Writes OpenCV FileStorage XML that `cv::FileStorage` reads.
+    ///
+    /// # Errors
+    /// The error of [`Calibration::validate`].
+    pub fn to_opencv_xml(&self) -> Result<String, CameraError> {
+        self.validate()?;
+        Ok(to_xml(&calibration_to_items(self)))
+    }
+
+    /// Checks everything a file must satisfy: valid camera and projector models, extrinsics
+    /// only with a projector, finite non-negative RMS values, a finite unit turntable
+    /// direction, an RFC 3339 creation time.
+    ///
+    /// # Errors
+    /// [`CameraError::InvalidParameter`] naming the dotted key at fault.
+    pub fn validate(&self) -> Result<(), CameraError> {
+        let prefixed = |e: CameraError, prefix: &str| match e {
+            CameraError::InvalidParameter { parameter, message } => {
+                CameraError::invalid(format!("{prefix}.{parameter}"), message)
+            }
+            other => other,
+        };
+        self.camera.validate().map_err(|e| prefixed(e, "camera"))?;
+        if let Some(p) = &self.projector {
+            p.validate().map_err(|e| prefixed(e, "projector"))?;
+        }
+        if let Some(t) = &self.t_cam_proj {
+            if self.projector.is_none() {
+                return Err(CameraError::invalid(
+                    "T_cam_proj",
+                    "extrinsics are given without a projector model",
+                ));
+            }
+            let finite = t.translation.vector.iter().all(|v| v.is_finite())
+                && t.rotation.coords.iter().all(|v| v.is_finite());
+            if !finite {
+                return Err(CameraError::invalid("T_cam_proj", "must be finite"));
+            }
+        }
+        if let Some(axis) = &self.turntable {
+            let mut check = *axis;
+            check.normalize()?;
+            let n = axis.direction.norm();
+            if !((n - 1.0).abs() <= UNIT_TOLERANCE) {
+                return Err(CameraError::invalid(
+                    "turntable.direction",
+                    format!("must be a unit vector, found norm {n} (see TurntableAxis::normalize)"),
+                ));
+            }
+        }
+        for (name, v) in [
+            ("rms.camera", self.rms.camera),
+            ("rms.projector", self.rms.projector),
+            ("rms.stereo", self.rms.stereo),
+        ] {
+            if let Some(v) = v {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(CameraError::invalid(
+                        name,
+                        format!("must be finite and non-negative, found {v}"),
+                    ));
+                }
+            }
+        }
+        if let Some(created) = &self.metadata.created {
+            if !is_rfc3339(created) {
+                return Err(CameraError::invalid(
+                    "metadata.created",
+                    format!(
+                        "expected an RFC 3339 time such as 2024-06-11T10:21:07Z, found `{created}`"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether `s` is an RFC 3339 date-time: `YYYY-MM-DDTHH:MM:SS[.frac](Z|±HH:MM)` (the `T`
+/// may be `t` or a space, `Z` may be `z`).
+pub(crate) fn is_rfc3339(s: &str) -> bool {
+    let b = s.as_bytes();
+    let digits = |range: std::ops::Range<usize>| -> Option<u32> {
+        let part = b.get(range)?;
+        if part.iter().all(u8::is_ascii_digit) {
+            std::str::from_utf8(part).ok()?.parse().ok()
+        } else {
+            None
+        }
+    };
+    let sep = |i: usize, allowed: &[u8]| b.get(i).is_some_and(|c| allowed.contains(c));
+    let (Some(_year), Some(month), Some(day), Some(hour), Some(minute), Some(second)) = (
+        digits(0..4),
+        digits(5..7),
+        digits(8..10),
+        digits(11..13),
+        digits(14..16),
+        digits(17..19),
+    ) else {
+        return false;
+    };
+    if !(sep(4, b"-") && sep(7, b"-") && sep(10, b"Tt ") && sep(13, b":") && sep(16, b":")) {
+        return false;
+    }
+    if !((1..=12).contains(&month)
+        && (1..=31).contains(&day)
+        && hour <= 23
+        && minute <= 59
+        && second <= 60)
+    {
+        return false;
+    }
+    let mut i = 19;
+    if sep(i, b".") {
+        i += 1;
+        let start = i;
+        while b.get(i).is_some_and(u8::is_ascii_digit) {
+            i += 1;
+        }
+        if i == start {
+            return false;
+        }
+    }
+    match b.get(i) {
+        Some(b'Z' | b'z') => i + 1 == b.len(),
+        Some(b'+' | b'-') => {
+            i + 6 == b.len()
+                && sep(i + 3, b":")
+                && digits(i + 1..i + 3).is_some_and(|h| h <= 23)
+                && digits(i + 4..i + 6).is_some_and(|m| m <= 59)
+        }
+        _ => false,
+    }
+}
+
+fn fmt_camera(f: &mut fmt::Formatter<'_>, m: &CameraModel, rms: Option<f64>) -> fmt::Result {
+    let k = &m.intrinsics;
+    writeln!(f, "  image: {} px", m.size)?;
+    writeln!(
+        f,
+        "  fx {:.3}  fy {:.3}  cx {:.3}  cy {:.3}  skew {:.3} (px)",
+        k.fx, k.fy, k.cx, k.cy, k.skew
+    )?;
+    let d = &m.distortion;
+    write!(f, "  distortion: {}", d.model())?;
+    if d.model() != DistortionModel::None {
+        let names = crate::DISTORTION_PARAMETERS;
+        let values = d.to_opencv_vec();
+        write!(f, ":")?;
+        for (name, v) in names.iter().zip(&values) {
+            write!(f, " {name} {v}")?;
+        }
+    }
+    writeln!(f)?;
+    match m.field_of_view_deg() {
+        Some((h, v)) => write!(f, "  field of view: {h:.1}° x {v:.1}°")?,
+        None => write!(f, "  field of view: not computable (edges outside the valid region)")?,
+    }
+    let r = d.max_radius();
+    if r.is_finite() {
+        writeln!(f, "; model invertible up to {:.1}° off-axis", r.atan().to_degrees())?;
+    } else {
+        writeln!(f)?;
+    }
+    if let Some(rms) = rms {
+        writeln!(f, "  RMS reprojection error: {rms:.4} px")?;
+    }
+    Ok(())
+}
+
+impl fmt::Display for Calibration {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "Calibration (sl-camera format v{CALIBRATION_FORMAT_VERSION})")?;
+        writeln!(f, "Camera:")?;
+        fmt_camera(f, &self.camera, self.rms.camera)?;
+        match &self.projector {
+            Some(p) => {
+                writeln!(f, "Projector:")?;
+                fmt_camera(f, p, self.rms.projector)?;
+            }
+            None => writeln!(f, "Projector: none")?,
+        }
+        match &self.t_cam_proj {
+            Some(t) => {
+                let axis = t
+                    .rotation
+                    .axis()
+                    .map_or([0.0, 0.0, 1.0], |a| [a.x, a.y, a.z]);
+                let tr = t.translation.vector;
+                writeln!(f, "Extrinsics T_cam_proj (projector -> camera):")?;
+                writeln!(
+                    f,
+                    "  rotation {:.3}° about ({:.4}, {:.4}, {:.4})",
+                    t.rotation.angle().to_degrees(),
+                    axis[0],
+                    axis[1],
+                    axis[2]
+                )?;
+                writeln!(
+                    f,
+                    "  translation ({:.3}, {:.3}, {:.3}) mm; baseline {:.3} mm",
+                    tr.x,
+                    tr.y,
+                    tr.z,
+                    tr.norm()
+                )?;
+                if let Some(s) = self.rms.stereo {
+                    writeln!(f, "  stereo RMS reprojection error: {s:.4} px")?;
+                }
+            }
+            None => {
+                writeln!(f, "Extrinsics: none")?;
+                if let Some(s) = self.rms.stereo {
+                    writeln!(f, "  stereo RMS reprojection error: {s:.4} px")?;
+                }
+            }
+        }
+        match &self.turntable {
+            Some(a) => writeln!(
+                f,
+                "Turntable: axis ({:.5}, {:.5}, {:.5}) through ({:.3}, {:.3}, {:.3}) mm; \
+                 platter angle = {} x motor + {}°",
+                a.direction.x,
+                a.direction.y,
+                a.direction.z,
+                a.point_mm.x,
+                a.point_mm.y,
+                a.point_mm.z,
+                a.angle_scale,
+                a.angle_offset_deg
+            )?,
+            None => writeln!(f, "Turntable: none")?,
+        }
+        write!(f, "Metadata: {}", self.metadata.tool_version)?;
+        if let Some(c) = &self.metadata.created {
+            write!(f, "; created {c}")?;
+        }
+        writeln!(f)?;
+        for line in self.metadata.notes.lines() {
+            writeln!(f, "  {line}")?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rfc3339() {
+        for ok in [
+            "2024-06-11T10:21:07Z",
+            "2024-06-11t10:21:07.123456z",
+            "2024-06-11 10:21:07+02:00",
+            "1999-12-31T23:59:60-08:30",
+        ] {
+            assert!(is_rfc3339(ok), "{ok}");
+        }
+        for bad in [
+            "",
+            "2024-06-11",
+            "2024-13-11T10:21:07Z",
+            "2024-06-11T10:21:07",
+            "2024-06-11T10:21:07.Z",
+            "2024-06-11T24:00:00Z",
+            "2024-06-11T10:21:07+0200",
+            "Tue Jun 11 10:21:07 2024",
+            "2024-06-11T10:21:07Zx",
+        ] {
+            assert!(!is_rfc3339(bad), "{bad}");
+        }
+    }
+
+    #[test]
+    fn format_from_extension() {
+        assert_eq!(
+            CalibrationFormat::from_path(Path::new("a/B.YML")).unwrap(),
+            CalibrationFormat::OpenCvYaml
+        );
+        assert_eq!(
+            CalibrationFormat::from_path(Path::new("c.yaml")).unwrap(),
+            CalibrationFormat::OpenCvYaml
+        );
+        assert_eq!(
+            CalibrationFormat::from_path(Path::new("c.xml")).unwrap(),
+            CalibrationFormat::OpenCvXml
+        );
+        assert_eq!(
+            CalibrationFormat::from_path(Path::new("c.json")).unwrap(),
+            CalibrationFormat::Json
+        );
+        let e = CalibrationFormat::from_path(Path::new("c.txt")).unwrap_err();
+        assert!(e.to_string().starts_with("c.txt: unknown calibration file extension"));
+    }
+}
