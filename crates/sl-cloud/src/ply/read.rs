@@ -196,6 +196,7 @@ pub(crate) fn parse_ply(bytes: &[u8], file: &str) -> Result<PointCloud, CloudErr
                 data: bytes,
                 pos: start,
                 line: header_lines + 1,
+                tok_line: header_lines,
                 file,
             };
             for e in before {
@@ -418,7 +419,11 @@ fn read_binary_irregular(
 struct Tokens<'a> {
     data: &'a [u8],
     pos: usize,
+    /// Line of the next byte.
     line: usize,
+    /// Line of the last token returned: where errors point (for a parse error the bad token, for
+    /// an early end of file the last data line).
+    tok_line: usize,
     file: &'a str,
 }
 
@@ -426,7 +431,7 @@ impl<'a> Tokens<'a> {
     fn err(&self, message: String) -> CloudError {
         CloudError::PlyAscii {
             file: self.file.to_owned(),
-            line: self.line,
+            line: self.tok_line,
             message,
         }
     }
@@ -446,7 +451,11 @@ impl<'a> Tokens<'a> {
         while data.get(self.pos).is_some_and(|b| !b.is_ascii_whitespace()) {
             self.pos += 1;
         }
-        (self.pos > start).then(|| data.get(start..self.pos).unwrap_or(&[]))
+        if self.pos == start {
+            return None;
+        }
+        self.tok_line = self.line;
+        data.get(start..self.pos)
     }
 
     fn number(&mut self, what: &dyn Fn() -> String) -> Result<f64, CloudError> {
@@ -517,6 +526,11 @@ fn read_ascii_vertices(
         for (p, slot) in vertex.properties.iter().zip(values.iter_mut()) {
             let what = || format!("property '{}' of vertex {i} (of {})", p.name, vertex.count);
             match p.kind {
+                // A `float` property holds an f32: round what the text says to it, as a binary
+                // file would have.
+                PlyPropertyKind::Scalar(PlyScalarType::Float) => {
+                    *slot = f64::from(tokens.number(&what)? as f32);
+                }
                 PlyPropertyKind::Scalar(_) => *slot = tokens.number(&what)?,
                 PlyPropertyKind::List { .. } => tokens.skip_list(&what)?,
             }
