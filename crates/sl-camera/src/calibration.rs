@@ -262,7 +262,10 @@ impl Calibration {
         }
         let repr: CalibrationJson = serde_json::from_str(text).map_err(json_err)?;
         let t_cam_proj = match repr.t_cam_proj {
-            Some(p) => Some(p.to_isometry().map_err(|e| e.in_file(file, "T_cam_proj", None))?),
+            Some(p) => Some(
+                p.to_isometry()
+                    .map_err(|e| e.in_file(file, "T_cam_proj", None))?,
+            ),
             None => None,
         };
         let mut turntable = repr.turntable;
@@ -285,7 +288,9 @@ impl Calibration {
             rms: repr.rms,
             metadata: repr.metadata,
         };
-        calibration.validate().map_err(|e| e.in_file(file, "", None))?;
+        calibration
+            .validate()
+            .map_err(|e| e.in_file(file, "", None))?;
         Ok(calibration)
     }
 
@@ -381,7 +386,7 @@ impl Calibration {
             let mut check = *axis;
             check.normalize()?;
             let n = axis.direction.norm();
-            if !((n - 1.0).abs() <= UNIT_TOLERANCE) {
+            if n.is_nan() || (n - 1.0).abs() > UNIT_TOLERANCE {
                 return Err(CameraError::invalid(
                     "turntable.direction",
                     format!("must be a unit vector, found norm {n} (see TurntableAxis::normalize)"),
@@ -393,24 +398,24 @@ impl Calibration {
             ("rms.projector", self.rms.projector),
             ("rms.stereo", self.rms.stereo),
         ] {
-            if let Some(v) = v {
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(CameraError::invalid(
-                        name,
-                        format!("must be finite and non-negative, found {v}"),
-                    ));
-                }
-            }
-        }
-        if let Some(created) = &self.metadata.created {
-            if !is_rfc3339(created) {
+            if let Some(v) = v
+                && !(v.is_finite() && v >= 0.0)
+            {
                 return Err(CameraError::invalid(
-                    "metadata.created",
-                    format!(
-                        "expected an RFC 3339 time such as 2024-06-11T10:21:07Z, found `{created}`"
-                    ),
+                    name,
+                    format!("must be finite and non-negative, found {v}"),
                 ));
             }
+        }
+        if let Some(created) = &self.metadata.created
+            && !is_rfc3339(created)
+        {
+            return Err(CameraError::invalid(
+                "metadata.created",
+                format!(
+                    "expected an RFC 3339 time such as 2024-06-11T10:21:07Z, found `{created}`"
+                ),
+            ));
         }
         Ok(())
     }
@@ -494,11 +499,18 @@ fn fmt_camera(f: &mut fmt::Formatter<'_>, m: &CameraModel, rms: Option<f64>) -> 
     writeln!(f)?;
     match m.field_of_view_deg() {
         Some((h, v)) => write!(f, "  field of view: {h:.1}° x {v:.1}°")?,
-        None => write!(f, "  field of view: not computable (edges outside the valid region)")?,
+        None => write!(
+            f,
+            "  field of view: not computable (edges outside the valid region)"
+        )?,
     }
     let r = d.max_radius();
     if r.is_finite() {
-        writeln!(f, "; model invertible up to {:.1}° off-axis", r.atan().to_degrees())?;
+        writeln!(
+            f,
+            "; model invertible up to {:.1}° off-axis",
+            r.atan().to_degrees()
+        )?;
     } else {
         writeln!(f)?;
     }
@@ -510,7 +522,10 @@ fn fmt_camera(f: &mut fmt::Formatter<'_>, m: &CameraModel, rms: Option<f64>) -> 
 
 impl fmt::Display for Calibration {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(f, "Calibration (sl-camera format v{CALIBRATION_FORMAT_VERSION})")?;
+        writeln!(
+            f,
+            "Calibration (sl-camera format v{CALIBRATION_FORMAT_VERSION})"
+        )?;
         writeln!(f, "Camera:")?;
         fmt_camera(f, &self.camera, self.rms.camera)?;
         match &self.projector {
@@ -631,6 +646,9 @@ mod tests {
             CalibrationFormat::Json
         );
         let e = CalibrationFormat::from_path(Path::new("c.txt")).unwrap_err();
-        assert!(e.to_string().starts_with("c.txt: unknown calibration file extension"));
+        assert!(
+            e.to_string()
+                .starts_with("c.txt: unknown calibration file extension")
+        );
     }
 }

@@ -354,7 +354,7 @@ impl Distortion {
             return p.x.is_finite() && p.y.is_finite();
         }
         let s = p.x * p.x + p.y * p.y;
-        if !(s < self.max_radius_sq) {
+        if s.is_nan() || s >= self.max_radius_sq {
             return false;
         }
         let (_, j) = self.distort_with_point_jacobian(p);
@@ -448,7 +448,7 @@ impl Distortion {
             }
             best = best.min(rn);
             let det = j.m11 * j.m22 - j.m12 * j.m21;
-            if !(det > 0.0) {
+            if det.is_nan() || det <= 0.0 {
                 return None;
             }
             let step = Vector2::new(
@@ -556,7 +556,9 @@ mod tests {
         assert_eq!((d8.k1(), d8.k2(), d8.p1(), d8.p2()), (1., 2., 3., 4.));
         assert_eq!((d8.k3(), d8.k4(), d8.k5(), d8.k6()), (5., 6., 7., 8.));
         for n in [1, 2, 3, 6, 7, 9, 13, 15] {
-            let e = Distortion::from_opencv(&vec![0.0; n]).unwrap_err().to_string();
+            let e = Distortion::from_opencv(&vec![0.0; n])
+                .unwrap_err()
+                .to_string();
             assert!(e.contains(&format!("found {n}")), "{e}");
         }
         let mut v14 = vec![0.0; 14];
@@ -620,18 +622,20 @@ mod tests {
             let da = Distortion::new(DistortionModel::Rational, ka).unwrap();
             let db = Distortion::new(DistortionModel::Rational, kb).unwrap();
             let fd = (da.distort(&p) - db.distort(&p)) / (2.0 * h);
-            assert_relative_eq!(
-                j.d_coefficients.column(c).into_owned(),
-                fd,
-                epsilon = 1e-7
-            );
+            assert_relative_eq!(j.d_coefficients.column(c).into_owned(), fd, epsilon = 1e-7);
         }
     }
 
     #[test]
     fn undistort_inverts_the_strong_reference_lens() {
         let d = reference();
-        for &(x, y) in &[(0.0, 0.0), (0.3, 0.2), (-0.45, -0.26), (0.42, -0.25), (1e-9, 0.0)] {
+        for &(x, y) in &[
+            (0.0, 0.0),
+            (0.3, 0.2),
+            (-0.45, -0.26),
+            (0.42, -0.25),
+            (1e-9, 0.0),
+        ] {
             let p = Point2::new(x, y);
             let q = d.undistort(&d.distort(&p)).unwrap();
             // Newton converges to a few ulps of the coordinates (≤ 0.5).

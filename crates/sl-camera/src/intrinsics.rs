@@ -76,7 +76,7 @@ impl Intrinsics {
     pub fn from_matrix(k: &Matrix3<f64>) -> Result<Self, CameraError> {
         for (r, c, want) in [(1, 0, 0.0), (2, 0, 0.0), (2, 1, 0.0), (2, 2, 1.0)] {
             let got = k[(r, c)];
-            if !((got - want).abs() <= FIXED_ENTRY_TOLERANCE) {
+            if got.is_nan() || (got - want).abs() > FIXED_ENTRY_TOLERANCE {
                 return Err(CameraError::invalid(
                     "camera matrix",
                     format!("entry [{r}][{c}] must be {want}, found {got}"),

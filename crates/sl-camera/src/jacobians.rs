@@ -58,7 +58,7 @@ impl CameraModel {
     /// # Ok::<(), sl_camera::CameraError>(())
     /// ```
     pub fn project_with_jacobians(&self, p_cam: &Point3<f64>) -> Option<ProjectionJacobians> {
-        if !(p_cam.z > 0.0) {
+        if p_cam.z.is_nan() || p_cam.z <= 0.0 {
             return None;
         }
         let inv_z = 1.0 / p_cam.z;
@@ -72,14 +72,7 @@ impl CameraModel {
         // pixel = K2 · (xd, yd) + (cx, cy) with K2 = [[fx, skew], [0, fy]].
         let k2 = Matrix2::new(k.fx, k.skew, 0.0, k.fy);
         // ∂(x, y)/∂(X, Y, Z)
-        let d_norm = Matrix2x3::new(
-            inv_z,
-            0.0,
-            -n.x * inv_z,
-            0.0,
-            inv_z,
-            -n.y * inv_z,
-        );
+        let d_norm = Matrix2x3::new(inv_z, 0.0, -n.x * inv_z, 0.0, inv_z, -n.y * inv_z);
         let d_point = k2 * dj.d_point * d_norm;
         #[rustfmt::skip]
         let d_intrinsics = SMatrix::<f64, 2, 5>::new(
@@ -304,6 +297,9 @@ mod tests {
     #[test]
     fn refuses_like_project() {
         let cam = camera([0.0; 8], DistortionModel::None);
-        assert!(cam.project_with_jacobians(&Point3::new(0.0, 0.0, -1.0)).is_none());
+        assert!(
+            cam.project_with_jacobians(&Point3::new(0.0, 0.0, -1.0))
+                .is_none()
+        );
     }
 }

@@ -85,7 +85,7 @@ impl CameraModel {
     /// the point is outside the valid region of the distortion.
     #[inline]
     pub fn project(&self, p_cam: &Point3<f64>) -> Option<Point2<f64>> {
-        if !(p_cam.z > 0.0) {
+        if p_cam.z.is_nan() || p_cam.z <= 0.0 {
             return None;
         }
         let n = Point2::new(p_cam.x / p_cam.z, p_cam.y / p_cam.z);
@@ -245,7 +245,15 @@ mod tests {
         .unwrap();
         let (h, v) = cam.field_of_view_deg().unwrap();
         // Edges are 320 px and 240 px from the centre: 2·atan(320/500), 2·atan(240/500).
-        assert_relative_eq!(h, 2.0 * (320.0_f64 / 500.0).atan().to_degrees(), epsilon = 1e-9);
-        assert_relative_eq!(v, 2.0 * (240.0_f64 / 500.0).atan().to_degrees(), epsilon = 1e-9);
+        assert_relative_eq!(
+            h,
+            2.0 * (320.0_f64 / 500.0).atan().to_degrees(),
+            epsilon = 1e-9
+        );
+        assert_relative_eq!(
+            v,
+            2.0 * (240.0_f64 / 500.0).atan().to_degrees(),
+            epsilon = 1e-9
+        );
     }
 }

@@ -78,7 +78,11 @@ fn first_nonpositive(poly: &Poly, lo: f64, hi: f64, depth: u32) -> Option<f64> {
     if beta.iter().all(|&b| b > 0.0) {
         return None;
     }
-    if !(beta[0] > 0.0) || depth >= MAX_DEPTH || hi - lo <= RELATIVE_RESOLUTION * hi {
+    if beta[0].is_nan()
+        || beta[0] <= 0.0
+        || depth >= MAX_DEPTH
+        || hi - lo <= RELATIVE_RESOLUTION * hi
+    {
         return Some(lo);
     }
     let mid = 0.5 * (lo + hi);

@@ -7,7 +7,7 @@
 //!   (+ ignored extras: `nr_of_frames`, `extrinsic_parameters`, ...). Used when the
 //!   calibration has no projector.
 //! * SLStudio's procam calibration (`CalibrationData::saveXML`): `Kc kc` (camera), `Kp kp`
-//!   (projector), `Rp Tp` (p_proj = Rp · p_cam + Tp, i.e. `T_proj_cam`; we store its inverse
+//!   (projector), `Rp Tp` (`p_proj = Rp · p_cam + Tp`, i.e. `T_proj_cam`; we store its inverse
 //!   `T_cam_proj`), `cam_error proj_error stereo_error`, `frameWidth frameHeight` (camera),
 //!   `screenResX screenResY` (projector). Used when the calibration has a projector.
 //!
@@ -21,22 +21,22 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use crate::filestorage::{Document, Item, MatrixData};
 use crate::pose::{isometry_from_rt, isometry_to_rt};
 use crate::{
-    CameraError, CameraModel, Calibration, Distortion, ImageSize, Intrinsics, Metadata,
-    RmsErrors, TurntableAxis,
+    Calibration, CameraError, CameraModel, Distortion, ImageSize, Intrinsics, Metadata, RmsErrors,
+    TurntableAxis,
 };
 
 /// Reads a calibration from a parsed FileStorage document.
 pub(crate) fn calibration_from_document(doc: &Document) -> Result<Calibration, CameraError> {
-    if let Some(fisheye) = doc.number("fisheye_model")? {
-        if fisheye != 0.0 {
-            let line = doc.get("fisheye_model").map_or(0, |n| n.line);
-            return Err(doc.bad(
-                "fisheye_model",
-                line,
-                "OpenCV's fisheye (Kannala–Brandt) model is not supported; recalibrate with the \
-                 standard or rational model",
-            ));
-        }
+    if let Some(fisheye) = doc.number("fisheye_model")?
+        && fisheye != 0.0
+    {
+        let line = doc.get("fisheye_model").map_or(0, |n| n.line);
+        return Err(doc.bad(
+            "fisheye_model",
+            line,
+            "OpenCV's fisheye (Kannala–Brandt) model is not supported; recalibrate with the \
+             standard or rational model",
+        ));
     }
     let slstudio = doc.has("Kc");
     let (camera, projector, t_cam_proj, rms) = if slstudio {
@@ -96,7 +96,11 @@ pub(crate) fn calibration_from_document(doc: &Document) -> Result<Calibration, C
         tool_version: doc.string("tool_version")?.unwrap_or_else(|| {
             format!(
                 "imported from OpenCV FileStorage ({} layout)",
-                if slstudio { "SLStudio" } else { "OpenCV calibration sample" }
+                if slstudio {
+                    "SLStudio"
+                } else {
+                    "OpenCV calibration sample"
+                }
             )
         }),
         created: doc.string("created")?,
@@ -122,9 +126,7 @@ fn camera_from(
     d_key: &str,
     (w_key, h_key): (&str, &str),
 ) -> Result<CameraModel, CameraError> {
-    let k = doc
-        .matrix(k_key)?
-        .ok_or_else(|| doc.missing(k_key, None))?;
+    let k = doc.matrix(k_key)?.ok_or_else(|| doc.missing(k_key, None))?;
     let intrinsics = Intrinsics::from_matrix(&matrix3(doc, k_key, &k)?)
         .map_err(|e| doc.bad(k_key, k.line, message_of(e)))?;
     let distortion = match doc.matrix(d_key)? {

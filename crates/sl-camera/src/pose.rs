@@ -116,7 +116,7 @@ pub fn isometry_from_rt(r: &Matrix3<f64>, t: &Vector3<f64>) -> Result<Isometry3<
         ));
     }
     let err = (r.transpose() * r - Matrix3::identity()).abs().max();
-    if !(err <= ROTATION_TOLERANCE) {
+    if err.is_nan() || err > ROTATION_TOLERANCE {
         return Err(CameraError::invalid(
             "rotation",
             format!("not orthonormal: |RᵀR − I| = {err:.3e} exceeds {ROTATION_TOLERANCE:e}"),

@@ -5,6 +5,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::CameraError;
 
+/// Shortest accepted direction vector before normalisation: anything shorter is zero up to
+/// rounding and has no direction.
+const MIN_DIRECTION_NORM: f64 = 1e-12;
+
 /// The rotation axis of the turntable, in the camera frame, and the motor's angle scale.
 ///
 /// The platter angle for a motor reading `m` (degrees) is
@@ -84,13 +88,17 @@ impl TurntableAxis {
             }
         }
         let n = self.direction.norm();
-        if !(n > 1e-12) {
+        if n.is_nan() || n <= MIN_DIRECTION_NORM {
             return Err(CameraError::invalid(
                 "turntable.direction",
                 format!("must be a non-zero vector, found norm {n}"),
             ));
         }
-        self.direction /= n;
+        // Idempotent: a direction already unit to rounding is left bit-for-bit unchanged,
+        // so files round-trip exactly.
+        if (n - 1.0).abs() > 4.0 * f64::EPSILON {
+            self.direction /= n;
+        }
         Ok(())
     }
 
@@ -104,10 +112,7 @@ impl TurntableAxis {
     /// motion between two readings `a` and `b` is `motion(b) * motion(a).inverse()`.
     pub fn motion(&self, motor_deg: f64) -> Isometry3<f64> {
         let angle = self.table_angle_deg(motor_deg).to_radians();
-        let rotation = UnitQuaternion::from_axis_angle(
-            &Unit::new_normalize(self.direction),
-            angle,
-        );
+        let rotation = UnitQuaternion::from_axis_angle(&Unit::new_normalize(self.direction), angle);
         let c = self.point_mm.coords;
         // x ↦ R (x − c) + c
         Isometry3::from_parts(Translation3::from(c - rotation * c), rotation)

@@ -91,9 +91,9 @@ impl Document {
             return Ok(None);
         };
         match &node.value {
-            Value::Scalar(s) => parse_real(s).map(Some).ok_or_else(|| {
-                self.bad(key, node.line, format!("expected a number, found `{s}`"))
-            }),
+            Value::Scalar(s) => parse_real(s)
+                .map(Some)
+                .ok_or_else(|| self.bad(key, node.line, format!("expected a number, found `{s}`"))),
             other => Err(self.bad(
                 key,
                 node.line,
@@ -157,40 +157,54 @@ impl Document {
                 "expected an opencv-matrix (a map tagged `!!opencv-matrix` or `type_id=\"opencv-matrix\"`)",
             ));
         }
-        let field = |name: &str| entries.iter().rev().find(|(k, _)| k == name).map(|(_, n)| n);
+        let field = |name: &str| {
+            entries
+                .iter()
+                .rev()
+                .find(|(k, _)| k == name)
+                .map(|(_, n)| n)
+        };
         let dim = |name: &str| -> Result<usize, CameraError> {
-            let n = field(name).ok_or_else(|| {
-                self.bad(key, node.line, format!("matrix has no `{name}`"))
-            })?;
+            let n = field(name)
+                .ok_or_else(|| self.bad(key, node.line, format!("matrix has no `{name}`")))?;
             match &n.value {
                 Value::Scalar(s) => s.parse::<usize>().map_err(|_| {
-                    self.bad(key, n.line, format!("matrix `{name}` must be an integer, found `{s}`"))
+                    self.bad(
+                        key,
+                        n.line,
+                        format!("matrix `{name}` must be an integer, found `{s}`"),
+                    )
                 }),
                 other => Err(self.bad(
                     key,
                     n.line,
-                    format!("matrix `{name}` must be an integer, found {}", describe(other)),
+                    format!(
+                        "matrix `{name}` must be an integer, found {}",
+                        describe(other)
+                    ),
                 )),
             }
         };
         let rows = dim("rows")?;
         let cols = dim("cols")?;
-        let dt_node = field("dt")
-            .ok_or_else(|| self.bad(key, node.line, "matrix has no `dt`"))?;
+        let dt_node = field("dt").ok_or_else(|| self.bad(key, node.line, "matrix has no `dt`"))?;
         let dt = match &dt_node.value {
             Value::Scalar(s) | Value::Str(s) => s.clone(),
             other => {
                 return Err(self.bad(
                     key,
                     dt_node.line,
-                    format!("matrix `dt` must be a type string, found {}", describe(other)),
+                    format!(
+                        "matrix `dt` must be a type string, found {}",
+                        describe(other)
+                    ),
                 ));
             }
         };
         let channels = parse_dt(&dt)
             .ok_or_else(|| self.bad(key, dt_node.line, format!("unknown matrix type dt `{dt}`")))?;
-        let data_node = field("data")
-            .ok_or_else(|| self.bad(key, node.line, "matrix has no `data`"))?;
+        let data_node =
+            field("data").ok_or_else(|| self.bad(key, node.line, "matrix has no `data`"))?;
         let items: Vec<&Node> = match &data_node.value {
             Value::Seq(items) => items.iter().collect(),
             Value::Scalar(s) if s.is_empty() => Vec::new(),
@@ -199,7 +213,10 @@ impl Document {
                 return Err(self.bad(
                     key,
                     data_node.line,
-                    format!("matrix `data` must be a list of numbers, found {}", describe(other)),
+                    format!(
+                        "matrix `data` must be a list of numbers, found {}",
+                        describe(other)
+                    ),
                 ));
             }
         };

@@ -27,7 +27,11 @@ fn real(v: f64) -> String {
     if v.is_nan() {
         ".nan".into()
     } else if v.is_infinite() {
-        if v > 0.0 { ".inf".into() } else { "-.inf".into() }
+        if v > 0.0 {
+            ".inf".into()
+        } else {
+            "-.inf".into()
+        }
     } else {
         let s = format!("{v:?}");
         if s.contains(['.', 'e']) {
@@ -64,6 +68,11 @@ fn xml_escape(s: &str) -> String {
             '&' => out.push_str("&amp;"),
             '"' => out.push_str("&quot;"),
             '\'' => out.push_str("&apos;"),
+            // OpenCV's XML reader wants a string on one line: control characters as
+            // numeric references, as cv::FileStorage writes them.
+            c if u32::from(c) < 0x20 => {
+                let _ = write!(out, "&#x{:02x};", u32::from(c));
+            }
             c => out.push(c),
         }
     }
@@ -155,7 +164,10 @@ mod tests {
             ("e", Item::Real(0.1873)),
             ("tiny", Item::Real(1e-300)),
             ("whole", Item::Real(2210.0)),
-            ("s", Item::Str("quote \" back \\ <tag> & 'x'\nline 2".into())),
+            (
+                "s",
+                Item::Str("quote \" back \\ <tag> & 'x'\nline 2".into()),
+            ),
             (
                 "m",
                 Item::Matrix {
@@ -171,7 +183,10 @@ mod tests {
     fn written_files_read_back_exactly() {
         let items = items();
         for (text, doc) in [
-            (to_yaml(&items), parse_yaml(&to_yaml(&items), "w.yml").unwrap()),
+            (
+                to_yaml(&items),
+                parse_yaml(&to_yaml(&items), "w.yml").unwrap(),
+            ),
             (to_xml(&items), parse_xml(&to_xml(&items), "w.xml").unwrap()),
         ] {
             assert_eq!(doc.unsigned("w").unwrap(), Some(1280), "{text}");

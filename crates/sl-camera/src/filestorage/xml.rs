@@ -289,9 +289,10 @@ impl<'a> Lexer<'a> {
                 let end = rest.find('<').unwrap_or(rest.len());
                 let chunk = &rest[..end];
                 if text.trim().is_empty() && !chunk.trim().is_empty() {
-                    text_line = self.line + chunk[..chunk.len() - chunk.trim_start().len()]
-                        .matches('\n')
-                        .count();
+                    text_line = self.line
+                        + chunk[..chunk.len() - chunk.trim_start().len()]
+                            .matches('\n')
+                            .count();
                 }
                 text.push_str(chunk); // raw: entities are decoded per token
                 self.advance(end);
@@ -334,7 +335,9 @@ fn decode_entities(s: &str) -> String {
             "amp" => Some('&'),
             "quot" => Some('"'),
             "apos" => Some('\''),
-            e if e.starts_with("#x") => u32::from_str_radix(&e[2..], 16).ok().and_then(char::from_u32),
+            e if e.starts_with("#x") => u32::from_str_radix(&e[2..], 16)
+                .ok()
+                .and_then(char::from_u32),
             e if e.starts_with('#') => e[1..].parse().ok().and_then(char::from_u32),
             _ => None,
         };
@@ -381,7 +384,10 @@ mod tests {
     #[test]
     fn parses_the_opencv_subset() {
         let doc = parse_xml(SAMPLE, "s.xml").unwrap();
-        assert_eq!(doc.string("calibration_time").unwrap().unwrap(), "Sat Nov 22 03:08:00 2025");
+        assert_eq!(
+            doc.string("calibration_time").unwrap().unwrap(),
+            "Sat Nov 22 03:08:00 2025"
+        );
         assert_eq!(doc.unsigned("image_width").unwrap(), Some(1280));
         let m = doc.matrix("camera_matrix").unwrap().unwrap();
         assert_eq!((m.rows, m.cols, m.line), (3, 3, 5));
@@ -408,15 +414,23 @@ mod tests {
         );
         let bad = SAMPLE.replace("</nested>", "</nestedd>");
         let e = parse_xml(&bad, "calib.xml").unwrap_err().to_string();
-        assert!(e.starts_with("calib.xml line 15: `</nestedd>` closes `<nested>`"), "{e}");
+        assert!(
+            e.starts_with("calib.xml line 15: `</nestedd>` closes `<nested>`"),
+            "{e}"
+        );
         let e = parse_xml("<root></root>", "r.xml").unwrap_err().to_string();
         assert!(e.contains("root element is `<root>`"), "{e}");
-        let e = parse_xml("<opencv_storage><a>1</a>", "r.xml").unwrap_err().to_string();
+        let e = parse_xml("<opencv_storage><a>1</a>", "r.xml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("not closed"), "{e}");
     }
 
     #[test]
     fn entities() {
-        assert_eq!(decode_entities("a &lt;b&gt; &amp; &#65;&#x42; &bogus;"), "a <b> & AB &bogus;");
+        assert_eq!(
+            decode_entities("a &lt;b&gt; &amp; &#65;&#x42; &bogus;"),
+            "a <b> & AB &bogus;"
+        );
     }
 }

@@ -82,7 +82,10 @@ pub(crate) fn parse_yaml(text: &str, file: &str) -> Result<Document, CameraError
     } else {
         let indent = parser.lines[0].indent;
         if parser.lines[0].text.starts_with('-') {
-            return Err(parser.error(parser.lines[0].number, "the top level must be a map of keys"));
+            return Err(parser.error(
+                parser.lines[0].number,
+                "the top level must be a map of keys",
+            ));
         }
         let entries = parser.map(indent)?;
         if let Some(line) = parser.lines.get(parser.pos) {
@@ -149,8 +152,9 @@ impl<'a> Parser<'a> {
                 return Err(self.error(line.number, "sequence item where a key was expected"));
             }
             let (number, text) = (line.number, line.text);
-            let (key, rest) = split_key(text)
-                .ok_or_else(|| self.error(number, format!("expected `key: value`, found `{text}`")))?;
+            let (key, rest) = split_key(text).ok_or_else(|| {
+                self.error(number, format!("expected `key: value`, found `{text}`"))
+            })?;
             self.pos += 1;
             let value = self.value_after_key(rest, number, indent)?;
             entries.push((key.to_owned(), value));
@@ -255,7 +259,10 @@ impl<'a> Parser<'a> {
                     }
                 }
                 // `key:` then a sequence at the same indentation (valid YAML).
-                Some(next) if next.indent == indent && (next.text.starts_with("- ") || next.text == "-") => {
+                Some(next)
+                    if next.indent == indent
+                        && (next.text.starts_with("- ") || next.text == "-") =>
+                {
                     Ok(Node {
                         line: number,
                         value: Value::Seq(self.seq(indent)?),
@@ -281,7 +288,8 @@ impl<'a> Parser<'a> {
             return self.flow(&text, number);
         }
         if rest.starts_with(['"', '\'']) {
-            let (s, used) = quoted(rest).ok_or_else(|| self.error(number, "unterminated string"))?;
+            let (s, used) =
+                quoted(rest).ok_or_else(|| self.error(number, "unterminated string"))?;
             if !rest[used..].trim().is_empty() {
                 return Err(self.error(number, "unexpected text after the string"));
             }
@@ -500,7 +508,10 @@ empty:
     #[test]
     fn parses_the_opencv_subset() {
         let doc = parse_yaml(SAMPLE, "s.yml").unwrap();
-        assert_eq!(doc.string("calibration_time").unwrap().unwrap(), "Sat Nov 22 03:08:00 2025");
+        assert_eq!(
+            doc.string("calibration_time").unwrap().unwrap(),
+            "Sat Nov 22 03:08:00 2025"
+        );
         assert_eq!(doc.unsigned("image_width").unwrap(), Some(1280));
         let m = doc.matrix("camera_matrix").unwrap().unwrap();
         assert_eq!((m.rows, m.cols, m.line), (3, 3, 6));
@@ -511,8 +522,14 @@ empty:
             panic!("not a seq")
         };
         assert_eq!(items.len(), 3);
-        assert!(matches!(doc.get("nested").unwrap().value, Value::Map { .. }));
-        assert_eq!(doc.get("empty").unwrap().value, Value::Scalar(String::new()));
+        assert!(matches!(
+            doc.get("nested").unwrap().value,
+            Value::Map { .. }
+        ));
+        assert_eq!(
+            doc.get("empty").unwrap().value,
+            Value::Scalar(String::new())
+        );
     }
 
     #[test]
@@ -525,12 +542,21 @@ empty:
             "calib.yml line 6: key `camera_matrix`: expected 9 values (3x3), found 8"
         );
         let e = parse_yaml("camera: 1\n", "x.yml").unwrap_err().to_string();
-        assert!(e.starts_with("x.yml line 1: not an OpenCV FileStorage YAML"), "{e}");
-        let e = parse_yaml("%YAML:1.0\na: [1, 2\n", "x.yml").unwrap_err().to_string();
+        assert!(
+            e.starts_with("x.yml line 1: not an OpenCV FileStorage YAML"),
+            "{e}"
+        );
+        let e = parse_yaml("%YAML:1.0\na: [1, 2\n", "x.yml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("unterminated"), "{e}");
-        let e = parse_yaml("%YAML:1.0\na: 1\n    b: 2\n", "x.yml").unwrap_err().to_string();
+        let e = parse_yaml("%YAML:1.0\na: 1\n    b: 2\n", "x.yml")
+            .unwrap_err()
+            .to_string();
         assert_eq!(e, "x.yml line 3: unexpected indentation");
-        let e = parse_yaml("%YAML:1.0\na 1\n", "x.yml").unwrap_err().to_string();
+        let e = parse_yaml("%YAML:1.0\na 1\n", "x.yml")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("x.yml line 2: expected `key: value`"), "{e}");
         let doc = parse_yaml("%YAML:1.0\nw: abc\n", "x.yml").unwrap();
         let e = doc.number("w").unwrap_err().to_string();
