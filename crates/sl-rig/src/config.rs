@@ -222,7 +222,4 @@ impl Lens for CameraModel {
     fn project(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
         CameraModel::project(self, p)
     }
-    fn ray(&self, px: &Point2<f64>) -> Option<Vector3<f64>> {
-        self.unproject(px)
-    }
 }

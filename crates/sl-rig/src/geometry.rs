@@ -6,16 +6,73 @@ use rayon::prelude::*;
 
 use crate::PlacedScene;
 
-/// What the virtual rig needs of a camera or projector model: its image size, projection of a
-/// point of its frame to a pixel, and the ray through a pixel.
+/// What the virtual rig needs of a projector model: its image size and the projection of a
+/// point of its frame to a pixel.
 pub(crate) trait Lens: Sync {
     /// Image size `(width, height)` in pixels.
     fn size(&self) -> (u32, u32);
     /// Pixel of `p` (a point in the device frame, mm), with distortion; `None` when the model
     /// cannot project it (behind, or outside the region where the model is valid).
     fn project(&self, p: &Point3<f64>) -> Option<Point2<f64>>;
-    /// Direction (device frame, any positive length) of the ray through pixel `px`.
-    fn ray(&self, px: &Point2<f64>) -> Option<Vector3<f64>>;
+}
+
+/// The camera's rays, computed once per rig (the camera never moves; only the turntable
+/// does): the undistorted normalised ray `(x, y)` (with `z = 1`) of every sub-sample, in f32
+/// (3e-8 relative, 1e-5 mm at the working distance: far below a rendered pixel), and of every
+/// pixel centre in f64 for the ground truth. NaN where the camera model has no ray.
+#[derive(Debug, Clone)]
+pub struct CameraRays {
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) supersampling: u32,
+    pub(crate) sub: Vec<[f32; 2]>,
+    pub(crate) centre: Vec<[f64; 2]>,
+}
+
+impl CameraRays {
+    /// The rays of `camera` with `supersampling × supersampling` sub-samples per pixel.
+    pub fn new(camera: &sl_camera::CameraModel, supersampling: u32) -> Self {
+        let (w, h) = (camera.size.width, camera.size.height);
+        let s = supersampling.max(1);
+        let per_pixel = (s * s) as usize;
+        let offsets: Vec<f64> = (0..s)
+            .map(|i| (f64::from(i) + 0.5) / f64::from(s) - 0.5)
+            .collect();
+        let mut sub = vec![[f32::NAN; 2]; w as usize * h as usize * per_pixel];
+        sub.par_chunks_mut((w as usize * per_pixel).max(1))
+            .enumerate()
+            .for_each(|(y, row)| {
+                let mut k = 0usize;
+                for x in 0..w {
+                    for oy in &offsets {
+                        for ox in &offsets {
+                            let px = Point2::new(f64::from(x) + ox, y as f64 + oy);
+                            if let (Some(r), Some(o)) = (camera.unproject(&px), row.get_mut(k)) {
+                                *o = [r.x as f32, r.y as f32];
+                            }
+                            k += 1;
+                        }
+                    }
+                }
+            });
+        let table = camera.ray_table();
+        let centre = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| table.normalised(x, y).map_or([f64::NAN; 2], |p| [p.x, p.y]))
+            .collect();
+        Self {
+            width: w,
+            height: h,
+            supersampling: s,
+            sub,
+            centre,
+        }
+    }
+
+    /// Sub-samples per pixel along each axis.
+    pub fn supersampling(&self) -> u32 {
+        self.supersampling
+    }
 }
 
 /// Sentinel of [`ViewGeometry`]'s projector pixel index for a sample the projector does not
@@ -83,25 +140,26 @@ pub(crate) struct Sample {
 }
 
 /// The camera, the projector and the scene of one view.
-pub(crate) struct Caster<'a, C: Lens, P: Lens> {
+pub(crate) struct Caster<'a, P: Lens> {
     pub(crate) scene: &'a PlacedScene,
-    pub(crate) camera: &'a C,
+    pub(crate) rays: &'a CameraRays,
     pub(crate) projector: &'a P,
     /// `T_cam_proj`.
     pub(crate) t_cam_proj: &'a Isometry3<f64>,
 }
 
-impl<C: Lens, P: Lens> Caster<'_, C, P> {
-    /// Casts the camera ray through pixel coordinate `px`.
-    pub(crate) fn sample(&self, px: &Point2<f64>) -> Sample {
+impl<P: Lens> Caster<'_, P> {
+    /// Casts the camera ray `(nx, ny, 1)` (normalised image coordinates; NaN for none).
+    pub(crate) fn sample(&self, nx: f64, ny: f64) -> Sample {
         let none = Sample {
             hit: None,
             proj: None,
             cos: 0.0,
         };
-        let Some(d) = self.camera.ray(px).and_then(|d| d.try_normalize(0.0)) else {
+        if !(nx.is_finite() && ny.is_finite()) {
             return none;
-        };
+        }
+        let d = Vector3::new(nx, ny, 1.0).normalize();
         let Some(hit) = self.scene.cast(&Point3::origin(), &d, MAX_RAY_MM) else {
             return none;
         };
@@ -140,15 +198,12 @@ impl<C: Lens, P: Lens> Caster<'_, C, P> {
     }
 
     /// Casts every sub-sample of the view.
-    pub(crate) fn geometry(&self, supersampling: u32) -> ViewGeometry {
-        let (w, h) = self.camera.size();
+    pub(crate) fn geometry(&self) -> ViewGeometry {
+        let (w, h) = (self.rays.width, self.rays.height);
         let (pw, ph) = self.projector.size();
-        let s = supersampling.max(1);
+        let s = self.rays.supersampling;
         let per_pixel = (s * s) as usize;
-        let n = w as usize * h as usize * per_pixel;
-        let offsets: Vec<f64> = (0..s)
-            .map(|i| (f64::from(i) + 0.5) / f64::from(s) - 0.5)
-            .collect();
+        let n = self.rays.sub.len();
         let mut proj_xy = vec![[f32::NAN; 2]; n];
         let mut proj_index = vec![UNLIT; n];
         let mut lit_weight = vec![0.0f32; n];
@@ -159,28 +214,21 @@ impl<C: Lens, P: Lens> Caster<'_, C, P> {
             .zip(proj_index.par_chunks_mut(row_len))
             .zip(lit_weight.par_chunks_mut(row_len))
             .zip(ambient_weight.par_chunks_mut(row_len))
-            .enumerate()
-            .for_each(|(y, (((xy, idx), lit), amb))| {
-                let mut k = 0usize;
-                for x in 0..w {
-                    for oy in &offsets {
-                        for ox in &offsets {
-                            let px = Point2::new(f64::from(x) + ox, y as f64 + oy);
-                            let smp = self.sample(&px);
-                            if let (Some(hit), Some(a)) = (smp.hit, amb.get_mut(k)) {
-                                *a = hit.albedo as f32;
-                                if let (Some(q), Some(l), Some(i), Some(c)) =
-                                    (smp.proj, lit.get_mut(k), idx.get_mut(k), xy.get_mut(k))
-                                {
-                                    *l = (hit.albedo * smp.cos) as f32;
-                                    *c = [q.x as f32, q.y as f32];
-                                    // Nearest projector pixel: the square containing q.
-                                    let qx = ((q.x + 0.5).floor() as u32).min(pw.saturating_sub(1));
-                                    let qy = ((q.y + 0.5).floor() as u32).min(ph.saturating_sub(1));
-                                    *i = qy * pw + qx;
-                                }
-                            }
-                            k += 1;
+            .zip(self.rays.sub.par_chunks(row_len))
+            .for_each(|((((xy, idx), lit), amb), rays)| {
+                for (k, r) in rays.iter().enumerate() {
+                    let smp = self.sample(f64::from(r[0]), f64::from(r[1]));
+                    if let (Some(hit), Some(a)) = (smp.hit, amb.get_mut(k)) {
+                        *a = hit.albedo as f32;
+                        if let (Some(q), Some(l), Some(i), Some(c)) =
+                            (smp.proj, lit.get_mut(k), idx.get_mut(k), xy.get_mut(k))
+                        {
+                            *l = (hit.albedo * smp.cos) as f32;
+                            *c = [q.x as f32, q.y as f32];
+                            // Nearest projector pixel: the square containing q.
+                            let qx = ((q.x + 0.5).floor() as u32).min(pw.saturating_sub(1));
+                            let qy = ((q.y + 0.5).floor() as u32).min(ph.saturating_sub(1));
+                            *i = qy * pw + qx;
                         }
                     }
                 }

@@ -22,7 +22,7 @@ pub use config::{
 };
 pub use device::{Camera, Projector, Turntable, capture_sequence};
 pub use error::RigError;
-pub use geometry::ViewGeometry;
+pub use geometry::{CameraRays, ViewGeometry};
 pub use image::{GreyImage, Pixels};
 pub use raycast::{Hit, PlacedScene};
 pub use render::{Illumination, ProjectorSampling};

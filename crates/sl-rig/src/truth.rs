@@ -72,18 +72,20 @@ impl ViewTruth {
     }
 }
 
-impl<C: Lens, P: Lens> Caster<'_, C, P> {
+impl<P: Lens> Caster<'_, P> {
     /// Casts one ray through every pixel centre; fills the per-pixel maps of a [`ViewTruth`]
     /// (the caller sets the poses).
     pub(crate) fn truth_maps(&self) -> ViewTruth {
-        let (w, h) = self.camera.size();
+        let (w, h) = (self.rays.width, self.rays.height);
         let nan3 = Point3::new(f64::NAN, f64::NAN, f64::NAN);
         let rows: Vec<Vec<(f64, Point3<f64>, Vector3<f64>, Point2<f64>, u16)>> = (0..h)
             .into_par_iter()
             .map(|y| {
                 (0..w)
                     .map(|x| {
-                        let s = self.sample(&Point2::new(f64::from(x), f64::from(y)));
+                        let i = y as usize * w as usize + x as usize;
+                        let [nx, ny] = self.rays.centre.get(i).copied().unwrap_or([f64::NAN; 2]);
+                        let s = self.sample(nx, ny);
                         match s.hit {
                             Some(hit) => (
                                 hit.point.z,

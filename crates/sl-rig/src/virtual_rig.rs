@@ -1,9 +1,9 @@
 //! The virtual rig: casts each view once, renders frames as lookups, and exposes itself
 //! through the device traits.
 
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
-use crate::geometry::Caster;
+use crate::geometry::{CameraRays, Caster};
 use crate::sensor::{NoiseKey, expose};
 use crate::truth::ObjectPose;
 use crate::{
@@ -19,6 +19,7 @@ use crate::{
 pub struct VirtualRig {
     config: Arc<RigConfig>,
     scene: Arc<Scene>,
+    rays: Arc<OnceLock<CameraRays>>,
 }
 
 /// One view of the scene (one turntable position): the geometry cache, the ground truth, and
@@ -43,6 +44,7 @@ impl VirtualRig {
         Ok(Self {
             config: Arc::new(config),
             scene: Arc::new(scene),
+            rays: Arc::new(OnceLock::new()),
         })
     }
 
@@ -54,6 +56,22 @@ impl VirtualRig {
     /// The scene.
     pub fn scene(&self) -> &Scene {
         &self.scene
+    }
+
+    /// The same rig (sharing its camera-ray cache) looking at another scene.
+    pub fn with_scene(&self, scene: Scene) -> Result<Self, RigError> {
+        scene.validate()?;
+        Ok(Self {
+            config: self.config.clone(),
+            scene: Arc::new(scene),
+            rays: self.rays.clone(),
+        })
+    }
+
+    /// The camera's rays (computed on first use, then shared by every view and every clone).
+    pub fn camera_rays(&self) -> &CameraRays {
+        self.rays
+            .get_or_init(|| CameraRays::new(&self.config.camera, self.config.render.supersampling))
     }
 
     /// Casts the view with the turntable motor at `motor_angle_deg`: the geometry cache (with
@@ -69,12 +87,12 @@ impl VirtualRig {
         let placed = PlacedScene::new(&self.scene, &t_cam_table);
         let caster = Caster {
             scene: &placed,
-            camera: &self.config.camera,
+            rays: self.camera_rays(),
             projector: &self.config.projector,
             t_cam_proj: &self.config.t_cam_proj,
         };
         let mut truth = caster.truth_maps();
-        let mut geometry = caster.geometry(self.config.render.supersampling);
+        let mut geometry = caster.geometry();
         geometry.depth_mm = truth.depth_mm.iter().map(|&d| d as f32).collect();
         truth.motor_angle_deg = motor_angle_deg;
         truth.platter_angle_deg = self.config.platter_angle_deg(motor_angle_deg);

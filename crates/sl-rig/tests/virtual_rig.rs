@@ -1,0 +1,344 @@
+//! End-to-end tests of the virtual rig against closed forms.
+
+use approx::assert_relative_eq;
+use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
+use sl_camera::{CameraModel, ImageSize, Intrinsics};
+use sl_rig::{
+    Camera, GreyImage, NO_OBJECT, Pixels, Projector, ProjectorSampling, RigConfig, Scene,
+    SceneObject, SensorConfig, Shape, Texture, Turntable, VirtualRig, capture_sequence,
+};
+
+/// The default rig with both images scaled down by 4 (same fields of view, same distortion),
+/// so that the tests run in a fraction of a second.
+fn small_rig() -> RigConfig {
+    let mut c = RigConfig::default();
+    for (m, f) in [(&mut c.camera, 4.0), (&mut c.projector, 4.0)] {
+        let k = m.intrinsics;
+        m.intrinsics = Intrinsics::new(
+            k.fx / f,
+            k.fy / f,
+            (k.cx + 0.5) / f - 0.5,
+            (k.cy + 0.5) / f - 0.5,
+        );
+        m.size = ImageSize::new(m.size.width / 4, m.size.height / 4);
+    }
+    c
+}
+
+fn plane_scene(t_cam_plane: Isometry3<f64>) -> Scene {
+    Scene::new().with(SceneObject::in_camera(
+        "plane",
+        Shape::rectangle(2000.0, 2000.0),
+        Texture::Uniform(0.5),
+        t_cam_plane,
+    ))
+}
+
+#[test]
+fn plane_projector_coordinates_match_the_closed_form() {
+    // The full-size default rig (distorted camera and projector), a plane tilted 20° about y.
+    let config = RigConfig::default();
+    let t_cam_plane = Isometry3::from_parts(
+        Translation3::new(10.0, -20.0, 470.0),
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.35)
+            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -0.2),
+    );
+    let rig = VirtualRig::new(
+        RigConfig {
+            render: sl_rig::RenderConfig {
+                supersampling: 1,
+                ..config.render
+            },
+            ..config.clone()
+        },
+        plane_scene(t_cam_plane),
+    )
+    .unwrap();
+    let view = rig.view(0.0, 0).unwrap();
+    let t = &view.truth;
+    let n = t_cam_plane.rotation * Vector3::z();
+    let p0 = t_cam_plane.translation.vector;
+    let t_proj_cam = config.t_cam_proj.inverse();
+    let mut checked = 0;
+    for y in (0..t.height).step_by(7) {
+        for x in (0..t.width).step_by(7) {
+            let i = (y * t.width + x) as usize;
+            // Closed form: the camera ray (sl-camera's unprojection) meets the plane n·p = n·p0
+            // at s = n·p0 / n·d; the projector pixel is sl-camera's projection of that point
+            // in the projector frame.
+            let d = config
+                .camera
+                .unproject(&Point2::new(f64::from(x), f64::from(y)))
+                .unwrap();
+            let s = n.dot(&p0) / n.dot(&d);
+            let p = Point3::from(d * s);
+            assert_relative_eq!(t.depth_mm[i], p.z, max_relative = 1e-12);
+            let q = config.projector.project(&(t_proj_cam * p));
+            match q.filter(|q| config.projector.size.contains(q)) {
+                Some(q) => {
+                    // Both sides are f64 evaluations of the same model through different
+                    // intersection formulas: a few ulps of 1000 px, far below 1e-6 px.
+                    assert!(t.lit(i), "pixel ({x}, {y}) should be lit");
+                    assert!(
+                        (t.projector[i] - q).norm() < 1e-6,
+                        "pixel ({x}, {y}): {} vs {q}",
+                        t.projector[i]
+                    );
+                    checked += 1;
+                }
+                None => assert!(!t.lit(i)),
+            }
+        }
+    }
+    assert!(checked > 10_000, "only {checked} lit pixels checked");
+}
+
+#[test]
+fn sphere_depth_matches_ray_sphere_intersection() {
+    let config = small_rig();
+    let rig = VirtualRig::new(config.clone(), Scene::sphere()).unwrap();
+    let angle = 37.0;
+    let view = rig.view(angle, 0).unwrap();
+    let t = &view.truth;
+    // The sphere stands on the table: centre 50 mm up the axis.
+    let c = config.t_cam_table_at(angle) * Point3::new(0.0, 0.0, 50.0);
+    let r = 50.0;
+    let mut hits = 0;
+    for y in 0..t.height {
+        for x in 0..t.width {
+            let i = (y * t.width + x) as usize;
+            let d = config
+                .camera
+                .unproject(&Point2::new(f64::from(x), f64::from(y)))
+                .unwrap()
+                .normalize();
+            // |s d - c|² = r²  →  s = d·c − sqrt((d·c)² − |c|² + r²)
+            let b = d.dot(&c.coords);
+            let disc = b * b - c.coords.norm_squared() + r * r;
+            if disc > 1e-6 {
+                let s = b - disc.sqrt();
+                // parry solves the same quadratic: agreement to ~1e-12 relative.
+                assert_relative_eq!(t.depth_mm[i], s * d.z, max_relative = 1e-9);
+                hits += 1;
+            } else if disc < -1e-6 {
+                assert_eq!(t.object[i], NO_OBJECT);
+                assert!(t.depth_mm[i].is_nan());
+            }
+        }
+    }
+    // A 50 mm sphere at ~450 mm with fx = 360 px: a disc of radius ~40 px, ~5000 pixels.
+    assert!(hits > 4_000, "{hits} hits");
+}
+
+#[test]
+fn shadows_fall_where_the_projector_cannot_see() {
+    // A wall at 500 mm and a 40 mm square occluder 100 mm in front of it, between the wall
+    // and the projector (which sits at x = +200).
+    let config = small_rig();
+    let wall = Isometry3::translation(0.0, 0.0, 500.0);
+    let occluder = Isometry3::translation(40.0, 0.0, 400.0);
+    let scene = Scene::new()
+        .with(SceneObject::in_camera(
+            "wall",
+            Shape::rectangle(1000.0, 1000.0),
+            Texture::Uniform(0.6),
+            wall,
+        ))
+        .with(SceneObject::in_camera(
+            "occluder",
+            Shape::rectangle(40.0, 40.0),
+            Texture::Uniform(0.6),
+            occluder,
+        ));
+    let rig = VirtualRig::new(config.clone(), scene).unwrap();
+    let view = rig.view(0.0, 0).unwrap();
+    let t = &view.truth;
+    let centre = Point3::from(config.t_cam_proj.translation.vector);
+    let (mut shadowed, mut lit) = (0, 0);
+    for i in 0..t.object.len() {
+        if t.object[i] != 0 {
+            continue;
+        }
+        let p = t.points_cam[i];
+        // Closed form: the segment from p to the projector centre crosses z = 400 at
+        // s = (500 - 400) / (500 - z_proj); the occluder covers |x - 40| <= 20, |y| <= 20 there.
+        let s = (p.z - 400.0) / (p.z - centre.z);
+        let q = p + (centre - p) * s;
+        let in_shadow = (q.x - 40.0).abs() <= 20.0 && q.y.abs() <= 20.0;
+        let q_proj = config
+            .projector
+            .project(&config.t_cam_proj.inverse_transform_point(&p));
+        let in_projector = q_proj.is_some_and(|q| config.projector.size.contains(&q));
+        // Pixels within 1e-6 mm of the shadow's edge could go either way.
+        let edge = ((q.x - 40.0).abs() - 20.0).abs() < 1e-6 || (q.y.abs() - 20.0).abs() < 1e-6;
+        if edge || !in_projector {
+            continue;
+        }
+        assert_eq!(t.lit(i), !in_shadow, "pixel {i}");
+        if in_shadow { shadowed += 1 } else { lit += 1 }
+    }
+    assert!(
+        shadowed > 100 && lit > 1000,
+        "shadowed {shadowed}, lit {lit}"
+    );
+
+    // In the rendered frame under full white, the shadow is only as bright as the ambient
+    // light: mean over shadow pixels ≈ exposure · full_well · albedo · ambient · g.
+    let white = GreyImage::filled_u8(
+        config.projector.size.width,
+        config.projector.size.height,
+        255,
+    );
+    let frame = view.capture(&white, 0).unwrap();
+    let Pixels::U8(px) = &frame.pixels else {
+        panic!("8-bit expected")
+    };
+    let s = config.render.effects.sensor;
+    let g = 255.0 / s.full_well_electrons;
+    let want = s.exposure * s.full_well_electrons * 0.6 * config.render.illumination.ambient * g;
+    let (mut sum, mut n) = (0.0, 0.0);
+    for y in 1..t.height - 1 {
+        for x in 1..t.width - 1 {
+            // Pixels whose 3x3 neighbourhood is all shadow, so that anti-aliasing does not mix in lit samples.
+            let all_shadow = (y - 1..=y + 1).all(|yy| {
+                (x - 1..=x + 1).all(|xx| {
+                    let j = (yy * t.width + xx) as usize;
+                    t.object[j] == 0 && !t.lit(j)
+                })
+            });
+            if all_shadow {
+                sum += f64::from(px[(y * t.width + x) as usize]);
+                n += 1.0;
+            }
+        }
+    }
+    assert!(n > 50.0);
+    // Noise ≈ 0.5 DN per pixel: the mean of > 50 pixels is within 0.5 DN (with rounding bias).
+    assert!(
+        (sum / n - want).abs() < 0.5,
+        "shadow mean {} vs {want}",
+        sum / n
+    );
+}
+
+#[test]
+fn white_frame_radiance_matches_lambert() {
+    // A plane facing the camera, gamma 2.2, no noise, 16 bits: every fully lit pixel has
+    // DN = exposure · 65535 · albedo · (ambient + power · (black + (1 − black) · v^γ) · cos).
+    let mut config = small_rig();
+    config.render.illumination.gamma = 2.2;
+    config.render.effects.sensor = SensorConfig {
+        photon_noise: false,
+        read_noise_electrons: 0.0,
+        bit_depth: sl_rig::BitDepth::Sixteen,
+        ..SensorConfig::default()
+    };
+    let rig = VirtualRig::new(
+        config.clone(),
+        plane_scene(Isometry3::translation(0.0, 0.0, 450.0)),
+    )
+    .unwrap();
+    let view = rig.view(0.0, 0).unwrap();
+    let t = &view.truth;
+    let (w, h) = (config.projector.size.width, config.projector.size.height);
+    let v = 128u8;
+    let frame = view.capture(&GreyImage::filled_u8(w, h, v), 0).unwrap();
+    let Pixels::U16(px) = &frame.pixels else {
+        panic!("16-bit expected")
+    };
+    let il = config.render.illumination;
+    let s = config.render.effects.sensor;
+    let centre = Point3::from(config.t_cam_proj.translation.vector);
+    let mut checked = 0;
+    for y in 2..t.height - 2 {
+        for x in 2..t.width - 2 {
+            let i = (y * t.width + x) as usize;
+            let all_lit = (y - 1..=y + 1)
+                .all(|yy| (x - 1..=x + 1).all(|xx| t.lit((yy * t.width + xx) as usize)));
+            if !all_lit {
+                continue;
+            }
+            let p = t.points_cam[i];
+            let cos = (centre - p).normalize().dot(&-Vector3::z());
+            let out =
+                il.black_level + (1.0 - il.black_level) * (f64::from(v) / 255.0).powf(il.gamma);
+            let radiance = 0.5 * (il.ambient + il.projector_power * out * cos);
+            let want = s.exposure * 65535.0 * radiance;
+            // The 2x2 sub-samples see cos varying by ~1e-4 across a pixel (a second-order
+            // effect on the average) and the radiance is stored as f32: 1 DN + rounding.
+            assert!(
+                (f64::from(px[i]) - want).abs() <= 1.5,
+                "pixel ({x}, {y}): {} vs {want}",
+                px[i]
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 1000);
+}
+
+#[test]
+fn image_and_function_paths_agree_and_devices_match_views() {
+    let config = small_rig();
+    let rig = VirtualRig::new(config.clone(), Scene::cylinder()).unwrap();
+    let (w, h) = (config.projector.size.width, config.projector.size.height);
+    // Vertical stripes 8 projector pixels wide.
+    let stripes = |x: f64, _y: f64| {
+        if (x / 8.0).floor().rem_euclid(2.0) < 0.5 {
+            1.0
+        } else {
+            0.0
+        }
+    };
+    let img = GreyImage::new(
+        w,
+        h,
+        Pixels::U8(
+            (0..w * h)
+                .map(|i| (stripes(f64::from(i % w), 0.0) * 255.0) as u8)
+                .collect(),
+        ),
+    )
+    .unwrap();
+    let view = rig.view(30.0, 3).unwrap();
+    let a = view.capture(&img, 5).unwrap();
+    let b = view.capture_fn(stripes, ProjectorSampling::Nearest, 5);
+    assert_eq!(a, b);
+
+    // Through the device traits: turn the table, show the images, capture.
+    let (mut cam, mut proj, mut table) = rig.devices();
+    assert_eq!(table.rotate_to(30.0).unwrap(), 30.0);
+    let black = GreyImage::filled_u8(w, h, 0);
+    let frames = capture_sequence(&mut cam, &mut proj, &[black.clone(), img.clone()]).unwrap();
+    assert_eq!(frames.len(), 2);
+    assert_eq!(
+        cam.frame_size(),
+        (config.camera.size.width, config.camera.size.height)
+    );
+    // The devices number views from 0 and frames from 0 within a view.
+    let direct = rig
+        .view(30.0, 0)
+        .unwrap()
+        .capture_all(&[black, img])
+        .unwrap();
+    assert_eq!(frames, direct);
+    // A wrong-size image is refused, naming the image.
+    let err = proj.show(&GreyImage::filled_u8(10, 10, 0)).unwrap_err();
+    assert!(err.to_string().contains("projector image"), "{err}");
+}
+
+#[test]
+fn camera_model_literals_are_consistent() {
+    // The default rig's optical axes cross at the working distance: the camera's principal
+    // ray and the projector's meet at (0, 0, 450).
+    let c = RigConfig::default();
+    let aim = Point3::new(0.0, 0.0, sl_rig::DEFAULT_WORKING_DISTANCE_MM);
+    let p_proj = c.t_cam_proj.inverse_transform_point(&aim);
+    assert_relative_eq!(p_proj.x, 0.0, epsilon = 1e-9);
+    assert_relative_eq!(p_proj.y, 0.0, epsilon = 1e-9);
+    // And the turntable axis passes through it.
+    let axis = c.turntable_axis();
+    let off = (aim - axis.point_mm).cross(&axis.direction).norm();
+    assert_relative_eq!(off, 0.0, epsilon = 1e-9);
+    let _: &CameraModel = &c.camera;
+}
