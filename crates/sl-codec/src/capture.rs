@@ -1,0 +1,178 @@
+//! Capture sets: a manifest plus the camera frames it lists, loaded from disk or memory.
+
+use std::path::{Path, PathBuf};
+
+use image::DynamicImage;
+use rayon::prelude::*;
+
+use crate::frame::check_sizes;
+use crate::manifest::MANIFEST_FILE;
+use crate::{CodecError, Frame, Frames, Manifest};
+
+/// A manifest and its frames, in manifest order (block 0's frames first).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CaptureSet {
+    /// What was projected.
+    pub manifest: Manifest,
+    /// The camera frames, all of one size and depth.
+    pub frames: Frames,
+    /// A name per frame for messages (the path it was read from, or `#index`).
+    pub frame_names: Vec<String>,
+}
+
+impl CaptureSet {
+    /// Loads `manifest.json` (or a folder holding one) and every frame it lists.
+    ///
+    /// Frame paths are resolved against the manifest's `frames_dir` (relative to the manifest's
+    /// folder) or, without one, against the manifest's folder; absolute frame paths are used as
+    /// they are.
+    ///
+    /// # Errors
+    /// Manifest errors, [`CodecError::MissingFrame`] naming the block and frame,
+    /// [`CodecError::Image`] for an unreadable frame, [`CodecError::FrameSize`] naming the frame
+    /// whose size differs from the first.
+    pub fn load(manifest_path: &Path) -> Result<Self, CodecError> {
+        Self::load_with_frames_dir(manifest_path, None)
+    }
+
+    /// As [`CaptureSet::load`], but frames are looked for in `frames_dir` when given (for
+    /// manifests kept apart from read-only data, as this crate's tests do with SLMaster's
+    /// captures).
+    ///
+    /// # Errors
+    /// As [`CaptureSet::load`].
+    pub fn load_with_frames_dir(
+        manifest_path: &Path,
+        frames_dir: Option<&Path>,
+    ) -> Result<Self, CodecError> {
+        let manifest_path = if manifest_path.is_dir() {
+            manifest_path.join(MANIFEST_FILE)
+        } else {
+            manifest_path.to_path_buf()
+        };
+        let manifest = Manifest::load(&manifest_path)?;
+        let base_dir = manifest_path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        let dir: PathBuf = match (frames_dir, &manifest.frames_dir) {
+            (Some(d), _) => d.to_path_buf(),
+            (None, Some(d)) => base_dir.join(d),
+            (None, None) => base_dir,
+        };
+        let mut paths = Vec::with_capacity(manifest.frame_count());
+        for (b, block) in manifest.blocks.iter().enumerate() {
+            for (i, file) in block.frames.iter().enumerate() {
+                let path = dir.join(file);
+                if !path.is_file() {
+                    return Err(CodecError::MissingFrame {
+                        manifest: manifest_path.clone(),
+                        block: b,
+                        index: i,
+                        file: file.clone(),
+                        path,
+                    });
+                }
+                paths.push(path);
+            }
+        }
+        let frames = load_frames(&paths)?;
+        let frame_names = paths.iter().map(|p| p.display().to_string()).collect();
+        Ok(Self {
+            manifest,
+            frames,
+            frame_names,
+        })
+    }
+
+    /// Pairs a manifest with frames already in memory (in manifest order).
+    ///
+    /// # Errors
+    /// [`CodecError::Frames`] if the count differs from the manifest's, [`CodecError::FrameSize`]
+    /// if the frames differ in size.
+    pub fn from_frames(manifest: Manifest, frames: Frames) -> Result<Self, CodecError> {
+        if frames.len() != manifest.frame_count() {
+            return Err(CodecError::Frames(format!(
+                "the manifest lists {} frames, {} were given",
+                manifest.frame_count(),
+                frames.len()
+            )));
+        }
+        frames.check_sizes()?;
+        let frame_names = (0..frames.len()).map(|i| format!("#{i}")).collect();
+        Ok(Self {
+            manifest,
+            frames,
+            frame_names,
+        })
+    }
+}
+
+/// One decoded image, before depths are unified.
+enum AnyFrame {
+    U8(Frame<u8>),
+    U16(Frame<u16>),
+}
+
+/// Reads one image file as a grey frame: 8-bit grey stays 8-bit, 16-bit grey stays 16-bit,
+/// colour is converted to luma (Rec. 709 weights, by the `image` crate) at its own depth, and
+/// float images become 16-bit.
+///
+/// # Errors
+/// [`CodecError::Image`] naming the file.
+pub fn load_frame(path: &Path) -> Result<Frames, CodecError> {
+    Ok(match load_any(path)? {
+        AnyFrame::U8(f) => Frames::U8(vec![f]),
+        AnyFrame::U16(f) => Frames::U16(vec![f]),
+    })
+}
+
+fn load_any(path: &Path) -> Result<AnyFrame, CodecError> {
+    let img = image::open(path).map_err(|source| CodecError::Image {
+        path: path.to_path_buf(),
+        action: "decode",
+        source,
+    })?;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let frame = match img {
+        DynamicImage::ImageLuma8(b) => AnyFrame::U8(Frame::new(w, h, b.into_raw())?),
+        DynamicImage::ImageLuma16(b) => AnyFrame::U16(Frame::new(w, h, b.into_raw())?),
+        DynamicImage::ImageLumaA8(_) | DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) => {
+            AnyFrame::U8(Frame::new(w, h, img.to_luma8().into_raw())?)
+        }
+        other => AnyFrame::U16(Frame::new(w, h, other.to_luma16().into_raw())?),
+    };
+    Ok(frame)
+}
+
+/// Loads frames in parallel; if any is 16-bit, all become 16-bit.
+fn load_frames(paths: &[PathBuf]) -> Result<Frames, CodecError> {
+    let loaded: Vec<AnyFrame> = paths
+        .par_iter()
+        .map(|p| load_any(p))
+        .collect::<Result<_, _>>()?;
+    let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    let any16 = loaded.iter().any(|f| matches!(f, AnyFrame::U16(_)));
+    let frames = if any16 {
+        let v: Vec<Frame<u16>> = loaded
+            .into_iter()
+            .map(|f| match f {
+                AnyFrame::U8(f) => f.to_u16(),
+                AnyFrame::U16(f) => f,
+            })
+            .collect();
+        check_sizes(&v, Some(&names))?;
+        Frames::U16(v)
+    } else {
+        let v: Vec<Frame<u8>> = loaded
+            .into_iter()
+            .filter_map(|f| match f {
+                AnyFrame::U8(f) => Some(f),
+                AnyFrame::U16(_) => None,
+            })
+            .collect();
+        check_sizes(&v, Some(&names))?;
+        Frames::U8(v)
+    };
+    Ok(frames)
+}

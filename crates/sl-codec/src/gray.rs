@@ -1,0 +1,690 @@
+//! Gray code (and plain binary) stripe patterns and their robust decoder.
+//!
+//! Stripe `i` covers the projector coordinates `[origin + i * stripe_width,
+//! origin + (i + 1) * stripe_width)` along the axis; it shows the code word `gray(i) = i ^ (i >> 1)`
+//! (or `i` itself for plain binary), one bit per pattern, most significant bit first, bit value 1
+//! shown white. Stripe indices wrap modulo `2^bits`.
+//!
+//! Decoding reads each bit by comparing the pattern with its inverse (or with the mid-level of a
+//! white and a black frame, or with the fringe mean in a hybrid block). With inverses the bits are
+//! classified with the direct/global split of Nayar et al. (2006) estimated from the finest bits,
+//! and Xu & Aliaga's rules where global light is strong, as in Moreno & Taubin's scanner. A bit
+//! whose contrast is below [`DecodeConfig::min_contrast`] is *unread*. A pixel with no unread bit
+//! decodes to its stripe; a pixel with exactly one unread bit whose two candidate stripes are
+//! neighbours lies on their common edge and decodes to it (a half-stripe position); any other
+//! pixel is `LowModulation`.
+
+use crate::config::level_u16;
+use crate::correspondence::{AxisMap, InvalidReason};
+use crate::frame::check_sizes;
+use crate::kernel::{self, AxisRows, Kernel};
+use crate::pattern::{ceil_log2, finite, positive};
+use crate::{Axis, CodecError, DecodeConfig, Frame, ProjectorSize, Sample};
+
+/// Largest number of bits per Gray block: codes are accumulated in `u16` lanes, and 2^16 stripes
+/// cover any projector made.
+pub const MAX_GRAY_BITS: u32 = 16;
+
+/// What a Gray bit is compared with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum GrayReference {
+    /// Each pattern is followed by its inverse (the default, and the only mode with the robust
+    /// direct/global classification).
+    #[default]
+    Inverse,
+    /// One all-white and one all-black frame come first; each bit is compared with their mean.
+    WhiteBlack,
+    /// Hybrid blocks only: each bit is compared with the mean of the block's phase-shift frames
+    /// (SLMaster's convention; no extra frame at all).
+    PhaseMean,
+}
+
+impl GrayReference {
+    /// `"inverse"`, `"white_black"` or `"phase_mean"`, as written in manifests.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Inverse => "inverse",
+            Self::WhiteBlack => "white_black",
+            Self::PhaseMean => "phase_mean",
+        }
+    }
+
+    /// Parses a manifest name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "inverse" => Some(Self::Inverse),
+            "white_black" => Some(Self::WhiteBlack),
+            "phase_mean" => Some(Self::PhaseMean),
+            _ => None,
+        }
+    }
+}
+
+/// Parameters of a Gray-code block.
+///
+/// Frame order: with [`GrayReference::Inverse`] `[bit 0, inverse 0, bit 1, inverse 1, ...]`;
+/// with `WhiteBlack` `[white, black, bit 0, bit 1, ...]`; with `PhaseMean` `[bit 0, bit 1, ...]`;
+/// bit 0 is the most significant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GrayCodeSpec {
+    /// Coded axis.
+    pub axis: Axis,
+    /// Projector pixels along the axis; decoded coordinates outside `[-0.5, extent - 0.5]` are
+    /// `InconsistentCode`.
+    pub extent: u32,
+    /// Number of bit planes, 1 to [`MAX_GRAY_BITS`].
+    pub bits: u32,
+    /// What each bit is compared with.
+    pub reference: GrayReference,
+    /// Plain binary code instead of the reflected Gray code.
+    pub binary: bool,
+    /// Width of one stripe in projector pixels (1 for a per-pixel code).
+    pub stripe_width: f64,
+    /// Projector coordinate of the leading edge of stripe 0 (`-0.5` for a per-pixel code that
+    /// starts at the projector's edge).
+    pub origin: f64,
+}
+
+impl GrayCodeSpec {
+    /// A per-pixel code of the projector's `axis`: `ceil(log2(extent))` bits with inverses,
+    /// reflected Gray code, optionally centred.
+    ///
+    /// Centring shifts the code by `(2^bits - extent) / 2` (rounded down) stripes so that the
+    /// projector shows the symmetric middle of the code, as SLStudio and Moreno & Taubin do.
+    pub fn per_pixel(axis: Axis, projector: ProjectorSize, centered: bool) -> Self {
+        let extent = projector.extent(axis);
+        let bits = ceil_log2(u64::from(extent)).max(1);
+        Self {
+            axis,
+            extent,
+            bits,
+            reference: GrayReference::Inverse,
+            binary: false,
+            stripe_width: 1.0,
+            origin: Self::per_pixel_origin(extent, bits, centered),
+        }
+    }
+
+    /// The `origin` of a per-pixel code: `-0.5`, minus the centring offset if `centered`.
+    pub fn per_pixel_origin(extent: u32, bits: u32, centered: bool) -> f64 {
+        let offset = if centered && bits < 64 {
+            ((1u64 << bits).saturating_sub(u64::from(extent)) / 2) as f64
+        } else {
+            0.0
+        };
+        -0.5 - offset
+    }
+
+    /// Number of frames of the block.
+    pub fn frame_count(&self) -> usize {
+        let b = self.bits as usize;
+        match self.reference {
+            GrayReference::Inverse => 2 * b,
+            GrayReference::WhiteBlack => b + 2,
+            GrayReference::PhaseMean => b,
+        }
+    }
+
+    /// Checks every parameter.
+    ///
+    /// # Errors
+    /// [`CodecError::Parameter`] naming the bad field.
+    pub fn validate(&self) -> Result<(), CodecError> {
+        if self.bits == 0 || self.bits > MAX_GRAY_BITS {
+            return Err(CodecError::parameter(
+                "bits",
+                format!("must be in 1..={MAX_GRAY_BITS}, got {}", self.bits),
+            ));
+        }
+        if self.extent == 0 {
+            return Err(CodecError::parameter(
+                "extent",
+                "the projector must not be empty",
+            ));
+        }
+        positive("stripe_width", self.stripe_width)?;
+        finite("origin", self.origin)?;
+        Ok(())
+    }
+
+    /// Index of the stripe (modulo `2^bits`) that contains projector coordinate `t`.
+    pub fn stripe_index(&self, t: f64) -> u32 {
+        let i = ((t - self.origin) / self.stripe_width).floor();
+        let n = 1i64 << self.bits.min(MAX_GRAY_BITS);
+        // Saturating float->int cast, then wrap into [0, 2^bits).
+        (i as i64).rem_euclid(n) as u32
+    }
+
+    /// The code word shown on stripe `index`.
+    pub fn code_word(&self, index: u32) -> u32 {
+        if self.binary {
+            index
+        } else {
+            index ^ (index >> 1)
+        }
+    }
+
+    /// Centre of stripe `index` (fractional indices allowed: `i + 0.5` is the edge between
+    /// stripes `i` and `i + 1`).
+    pub fn stripe_center(&self, index: f64) -> f64 {
+        self.origin + (index + 0.5) * self.stripe_width
+    }
+
+    /// Intensity (0 or 1) of frame `frame` of the block at projector coordinate `t` along the
+    /// axis, or `None` if `frame >= frame_count()`.
+    pub fn pattern_value(&self, frame: usize, t: f64) -> Option<f64> {
+        if frame >= self.frame_count() {
+            return None;
+        }
+        let (bit, inverted) = match self.reference {
+            GrayReference::Inverse => (frame / 2, frame % 2 == 1),
+            GrayReference::WhiteBlack => match frame {
+                0 => return Some(1.0),
+                1 => return Some(0.0),
+                f => (f - 2, false),
+            },
+            GrayReference::PhaseMean => (frame, false),
+        };
+        let code = self.code_word(self.stripe_index(t));
+        let shift = self.bits - 1 - bit as u32;
+        let on = ((code >> shift) & 1 == 1) != inverted;
+        Some(if on { 1.0 } else { 0.0 })
+    }
+}
+
+/// Decodes one Gray-code block from in-memory frames (in the block's frame order).
+///
+/// # Errors
+/// [`CodecError::FrameCount`] if `frames.len() != spec.frame_count()`, [`CodecError::FrameSize`]
+/// if the frames differ in size, [`CodecError::Parameter`] for a bad spec or config (including
+/// [`GrayReference::PhaseMean`], which needs a hybrid block).
+///
+/// # Example
+/// ```
+/// use sl_codec::{decode_gray, render_pattern, Axis, DecodeConfig, Frame, GrayCodeSpec, Pattern, ProjectorSize};
+///
+/// // A 100-column projector seen by a camera of the same size, pixel for pixel.
+/// let projector = ProjectorSize::new(100, 4);
+/// let spec = GrayCodeSpec::per_pixel(Axis::Column, projector, true);
+/// let pattern = Pattern::Gray(spec.clone());
+/// let frames = (0..pattern.frame_count())
+///     .map(|i| render_pattern::<u8>(&pattern, i, projector))
+///     .collect::<Result<Vec<Frame<u8>>, _>>()?;
+/// let map = decode_gray(&spec, &frames, &DecodeConfig::default())?;
+/// assert_eq!(map.coord[37], 37.0);
+/// # Ok::<(), sl_codec::CodecError>(())
+/// ```
+pub fn decode_gray<T: Sample>(
+    spec: &GrayCodeSpec,
+    frames: &[Frame<T>],
+    config: &DecodeConfig,
+) -> Result<AxisMap, CodecError> {
+    let kernel = GrayKernel::new(spec, frames, config)?;
+    let (w, h) = dims(frames);
+    Ok(kernel::run_axis(
+        Kernel::Gray(kernel),
+        w,
+        h,
+        config.rows_per_task,
+    ))
+}
+
+/// Width and height of the first frame (0 x 0 if none).
+pub(crate) fn dims<T: Sample>(frames: &[Frame<T>]) -> (usize, usize) {
+    frames.first().map_or((0, 0), |f| (f.width(), f.height()))
+}
+
+/// Checks the frame count and sizes of a block.
+pub(crate) fn check_block<T: Sample>(
+    codec: &'static str,
+    axis: Axis,
+    expected: usize,
+    frames: &[Frame<T>],
+) -> Result<(), CodecError> {
+    if frames.len() != expected {
+        return Err(CodecError::FrameCount {
+            codec,
+            axis: axis.name(),
+            expected,
+            found: frames.len(),
+        });
+    }
+    check_sizes(frames, None)
+}
+
+/// Thresholds of the bit classifier, in the frames' grey levels.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BitThresholds {
+    pub(crate) min_contrast: u16,
+    pub(crate) min_direct: u16,
+    pub(crate) saturation: u32,
+    pub(crate) robust: bool,
+}
+
+impl BitThresholds {
+    pub(crate) fn new<T: Sample>(config: &DecodeConfig) -> Self {
+        let s = T::SCALE_FROM_8BIT;
+        Self {
+            min_contrast: level_u16(config.min_contrast, s),
+            min_direct: level_u16(config.min_direct, s),
+            saturation: (config.saturation_level * s)
+                .round()
+                .clamp(0.0, u32::MAX as f32) as u32,
+            robust: config.robust,
+        }
+    }
+}
+
+/// Reads one bit plane against its inverse into `code`/`unread` (shifted left by one).
+///
+/// `ld`/`lg` are the direct and global light of each pixel. With `robust`, Xu & Aliaga's rules:
+/// where `Ld > Lg` the comparison decides; elsewhere the bit is 1 only if `p >= Lg && q <= Ld`,
+/// 0 only if `q >= Lg && p <= Ld`, unread otherwise. A contrast `|p - q|` below `min_contrast`
+/// is always unread.
+#[inline]
+pub(crate) fn read_bit_inverse<T: Sample>(
+    p: &[T],
+    q: &[T],
+    ld: &[u16],
+    lg: &[u16],
+    code: &mut [u16],
+    unread: &mut [u16],
+    th: BitThresholds,
+) {
+    let n = code.len();
+    let (p, q, ld, lg, unread) = (&p[..n], &q[..n], &ld[..n], &lg[..n], &mut unread[..n]);
+    let mc = th.min_contrast;
+    if th.robust {
+        for i in 0..n {
+            let (pv, qv) = (p[i].to_u16(), q[i].to_u16());
+            let (d, g) = (ld[i], lg[i]);
+            let strong = d > g;
+            let w1 = pv >= g && qv <= d;
+            let w0 = qv >= g && pv <= d;
+            let bit = if strong { pv > qv } else { w1 };
+            let read = pv.abs_diff(qv) >= mc && (strong || w0 || w1);
+            code[i] = (code[i] << 1) | u16::from(bit);
+            unread[i] = (unread[i] << 1) | u16::from(!read);
+        }
+    } else {
+        for i in 0..n {
+            let (pv, qv) = (p[i].to_u16(), q[i].to_u16());
+            code[i] = (code[i] << 1) | u16::from(pv > qv);
+            unread[i] = (unread[i] << 1) | u16::from(pv.abs_diff(qv) < mc);
+        }
+    }
+}
+
+/// Reads one bit plane against a per-pixel threshold given as twice its value (`thr2`).
+#[inline]
+pub(crate) fn read_bit_threshold<T: Sample>(
+    p: &[T],
+    thr2: &[u32],
+    code: &mut [u16],
+    unread: &mut [u16],
+    min_contrast: u16,
+) {
+    let n = code.len();
+    let (p, thr2, unread) = (&p[..n], &thr2[..n], &mut unread[..n]);
+    let mc = u32::from(min_contrast);
+    for i in 0..n {
+        let p2 = 2 * u32::from(p[i].to_u16());
+        let t = thr2[i];
+        code[i] = (code[i] << 1) | u16::from(p2 > t);
+        unread[i] = (unread[i] << 1) | u16::from(p2.abs_diff(t) < mc);
+    }
+}
+
+/// Turns an accumulated code word into a stripe position: the stripe index, or the half-integer
+/// edge between two neighbouring stripes when exactly one bit is unread and its two readings
+/// are neighbours. `None` if the pixel cannot be decoded.
+#[inline]
+pub(crate) fn resolve_stripe(code: u16, unread: u16, binary: bool) -> Option<f32> {
+    let decode = |c: u16| -> u16 {
+        if binary {
+            c
+        } else {
+            let mut b = c;
+            b ^= b >> 1;
+            b ^= b >> 2;
+            b ^= b >> 4;
+            b ^= b >> 8;
+            b
+        }
+    };
+    let idx = decode(code);
+    if unread == 0 {
+        return Some(f32::from(idx));
+    }
+    if unread & (unread - 1) != 0 {
+        return None;
+    }
+    let alt = decode(code ^ unread);
+    if idx.abs_diff(alt) == 1 {
+        Some(f32::from(idx.min(alt)) + 0.5)
+    } else {
+        None
+    }
+}
+
+/// Direct and global light from the brightest and darkest value a pixel takes under
+/// high-frequency patterns (Nayar et al. 2006): `Ld = (Lmax - Lmin) / (1 - b)`,
+/// `Lg = 2 (Lmin - b Lmax) / (1 - b^2)`; exact integers for `b = 0`.
+#[inline]
+pub(crate) fn direct_global_row(
+    lmax: &[u16],
+    lmin: &[u16],
+    ld: &mut [u16],
+    lg: &mut [u16],
+    black: f32,
+) {
+    let n = ld.len();
+    let (lmax, lmin, lg) = (&lmax[..n], &lmin[..n], &mut lg[..n]);
+    if black == 0.0 {
+        for i in 0..n {
+            ld[i] = lmax[i].saturating_sub(lmin[i]);
+            lg[i] = lmin[i].saturating_mul(2);
+        }
+    } else {
+        let k1 = 1.0 / (1.0 - black);
+        let k2 = 2.0 / (1.0 - black * black);
+        for i in 0..n {
+            let (hi, lo) = (f32::from(lmax[i]), f32::from(lmin[i]));
+            ld[i] = ((hi - lo) * k1).clamp(0.0, 65535.0) as u16;
+            lg[i] = ((lo - black * hi) * k2).clamp(0.0, 65535.0) as u16;
+        }
+    }
+}
+
+/// The per-block decoder.
+pub(crate) struct GrayKernel<'a, T: Sample> {
+    spec: GrayCodeSpec,
+    frames: &'a [Frame<T>],
+    width: usize,
+    th: BitThresholds,
+    /// First bit (MSB = 0) used for the direct/global estimate.
+    dg_first_bit: usize,
+    black: f32,
+    quality_scale: f32,
+}
+
+/// Per-task scratch of [`GrayKernel`].
+pub(crate) struct GrayScratch {
+    lmax: Vec<u16>,
+    lmin: Vec<u16>,
+    ld: Vec<u16>,
+    lg: Vec<u16>,
+    thr2: Vec<u32>,
+    code: Vec<u16>,
+    unread: Vec<u16>,
+}
+
+impl<'a, T: Sample> GrayKernel<'a, T> {
+    pub(crate) fn new(
+        spec: &GrayCodeSpec,
+        frames: &'a [Frame<T>],
+        config: &DecodeConfig,
+    ) -> Result<Self, CodecError> {
+        spec.validate()?;
+        config.validate()?;
+        if spec.reference == GrayReference::PhaseMean {
+            return Err(CodecError::parameter(
+                "reference",
+                "'phase_mean' needs phase-shift frames: use it in a hybrid block",
+            ));
+        }
+        check_block("gray", spec.axis, spec.frame_count(), frames)?;
+        let bits = spec.bits as usize;
+        let dg = (config.direct_global_bits as usize).clamp(1, bits);
+        Ok(Self {
+            spec: spec.clone(),
+            frames,
+            width: dims(frames).0,
+            th: BitThresholds::new::<T>(config),
+            dg_first_bit: bits - dg,
+            black: config.black_level,
+            quality_scale: 1.0 / T::SCALE_FROM_8BIT,
+        })
+    }
+
+    pub(crate) fn axis(&self) -> Axis {
+        self.spec.axis
+    }
+
+    pub(crate) fn new_scratch(&self, width: usize) -> GrayScratch {
+        GrayScratch {
+            lmax: vec![0; width],
+            lmin: vec![0; width],
+            ld: vec![0; width],
+            lg: vec![0; width],
+            thr2: vec![0; width],
+            code: vec![0; width],
+            unread: vec![0; width],
+        }
+    }
+
+    fn row(&self, frame: usize, y: usize) -> &[T] {
+        self.frames.get(frame).and_then(|f| f.row(y)).unwrap_or(&[])
+    }
+
+    pub(crate) fn decode_row(
+        &self,
+        y: usize,
+        offset: usize,
+        out: &mut AxisRows<'_>,
+        s: &mut GrayScratch,
+    ) {
+        let w = self.width;
+        let bits = self.spec.bits as usize;
+        s.code.fill(0);
+        s.unread.fill(0);
+        match self.spec.reference {
+            GrayReference::Inverse => {
+                s.lmax.fill(0);
+                s.lmin.fill(u16::MAX);
+                for b in self.dg_first_bit..bits {
+                    for f in [2 * b, 2 * b + 1] {
+                        let r = self.row(f, y);
+                        for ((hi, lo), v) in s.lmax.iter_mut().zip(s.lmin.iter_mut()).zip(r) {
+                            let v = v.to_u16();
+                            *hi = (*hi).max(v);
+                            *lo = (*lo).min(v);
+                        }
+                    }
+                }
+                direct_global_row(&s.lmax, &s.lmin, &mut s.ld, &mut s.lg, self.black);
+                for b in 0..bits {
+                    let (p, q) = (self.row(2 * b, y), self.row(2 * b + 1, y));
+                    if p.len() < w || q.len() < w {
+                        return;
+                    }
+                    read_bit_inverse(p, q, &s.ld, &s.lg, &mut s.code, &mut s.unread, self.th);
+                }
+            }
+            GrayReference::WhiteBlack | GrayReference::PhaseMean => {
+                let (white, black) = (self.row(0, y), self.row(1, y));
+                for (i, (wv, bv)) in white.iter().zip(black).enumerate().take(w) {
+                    let (wv, bv) = (wv.to_u16(), bv.to_u16());
+                    if let (Some(t), Some(d), Some(lo)) =
+                        (s.thr2.get_mut(i), s.ld.get_mut(i), s.lmin.get_mut(i))
+                    {
+                        *t = u32::from(wv) + u32::from(bv);
+                        *d = wv.saturating_sub(bv);
+                        *lo = bv;
+                    }
+                }
+                for b in 0..bits {
+                    let p = self.row(b + 2, y);
+                    if p.len() < w {
+                        return;
+                    }
+                    read_bit_threshold(
+                        p,
+                        &s.thr2,
+                        &mut s.code,
+                        &mut s.unread,
+                        self.th.min_contrast,
+                    );
+                }
+            }
+        }
+        let lo_limit = -0.5;
+        let hi_limit = f64::from(self.spec.extent) - 0.5;
+        for x in 0..w {
+            let (ld, lmin) = (s.ld[x], s.lmin[x]);
+            let quality = f32::from(ld) * self.quality_scale;
+            let reason;
+            let mut coord = f32::NAN;
+            if u32::from(lmin) >= self.th.saturation {
+                reason = InvalidReason::Saturated;
+            } else if ld < self.th.min_direct {
+                reason = if lmin < self.th.min_direct {
+                    InvalidReason::Shadow
+                } else {
+                    InvalidReason::LowModulation
+                };
+            } else {
+                match resolve_stripe(s.code[x], s.unread[x], self.spec.binary) {
+                    None => reason = InvalidReason::LowModulation,
+                    Some(pos) => {
+                        let c = self.spec.stripe_center(f64::from(pos));
+                        if (lo_limit..=hi_limit).contains(&c) {
+                            coord = c as f32;
+                            reason = InvalidReason::Valid;
+                        } else {
+                            reason = InvalidReason::InconsistentCode;
+                        }
+                    }
+                }
+            }
+            out.put(offset + x, coord, quality, reason);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn per_pixel_spec_for_1920() {
+        let s = GrayCodeSpec::per_pixel(Axis::Column, ProjectorSize::new(1920, 1080), true);
+        assert_eq!(s.bits, 11);
+        assert_eq!(s.origin, -0.5 - 64.0);
+        assert_eq!(s.frame_count(), 22);
+        // Column x sits on stripe x + 64: the centred offset (2048 - 1920) / 2.
+        assert_eq!(s.stripe_index(0.0), 64);
+        assert_eq!(s.stripe_index(1919.0), 1983);
+        assert_eq!(s.stripe_center(64.0), 0.0);
+        let r = GrayCodeSpec::per_pixel(Axis::Row, ProjectorSize::new(1920, 1080), false);
+        assert_eq!(r.bits, 11);
+        assert_eq!(r.origin, -0.5);
+    }
+
+    #[test]
+    fn gray_code_changes_one_bit_between_neighbours() {
+        let s = GrayCodeSpec::per_pixel(Axis::Column, ProjectorSize::new(800, 600), true);
+        for i in 0..(1u32 << s.bits) - 1 {
+            assert_eq!((s.code_word(i) ^ s.code_word(i + 1)).count_ones(), 1);
+        }
+    }
+
+    #[test]
+    fn pattern_values_follow_the_code_msb_first() {
+        // 8 stripes, 3 bits: stripe 5 = gray 0b111.
+        let s = GrayCodeSpec {
+            axis: Axis::Column,
+            extent: 8,
+            bits: 3,
+            reference: GrayReference::Inverse,
+            binary: false,
+            stripe_width: 1.0,
+            origin: -0.5,
+        };
+        let bits: Vec<f64> = (0..6).map(|f| s.pattern_value(f, 5.0).unwrap()).collect();
+        assert_eq!(bits, vec![1.0, 0.0, 1.0, 0.0, 1.0, 0.0]);
+        // stripe 2 = gray 0b011
+        let bits: Vec<f64> = (0..6).map(|f| s.pattern_value(f, 2.2).unwrap()).collect();
+        assert_eq!(bits, vec![0.0, 1.0, 1.0, 0.0, 1.0, 0.0]);
+        assert_eq!(s.pattern_value(6, 0.0), None);
+        let wb = GrayCodeSpec {
+            reference: GrayReference::WhiteBlack,
+            ..s.clone()
+        };
+        assert_eq!(wb.pattern_value(0, 3.0), Some(1.0));
+        assert_eq!(wb.pattern_value(1, 3.0), Some(0.0));
+        assert_eq!(wb.pattern_value(2, 5.0), Some(1.0));
+        assert_eq!(wb.frame_count(), 5);
+    }
+
+    #[test]
+    fn resolve_stripe_rules() {
+        // gray(5) = 7, gray(6) = 5: they differ in bit 1.
+        assert_eq!(resolve_stripe(7, 0, false), Some(5.0));
+        assert_eq!(resolve_stripe(7, 0b010, false), Some(5.5));
+        // gray(5)=0b111 with the MSB unread: the other reading is gray^-1(0b011) = 2, not a
+        // neighbour of 5.
+        assert_eq!(resolve_stripe(7, 0b100, false), None);
+        assert_eq!(resolve_stripe(7, 0b110, false), None);
+        // Binary: 5 = 0b101 with the LSB unread -> 4 or 5 -> edge 4.5.
+        assert_eq!(resolve_stripe(5, 0b001, true), Some(4.5));
+    }
+
+    #[test]
+    fn direct_global_closed_form() {
+        // Ld = 100, Lg = 40, b = 0.2: Lmax = Ld + (1+b) Lg / 2 = 124, Lmin = b Ld + (1+b) Lg/2 = 44.
+        let (mut ld, mut lg) = (vec![0u16; 1], vec![0u16; 1]);
+        direct_global_row(&[124], &[44], &mut ld, &mut lg, 0.2);
+        assert!((i32::from(ld[0]) - 100).abs() <= 1, "{}", ld[0]);
+        assert!((i32::from(lg[0]) - 40).abs() <= 1, "{}", lg[0]);
+        direct_global_row(&[150], &[30], &mut ld, &mut lg, 0.0);
+        assert_eq!((ld[0], lg[0]), (120, 60));
+    }
+
+    #[test]
+    fn robust_rules_of_xu_and_aliaga() {
+        let th = BitThresholds {
+            min_contrast: 4,
+            min_direct: 8,
+            saturation: 255,
+            robust: true,
+        };
+        // Pixel 0: strong direct (Ld 100 > Lg 20): comparison.
+        // Pixel 1: weak (Ld 30 < Lg 80), p = 90 >= Lg, q = 10 <= Ld -> 1.
+        // Pixel 2: weak, p = 60, q = 50: neither rule -> unread.
+        // Pixel 3: strong but contrast 2 < 4 -> unread.
+        let p = [120u8, 90, 60, 52];
+        let q = [20u8, 10, 50, 50];
+        let ld = [100u16, 30, 30, 100];
+        let lg = [20u16, 80, 80, 20];
+        let mut code = vec![0u16; 4];
+        let mut unread = vec![0u16; 4];
+        read_bit_inverse(&p, &q, &ld, &lg, &mut code, &mut unread, th);
+        assert_eq!(code, vec![1, 1, 0, 1]);
+        assert_eq!(unread, vec![0, 0, 1, 1]);
+    }
+
+    #[test]
+    fn frame_count_is_checked() {
+        let spec = GrayCodeSpec::per_pixel(Axis::Column, ProjectorSize::new(16, 4), false);
+        let frames = vec![Frame::filled(4, 4, 0u8).unwrap(); 7];
+        let err = decode_gray(&spec, &frames, &DecodeConfig::default()).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                CodecError::FrameCount {
+                    expected: 8,
+                    found: 7,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let pm = GrayCodeSpec {
+            reference: GrayReference::PhaseMean,
+            ..spec
+        };
+        let frames = vec![Frame::filled(4, 4, 0u8).unwrap(); 4];
+        assert!(decode_gray(&pm, &frames, &DecodeConfig::default()).is_err());
+    }
+}
