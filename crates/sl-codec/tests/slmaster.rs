@@ -1,0 +1,119 @@
+//! The real SLMaster captures (`$SL_DATA/slmaster`), decoded from a manifest alone and compared
+//! with SLMaster's own reference values (see the data folder's `README.md`).
+//!
+//! The manifests live in `tests/data/slmaster/`; the frames stay in the read-only data folder
+//! and are found through `CaptureSet::load_with_frames_dir`.
+//!
+//! Convention mapping: SLMaster's unwrapped phase of the finest pattern is `Phi = 2 pi c /
+//! lambda` for our decoded column `c` (its phase origin is projector column 0, `origin = 0` in the
+//! manifests), so its period index is `floor(c / lambda)`.
+
+use std::f64::consts::TAU;
+use std::path::PathBuf;
+
+use sl_codec::{CaptureSet, CorrespondenceMap, DecodeConfig, Manifest, Pattern, decode};
+
+fn data_dir(set: &str) -> Option<PathBuf> {
+    let Some(root) = std::env::var_os("SL_DATA") else {
+        eprintln!("SL_DATA not set: skipping the SLMaster {set} test");
+        return None;
+    };
+    Some(PathBuf::from(root).join("slmaster").join(set))
+}
+
+fn manifest(set: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/slmaster")
+        .join(format!("{set}.json"))
+}
+
+fn decode_set(set: &str, config: &DecodeConfig) -> Option<CorrespondenceMap> {
+    let frames = data_dir(set)?;
+    let capture = CaptureSet::load_with_frames_dir(&manifest(set), Some(&frames)).unwrap();
+    assert_eq!((capture.frames.width(), capture.frames.height()), (1280, 1024));
+    Some(decode(&capture, config).unwrap())
+}
+
+/// SLMaster's unwrapped phase and period index at camera pixel (row, col).
+fn slmaster_phase(m: &CorrespondenceMap, row: usize, col: usize, lambda: f64) -> (f64, i64) {
+    let c = m.get(col, row).unwrap();
+    assert!(c.invalid.is_valid(), "pixel ({row}, {col}) is {:?}", c.invalid);
+    let phi = TAU * f64::from(c.col) / lambda;
+    (phi, (phi / TAU).floor() as i64)
+}
+
+#[test]
+fn manifests_parse_without_the_data() {
+    for (set, frames) in [("three_frequency_heterodyne", 12), ("shift_graycode", 9)] {
+        let m = Manifest::load(&manifest(set)).unwrap();
+        assert_eq!(m.frame_count(), frames);
+        assert_eq!(m.projector.width, 1920);
+    }
+    let m = Manifest::load(&manifest("shift_graycode")).unwrap();
+    let Pattern::Hybrid(h) = &m.blocks[0].pattern else {
+        panic!("expected a hybrid block")
+    };
+    assert_eq!(h.period_pixels(), 60.0);
+}
+
+#[test]
+fn heterodyne_agrees_with_slmaster() {
+    // SLMaster's test invalidates pixels with modulation below 30 grey levels.
+    let config = DecodeConfig {
+        min_modulation: 30.0,
+        ..DecodeConfig::default()
+    };
+    let Some(m) = decode_set("three_frequency_heterodyne", &config) else {
+        return;
+    };
+    let lambda = 1920.0 / 64.0;
+    let (_, k) = slmaster_phase(&m, 480, 590, lambda);
+    assert_eq!(k, 30);
+    let (phi, _) = slmaster_phase(&m, 470, 590, lambda);
+    assert!((phi - 191.95).abs() <= 0.1, "unwrapped phase {phi}, SLMaster 191.95");
+    // The object covers about a fifth of the image; the rest is background at ~48 grey levels.
+    assert!(m.valid_fraction() > 0.15, "valid {}", m.valid_fraction());
+}
+
+#[test]
+fn shifted_gray_code_agrees_with_slmaster() {
+    let Some(m) = decode_set("shift_graycode", &DecodeConfig::default()) else {
+        return;
+    };
+    let lambda = 1920.0 / 32.0;
+    let (_, k) = slmaster_phase(&m, 453, 700, lambda);
+    assert_eq!(k, 17);
+    let (phi, _) = slmaster_phase(&m, 460, 653, lambda);
+    assert!((phi - 103.75).abs() <= 0.1, "unwrapped phase {phi}, SLMaster 103.75");
+    assert!(m.valid_fraction() > 0.15, "valid {}", m.valid_fraction());
+}
+
+#[test]
+fn the_two_captures_agree_with_each_other() {
+    // Both sets show the same scene from the same camera, coded by two different methods
+    // (heterodyne vs Gray-located phase), so their decoded columns are independent estimates
+    // of the same quantity. Their difference is dominated by a ripple of +-0.8 px at four
+    // times the fringe frequency: the classic 4-step error of an uncompensated projector gamma
+    // (SLMaster renders linear fringes), largest on the 60-px fringes of the Gray set.
+    let config = DecodeConfig::default();
+    let Some(h) = decode_set("three_frequency_heterodyne", &config) else {
+        return;
+    };
+    let Some(g) = decode_set("shift_graycode", &config) else {
+        return;
+    };
+    let mut d: Vec<f32> = h
+        .col
+        .iter()
+        .zip(&g.col)
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .map(|(a, b)| (a - b).abs())
+        .collect();
+    d.sort_by(f32::total_cmp);
+    let n = d.len();
+    assert!(n > 200_000, "{n} pixels valid in both");
+    let median = d[n / 2];
+    let beyond_3px = d.iter().filter(|&&x| x > 3.0).count() as f64 / n as f64;
+    assert!(median < 0.75, "median |difference| {median} px");
+    assert!(beyond_3px < 0.01, "{:.2}% beyond 3 px", 100.0 * beyond_3px);
+}
