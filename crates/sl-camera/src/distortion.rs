@@ -26,6 +26,14 @@ const MAX_RADIAL_ITERATIONS: usize = 200;
 /// focal length of 1000 px, i.e. far below the 1e-9 px round-trip target.
 const UNDISTORT_TOLERANCE: f64 = 1e-13;
 
+/// Residual (relative to `max(1, |distorted point|)`) at which Newton stops at once: a few
+/// ulps, the rounding level of evaluating the distortion.
+const ROUNDING_RESIDUAL: f64 = 4.0 * f64::EPSILON;
+
+/// Relative step at which the radial start stops: Newton's convergence is quadratic, so the
+/// radius is then exact to ~1e-18 relative; the 2-D iteration finishes the job anyway.
+const RADIAL_START_TOLERANCE: f64 = 1e-9;
+
 /// Which of OpenCV's distortion models a [`Distortion`] uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -361,6 +369,20 @@ impl Distortion {
         j.determinant() > 0.0
     }
 
+    /// `distort(p)` if `p` is in the valid region (one evaluation for both).
+    #[inline]
+    pub(crate) fn distort_if_valid(&self, p: &Point2<f64>) -> Option<Point2<f64>> {
+        if self.model == DistortionModel::None {
+            return (p.x.is_finite() && p.y.is_finite()).then_some(*p);
+        }
+        let s = p.x * p.x + p.y * p.y;
+        if s.is_nan() || s >= self.max_radius_sq {
+            return None;
+        }
+        let (q, j) = self.distort_with_point_jacobian(p);
+        (j.determinant() > 0.0).then_some(q)
+    }
+
     /// Undistorts a normalised point: the normalised point `p` of the valid region with
     /// `distort(p) = pd`, by Newton's method with the analytic Jacobian, started from the
     /// exact solution of the radial part. `None` if `pd` is not the image of a point of the
@@ -421,7 +443,7 @@ impl Distortion {
             if !(next > lo && next < hi) {
                 next = 0.5 * (lo + hi);
             }
-            if (next - r).abs() <= f64::EPSILON * r || hi - lo <= f64::EPSILON * hi {
+            if (next - r).abs() <= RADIAL_START_TOLERANCE * r {
                 r = next;
                 break;
             }
@@ -433,9 +455,11 @@ impl Distortion {
     /// Newton's method on `distort(p) − pd = 0` from `start`; `Some` only if it converges to a
     /// point of the valid region.
     fn newton(&self, pd: &Point2<f64>, start: Point2<f64>) -> Option<Point2<f64>> {
-        let tol = UNDISTORT_TOLERANCE * pd.coords.norm().max(1.0);
+        let scale = pd.coords.norm().max(1.0);
+        let tol = UNDISTORT_TOLERANCE * scale;
+        let floor = ROUNDING_RESIDUAL * scale;
         let mut p = start;
-        let mut best = f64::INFINITY;
+        let mut previous = f64::INFINITY;
         for _ in 0..MAX_NEWTON_ITERATIONS {
             let (q, j) = self.distort_with_point_jacobian(&p);
             let r = q - pd;
@@ -443,25 +467,23 @@ impl Distortion {
             if !rn.is_finite() {
                 return None;
             }
-            if rn <= tol && rn >= best {
-                break; // converged and no longer improving
-            }
-            best = best.min(rn);
             let det = j.m11 * j.m22 - j.m12 * j.m21;
+            if rn <= tol && (rn <= floor || rn > 0.25 * previous) {
+                // Converged: at rounding level, or no longer improving quadratically. Accept
+                // only inside the valid region (same test as `is_valid_at`, reusing `j`).
+                let s = p.x * p.x + p.y * p.y;
+                return (det > 0.0 && s < self.max_radius_sq).then_some(p);
+            }
             if det.is_nan() || det <= 0.0 {
                 return None;
             }
-            let step = Vector2::new(
+            p -= Vector2::new(
                 (j.m22 * r.x - j.m12 * r.y) / det,
                 (j.m11 * r.y - j.m21 * r.x) / det,
             );
-            p -= step;
-            if step.norm() <= f64::EPSILON * p.coords.norm() {
-                break;
-            }
+            previous = rn;
         }
-        let residual = (self.distort(&p) - pd).norm();
-        (residual <= tol && self.is_valid_at(&p)).then_some(p)
+        None
     }
 }
 

@@ -89,13 +89,8 @@ impl CameraModel {
             return None;
         }
         let n = Point2::new(p_cam.x / p_cam.z, p_cam.y / p_cam.z);
-        if !self.distortion.is_valid_at(&n) {
-            return None;
-        }
-        Some(
-            self.intrinsics
-                .pixel_from_normalised(&self.distortion.distort(&n)),
-        )
+        let d = self.distortion.distort_if_valid(&n)?;
+        Some(self.intrinsics.pixel_from_normalised(&d))
     }
 
     /// Unprojects a pixel to the normalised ray `(x, y, 1)` in the camera frame (undistorted
