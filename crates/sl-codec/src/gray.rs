@@ -25,6 +25,15 @@ use crate::{Axis, CodecError, DecodeConfig, Frame, ProjectorSize, Sample};
 /// cover any projector made.
 pub const MAX_GRAY_BITS: u32 = 16;
 
+/// Xu & Aliaga's weak rules keep a margin of `Lg >> 3` (one eighth of the global light) on top
+/// of `min_contrast`. `Lg = 2 Lmin` is estimated from the darkest of several noisy samples of
+/// fine patterns, which biases it low by one to two noise sigmas (doubled), and real fine
+/// patterns never split the scene's light exactly in half; without the margin a pixel whose
+/// unlit sample gathers all the global light (a coarse stripe lighting the far wall of a
+/// corner) reads as lit half of the time. An eighth covered the worst case of the tests
+/// (global light 1.3x the direct light) with room to spare.
+pub const WEAK_RULE_MARGIN_SHIFT: u32 = 3;
+
 /// What a Gray bit is compared with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum GrayReference {
@@ -279,8 +288,10 @@ impl BitThresholds {
 ///
 /// `ld`/`lg` are the direct and global light of each pixel. With `robust`, Xu & Aliaga's rules:
 /// where `Ld > Lg` the comparison decides; elsewhere the bit is 1 only if `p >= Lg && q <= Ld`,
-/// 0 only if `q >= Lg && p <= Ld`, unread otherwise. A contrast `|p - q|` below `min_contrast`
-/// is always unread.
+/// 0 only if `q >= Lg && p <= Ld`, unread otherwise. Both tests keep a margin of
+/// `min_contrast + Lg / 8` (see [`WEAK_RULE_MARGIN_SHIFT`]): an unlit sample *equals* `Lg` when
+/// all of the global light comes from the lit part of a coarse pattern, and `Lg` is only an
+/// estimate. A contrast `|p - q|` below `min_contrast` is always unread.
 #[inline]
 pub(crate) fn read_bit_inverse<T: Sample>(
     p: &[T],
@@ -299,8 +310,9 @@ pub(crate) fn read_bit_inverse<T: Sample>(
             let (pv, qv) = (p[i].to_u16(), q[i].to_u16());
             let (d, g) = (ld[i], lg[i]);
             let strong = d > g;
-            let w1 = pv >= g && qv <= d;
-            let w0 = qv >= g && pv <= d;
+            let m = mc.saturating_add(g >> WEAK_RULE_MARGIN_SHIFT);
+            let w1 = pv >= g.saturating_add(m) && qv.saturating_add(m) <= d;
+            let w0 = qv >= g.saturating_add(m) && pv.saturating_add(m) <= d;
             let bit = if strong { pv > qv } else { w1 };
             let read = pv.abs_diff(qv) >= mc && (strong || w0 || w1);
             code[i] = (code[i] << 1) | u16::from(bit);
@@ -649,19 +661,22 @@ mod tests {
             saturation: 255,
             robust: true,
         };
+        // Margin of the weak rules: 4 + 80 / 8 = 14.
         // Pixel 0: strong direct (Ld 100 > Lg 20): comparison.
-        // Pixel 1: weak (Ld 30 < Lg 80), p = 90 >= Lg, q = 10 <= Ld -> 1.
+        // Pixel 1: weak (Ld 30 < Lg 80), p = 100 >= Lg + 14, q + 14 = 24 <= Ld -> 1.
         // Pixel 2: weak, p = 60, q = 50: neither rule -> unread.
         // Pixel 3: strong but contrast 2 < 4 -> unread.
-        let p = [120u8, 90, 60, 52];
-        let q = [20u8, 10, 50, 50];
-        let ld = [100u16, 30, 30, 100];
-        let lg = [20u16, 80, 80, 20];
-        let mut code = vec![0u16; 4];
-        let mut unread = vec![0u16; 4];
+        // Pixel 4: weak, p = 85 is above Lg but inside the margin -> unread.
+        // Pixel 5: weak, q = 95, p = 12 -> 0.
+        let p = [120u8, 100, 60, 52, 85, 12];
+        let q = [20u8, 10, 50, 50, 10, 95];
+        let ld = [100u16, 30, 30, 100, 30, 30];
+        let lg = [20u16, 80, 80, 20, 80, 80];
+        let mut code = vec![0u16; 6];
+        let mut unread = vec![0u16; 6];
         read_bit_inverse(&p, &q, &ld, &lg, &mut code, &mut unread, th);
-        assert_eq!(code, vec![1, 1, 0, 1]);
-        assert_eq!(unread, vec![0, 0, 1, 1]);
+        assert_eq!(code, vec![1, 1, 0, 1, 0, 0]);
+        assert_eq!(unread, vec![0, 0, 1, 1, 1, 0]);
     }
 
     #[test]

@@ -41,6 +41,10 @@ pub struct SyntheticScene {
     pub global: f64,
     /// Radius of the global-illumination window, projector pixels.
     pub global_radius: f64,
+    /// Centre of the global-illumination window relative to the pixel's own projector point,
+    /// projector pixels along the coded axis: 0 for light scattered from the neighbourhood,
+    /// a few hundred for an inter-reflection from another wall of a concave corner.
+    pub global_offset: f64,
     /// Defocus: extra box-filter width along the coded axis, projector pixels (added to the
     /// pixel's own footprint).
     pub blur: f64,
@@ -86,6 +90,7 @@ impl SyntheticScene {
             ambient: 0.0,
             global: 0.0,
             global_radius: 50.0,
+            global_offset: 0.0,
             blur: 0.0,
             noise_sigma: 0.0,
             projector_gamma: 1.0,
@@ -93,6 +98,38 @@ impl SyntheticScene {
             pattern_depth: BitDepth::Eight,
             shadow: None,
             seed: 1,
+        }
+    }
+
+    /// A camera of `camera_width x camera_height` whose pixels each cover about `scale`
+    /// projector pixels, centred on the projector image, with a slight rotation and perspective
+    /// (a few per cent across the image); otherwise as [`SyntheticScene::looking_at`].
+    ///
+    /// Choose `scale` near 1-1.5 for per-pixel Gray codes: a camera that cannot resolve the
+    /// finest stripes (2 projector pixels wide) cannot read their bits either.
+    pub fn window(
+        projector: ProjectorSize,
+        camera_width: usize,
+        camera_height: usize,
+        scale: f64,
+    ) -> Self {
+        let base = Self::looking_at(projector, camera_width, camera_height);
+        let (cw, ch) = (camera_width.max(1) as f64, camera_height.max(1) as f64);
+        let (cx, cy) = (
+            f64::from(projector.width) / 2.0,
+            f64::from(projector.height) / 2.0,
+        );
+        let (a, b, c, d) = (scale * 0.998, 0.03 * scale, -0.025 * scale, scale * 0.998);
+        let g = 0.03 / cw;
+        let h = -0.02 / ch;
+        // Map the camera centre to the projector centre: with w = g x + h y + 1 at the centre.
+        let (mx, my) = (cw / 2.0, ch / 2.0);
+        let w0 = g * mx + h * my + 1.0;
+        let tx = cx * w0 - (a * mx + b * my);
+        let ty = cy * w0 - (c * mx + d * my);
+        Self {
+            camera_to_projector: [a, b, tx, c, d, ty, g, h, 1.0],
+            ..base
         }
     }
 
@@ -243,8 +280,9 @@ impl SyntheticScene {
                 } else {
                     0.0
                 };
+                let gc = ti + self.global_offset;
                 let global =
-                    self.global * integral.mean(ti - self.global_radius, ti + self.global_radius);
+                    self.global * integral.mean(gc - self.global_radius, gc + self.global_radius);
                 let mut v = a * self.gain * (direct + global) + self.ambient;
                 if self.noise_sigma > 0.0 {
                     v += self.noise_sigma * rng.normal();

@@ -30,14 +30,21 @@ fn manifest(set: &str) -> PathBuf {
 fn decode_set(set: &str, config: &DecodeConfig) -> Option<CorrespondenceMap> {
     let frames = data_dir(set)?;
     let capture = CaptureSet::load_with_frames_dir(&manifest(set), Some(&frames)).unwrap();
-    assert_eq!((capture.frames.width(), capture.frames.height()), (1280, 1024));
+    assert_eq!(
+        (capture.frames.width(), capture.frames.height()),
+        (1280, 1024)
+    );
     Some(decode(&capture, config).unwrap())
 }
 
 /// SLMaster's unwrapped phase and period index at camera pixel (row, col).
 fn slmaster_phase(m: &CorrespondenceMap, row: usize, col: usize, lambda: f64) -> (f64, i64) {
     let c = m.get(col, row).unwrap();
-    assert!(c.invalid.is_valid(), "pixel ({row}, {col}) is {:?}", c.invalid);
+    assert!(
+        c.invalid.is_valid(),
+        "pixel ({row}, {col}) is {:?}",
+        c.invalid
+    );
     let phi = TAU * f64::from(c.col) / lambda;
     (phi, (phi / TAU).floor() as i64)
 }
@@ -70,7 +77,10 @@ fn heterodyne_agrees_with_slmaster() {
     let (_, k) = slmaster_phase(&m, 480, 590, lambda);
     assert_eq!(k, 30);
     let (phi, _) = slmaster_phase(&m, 470, 590, lambda);
-    assert!((phi - 191.95).abs() <= 0.1, "unwrapped phase {phi}, SLMaster 191.95");
+    assert!(
+        (phi - 191.95).abs() <= 0.1,
+        "unwrapped phase {phi}, SLMaster 191.95"
+    );
     // The object covers about a fifth of the image; the rest is background at ~48 grey levels.
     assert!(m.valid_fraction() > 0.15, "valid {}", m.valid_fraction());
 }
@@ -84,7 +94,10 @@ fn shifted_gray_code_agrees_with_slmaster() {
     let (_, k) = slmaster_phase(&m, 453, 700, lambda);
     assert_eq!(k, 17);
     let (phi, _) = slmaster_phase(&m, 460, 653, lambda);
-    assert!((phi - 103.75).abs() <= 0.1, "unwrapped phase {phi}, SLMaster 103.75");
+    assert!(
+        (phi - 103.75).abs() <= 0.1,
+        "unwrapped phase {phi}, SLMaster 103.75"
+    );
     assert!(m.valid_fraction() > 0.15, "valid {}", m.valid_fraction());
 }
 
