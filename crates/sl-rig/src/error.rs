@@ -68,6 +68,12 @@ pub enum RigError {
         /// The underlying error.
         source: std::io::Error,
     },
+    /// A camera or projector model, or the calibration file, was refused by `sl-camera`.
+    #[error(transparent)]
+    Camera(#[from] sl_camera::CameraError),
+    /// A pattern sequence, manifest or image file was refused by `sl-codec`.
+    #[error(transparent)]
+    Codec(#[from] sl_codec::CodecError),
     /// A JSON file could not be written or parsed.
     #[error("{}: {source}", path.display())]
     Json {

@@ -3,9 +3,11 @@
 
 mod blur;
 mod board;
+mod calib;
 mod config;
 mod device;
 mod error;
+mod files;
 mod geometry;
 mod image;
 mod raycast;
@@ -15,6 +17,10 @@ mod sensor;
 mod truth;
 mod virtual_rig;
 
+pub use calib::{
+    BoardCapture, BoardPoseConfig, BoardTruth, capture_board, capture_board_on_table, random_board_poses,
+};
+pub use files::{TRUTH_DIR, VIEW_JSON, pose_matrix, write_capture_set, write_view_truth};
 pub use board::{BOARD_DARK_ALBEDO, BOARD_LIGHT_ALBEDO, Checkerboard};
 pub use config::{
     DEFAULT_AIM_HEIGHT_MM, DEFAULT_BASELINE_MM, DEFAULT_TILT_DEG, DEFAULT_WORKING_DISTANCE_MM,
