@@ -51,6 +51,42 @@ const UNIT_TOLERANCE: f64 = 1e-9;
 /// println!("{calib}"); // readable summary, as `slscan info` prints it
 /// # Ok::<(), sl_camera::CameraError>(())
 /// ```
+///
+/// # JSON format (version 1)
+///
+/// Every key below is read; `projector`, `T_cam_proj`, `turntable`, `rms`, `metadata`, the
+/// RMS values, `skew`, `angle_offset_deg` (0) and `angle_scale` (1) may be omitted or `null`.
+/// Unknown keys are errors (they are typos, or a newer format, which has another `version`).
+/// Distortion `model` is `none`, `plumb_bob` (`k1 k2 p1 p2 k3`) or `rational`
+/// (`k1 k2 p1 p2 k3 k4 k5 k6`). `T_cam_proj.rotation` is the rotation matrix row by row.
+///
+/// ```
+/// # use sl_camera::Calibration;
+/// let text = r#"{
+///   "version": 1,
+///   "camera": {
+///     "intrinsics": {"fx": 1440.4, "fy": 1437.1, "cx": 667.8, "cy": 354.2, "skew": 0.0},
+///     "distortion": {"model": "plumb_bob",
+///                    "k1": 0.5466, "k2": -20.2, "p1": -0.02203, "p2": 0.008259, "k3": 211.1},
+///     "size": {"width": 1280, "height": 720}
+///   },
+///   "projector": {
+///     "intrinsics": {"fx": 2210.0, "fy": 2208.5, "cx": 955.0, "cy": 1102.0},
+///     "distortion": {"model": "none"},
+///     "size": {"width": 1920, "height": 1080}
+///   },
+///   "T_cam_proj": {"rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+///                  "translation_mm": [-160.0, 0.0, 25.0]},
+///   "turntable": {"direction": [0, -1, 0], "point_mm": [0, 80, 600],
+///                 "angle_offset_deg": 0.0, "angle_scale": 1.0},
+///   "rms": {"camera": 0.19, "projector": null, "stereo": 0.27},
+///   "metadata": {"tool_version": "sl-camera 0.1.0", "created": "2024-06-11T10:21:07Z",
+///                "notes": ""}
+/// }"#;
+/// let calib = Calibration::from_json(text, "example.json")?;
+/// assert_eq!(calib.t_cam_proj.unwrap().translation.vector.x, -160.0);
+/// # Ok::<(), sl_camera::CameraError>(())
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Calibration {
     /// The camera.
