@@ -7,7 +7,9 @@ use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 use sl_codec::PatternSequence;
 
-use crate::{Checkerboard, GreyImage, Mount, RigConfig, RigError, Scene, SceneObject, View, VirtualRig};
+use crate::{
+    Checkerboard, GreyImage, Mount, RigConfig, RigError, Scene, SceneObject, View, VirtualRig,
+};
 
 /// Ground truth of a checkerboard in one pose.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -28,10 +30,15 @@ impl RigConfig {
     /// the projector image (the references that corner detection and projector calibration
     /// are checked against).
     pub fn board_truth(&self, board: &Checkerboard, t_cam_board: &Isometry3<f64>) -> BoardTruth {
-        let corners_cam: Vec<Point3<f64>> = board.corners().iter().map(|c| t_cam_board * c).collect();
+        let corners_cam: Vec<Point3<f64>> =
+            board.corners().iter().map(|c| t_cam_board * c).collect();
         let corners_px = corners_cam
             .iter()
-            .map(|p| self.camera.project(p).filter(|q| self.camera.size.contains(q)))
+            .map(|p| {
+                self.camera
+                    .project(p)
+                    .filter(|q| self.camera.size.contains(q))
+            })
             .collect();
         let corners_projector = corners_cam
             .iter()
@@ -41,7 +48,12 @@ impl RigConfig {
                     .filter(|q| self.projector.size.contains(q))
             })
             .collect();
-        BoardTruth { t_cam_board: *t_cam_board, corners_cam, corners_px, corners_projector }
+        BoardTruth {
+            t_cam_board: *t_cam_board,
+            corners_cam,
+            corners_px,
+            corners_projector,
+        }
     }
 }
 
@@ -103,7 +115,10 @@ pub fn random_board_poses(
     if !(cfg.min_distance_mm > 0.0 && cfg.max_distance_mm >= cfg.min_distance_mm) {
         return Err(RigError::param(
             "board pose distance",
-            format!("[{}, {}] mm is not a valid range", cfg.min_distance_mm, cfg.max_distance_mm),
+            format!(
+                "[{}, {}] mm is not a valid range",
+                cfg.min_distance_mm, cfg.max_distance_mm
+            ),
         ));
     }
     let mut rng = Pcg64Mcg::seed_from_u64(cfg.seed);
@@ -131,13 +146,25 @@ pub fn random_board_poses(
         }
         let d = rng.random_range(cfg.min_distance_mm..=cfg.max_distance_mm);
         // Board centre: on a ray within the central part of the camera's view.
-        let ray = Vector3::new(rng.random_range(-0.12..0.12), rng.random_range(-0.08..0.08), 1.0).normalize();
+        let ray = Vector3::new(
+            rng.random_range(-0.12..0.12),
+            rng.random_range(-0.08..0.08),
+            1.0,
+        )
+        .normalize();
         let centre = Point3::from(ray * d);
         let tilt_axis_angle = rng.random_range(0.0..std::f64::consts::TAU);
         let tilt = rng.random_range(0.0..=cfg.max_tilt_deg).to_radians();
-        let roll = rng.random_range(-cfg.max_roll_deg..=cfg.max_roll_deg).to_radians();
-        let axis = nalgebra::Unit::new_normalize(Vector3::new(tilt_axis_angle.cos(), tilt_axis_angle.sin(), 0.0));
-        let rotation = UnitQuaternion::from_axis_angle(&axis, tilt) * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), roll);
+        let roll = rng
+            .random_range(-cfg.max_roll_deg..=cfg.max_roll_deg)
+            .to_radians();
+        let axis = nalgebra::Unit::new_normalize(Vector3::new(
+            tilt_axis_angle.cos(),
+            tilt_axis_angle.sin(),
+            0.0,
+        ));
+        let rotation = UnitQuaternion::from_axis_angle(&axis, tilt)
+            * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), roll);
         let translation = centre.coords - rotation * centre_board;
         let pose = Isometry3::from_parts(Translation3::from(translation), rotation);
         let normal = rotation * Vector3::z(); // into the board: away from the viewer
@@ -188,7 +215,12 @@ pub fn capture_board(
     sequence: Option<&PatternSequence>,
     index: u64,
 ) -> Result<BoardCapture, RigError> {
-    let scene = Scene::new().with(SceneObject::board("board", *board, Mount::Camera, *t_cam_board));
+    let scene = Scene::new().with(SceneObject::board(
+        "board",
+        *board,
+        Mount::Camera,
+        *t_cam_board,
+    ));
     let view = rig.with_scene(scene)?.view(0.0, index)?;
     capture_view(rig, board, view, t_cam_board, sequence)
 }
@@ -204,7 +236,11 @@ pub fn capture_board_on_table(
     index: u64,
 ) -> Result<BoardCapture, RigError> {
     let scene = Scene::board_on_table(*board);
-    let t_table_board = scene.objects.first().map(|o| o.pose).unwrap_or_else(Isometry3::identity);
+    let t_table_board = scene
+        .objects
+        .first()
+        .map(|o| o.pose)
+        .unwrap_or_else(Isometry3::identity);
     let t_cam_board = rig.config().t_cam_table_at(motor_angle_deg) * t_table_board;
     let view = rig.with_scene(scene)?.view(motor_angle_deg, index)?;
     capture_view(rig, board, view, &t_cam_board, sequence)
@@ -229,7 +265,12 @@ fn capture_view(
             .collect::<Result<Vec<_>, RigError>>()?,
         None => Vec::new(),
     };
-    Ok(BoardCapture { board: cfg.board_truth(board, t_cam_board), view, white, frames })
+    Ok(BoardCapture {
+        board: cfg.board_truth(board, t_cam_board),
+        view,
+        white,
+        frames,
+    })
 }
 
 #[cfg(test)]
@@ -240,7 +281,10 @@ mod tests {
     fn poses_keep_every_corner_in_both_images() {
         let rig = RigConfig::default();
         let board = Checkerboard::default();
-        let cfg = BoardPoseConfig { count: 8, ..BoardPoseConfig::default() };
+        let cfg = BoardPoseConfig {
+            count: 8,
+            ..BoardPoseConfig::default()
+        };
         let poses = random_board_poses(&rig, &board, &cfg).unwrap();
         assert_eq!(poses.len(), 8);
         for p in &poses {
@@ -261,8 +305,14 @@ mod tests {
     fn impossible_pose_requests_fail_with_a_message() {
         let rig = RigConfig::default();
         // A 2 m board cannot fit in either image.
-        let board = Checkerboard { square_mm: 300.0, ..Checkerboard::default() };
-        let cfg = BoardPoseConfig { count: 1, ..BoardPoseConfig::default() };
+        let board = Checkerboard {
+            square_mm: 300.0,
+            ..Checkerboard::default()
+        };
+        let cfg = BoardPoseConfig {
+            count: 1,
+            ..BoardPoseConfig::default()
+        };
         let err = random_board_poses(&rig, &board, &cfg).unwrap_err();
         assert!(err.to_string().contains("board poses"), "{err}");
     }

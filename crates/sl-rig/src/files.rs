@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 use nalgebra::Isometry3;
 use serde::Serialize;
 use sl_camera::{Calibration, Metadata};
-use sl_codec::{Frame, Manifest, PatternSequence, write_png_grey8, write_png_grey16, write_tiff_f32};
+use sl_codec::{
+    Frame, Manifest, PatternSequence, write_png_grey8, write_png_grey16, write_tiff_f32,
+};
 
 use crate::{GreyImage, Pixels, RigConfig, RigError, ViewTruth};
 
@@ -28,7 +30,11 @@ impl GreyImage {
 
     /// The image `frame` of a pattern sequence, as the projector shows it (8- or 16-bit as
     /// asked).
-    pub fn from_sequence(sequence: &PatternSequence, frame: usize, sixteen_bits: bool) -> Result<Self, RigError> {
+    pub fn from_sequence(
+        sequence: &PatternSequence,
+        frame: usize,
+        sixteen_bits: bool,
+    ) -> Result<Self, RigError> {
         let (w, h) = (sequence.projector.width, sequence.projector.height);
         let pixels = if sixteen_bits {
             Pixels::U16(sequence.render::<u16>(frame)?.into_data())
@@ -108,17 +114,50 @@ pub fn write_view_truth(truth: &ViewTruth, dir: &Path) -> Result<Vec<PathBuf>, R
         files.push(p);
         Ok(())
     };
-    tiff("col.tiff", truth.projector.iter().map(|p| p.x as f32).collect())?;
-    tiff("row.tiff", truth.projector.iter().map(|p| p.y as f32).collect())?;
-    tiff("depth.tiff", truth.depth_mm.iter().map(|&d| d as f32).collect())?;
-    tiff("x.tiff", truth.points_cam.iter().map(|p| p.x as f32).collect())?;
-    tiff("y.tiff", truth.points_cam.iter().map(|p| p.y as f32).collect())?;
-    tiff("z.tiff", truth.points_cam.iter().map(|p| p.z as f32).collect())?;
+    tiff(
+        "col.tiff",
+        truth.projector.iter().map(|p| p.x as f32).collect(),
+    )?;
+    tiff(
+        "row.tiff",
+        truth.projector.iter().map(|p| p.y as f32).collect(),
+    )?;
+    tiff(
+        "depth.tiff",
+        truth.depth_mm.iter().map(|&d| d as f32).collect(),
+    )?;
+    tiff(
+        "x.tiff",
+        truth.points_cam.iter().map(|p| p.x as f32).collect(),
+    )?;
+    tiff(
+        "y.tiff",
+        truth.points_cam.iter().map(|p| p.y as f32).collect(),
+    )?;
+    tiff(
+        "z.tiff",
+        truth.points_cam.iter().map(|p| p.z as f32).collect(),
+    )?;
     let n = truth.object.len();
     let masks: [(&str, Vec<u8>); 3] = [
-        ("visible.png", (0..n).map(|i| if truth.visible(i) { 255 } else { 0 }).collect()),
-        ("lit.png", (0..n).map(|i| if truth.lit(i) { 255 } else { 0 }).collect()),
-        ("object.png", truth.object.iter().map(|&o| u8::try_from(o).unwrap_or(u8::MAX)).collect()),
+        (
+            "visible.png",
+            (0..n)
+                .map(|i| if truth.visible(i) { 255 } else { 0 })
+                .collect(),
+        ),
+        (
+            "lit.png",
+            (0..n).map(|i| if truth.lit(i) { 255 } else { 0 }).collect(),
+        ),
+        (
+            "object.png",
+            truth
+                .object
+                .iter()
+                .map(|&o| u8::try_from(o).unwrap_or(u8::MAX))
+                .collect(),
+        ),
     ];
     for (name, data) in masks {
         let p = dir.join(name);
@@ -132,7 +171,10 @@ pub fn write_view_truth(truth: &ViewTruth, dir: &Path) -> Result<Vec<PathBuf>, R
         objects: truth
             .objects
             .iter()
-            .map(|o| ObjectFile { name: &o.name, t_cam_object: pose_matrix(&o.t_cam_object) })
+            .map(|o| ObjectFile {
+                name: &o.name,
+                t_cam_object: pose_matrix(&o.t_cam_object),
+            })
             .collect(),
         width: truth.width,
         height: truth.height,
@@ -147,7 +189,10 @@ pub fn write_view_truth(truth: &ViewTruth, dir: &Path) -> Result<Vec<PathBuf>, R
 
 /// Writes `value` as pretty JSON to `path`.
 pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), RigError> {
-    let text = serde_json::to_string_pretty(value).map_err(|source| RigError::Json { path: path.to_path_buf(), source })?;
+    let text = serde_json::to_string_pretty(value).map_err(|source| RigError::Json {
+        path: path.to_path_buf(),
+        source,
+    })?;
     std::fs::write(path, text).map_err(|e| RigError::io(path, e))
 }
 
@@ -161,11 +206,19 @@ pub fn write_capture_set(
     description: &str,
 ) -> Result<(), RigError> {
     std::fs::create_dir_all(dir).map_err(|e| RigError::io(dir, e))?;
-    let names: Vec<&String> = manifest.blocks.iter().flat_map(|b| b.frames.iter()).collect();
+    let names: Vec<&String> = manifest
+        .blocks
+        .iter()
+        .flat_map(|b| b.frames.iter())
+        .collect();
     if names.len() != frames.len() {
         return Err(RigError::param(
             "frames",
-            format!("{} frames for a manifest of {} frames", frames.len(), names.len()),
+            format!(
+                "{} frames for a manifest of {} frames",
+                frames.len(),
+                names.len()
+            ),
         ));
     }
     for (name, frame) in names.iter().zip(frames) {
