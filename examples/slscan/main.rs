@@ -10,6 +10,7 @@
 
 mod common;
 mod info;
+mod simulate;
 
 use clap::{Parser, Subcommand};
 
@@ -25,12 +26,15 @@ struct Cli {
 enum Command {
     /// Summarise a point cloud (PLY) or a calibration file (JSON, OpenCV YAML/XML).
     Info(info::Args),
+    /// Render capture sets and their ground truth with the virtual rig.
+    Simulate(simulate::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(args) => info::run(&args),
+        Command::Simulate(args) => simulate::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
