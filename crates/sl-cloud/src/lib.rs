@@ -49,6 +49,7 @@
 
 mod cloud;
 mod error;
+mod morton;
 mod neighbours;
 mod normals;
 mod outliers;

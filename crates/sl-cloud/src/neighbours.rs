@@ -155,7 +155,7 @@ impl KdIndex {
 
     /// All points within distance `radius` of `query`, in no particular order (faster).
     pub fn radius_unsorted(&self, query: &Point3<f64>, radius: f64) -> Vec<Neighbour> {
-        if !is_finite(query) || !(radius >= 0.0) || self.tree.size() == 0 {
+        if !is_finite(query) || radius.is_nan() || radius < 0.0 || self.tree.size() == 0 {
             return Vec::new();
         }
         self.tree

@@ -4,6 +4,7 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
 use crate::cloud::is_finite;
+use crate::morton::SortedIndex;
 use crate::sym_eigen::smallest_eigen;
 use crate::{CloudError, KdIndex, PointCloud};
 
@@ -82,8 +83,13 @@ pub fn estimate_normals(
     config: &NormalConfig,
 ) -> Result<NormalEstimate, CloudError> {
     check(config)?;
-    let index = KdIndex::new(cloud.positions())?;
-    estimate_normals_with_index(cloud.positions(), &index, config)
+    let sorted = SortedIndex::new(cloud.positions())?;
+    let est = estimate_normals_with_index(&sorted.points, &sorted.index, config)?;
+    Ok(NormalEstimate {
+        normals: sorted.scatter(est.normals),
+        surface_variation: sorted.scatter(est.surface_variation),
+        degenerate: est.degenerate,
+    })
 }
 
 fn check(config: &NormalConfig) -> Result<(), CloudError> {
@@ -112,6 +118,9 @@ fn check(config: &NormalConfig) -> Result<(), CloudError> {
 }
 
 /// Estimates normals for `points` with an index built over these same points.
+///
+/// Points are processed in the given order; [`estimate_normals`] first sorts them along a
+/// Z-order curve, which is much faster for large shuffled clouds.
 ///
 /// Runs in parallel on the rayon pool. For each point: its `k` nearest neighbours, their
 /// covariance about their mean, and the eigenvector of its smallest eigenvalue from a closed-form

@@ -2,7 +2,8 @@
 
 use rayon::prelude::*;
 
-use crate::{CloudError, KdIndex, PointCloud};
+use crate::morton::SortedIndex;
+use crate::{CloudError, PointCloud};
 
 /// Settings of [`remove_statistical_outliers`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -72,12 +73,13 @@ pub fn remove_statistical_outliers(
             "must be finite",
         ));
     }
-    let index = KdIndex::new(cloud.positions())?;
+    let sorted = SortedIndex::new(cloud.positions())?;
+    let index = &sorted.index;
     let k = config.k;
     // Mean distance to the k nearest others; None for points that have none (non-finite, or a
     // cloud of one point).
-    let means: Vec<Option<f64>> = cloud
-        .positions()
+    let means: Vec<Option<f64>> = sorted
+        .points
         .par_iter()
         .enumerate()
         .map_init(
@@ -100,6 +102,7 @@ pub fn remove_statistical_outliers(
             },
         )
         .collect();
+    let means = sorted.scatter(means);
     let valid: Vec<f64> = means.iter().flatten().copied().collect();
     let n = valid.len() as f64;
     let mu = valid.iter().sum::<f64>() / n.max(1.0);
@@ -179,9 +182,10 @@ pub fn remove_radius_outliers(
             "must be finite and > 0",
         ));
     }
-    let index = KdIndex::new(cloud.positions())?;
-    let keep: Vec<bool> = cloud
-        .positions()
+    let sorted = SortedIndex::new(cloud.positions())?;
+    let index = &sorted.index;
+    let keep: Vec<bool> = sorted
+        .points
         .par_iter()
         .map(|p| {
             let found = index.radius_unsorted(p, config.radius).len();
@@ -189,6 +193,7 @@ pub fn remove_radius_outliers(
             found > config.min_neighbours
         })
         .collect();
+    let keep = sorted.scatter(keep);
     let (inliers, outliers): (Vec<usize>, Vec<usize>) =
         (0..keep.len()).partition(|&i| keep.get(i).copied().unwrap_or(false));
     Ok(RadiusOutliers {

@@ -62,7 +62,7 @@ fn mul(a: &Sym3, v: &Vector3<f64>) -> Vector3<f64> {
 pub(crate) fn smallest_eigen(m: &Sym3) -> SmallestEigen {
     // Scale to max |entry| = 1: keeps the cubic well conditioned and avoids overflow.
     let scale = m.iter().fold(0.0f64, |s, v| s.max(v.abs()));
-    if !(scale > 0.0) || !scale.is_finite() {
+    if scale.is_nan() || scale <= 0.0 || !scale.is_finite() {
         return SmallestEigen {
             values: [0.0; 3],
             vector: Vector3::z(),

@@ -6,6 +6,8 @@
 //! `open3d_fixtures.py check`; regenerate them with `SL_CLOUD_BLESS=1 cargo test -p sl-cloud
 //! --test ply_files`.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)] // tests: a panic is a failed test
+
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Point3, Vector3};

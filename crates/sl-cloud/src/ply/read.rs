@@ -336,7 +336,7 @@ fn read_binary_fixed(
 ) -> Result<PointCloud, CloudError> {
     let remaining = cur.remaining();
     let count = vertex.count;
-    let need = count.checked_mul(stride as u64).unwrap_or(u64::MAX);
+    let need = count.saturating_mul(stride as u64);
     if need > remaining as u64 {
         let whole = remaining / stride.max(1);
         return Err(cur.err(
