@@ -5,7 +5,8 @@ use nalgebra::{Matrix2, Point2, SMatrix, Vector2};
 use serde::{Deserialize, Serialize};
 
 use crate::CameraError;
-use crate::monotonic::monotonic_limit_squared;
+use crate::injective::injective_radius;
+use crate::monotonic::{RADIUS_CAP, monotonic_limit_squared};
 
 /// Names of the distortion coefficients in OpenCV's order, which is the order of
 /// [`Distortion::coefficients`] and of the columns of [`DistortionJacobians::d_coefficients`].
@@ -14,6 +15,10 @@ pub const DISTORTION_PARAMETERS: [&str; 8] = ["k1", "k2", "p1", "p2", "k3", "k4"
 /// Newton iterations allowed in [`Distortion::undistort`]. Started from the radial solution,
 /// realistic lenses converge in 2–4; the rest is headroom for strong tangential terms.
 const MAX_NEWTON_ITERATIONS: usize = 30;
+
+/// Step halvings that keep a Newton iterate inside the valid disc: 2⁻⁶⁰ of a step is below
+/// f64 resolution of any coordinate.
+const MAX_STEP_HALVINGS: usize = 60;
 
 /// Iterations of the safeguarded 1-D solve for the radial start of the Newton iteration:
 /// bisection alone halves the bracket each time, so 200 reach f64 resolution from any
@@ -81,11 +86,14 @@ impl std::fmt::Display for DistortionModel {
 /// The 5-coefficient model is the rational one with `k4 = k5 = k6 = 0`, exactly as OpenCV
 /// evaluates it.
 ///
-/// A `Distortion` also knows where it can be inverted: [`Distortion::max_radius`] is the
-/// normalised radius up to which the radial part `r·f(r²)` is strictly increasing (with a
-/// positive denominator). Points beyond it — or where the Jacobian of the full 2-D map has a
-/// non-positive determinant — are outside the *valid region*: projection refuses them and
-/// undistortion never returns them, so no wrong ray is ever produced.
+/// A `Distortion` also knows where it can be inverted. Its *valid region* is the disc of
+/// normalised radius [`Distortion::max_radius`] on which the map is proven one-to-one: the
+/// radial part `r·f(r²)` is strictly increasing there with a positive denominator
+/// (certified by Bernstein bounds), and the tangential terms provably neither fold the map
+/// (Jacobian determinant > 0) nor make two points share an image (see the proof in the
+/// source, `injective.rs`). Projection refuses points outside the disc and undistortion
+/// never returns them, so a pixel whose preimage is ambiguous or absent yields no ray
+/// rather than a wrong one.
 ///
 /// The value is immutable and validated: build it with [`Distortion::from_opencv`],
 /// [`Distortion::new`] or [`Distortion::none`].
@@ -109,7 +117,8 @@ pub struct Distortion {
     k: [f64; 8],
     /// Squared normalised radius of the valid region (may be infinite).
     max_radius_sq: f64,
-    /// `max_radius · f(max_radius²)`: the largest distorted radius of the valid region.
+    /// `max_radius · f(max_radius²)`: the largest distorted radius of the valid region
+    /// (infinite when unknown, e.g. at a pole of the rational model).
     max_distorted_radius: f64,
 }
 
@@ -170,7 +179,18 @@ impl Distortion {
         if model == DistortionModel::None {
             return Ok(Self::none());
         }
-        let max_radius_sq = monotonic_limit_squared(&coefficients);
+        let radial_sq = monotonic_limit_squared(&coefficients);
+        let max_radius_sq = if coefficients[2] == 0.0 && coefficients[3] == 0.0 {
+            radial_sq
+        } else {
+            let r_hi = if radial_sq.is_finite() {
+                radial_sq.sqrt()
+            } else {
+                RADIUS_CAP
+            };
+            let r = injective_radius(&coefficients, r_hi);
+            (r * r).min(radial_sq)
+        };
         let mut d = Self {
             model,
             k: coefficients,
@@ -179,7 +199,12 @@ impl Distortion {
         };
         if max_radius_sq.is_finite() {
             let (f, _) = d.radial_factor(max_radius_sq);
-            d.max_distorted_radius = max_radius_sq.sqrt() * f;
+            let rd = max_radius_sq.sqrt() * f;
+            // At a pole of the rational model the value is meaningless (huge, or negative by
+            // rounding): then the shortcut in `radial_start` is simply not used.
+            if rd.is_finite() && rd > 0.0 {
+                d.max_distorted_radius = rd;
+            }
         }
         Ok(d)
     }
@@ -270,10 +295,11 @@ impl Distortion {
         self.k[7]
     }
 
-    /// Normalised (undistorted) radius up to which the radial distortion is strictly
-    /// increasing with a positive denominator; `f64::INFINITY` without radial distortion.
-    /// The search stops at r = 100 (89.4° off-axis), so a lens increasing everywhere reports
-    /// 100. The value is certified conservative: never beyond the true limit.
+    /// Radius (normalised, undistorted) of the valid region: the radial distortion is
+    /// strictly increasing with a positive denominator, and the whole map one-to-one, on the
+    /// disc below it. `f64::INFINITY` without any distortion. The search stops at r = 100
+    /// (89.4° off-axis), so a gentle lens reports 100. The value is conservative: never
+    /// beyond the true limit.
     pub fn max_radius(&self) -> f64 {
         self.max_radius_sq.sqrt()
     }
@@ -355,7 +381,8 @@ impl Distortion {
     }
 
     /// Whether a normalised (undistorted) point is in the valid region: radius below
-    /// [`Distortion::max_radius`] and a Jacobian with positive determinant.
+    /// [`Distortion::max_radius`] (the Jacobian determinant, positive there by construction,
+    /// is checked as well).
     #[inline]
     pub fn is_valid_at(&self, p: &Point2<f64>) -> bool {
         if self.model == DistortionModel::None {
@@ -477,10 +504,20 @@ impl Distortion {
             if det.is_nan() || det <= 0.0 {
                 return None;
             }
-            p -= Vector2::new(
+            let mut step = Vector2::new(
                 (j.m22 * r.x - j.m12 * r.y) / det,
                 (j.m11 * r.y - j.m21 * r.x) / det,
             );
+            // Keep the iterate inside the valid disc (near its edge a full step can leave
+            // it): halve the step until it stays in.
+            for _ in 0..MAX_STEP_HALVINGS {
+                let next = p - step;
+                if next.x * next.x + next.y * next.y < self.max_radius_sq {
+                    break;
+                }
+                step *= 0.5;
+            }
+            p -= step;
             previous = rn;
         }
         None

@@ -48,9 +48,10 @@
 //! * **Projector** = inverse camera with the same types ([`ProjectorModel`]): its pixels are
 //!   those of the projected image.
 //! * **f64** for all geometry.
-//! * **Validity**: every distortion has a *valid region* (radius below
-//!   [`Distortion::max_radius`], where the radial part is strictly increasing, and a Jacobian
-//!   with positive determinant). Projection and unprojection return `None` outside it.
+//! * **Validity**: every distortion has a *valid region*, the disc of normalised radius
+//!   [`Distortion::max_radius`] on which it is proven one-to-one (radial part strictly
+//!   increasing, Jacobian determinant positive, no fold from the tangential terms).
+//!   Projection and unprojection return `None` outside it.
 //!
 //! # Files
 //!
@@ -65,6 +66,7 @@ mod calibration;
 mod distortion;
 mod error;
 mod filestorage;
+mod injective;
 mod intrinsics;
 mod jacobians;
 mod model;

@@ -16,6 +16,10 @@ pub(crate) use yaml::parse_yaml;
 
 use crate::CameraError;
 
+/// Deepest nesting of maps and sequences the readers accept. Calibration files nest two
+/// levels; the limit keeps the recursive readers from exhausting the stack on hostile input.
+pub(crate) const MAX_NESTING: usize = 64;
+
 /// A value of the tree, with the 1-based line where it starts.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Node {
@@ -316,6 +320,79 @@ mod tests {
         assert_eq!(parse_real("inf"), None);
         assert_eq!(parse_real("abc"), None);
         assert_eq!(parse_real(""), None);
+    }
+
+    #[test]
+    fn deep_nesting_is_an_error_not_a_stack_overflow() {
+        let deep_flow = format!(
+            "%YAML:1.0\na: {}{}\n",
+            "[".repeat(10_000),
+            "]".repeat(10_000)
+        );
+        let e = parse_yaml(&deep_flow, "d.yml").unwrap_err().to_string();
+        assert!(e.contains("nested deeper"), "{e}");
+        let mut deep_block = String::from("%YAML:1.0\n");
+        for i in 0..200 {
+            deep_block.push_str(&format!("{}k{i}:\n", " ".repeat(i)));
+        }
+        let e = parse_yaml(&deep_block, "d.yml").unwrap_err().to_string();
+        assert!(e.contains("nested deeper"), "{e}");
+        let deep_xml = format!(
+            "<opencv_storage>{}{}</opencv_storage>",
+            "<a>".repeat(10_000),
+            "</a>".repeat(10_000)
+        );
+        let e = parse_xml(&deep_xml, "d.xml").unwrap_err().to_string();
+        assert!(e.contains("nested deeper"), "{e}");
+    }
+
+    const FRAGMENTS: [&str; 34] = [
+        "%YAML:1.0\n",
+        "---\n",
+        "Kc: ",
+        "kc: ",
+        "!!opencv-matrix",
+        "\n   rows: 3",
+        "\n   cols: 3",
+        "\n   dt: d",
+        "\n   data: [",
+        "1.5, ",
+        "]",
+        "{",
+        "}",
+        ",",
+        "\"",
+        "'",
+        "\\",
+        "#",
+        "\n",
+        "   ",
+        "- ",
+        "<",
+        ">",
+        "</",
+        "/>",
+        "&quot;",
+        "&#x",
+        "<opencv_storage>",
+        "</opencv_storage>",
+        "<Kc type_id=\"opencv-matrix\">",
+        "<data>",
+        "</data>",
+        "é",
+        "\t",
+    ];
+
+    proptest::proptest! {
+        /// The readers never panic, whatever they are fed: they return a tree or an error.
+        #[test]
+        fn readers_never_panic(picks in proptest::collection::vec(0..FRAGMENTS.len(), 0..80)) {
+            let text: String = picks.iter().map(|&i| FRAGMENTS[i]).collect();
+            let _ = parse_yaml(&text, "fuzz.yml");
+            let _ = parse_xml(&text, "fuzz.xml");
+            let _ = crate::Calibration::from_opencv_yaml(&text, "fuzz.yml");
+            let _ = crate::Calibration::from_opencv_xml(&text, "fuzz.xml");
+        }
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! OpenCV FileStorage XML reader.
 
-use super::{Document, Node, Value};
+use super::{Document, MAX_NESTING, Node, Value};
 use crate::CameraError;
 
 struct Lexer<'a> {
@@ -34,7 +34,7 @@ pub(crate) fn parse_xml(text: &str, file: &str) -> Result<Document, CameraError>
     if !lx.rest().starts_with('<') {
         return Err(lx.error("not an OpenCV FileStorage XML file: expected `<opencv_storage>`"));
     }
-    let root = lx.element()?;
+    let root = lx.element(0)?;
     if root.name != "opencv_storage" {
         return Err(CameraError::Syntax {
             file: file.to_owned(),
@@ -198,7 +198,10 @@ impl<'a> Lexer<'a> {
     }
 
     /// Reads an element starting at `<`.
-    fn element(&mut self) -> Result<Element, CameraError> {
+    fn element(&mut self, depth: usize) -> Result<Element, CameraError> {
+        if depth >= MAX_NESTING {
+            return Err(self.error(format!("nested deeper than {MAX_NESTING} levels")));
+        }
         let line = self.line;
         self.advance(1); // <
         let name = self.name()?;
@@ -284,7 +287,7 @@ impl<'a> Lexer<'a> {
                     children,
                 });
             } else if rest.starts_with('<') {
-                children.push(self.element()?);
+                children.push(self.element(depth + 1)?);
             } else {
                 let end = rest.find('<').unwrap_or(rest.len());
                 let chunk = &rest[..end];

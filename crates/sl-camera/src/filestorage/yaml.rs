@@ -1,6 +1,6 @@
 //! OpenCV FileStorage YAML reader.
 
-use super::{Document, Node, Value};
+use super::{Document, MAX_NESTING, Node, Value};
 use crate::CameraError;
 
 /// One non-blank line with its comment removed.
@@ -14,6 +14,7 @@ struct Parser<'a> {
     file: &'a str,
     lines: Vec<Line<'a>>,
     pos: usize,
+    depth: usize,
 }
 
 /// Parses an OpenCV FileStorage YAML text. `file` names it in error messages.
@@ -76,6 +77,7 @@ pub(crate) fn parse_yaml(text: &str, file: &str) -> Result<Document, CameraError
         file,
         lines,
         pos: 0,
+        depth: 0,
     };
     let entries = if parser.lines.is_empty() {
         Vec::new()
@@ -203,6 +205,21 @@ impl<'a> Parser<'a> {
         number: usize,
         indent: usize,
     ) -> Result<Node, CameraError> {
+        if self.depth >= MAX_NESTING {
+            return Err(self.error(number, format!("nested deeper than {MAX_NESTING} levels")));
+        }
+        self.depth += 1;
+        let node = self.value_after_key_at_depth(rest, number, indent);
+        self.depth -= 1;
+        node
+    }
+
+    fn value_after_key_at_depth(
+        &mut self,
+        rest: &str,
+        number: usize,
+        indent: usize,
+    ) -> Result<Node, CameraError> {
         let rest = rest.trim();
         if let Some(tagged) = rest.strip_prefix("!!") {
             let (tag, after) = tagged
@@ -308,7 +325,7 @@ impl<'a> Parser<'a> {
     fn flow(&self, text: &str, number: usize) -> Result<Node, CameraError> {
         let chars: Vec<char> = text.chars().collect();
         let mut pos = 0;
-        let node = self.flow_value(&chars, &mut pos, number)?;
+        let node = self.flow_value(&chars, &mut pos, number, self.depth)?;
         skip_ws(&chars, &mut pos);
         if pos != chars.len() {
             return Err(self.error(number, "unexpected text after `]` or `}`"));
@@ -316,7 +333,16 @@ impl<'a> Parser<'a> {
         Ok(node)
     }
 
-    fn flow_value(&self, c: &[char], pos: &mut usize, number: usize) -> Result<Node, CameraError> {
+    fn flow_value(
+        &self,
+        c: &[char],
+        pos: &mut usize,
+        number: usize,
+        depth: usize,
+    ) -> Result<Node, CameraError> {
+        if depth >= MAX_NESTING {
+            return Err(self.error(number, format!("nested deeper than {MAX_NESTING} levels")));
+        }
         skip_ws(c, pos);
         let node = |value| Node {
             line: number,
@@ -332,7 +358,7 @@ impl<'a> Parser<'a> {
                         *pos += 1;
                         break;
                     }
-                    items.push(self.flow_value(c, pos, number)?);
+                    items.push(self.flow_value(c, pos, number, depth + 1)?);
                     skip_ws(c, pos);
                     match c.get(*pos) {
                         Some(',') => *pos += 1,
@@ -360,7 +386,7 @@ impl<'a> Parser<'a> {
                     }
                     let key: String = c[start..*pos].iter().collect::<String>().trim().to_owned();
                     *pos += 1;
-                    let value = self.flow_value(c, pos, number)?;
+                    let value = self.flow_value(c, pos, number, depth + 1)?;
                     entries.push((key, value));
                     skip_ws(c, pos);
                     match c.get(*pos) {
