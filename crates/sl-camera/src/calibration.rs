@@ -533,8 +533,12 @@ fn fmt_camera(f: &mut fmt::Formatter<'_>, m: &CameraModel, rms: Option<f64>) -> 
         }
     }
     writeln!(f)?;
-    match m.field_of_view_deg() {
-        Some((h, v)) => write!(f, "  field of view: {h:.1}° x {v:.1}°")?,
+    match m.field_of_view() {
+        Some(fov) => write!(
+            f,
+            "  field of view: {:.1}° x {:.1}°",
+            fov.horizontal_deg, fov.vertical_deg
+        )?,
         None => write!(
             f,
             "  field of view: not computable (edges outside the valid region)"

@@ -9,6 +9,10 @@ use crate::{CameraError, Distortion, ImageSize, Intrinsics, RayTable};
 
 /// A pinhole camera with OpenCV lens distortion.
 ///
+/// Build it with [`CameraModel::new`], which validates; a struct literal or serde
+/// deserialisation does not, so call [`CameraModel::validate`] on models from elsewhere
+/// ([`crate::Calibration::load`] does).
+///
 /// `project` maps a point of the camera frame (mm; x right, y down, z forward) to a pixel;
 /// `unproject` maps a pixel back to the normalised ray `(x, y, 1)`. Both refuse (return
 /// `None`) what the model cannot represent one-to-one: points behind the camera (`z <= 0`)
@@ -136,9 +140,9 @@ impl CameraModel {
         RayTable::new(self)
     }
 
-    /// Horizontal and vertical field of view in degrees: the angle between the rays through
-    /// the middles of opposite image edges; `None` where an edge is not invertible.
-    pub fn field_of_view_deg(&self) -> Option<(f64, f64)> {
+    /// Horizontal and vertical field of view: the angles between the rays through the
+    /// middles of opposite image edges; `None` where an edge is not invertible.
+    pub fn field_of_view(&self) -> Option<FieldOfView> {
         let w = f64::from(self.size.width) - 0.5;
         let h = f64::from(self.size.height) - 0.5;
         let cy = 0.5 * (h - 0.5);
@@ -148,11 +152,20 @@ impl CameraModel {
             let rb = self.unproject_ray(&b)?;
             Some(ra.angle(&rb).to_degrees())
         };
-        Some((
-            angle(Point2::new(-0.5, cy), Point2::new(w, cy))?,
-            angle(Point2::new(cx, -0.5), Point2::new(cx, h))?,
-        ))
+        Some(FieldOfView {
+            horizontal_deg: angle(Point2::new(-0.5, cy), Point2::new(w, cy))?,
+            vertical_deg: angle(Point2::new(cx, -0.5), Point2::new(cx, h))?,
+        })
     }
+}
+
+/// Field of view of a camera or projector (see [`CameraModel::field_of_view`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FieldOfView {
+    /// Angle between the rays through the middles of the left and right image edges (deg).
+    pub horizontal_deg: f64,
+    /// Angle between the rays through the middles of the top and bottom image edges (deg).
+    pub vertical_deg: f64,
 }
 
 fn prefix_parameter(e: CameraError, prefix: &str) -> CameraError {
@@ -238,7 +251,8 @@ mod tests {
             ImageSize::new(640, 480),
         )
         .unwrap();
-        let (h, v) = cam.field_of_view_deg().unwrap();
+        let fov = cam.field_of_view().unwrap();
+        let (h, v) = (fov.horizontal_deg, fov.vertical_deg);
         // Edges are 320 px and 240 px from the centre: 2·atan(320/500), 2·atan(240/500).
         assert_relative_eq!(
             h,

@@ -140,7 +140,7 @@ pub fn isometry_from_rt(r: &Matrix3<f64>, t: &Vector3<f64>) -> Result<Isometry3<
 }
 
 /// Rotation matrix and translation of a pose (`p_a = R · p_b + t` for `T_a_b`).
-pub fn isometry_to_rt(pose: &Isometry3<f64>) -> (Matrix3<f64>, Vector3<f64>) {
+pub(crate) fn isometry_to_rt(pose: &Isometry3<f64>) -> (Matrix3<f64>, Vector3<f64>) {
     (
         pose.rotation.to_rotation_matrix().into_inner(),
         pose.translation.vector,
