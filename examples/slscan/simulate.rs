@@ -18,44 +18,44 @@ const BOARD_SUPERSAMPLING: u32 = 4;
 
 /// Arguments of `slscan simulate`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// Scene: plane, sphere, dumbbell, box, cylinder, bunny, board, or a mesh FILE.ply.
     #[arg(long)]
-    pub scene: String,
+    pub(crate) scene: String,
     /// Folder holding the patterns' `manifest.json` (as `slscan patterns` writes it).
     #[arg(long)]
-    pub patterns: PathBuf,
+    pub(crate) patterns: PathBuf,
     /// Number of views: turntable positions over a full turn, or board poses for `board`.
     #[arg(long, default_value_t = 1)]
-    pub views: usize,
+    pub(crate) views: usize,
     /// Output folder.
     #[arg(long)]
-    pub out: PathBuf,
+    pub(crate) out: PathBuf,
     /// Seed of the noise (and of the board poses).
     #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    pub(crate) seed: u64,
     /// Camera rays per pixel along each axis (default 2, or 4 for `board`).
     #[arg(long)]
-    pub supersampling: Option<u32>,
+    pub(crate) supersampling: Option<u32>,
     /// Bits per camera pixel: 8 or 16.
     #[arg(long, default_value_t = 8)]
-    pub bits: u32,
+    pub(crate) bits: u32,
     /// Add a global-illumination term of this weight (e.g. 0.2).
     #[arg(long)]
-    pub global_light: Option<f64>,
+    pub(crate) global_light: Option<f64>,
     /// Depth-dependent defocus (a 3 mm pupil focused at 450 mm).
     #[arg(long)]
-    pub defocus: bool,
+    pub(crate) defocus: bool,
     /// Projector gamma (default 1: linear).
     #[arg(long)]
-    pub gamma: Option<f64>,
+    pub(crate) gamma: Option<f64>,
     /// No photon or read noise.
     #[arg(long)]
-    pub no_noise: bool,
+    pub(crate) no_noise: bool,
 }
 
 /// Runs `slscan simulate`.
-pub fn run(args: &Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("simulate");
     let out = ensure_out_dir(&args.out)?;
     anyhow::ensure!(args.views >= 1, "--views must be at least 1");

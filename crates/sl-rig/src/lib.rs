@@ -1,4 +1,66 @@
-//! The hardware of a structured-light rig, and a virtual rig with ground truth.
+//! The hardware of a structured-light rig, and a virtual rig that renders exactly the frames a
+//! real rig would capture, together with the truth behind them.
+//!
+//! Without hardware nothing in a scanner can be trusted unless it is tested against ground
+//! truth. This crate holds:
+//!
+//! - the **device traits** [`Camera`], [`Projector`] and [`Turntable`] that real drivers and
+//!   the virtual rig both implement, and capture code written once against them
+//!   ([`capture_sequence`]);
+//! - **scenes** ([`Scene`]): planes, spheres, boxes, cylinders, two spheres at a known
+//!   distance, triangle meshes and printed checkerboards ([`Checkerboard`]), with uniform or
+//!   textured Lambertian albedo ([`Texture`]), standing on the turntable or fixed in front of
+//!   the camera ([`Mount`]);
+//! - the **virtual rig** ([`VirtualRig`], configured by [`RigConfig`]): `sl-camera` models for
+//!   the camera and the projector (intrinsics, distortion, pose), rays cast with `parry3d-f64`
+//!   once per view into a geometry cache ([`ViewGeometry`]) so that each projected image
+//!   renders as a cheap lookup, then camera effects ([`CameraEffects`]: global illumination,
+//!   defocus, photon and read noise, exposure, saturation, 8/16-bit quantisation), seeded and
+//!   reproducible;
+//! - **ground truth** ([`ViewTruth`], [`BoardTruth`]): depth, 3-D points, the exact projector
+//!   coordinate of every camera pixel, masks and poses, the rig's exact calibration
+//!   ([`RigConfig::calibration`]), and calibration captures ([`capture_board`],
+//!   [`capture_board_on_table`], [`simulate_calibration`]);
+//! - **files**: capture sets in `sl-codec`'s format with their truth ([`simulate_scan`],
+//!   [`write_view_truth`]). `docs/virtual-rig.md` describes scenes, parameters and files.
+//!
+//! ```
+//! use sl_rig::{GreyImage, RigConfig, Scene, VirtualRig};
+//! # fn main() -> Result<(), sl_rig::RigError> {
+//! // The default rig (1280x720 camera, 1920x1080 projector), shrunk for a quick example.
+//! let mut config = RigConfig::default();
+//! config.camera.size = sl_camera::ImageSize::new(64, 36);
+//! config.camera.intrinsics = sl_camera::Intrinsics::new(72.0, 72.0, 31.5, 17.5);
+//! let rig = VirtualRig::new(config, Scene::sphere())?;
+//! // Cast the view with the turntable at 30 degrees, then render a frame under full white.
+//! let view = rig.view(30.0, 0)?;
+//! let white = GreyImage::filled_u8(1920, 1080, 255);
+//! let frame = view.capture(&white, 0)?;
+//! assert_eq!((frame.width, frame.height), (64, 36));
+//! // The truth: the centre pixel sees the sphere, lit by the projector.
+//! let centre = 18 * 64 + 32;
+//! assert!(view.truth.lit(centre));
+//! assert!(view.truth.depth_mm[centre] > 350.0 && view.truth.depth_mm[centre] < 450.0);
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! # Conventions
+//! - Camera and projector frames as OpenCV: `x` right, `y` down, `z` forward; the projector is
+//!   an inverse camera (`sl-camera`'s model). The camera frame is the rig's reference.
+//! - Lengths in millimetres (`f64`), angles in degrees at the API surface; poses are
+//!   `Isometry3<f64>` named `T_a_b` (maps `b` coordinates into `a`): `t_cam_proj`,
+//!   `t_cam_table`, `T_cam_board`, `T_cam_object`.
+//! - Pixel `(0, 0)` is the centre of the top-left pixel; an image spans
+//!   `[-0.5, w - 0.5) × [-0.5, h - 0.5)`, for the camera and the projector alike. A projector
+//!   pixel `(i, j)` lights the square `[i - 0.5, i + 0.5) × [j - 0.5, j + 0.5)` of projector
+//!   coordinates (a real projector shows square pixels).
+//! - `table` frame: origin on the turntable axis at the table top, `z` up along the axis;
+//!   positive angles turn right-handedly about `z`. `board` frame: origin at the first inner
+//!   corner, `x` along the first row, `y` along the columns, `z` into the board.
+//! - Maps are row-major, pixel `(x, y)` at index `y · width + x`, NaN where there is no value.
+//! - Radiance is in units of the projector's full white at normal incidence; camera frames
+//!   are 8- or 16-bit grey.
 #![deny(missing_docs)]
 
 mod blur;

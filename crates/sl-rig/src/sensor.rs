@@ -126,7 +126,7 @@ impl Defocus {
     /// Standard deviation of the blur (px) at depth `z_mm` for a camera of focal length `fx`
     /// pixels.
     pub fn sigma_px(&self, fx: f64, z_mm: f64) -> f64 {
-        if !(z_mm > 0.0) || !(self.focus_distance_mm > 0.0) {
+        if !(z_mm > 0.0 && self.focus_distance_mm > 0.0) {
             return 0.0;
         }
         let diameter = fx * self.aperture_mm * (z_mm - self.focus_distance_mm).abs()
@@ -180,7 +180,7 @@ pub struct NoiseKey {
     pub frame: u64,
 }
 
-/// SplitMix64's finaliser: a bijective mix with full avalanche, so that neighbouring keys give
+/// `SplitMix64`'s finaliser: a bijective mix with full avalanche, so that neighbouring keys give
 /// unrelated generator seeds.
 fn mix(mut z: u64) -> u64 {
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);

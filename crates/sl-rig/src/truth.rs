@@ -72,13 +72,16 @@ impl ViewTruth {
     }
 }
 
+/// Depth, point, normal, projector coordinate and object of one pixel.
+type PixelTruth = (f64, Point3<f64>, Vector3<f64>, Point2<f64>, u16);
+
 impl<P: Lens> Caster<'_, P> {
     /// Casts one ray through every pixel centre; fills the per-pixel maps of a [`ViewTruth`]
     /// (the caller sets the poses).
     pub(crate) fn truth_maps(&self) -> ViewTruth {
         let (w, h) = (self.rays.width, self.rays.height);
         let nan3 = Point3::new(f64::NAN, f64::NAN, f64::NAN);
-        let rows: Vec<Vec<(f64, Point3<f64>, Vector3<f64>, Point2<f64>, u16)>> = (0..h)
+        let rows: Vec<Vec<PixelTruth>> = (0..h)
             .into_par_iter()
             .map(|y| {
                 (0..w)
