@@ -416,6 +416,74 @@ mod tests {
     }
 
     #[test]
+    fn global_light_and_defocus_act_as_configured() {
+        let (w, h) = (200, 100);
+        let quiet = SensorConfig {
+            photon_noise: false,
+            read_noise_electrons: 0.0,
+            bit_depth: BitDepth::Sixteen,
+            ..SensorConfig::default()
+        };
+        let key = NoiseKey {
+            seed: 0,
+            view: 0,
+            frame: 0,
+        };
+        // Uniform radiance: the blurred copy is the same image, so GI multiplies it by 1 + w.
+        let gi = CameraEffects {
+            sensor: quiet,
+            global_illumination: Some(GlobalIllumination {
+                weight: 0.25,
+                sigma_px: 10.0,
+            }),
+            ..CameraEffects::default()
+        };
+        let img = expose(vec![0.4; w * h], w, h, &[], 1000.0, &gi, key);
+        let want = (0.4 * 1.25 * quiet.exposure * 65535.0f64).round() as u16;
+        let Pixels::U16(px) = &img.pixels else {
+            panic!("16-bit expected")
+        };
+        // f32 radiance: within one grey level of the closed form.
+        assert!(
+            px.iter().all(|&v| v.abs_diff(want) <= 1),
+            "{} vs {want}",
+            px[0]
+        );
+        // Defocus: a vertical edge stays sharp at the focus distance and is blurred by the
+        // thin-lens sigma elsewhere.
+        let edge: Vec<f32> = (0..w * h)
+            .map(|i| if i % w < w / 2 { 0.0 } else { 0.8 })
+            .collect();
+        let d = Defocus {
+            focus_distance_mm: 450.0,
+            aperture_mm: 3.0,
+        };
+        let fx = 3000.0;
+        let blur = CameraEffects {
+            sensor: quiet,
+            defocus: Some(d),
+            ..CameraEffects::default()
+        };
+        let sharp = expose(edge.clone(), w, h, &vec![450.0; w * h], fx, &blur, key);
+        let soft = expose(edge.clone(), w, h, &vec![600.0; w * h], fx, &blur, key);
+        let row = |img: &GreyImage| -> Vec<f64> {
+            let Pixels::U16(p) = &img.pixels else {
+                return Vec::new();
+            };
+            (0..w).map(|x| f64::from(p[50 * w + x])).collect()
+        };
+        let (a, b) = (row(&sharp), row(&soft));
+        assert_eq!(a[w / 2 - 1], 0.0);
+        // sigma = 3000 * 3 * 150 / (600 * 450) / 4 = 1.25 px: the pixel left of the edge
+        // (centre 0.5 px from it) gets 0.8 * (1 - Phi(0.5 / 1.25)) = 0.8 * 0.3446 of full light
+        // The stack interpolates linearly between sigma 1 and 1.5 (0.339 for continuous
+        // Gaussians) and samples its kernels at integer taps: within 0.015 of the exact value.
+        let full = 0.8 * quiet.exposure * 65535.0;
+        assert_abs_diff_eq!(b[w / 2 - 1] / full, 0.3446, epsilon = 0.015);
+        assert_abs_diff_eq!(b[w / 2] / full, 1.0 - 0.3446, epsilon = 0.015);
+    }
+
+    #[test]
     fn defocus_sigma_closed_form() {
         let d = Defocus {
             focus_distance_mm: 450.0,
