@@ -546,14 +546,16 @@ fn fmt_camera(f: &mut fmt::Formatter<'_>, m: &CameraModel, rms: Option<f64>) -> 
     }
     let r = d.max_radius();
     if r.is_finite() {
-        writeln!(
+        write!(
             f,
-            "; model invertible up to {:.1}° off-axis",
+            "; one-to-one up to {:.1}° off-axis",
             r.atan().to_degrees()
         )?;
-    } else {
-        writeln!(f)?;
+        if r >= crate::monotonic::RADIUS_CAP {
+            write!(f, " (the search limit)")?;
+        }
     }
+    writeln!(f)?;
     if let Some(rms) = rms {
         writeln!(f, "  RMS reprojection error: {rms:.4} px")?;
     }
