@@ -655,3 +655,67 @@ fn stanford_bunny_through_sl_data() {
         assert!(c.len() > 30_000, "{name}: {}", c.len());
     }
 }
+
+#[test]
+fn ascii_lists_before_vertices_and_crlf_headers() {
+    // A face element with lists before the vertices, CRLF line ends, tokens split across lines
+    // (ASCII PLY is whitespace-separated, lines are a convention).
+    let text = "ply\r\nformat ascii 1.0\r\nelement face 2\r\nproperty list uchar int vertex_indices\r\n\
+                element vertex 2\r\nproperty float x\r\nproperty float y\r\nproperty float z\r\n\
+                property list uchar int extra\r\nend_header\r\n3 0 1 2\r\n4 0 1\r\n2 3\r\n\
+                1 2 3 0\r\n4 5\r\n6 2 7 7\r\n";
+    let c = read_ply_from_bytes(text.as_bytes()).unwrap();
+    assert_eq!(
+        c.positions(),
+        &[Point3::new(1.0, 2.0, 3.0), Point3::new(4.0, 5.0, 6.0)]
+    );
+
+    // Binary body after a CRLF header.
+    let mut b =
+        b"ply\r\nformat binary_little_endian 1.0\r\nelement vertex 1\r\nproperty double x\r\n\
+property double y\r\nproperty double z\r\nend_header\r\n"
+            .to_vec();
+    for v in [0.5f64, -1.5, 2.25] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    assert_eq!(
+        read_ply_from_bytes(&b).unwrap().positions(),
+        &[Point3::new(0.5, -1.5, 2.25)]
+    );
+
+    // A list count that is not an integer in ASCII is an error naming its line.
+    let bad = "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int v\nelement vertex 0\n\
+               property float x\nproperty float y\nproperty float z\nend_header\n2.5 1 2\n";
+    match read_ply_from_bytes(bad.as_bytes()) {
+        Err(CloudError::PlyAscii {
+            line: 10, message, ..
+        }) => assert!(message.contains("list length"), "{message}"),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn irregular_binary_truncation_names_the_offset() {
+    // Vertex element with a list: each vertex is 3 floats + 1 count byte + count ints.
+    let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+property float z\nproperty list uchar int l\nend_header\n"
+        .to_vec();
+    let body = b.len();
+    // vertex 0: no list items (13 bytes); vertex 1: two items (21 bytes); vertex 2: cut in y.
+    b.extend_from_slice(&[0; 12]);
+    b.push(0);
+    b.extend_from_slice(&[0; 12]);
+    b.push(2);
+    b.extend_from_slice(&[0; 8]);
+    b.extend_from_slice(&[0; 6]);
+    match read_ply_from_bytes(&b) {
+        Err(CloudError::PlyBinary {
+            offset, message, ..
+        }) => {
+            // y of vertex 2 starts 4 bytes into it: body + 13 + 21 + 4.
+            assert_eq!(offset as usize, body + 13 + 21 + 4, "{message}");
+            assert!(message.contains("'y' of vertex 2"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
