@@ -643,6 +643,19 @@ fn stanford_bunny_through_sl_data() {
     for i in 0..3 {
         assert!(e[i] > 0.05 && e[i] < 0.3, "extent {e:?}");
     }
+    // Independent reference: Open3D 0.20 + numpy on the same file gave
+    // min (-0.09475, 0.0357363, -0.0586982), max (0.061, 0.18794, 0.0587228),
+    // mean (-0.0240207, 0.0965848, 0.03563174). Values are f32 in the file: compare at 1e-7
+    // (the mean, printed to 6-7 digits, at 1e-7 too).
+    let close = |a: Point3<f64>, b: [f64; 3]| (a - Point3::from(b)).amax() < 1e-7;
+    assert!(
+        close(b.min, [-0.09475, 0.0357363, -0.0586982]),
+        "{:?}",
+        b.min
+    );
+    assert!(close(b.max, [0.061, 0.18794, 0.0587228]), "{:?}", b.max);
+    let m = cloud.centroid().unwrap();
+    assert!(close(m, [-0.0240207, 0.0965848, 0.03563174]), "{m:?}");
     // First vertex of the file: -0.06325 0.0359793 0.0420873 (float, so compare at f32 precision).
     let p = cloud.positions()[0];
     assert!(
