@@ -54,6 +54,7 @@ mod neighbours;
 mod normals;
 mod outliers;
 mod ply;
+mod preview;
 mod sym_eigen;
 mod voxel;
 
@@ -74,4 +75,5 @@ pub use ply::{
     PlyElement, PlyEncoding, PlyFormat, PlyHeader, PlyProperty, PlyPropertyKind, PlyScalar,
     PlyScalarType,
 };
+pub use preview::{PreviewColoring, PreviewConfig, PreviewImage, colormap, render_preview};
 pub use voxel::{VoxelDownsample, VoxelGridConfig, voxel_downsample};
