@@ -69,6 +69,9 @@ pub use outliers::{
     remove_radius_outliers, remove_statistical_outliers,
 };
 pub use ply::header::read_ply_header;
+pub use ply::mesh::{
+    RANGE_GRID_MAX_EDGE_FACTOR, TriangleMesh, read_ply_mesh, read_ply_mesh_from_bytes,
+};
 pub use ply::read::{read_ply, read_ply_from_bytes, read_ply_from_reader};
 pub use ply::write::{write_ply, write_ply_to_bytes, write_ply_to_writer};
 pub use ply::{

@@ -1,6 +1,7 @@
 //! PLY (Stanford polygon file format) types shared by the reader and the writer.
 
 pub(crate) mod header;
+pub(crate) mod mesh;
 pub(crate) mod read;
 pub(crate) mod scalar;
 pub(crate) mod write;

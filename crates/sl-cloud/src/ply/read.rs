@@ -224,11 +224,11 @@ pub(crate) fn parse_ply(bytes: &[u8], file: &str) -> Result<PointCloud, CloudErr
 }
 
 /// Position in a binary body; offsets in errors are absolute in the file.
-struct Cursor<'a> {
-    data: &'a [u8],
-    pos: usize,
-    big: bool,
-    file: &'a str,
+pub(crate) struct Cursor<'a> {
+    pub(crate) data: &'a [u8],
+    pub(crate) pos: usize,
+    pub(crate) big: bool,
+    pub(crate) file: &'a str,
 }
 
 impl Cursor<'_> {
@@ -245,7 +245,7 @@ impl Cursor<'_> {
     }
 
     /// Reads one scalar, advancing; `what` names it in the error if the data ends.
-    fn scalar(
+    pub(crate) fn scalar(
         &mut self,
         ty: PlyScalarType,
         what: impl FnOnce() -> String,
@@ -293,7 +293,33 @@ impl Cursor<'_> {
         Ok(())
     }
 
-    fn skip_element(&mut self, e: &PlyElement) -> Result<(), CloudError> {
+    /// Reads a list count and its items into `out` (cleared first).
+    pub(crate) fn read_list(
+        &mut self,
+        count_ty: PlyScalarType,
+        item: PlyScalarType,
+        what: &dyn Fn() -> String,
+        out: &mut Vec<f64>,
+    ) -> Result<(), CloudError> {
+        out.clear();
+        let at = self.pos;
+        let n = self.scalar(count_ty, || format!("the list count of {}", what()))?;
+        if !(n >= 0.0 && n.fract() == 0.0) {
+            return Err(self.err(at, format!("bad list length {n} in {}", what())));
+        }
+        if (n as usize).saturating_mul(item.size()) > self.remaining() {
+            return Err(self.err(
+                self.pos,
+                format!("list of {n} items in {} runs past the end of the file", what()),
+            ));
+        }
+        for _ in 0..n as usize {
+            out.push(self.scalar(item, what)?);
+        }
+        Ok(())
+    }
+
+    pub(crate) fn skip_element(&mut self, e: &PlyElement) -> Result<(), CloudError> {
         if e.properties.is_empty() || e.count == 0 {
             return Ok(());
         }
@@ -416,15 +442,15 @@ fn read_binary_irregular(
 }
 
 /// Whitespace-separated tokens of an ASCII body, with the current line number.
-struct Tokens<'a> {
-    data: &'a [u8],
-    pos: usize,
+pub(crate) struct Tokens<'a> {
+    pub(crate) data: &'a [u8],
+    pub(crate) pos: usize,
     /// Line of the next byte.
-    line: usize,
+    pub(crate) line: usize,
     /// Line of the last token returned: where errors point (for a parse error the bad token, for
     /// an early end of file the last data line).
-    tok_line: usize,
-    file: &'a str,
+    pub(crate) tok_line: usize,
+    pub(crate) file: &'a str,
 }
 
 impl<'a> Tokens<'a> {
@@ -458,7 +484,7 @@ impl<'a> Tokens<'a> {
         data.get(start..self.pos)
     }
 
-    fn number(&mut self, what: &dyn Fn() -> String) -> Result<f64, CloudError> {
+    pub(crate) fn number(&mut self, what: &dyn Fn() -> String) -> Result<f64, CloudError> {
         let Some(tok) = self.next() else {
             return Err(self.err(format!("file ends before {}", what())));
         };
@@ -490,7 +516,27 @@ impl<'a> Tokens<'a> {
         Ok(())
     }
 
-    fn skip_element(&mut self, e: &PlyElement) -> Result<(), CloudError> {
+    /// Reads a list count and its items into `out` (cleared first).
+    pub(crate) fn read_list(
+        &mut self,
+        what: &dyn Fn() -> String,
+        out: &mut Vec<f64>,
+    ) -> Result<(), CloudError> {
+        out.clear();
+        let n = self.number(&|| format!("the list count of {}", what()))?;
+        if !(n >= 0.0 && n.fract() == 0.0) {
+            return Err(self.err(format!("bad list length {n} in {}", what())));
+        }
+        // Each item is a token, so a lying count ends with the data.
+        let mut k = 0.0;
+        while k < n {
+            out.push(self.number(what)?);
+            k += 1.0;
+        }
+        Ok(())
+    }
+
+    pub(crate) fn skip_element(&mut self, e: &PlyElement) -> Result<(), CloudError> {
         if e.properties.is_empty() {
             return Ok(());
         }
