@@ -310,7 +310,10 @@ impl Cursor<'_> {
         if (n as usize).saturating_mul(item.size()) > self.remaining() {
             return Err(self.err(
                 self.pos,
-                format!("list of {n} items in {} runs past the end of the file", what()),
+                format!(
+                    "list of {n} items in {} runs past the end of the file",
+                    what()
+                ),
             ));
         }
         for _ in 0..n as usize {
