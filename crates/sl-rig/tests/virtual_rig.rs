@@ -342,3 +342,61 @@ fn camera_model_literals_are_consistent() {
     assert_relative_eq!(off, 0.0, epsilon = 1e-9);
     let _: &CameraModel = &c.camera;
 }
+
+#[test]
+fn board_texture_matches_the_printed_squares() {
+    // A board facing the camera at 450 mm, full white, no noise, 16 bits: away from the
+    // square edges, each pixel has the closed-form value of its square's albedo.
+    let mut config = small_rig();
+    config.render.supersampling = 4;
+    config.render.effects.sensor = SensorConfig {
+        photon_noise: false,
+        read_noise_electrons: 0.0,
+        bit_depth: sl_rig::BitDepth::Sixteen,
+        ..SensorConfig::default()
+    };
+    let board = sl_rig::Checkerboard::default();
+    let t_cam_board = Isometry3::translation(-80.0, -50.0, 450.0);
+    let rig = VirtualRig::new(config.clone(), Scene::plane()).unwrap();
+    let cap = sl_rig::capture_board(&rig, &board, &t_cam_board, None, 0).unwrap();
+    assert!(cap.frames.is_empty());
+    let Pixels::U16(px) = &cap.white.pixels else {
+        panic!("16-bit expected")
+    };
+    let t = &cap.view.truth;
+    let il = config.render.illumination;
+    let s = config.render.effects.sensor;
+    let centre = Point3::from(config.t_cam_proj.translation.vector);
+    let (mut dark, mut light) = (0, 0);
+    for (i, &value) in px.iter().enumerate() {
+        if !t.lit(i) {
+            continue;
+        }
+        let p = t.points_cam[i];
+        let b = t_cam_board.inverse_transform_point(&p);
+        // One camera pixel is ~1.25 mm here: keep pixels 2 mm from every grid line.
+        let off =
+            |v: f64| (v / board.square_mm - (v / board.square_mm).round()).abs() * board.square_mm;
+        if off(b.x) < 2.0 || off(b.y) < 2.0 {
+            continue;
+        }
+        let albedo = board.albedo_at(b.x, b.y);
+        let cos = (centre - p).normalize().dot(&-Vector3::z());
+        let want = s.exposure * 65535.0 * albedo * (il.ambient + il.projector_output(1.0) * cos);
+        assert!(
+            (f64::from(value) - want).abs() <= 2.0,
+            "pixel {i}: {value} vs {want}"
+        );
+        if albedo < 0.5 { dark += 1 } else { light += 1 }
+    }
+    assert!(dark > 1000 && light > 1000, "dark {dark}, light {light}");
+    // The first square (top-left of the grid) is black: the pixel 10 mm up-left of corner 0.
+    let c0 = cap.board.corners_px[0].unwrap();
+    let q = config
+        .camera
+        .project(&(t_cam_board * Point3::new(-10.0, -10.0, 0.0)))
+        .unwrap();
+    assert!(q.x < c0.x && q.y < c0.y);
+    let i = (q.y.round() as u32 * t.width + q.x.round() as u32) as usize;
+    assert!(f64::from(px[i]) < 0.2 * s.exposure * 65535.0);
+}
