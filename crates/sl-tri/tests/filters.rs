@@ -1,0 +1,299 @@
+//! Filters, statuses, errors and method properties on a small synthetic rig whose truth is
+//! computed with sl-camera's models.
+
+// Test helpers (not `#[test]` functions) unwrap too: a failure there is a test failure.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use sl_camera::{Calibration, CameraModel, Distortion, ImageSize, Intrinsics};
+use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
+use sl_tri::{Method, PointStatus, Texture, TriError, TriOptions, Triangulator};
+
+const W: usize = 160;
+const H: usize = 120;
+
+fn camera() -> CameraModel {
+    CameraModel::new(
+        Intrinsics::new(180.0, 180.0, 79.5, 59.5),
+        Distortion::from_opencv(&[-0.08, 0.12, 0.0004, -0.0003, 0.0]).unwrap(),
+        ImageSize::new(W as u32, H as u32),
+    )
+    .unwrap()
+}
+
+fn projector() -> CameraModel {
+    CameraModel::new(
+        Intrinsics::new(300.0, 300.0, 159.5, 99.5),
+        Distortion::from_opencv(&[0.04, -0.05, 0.0, 0.0, 0.0]).unwrap(),
+        ImageSize::new(320, 200),
+    )
+    .unwrap()
+}
+
+fn t_cam_proj() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(200.0, 0.0, 0.0),
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -24f64.to_radians()),
+    )
+}
+
+fn triangulator() -> Triangulator {
+    Triangulator::from_models(&camera(), &projector(), &t_cam_proj()).unwrap()
+}
+
+/// Exact map of a scene given by a depth per pixel (camera `z`, mm).
+fn map_of(depth: impl Fn(usize, usize) -> f64) -> (CorrespondenceMap, Vec<Point3<f64>>) {
+    let (cam, proj, t_proj_cam) = (camera(), projector(), t_cam_proj().inverse());
+    let mut map = CorrespondenceMap::new(W, H);
+    let mut truth = vec![Point3::new(f64::NAN, f64::NAN, f64::NAN); W * H];
+    for y in 0..H {
+        for x in 0..W {
+            let i = y * W + x;
+            let ray = cam.unproject(&Point2::new(x as f64, y as f64)).unwrap();
+            let p = Point3::from(ray * depth(x, y));
+            match proj
+                .project(&(t_proj_cam * p))
+                .filter(|px| proj.size.contains(px))
+            {
+                Some(px) => {
+                    map.col[i] = px.x as f32;
+                    map.row[i] = px.y as f32;
+                    map.quality[i] = 50.0;
+                    truth[i] = p;
+                }
+                None => {
+                    map.col[i] = f32::NAN;
+                    map.row[i] = f32::NAN;
+                    map.invalid[i] = InvalidReason::Shadow;
+                }
+            }
+        }
+    }
+    (map, truth)
+}
+
+#[test]
+fn every_pixel_of_a_wall_is_valid() {
+    let (map, truth) = map_of(|_, _| 450.0);
+    let r = triangulator()
+        .triangulate(&map, &TriOptions::default())
+        .unwrap();
+    let lit = truth.iter().filter(|p| p.z.is_finite()).count();
+    assert!(lit > W * H / 2);
+    assert_eq!(r.counts.valid, lit);
+    assert_eq!(r.counts.not_decoded, W * H - lit);
+    assert_eq!(r.cloud.len(), lit);
+    assert_eq!(r.cloud.quality().unwrap().len(), lit);
+    assert!(r.cloud.quality().unwrap().iter().all(|&q| q == 50.0));
+    assert!(r.cloud.colors().is_none());
+}
+
+#[test]
+fn depth_range_and_quality_filters() {
+    let (mut map, _) = map_of(|_, _| 450.0);
+    let tri = triangulator();
+    let far = TriOptions {
+        min_depth_mm: 500.0,
+        max_depth_mm: 900.0,
+        ..TriOptions::default()
+    };
+    let r = tri.triangulate(&map, &far).unwrap();
+    assert_eq!(r.counts.valid, 0);
+    assert_eq!(r.counts.out_of_depth_range, r.counts.decoded());
+    // Quality: pixels of the first 10 rows below the threshold.
+    for q in map.quality.iter_mut().take(10 * W) {
+        *q = 1.0;
+    }
+    let options = TriOptions {
+        min_quality: 5.0,
+        ..TriOptions::default()
+    };
+    let r = tri.triangulate(&map, &options).unwrap();
+    assert!(r.counts.low_quality > 0);
+    for (i, s) in r.status.iter().enumerate() {
+        if i < 10 * W {
+            assert!(matches!(
+                s,
+                PointStatus::LowQuality | PointStatus::NotDecoded
+            ));
+        } else {
+            assert_ne!(*s, PointStatus::LowQuality);
+        }
+    }
+}
+
+/// A row decoded 10 px off disagrees with the column's point by 10 px in the projector, i.e.
+/// 10/√2 ≈ 7 px RMS over the two images: dropped at the default 2 px, kept at 10 px.
+#[test]
+fn reprojection_filter_catches_inconsistent_coordinates() {
+    let (mut map, _) = map_of(|_, _| 450.0);
+    let bad = (60 * W + 80, 61 * W + 80);
+    map.row[bad.0] += 10.0;
+    map.row[bad.1] += 10.0;
+    let tri = triangulator();
+    for method in [
+        Method::default(),
+        Method::Linear,
+        Method::Midpoint,
+        Method::Optimal,
+    ] {
+        let r = tri
+            .triangulate(&map, &TriOptions::with_method(method))
+            .unwrap();
+        assert_eq!(
+            r.status[bad.0],
+            PointStatus::Reprojection,
+            "{}",
+            method.name()
+        );
+        assert_eq!(
+            r.status[bad.1],
+            PointStatus::Reprojection,
+            "{}",
+            method.name()
+        );
+        assert_eq!(r.counts.reprojection, 2, "{}", method.name());
+        let lenient = TriOptions {
+            max_reprojection_px: 10.0,
+            ..TriOptions::with_method(method)
+        };
+        let r = tri.triangulate(&map, &lenient).unwrap();
+        assert_eq!(r.status[bad.0], PointStatus::Valid, "{}", method.name());
+    }
+}
+
+/// Two walls 100 mm apart, split at column 80: the pixels on both sides of the step are
+/// mixed (jump 100 mm ≫ 1 % of 450 mm), nothing else is.
+#[test]
+fn mixed_pixels_at_a_depth_step() {
+    let (map, _) = map_of(|x, _| if x < 80 { 450.0 } else { 550.0 });
+    let r = triangulator()
+        .triangulate(&map, &TriOptions::default())
+        .unwrap();
+    assert!(r.counts.mixed_pixel > 0);
+    for (i, s) in r.status.iter().enumerate() {
+        let x = i % W;
+        if *s == PointStatus::MixedPixel {
+            assert!(x == 79 || x == 80, "pixel {x} flagged");
+            assert!(r.points[i].z.is_nan());
+        }
+        if (x == 79 || x == 80) && map.invalid[i].is_valid() {
+            // Only if its neighbour across the step is decoded.
+            let other = if x == 79 { i + 1 } else { i - 1 };
+            if map.invalid[other].is_valid() {
+                assert_eq!(*s, PointStatus::MixedPixel);
+            }
+        }
+    }
+    let off = TriOptions {
+        max_depth_jump: f64::INFINITY,
+        ..TriOptions::default()
+    };
+    assert_eq!(
+        triangulator()
+            .triangulate(&map, &off)
+            .unwrap()
+            .counts
+            .mixed_pixel,
+        0
+    );
+}
+
+#[test]
+fn texture_colours_the_cloud() {
+    let (map, _) = map_of(|_, _| 450.0);
+    let grey: Vec<u8> = (0..W * H).map(|i| (i % 251) as u8).collect();
+    let r = triangulator()
+        .triangulate_textured(&map, Some(Texture::Grey8(&grey)), &TriOptions::default())
+        .unwrap();
+    let colors = r.cloud.colors().unwrap();
+    for (c, &i) in colors.iter().zip(&r.cloud_pixels) {
+        let g = grey[i as usize];
+        assert_eq!(*c, [g, g, g]);
+    }
+    let short = vec![0u8; 10];
+    let err = triangulator()
+        .triangulate_textured(&map, Some(Texture::Grey8(&short)), &TriOptions::default())
+        .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            TriError::SizeMismatch {
+                what: "texture",
+                ..
+            }
+        ),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_inputs_are_named() {
+    let tri = triangulator();
+    let err = tri
+        .triangulate(&CorrespondenceMap::new(10, 10), &TriOptions::default())
+        .unwrap_err();
+    assert!(err.to_string().contains("correspondence map"), "{err}");
+    assert!(err.to_string().contains("160x120"), "{err}");
+    let err = Triangulator::new(&Calibration::new(camera())).unwrap_err();
+    assert!(err.to_string().contains("projector"), "{err}");
+    let bad = TriOptions {
+        max_depth_mm: 0.5,
+        ..TriOptions::default()
+    };
+    let (map, _) = map_of(|_, _| 450.0);
+    let err = tri.triangulate(&map, &bad).unwrap_err();
+    assert!(err.to_string().contains("max_depth_mm"), "{err}");
+}
+
+/// Ignoring the projector's distortion is wrong by far more than the 0.005 mm target: this
+/// is what the accuracy tests would catch if the solver dropped it.
+#[test]
+fn projector_distortion_matters() {
+    let (map, truth) = map_of(|_, _| 450.0);
+    let mut pinhole = projector();
+    pinhole.distortion = Distortion::none();
+    let tri = Triangulator::from_models(&camera(), &pinhole, &t_cam_proj()).unwrap();
+    let r = tri.triangulate(&map, &TriOptions::default()).unwrap();
+    let worst = r
+        .cloud
+        .positions()
+        .iter()
+        .zip(&r.cloud_pixels)
+        .map(|(p, &i)| (p - truth[i as usize]).norm())
+        .fold(0.0f64, f64::max);
+    assert!(worst > 0.1, "worst error {worst} mm");
+}
+
+/// With noise on the decoded coordinates, the optimal method has the smallest reprojection
+/// error at every pixel (it minimises exactly that), up to the Gauss–Newton tolerance.
+#[test]
+fn optimal_minimises_reprojection_error() {
+    let (mut map, _) = map_of(|x, y| 420.0 + 0.2 * x as f64 + 0.1 * y as f64);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+    let noise = Normal::new(0.0f32, 0.3).unwrap();
+    for (c, r) in map.col.iter_mut().zip(map.row.iter_mut()) {
+        *c += noise.sample(&mut rng);
+        *r += noise.sample(&mut rng);
+    }
+    let tri = triangulator();
+    let run = |method| {
+        tri.triangulate(&map, &TriOptions::with_method(method))
+            .unwrap()
+    };
+    let optimal = run(Method::Optimal);
+    for method in [Method::Linear, Method::Midpoint, Method::default()] {
+        let other = run(method);
+        let mut compared = 0;
+        for (a, b) in optimal.reprojection_px.iter().zip(&other.reprojection_px) {
+            if a.is_finite() && b.is_finite() {
+                assert!(*a <= *b + 1e-5, "{}: optimal {a} > {b}", method.name());
+                compared += 1;
+            }
+        }
+        assert!(compared > W * H / 2);
+        assert!(optimal.rms_reprojection_px() < other.rms_reprojection_px());
+    }
+}
