@@ -4,11 +4,12 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use nalgebra::Vector3;
 use serde_json::json;
 use sl_codec::{MANIFEST_FILE, Manifest};
 use sl_rig::{
-    BitDepth, CalibrationSession, GlobalIllumination, RigConfig, Scene, SimulatedCapture,
-    VirtualRig, simulate_calibration, simulate_scan, turntable_angles,
+    BitDepth, CalibrationSession, GlobalIllumination, MeshUnits, RigConfig, Scene,
+    SimulatedCapture, VirtualRig, simulate_calibration, simulate_scan, turntable_angles,
 };
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
@@ -175,12 +176,9 @@ fn bunny_path() -> anyhow::Result<PathBuf> {
 }
 
 fn mesh_scene(path: &Path) -> anyhow::Result<Scene> {
-    // Triangle meshes need a PLY face (or Stanford range-grid) reader, which sl-cloud does not
-    // offer yet; `Scene::standing_mesh` takes the vertices and triangles once it does.
-    anyhow::bail!(
-        "{}: mesh scenes need `sl_cloud::read_ply_mesh`, which is not available yet",
-        path.display()
-    )
+    // Scans (the Stanford bunny among them) are y-up; units in metres are detected.
+    Scene::ply_mesh(path, MeshUnits::Auto, Vector3::y())
+        .with_context(|| format!("cannot build a scene from {}", path.display()))
 }
 
 fn summarise(report: &mut Report, args: &Args, manifest: &Manifest, captures: &[SimulatedCapture]) {

@@ -74,6 +74,9 @@ pub enum RigError {
     /// A pattern sequence, manifest or image file was refused by `sl-codec`.
     #[error(transparent)]
     Codec(#[from] sl_codec::CodecError),
+    /// A mesh file was refused by `sl-cloud`.
+    #[error(transparent)]
+    Cloud(#[from] sl_cloud::CloudError),
     /// A JSON file could not be written or parsed.
     #[error("{}: {source}", path.display())]
     Json {

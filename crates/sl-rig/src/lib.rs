@@ -97,8 +97,8 @@ pub use image::{GreyImage, Pixels};
 pub use raycast::{Hit, PlacedScene};
 pub use render::{Illumination, ProjectorSampling};
 pub use scene::{
-    DEFAULT_ALBEDO, DUMBBELL_CENTRE_DISTANCE_MM, Mount, Scene, SceneObject, Shape, Texture,
-    upright_facing_camera,
+    AUTO_METRES_BELOW, DEFAULT_ALBEDO, DUMBBELL_CENTRE_DISTANCE_MM, MeshUnits, Mount, Scene,
+    SceneObject, Shape, Texture, upright_facing_camera,
 };
 pub use sensor::{BitDepth, CameraEffects, Defocus, GlobalIllumination, NoiseKey, SensorConfig};
 pub use simulate::{

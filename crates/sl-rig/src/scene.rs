@@ -456,6 +456,64 @@ impl Scene {
     }
 }
 
+/// Units of the vertices of a mesh file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MeshUnits {
+    /// Millimetres (scale 1).
+    Millimetres,
+    /// Metres (scale 1000), as the Stanford scans.
+    Metres,
+    /// Metres when the bounding box's diagonal is below [`AUTO_METRES_BELOW`] units (no
+    /// turntable object is 10 mm across; few are 10 m), else millimetres.
+    #[default]
+    Auto,
+}
+
+/// Bounding-box diagonal below which [`MeshUnits::Auto`] takes a mesh to be in metres.
+pub const AUTO_METRES_BELOW: f64 = 10.0;
+
+impl Scene {
+    /// A PLY triangle mesh (faces, or a Stanford range grid: see `sl_cloud::read_ply_mesh`)
+    /// standing on the turntable as [`Scene::standing_mesh`] places it, with `up` its own
+    /// vertical axis (`y` for the Stanford scans) and a uniform [`DEFAULT_ALBEDO`]. The object
+    /// is named after the file stem.
+    pub fn ply_mesh(
+        path: &std::path::Path,
+        units: MeshUnits,
+        up: Vector3<f64>,
+    ) -> Result<Self, RigError> {
+        let mesh = sl_cloud::read_ply_mesh(path)?;
+        let name = path
+            .file_stem()
+            .map_or_else(|| "mesh".to_owned(), |s| s.to_string_lossy().into_owned());
+        let scale = match units {
+            MeshUnits::Millimetres => 1.0,
+            MeshUnits::Metres => 1000.0,
+            MeshUnits::Auto => {
+                let mut lo = Vector3::repeat(f64::INFINITY);
+                let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+                for v in &mesh.vertices {
+                    lo = lo.inf(&v.coords);
+                    hi = hi.sup(&v.coords);
+                }
+                if (hi - lo).norm() < AUTO_METRES_BELOW {
+                    1000.0
+                } else {
+                    1.0
+                }
+            }
+        };
+        Self::standing_mesh(
+            &name,
+            &mesh.vertices,
+            mesh.triangles,
+            scale,
+            up,
+            Texture::Uniform(DEFAULT_ALBEDO),
+        )
+    }
+}
+
 /// Distance between the two sphere centres of [`Scene::dumbbell`] (mm).
 pub const DUMBBELL_CENTRE_DISTANCE_MM: f64 = 120.0;
 
