@@ -10,6 +10,7 @@
 
 mod common;
 mod info;
+mod reconstruct;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -28,6 +29,8 @@ enum Command {
     Info(info::Args),
     /// Render capture sets and their ground truth with the virtual rig.
     Simulate(simulate::Args),
+    /// Decode a capture set and triangulate it: PLY, depth maps, preview, report.
+    Reconstruct(reconstruct::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -35,6 +38,7 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Info(args) => info::run(&args),
         Command::Simulate(args) => simulate::run(&args),
+        Command::Reconstruct(args) => reconstruct::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
