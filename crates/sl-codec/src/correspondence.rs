@@ -2,25 +2,26 @@
 
 /// Why a camera pixel has no correspondence (or [`InvalidReason::Valid`] if it has one).
 ///
-/// When several reasons apply the first in this order wins: `Saturated`, `Shadow`,
-/// `LowModulation`, `InconsistentCode`. Stored as one byte per pixel.
+/// Stored as one byte per pixel, with the byte values below. When several reasons apply (for
+/// example on two axes), the one with the larger byte wins: `Saturated` over `Shadow` over
+/// `LowModulation` over `InconsistentCode`.
 #[repr(u8)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, PartialOrd, Ord)]
 pub enum InvalidReason {
     /// Every coded axis decoded.
     #[default]
     Valid = 0,
-    /// Dark and unmodulated: no direct projector light reaches the pixel (Gray: direct light
-    /// below `min_direct` and darkest value below it too; phase: modulation below
-    /// `min_modulation` and darkest value below it too).
-    Shadow = 1,
+    /// The bits or phases read but do not agree: a code the projector never emits, a temporal
+    /// unwrapping residual above tolerance, or frequencies that disagree.
+    InconsistentCode = 1,
     /// Light arrives but the pattern cannot be read: too little direct light or modulation
     /// against a bright (ambient / global) background, or a Gray bit that neither the contrast
     /// test nor Xu & Aliaga's rules can classify (and that is not a stripe edge).
     LowModulation = 2,
-    /// The bits or phases read but do not agree: a code the projector never emits, a temporal
-    /// unwrapping residual above tolerance, or frequencies that disagree.
-    InconsistentCode = 3,
+    /// Dark and unmodulated: no direct projector light reaches the pixel (Gray: direct light
+    /// below `min_direct` and darkest value below it too; phase: modulation below
+    /// `min_modulation` and darkest value below it too).
+    Shadow = 3,
     /// Samples at the saturation level where they carry the code.
     Saturated = 4,
 }
@@ -29,9 +30,9 @@ impl InvalidReason {
     /// All reasons, in byte order.
     pub const ALL: [Self; 5] = [
         Self::Valid,
-        Self::Shadow,
-        Self::LowModulation,
         Self::InconsistentCode,
+        Self::LowModulation,
+        Self::Shadow,
         Self::Saturated,
     ];
 
@@ -51,27 +52,10 @@ impl InvalidReason {
         self == Self::Valid
     }
 
-    /// Priority when merging axes: lower wins among invalid reasons.
-    #[inline]
+    /// Merges the reasons of two axes: the larger byte wins.
+    #[inline(always)]
     pub(crate) fn merge(self, other: Self) -> Self {
-        if self == Self::Valid {
-            other
-        } else if other == Self::Valid {
-            self
-        } else {
-            let rank = |r: Self| match r {
-                Self::Saturated => 0,
-                Self::Shadow => 1,
-                Self::LowModulation => 2,
-                Self::InconsistentCode => 3,
-                Self::Valid => 4,
-            };
-            if rank(other) < rank(self) {
-                other
-            } else {
-                self
-            }
-        }
+        if other > self { other } else { self }
     }
 }
 
@@ -140,6 +124,17 @@ impl CorrespondenceMap {
             v.resize(n, fill);
         }
         self.invalid.clear();
+        self.invalid.resize(n, InvalidReason::Valid);
+    }
+    /// Sets the size to `width x height` keeping the allocations; the contents are left for the
+    /// decoder to overwrite.
+    pub(crate) fn resize(&mut self, width: usize, height: usize) {
+        let n = width * height;
+        self.width = width;
+        self.height = height;
+        self.col.resize(n, f32::NAN);
+        self.row.resize(n, f32::NAN);
+        self.quality.resize(n, f32::INFINITY);
         self.invalid.resize(n, InvalidReason::Valid);
     }
 
@@ -237,7 +232,7 @@ mod tests {
         assert!(c.row.is_nan());
         assert!(m.get(3, 0).is_none());
         assert!((m.valid_fraction() - 5.0 / 6.0).abs() < 1e-12);
-        assert_eq!(m.reason_counts(), [5, 1, 0, 0, 0]);
+        assert_eq!(m.reason_counts(), [5, 0, 0, 1, 0]);
         m.reset(2, 2);
         assert_eq!(m.len(), 4);
         assert!(m.col.iter().all(|v| v.is_nan()));

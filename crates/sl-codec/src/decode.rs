@@ -140,7 +140,7 @@ pub fn decode_frames_into<T: Sample>(
         kernels.push(k);
     }
     let (w, h) = frames.first().map_or((0, 0), |f| (f.width(), f.height()));
-    map.reset(w, h);
+    map.resize(w, h);
     kernel::run(&kernels, map, config.rows_per_task);
     Ok(())
 }

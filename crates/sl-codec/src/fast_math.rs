@@ -40,11 +40,16 @@ pub(crate) fn atan2(y: f32, x: f32) -> f32 {
     if y < 0.0 { -r } else { r }
 }
 
-/// `floor(x)` for `|x| < 2^31`; vectorisable.
+/// Adding and subtracting 1.5 * 2^23 rounds an `f32` of magnitude below 2^22 to the nearest
+/// integer (ties to even) with two additions: the sum has no fraction bits left. Without
+/// fast-math the compiler keeps both operations.
+const ROUNDING_MAGIC: f32 = 12_582_912.0;
+
+/// `floor(x)` for `|x| < 2^22`; vectorisable with plain SSE2 (no conversion to integers).
 #[inline(always)]
 pub(crate) fn floor(x: f32) -> f32 {
-    let t = x as i32 as f32;
-    if t > x { t - 1.0 } else { t }
+    let r = (x + ROUNDING_MAGIC) - ROUNDING_MAGIC;
+    if r > x { r - 1.0 } else { r }
 }
 
 /// `x - floor(x)`: the fractional part in `[0, 1)` (up to rounding: may return exactly 1.0 for

@@ -126,7 +126,7 @@ impl<T: Sample> Frame<T> {
     /// # Errors
     /// As [`Frame::new`].
     pub fn filled(width: usize, height: usize, value: T) -> Result<Self, CodecError> {
-        let n = width.checked_mul(height).unwrap_or(usize::MAX);
+        let n = width.saturating_mul(height);
         if n == usize::MAX {
             return Err(CodecError::parameter(
                 "width/height",

@@ -17,7 +17,7 @@
 use crate::config::level_u16;
 use crate::correspondence::{AxisMap, InvalidReason};
 use crate::frame::check_sizes;
-use crate::kernel::{self, AxisRows, Kernel};
+use crate::kernel::{self, AxisRows, Kernel, fill_out};
 use crate::pattern::{ceil_log2, finite, positive};
 use crate::{Axis, CodecError, DecodeConfig, Frame, ProjectorSize, Sample};
 
@@ -292,7 +292,7 @@ impl BitThresholds {
 /// `min_contrast + Lg / 8` (see [`WEAK_RULE_MARGIN_SHIFT`]): an unlit sample *equals* `Lg` when
 /// all of the global light comes from the lit part of a coarse pattern, and `Lg` is only an
 /// estimate. A contrast `|p - q|` below `min_contrast` is always unread.
-#[inline]
+#[inline(always)]
 pub(crate) fn read_bit_inverse<T: Sample>(
     p: &[T],
     q: &[T],
@@ -311,10 +311,10 @@ pub(crate) fn read_bit_inverse<T: Sample>(
             let (d, g) = (ld[i], lg[i]);
             let strong = d > g;
             let m = mc.saturating_add(g >> WEAK_RULE_MARGIN_SHIFT);
-            let w1 = pv >= g.saturating_add(m) && qv.saturating_add(m) <= d;
-            let w0 = qv >= g.saturating_add(m) && pv.saturating_add(m) <= d;
-            let bit = if strong { pv > qv } else { w1 };
-            let read = pv.abs_diff(qv) >= mc && (strong || w0 || w1);
+            let w1 = (pv >= g.saturating_add(m)) & (qv.saturating_add(m) <= d);
+            let w0 = (qv >= g.saturating_add(m)) & (pv.saturating_add(m) <= d);
+            let bit = (strong & (pv > qv)) | (!strong & w1);
+            let read = (pv.abs_diff(qv) >= mc) & (strong | w0 | w1);
             code[i] = (code[i] << 1) | u16::from(bit);
             unread[i] = (unread[i] << 1) | u16::from(!read);
         }
@@ -328,7 +328,7 @@ pub(crate) fn read_bit_inverse<T: Sample>(
 }
 
 /// Reads one bit plane against a per-pixel threshold given as twice its value (`thr2`).
-#[inline]
+#[inline(always)]
 pub(crate) fn read_bit_threshold<T: Sample>(
     p: &[T],
     thr2: &[u32],
@@ -349,40 +349,19 @@ pub(crate) fn read_bit_threshold<T: Sample>(
 
 /// Turns an accumulated code word into a stripe position: the stripe index, or the half-integer
 /// edge between two neighbouring stripes when exactly one bit is unread and its two readings
-/// are neighbours. `None` if the pixel cannot be decoded.
-#[inline]
+/// are neighbours. `None` if the pixel cannot be decoded. (Scalar form of
+/// [`stripe_positions`], which the decoders use.)
+#[cfg(test)]
 pub(crate) fn resolve_stripe(code: u16, unread: u16, binary: bool) -> Option<f32> {
-    let decode = |c: u16| -> u16 {
-        if binary {
-            c
-        } else {
-            let mut b = c;
-            b ^= b >> 1;
-            b ^= b >> 2;
-            b ^= b >> 4;
-            b ^= b >> 8;
-            b
-        }
-    };
-    let idx = decode(code);
-    if unread == 0 {
-        return Some(f32::from(idx));
-    }
-    if unread & (unread - 1) != 0 {
-        return None;
-    }
-    let alt = decode(code ^ unread);
-    if idx.abs_diff(alt) == 1 {
-        Some(f32::from(idx.min(alt)) + 0.5)
-    } else {
-        None
-    }
+    let mut p = [0.0_f32];
+    stripe_positions(&[code], &[unread], binary, &mut p);
+    (!p[0].is_nan()).then_some(p[0])
 }
 
 /// Direct and global light from the brightest and darkest value a pixel takes under
 /// high-frequency patterns (Nayar et al. 2006): `Ld = (Lmax - Lmin) / (1 - b)`,
 /// `Lg = 2 (Lmin - b Lmax) / (1 - b^2)`; exact integers for `b = 0`.
-#[inline]
+#[inline(always)]
 pub(crate) fn direct_global_row(
     lmax: &[u16],
     lmin: &[u16],
@@ -408,10 +387,59 @@ pub(crate) fn direct_global_row(
     }
 }
 
+/// Reads one bit plane of 8-bit frames against its inverse into byte-wide code and unread
+/// accumulators: the same rules as [`read_bit_inverse`], with the per-pixel thresholds
+/// precomputed (`strong = Ld > Lg`, `a = Lg + margin`, `d = Ld - margin`) so that all the work
+/// is done in 16-byte-wide vector lanes.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn read_bit_inverse_u8(
+    p: &[u8],
+    q: &[u8],
+    strong: &[bool],
+    a: &[u8],
+    d: &[u8],
+    code: &mut [u8],
+    unread: &mut [u8],
+    min_contrast: u8,
+    robust: bool,
+) {
+    let n = code.len();
+    let (p, q, strong, a, d, unread) = (
+        &p[..n],
+        &q[..n],
+        &strong[..n],
+        &a[..n],
+        &d[..n],
+        &mut unread[..n],
+    );
+    if robust {
+        // Non-short-circuit `&` / `|` keep the loop branch-free, so it vectorises.
+        for i in 0..n {
+            let (pv, qv, s) = (p[i], q[i], strong[i]);
+            let w1 = (pv >= a[i]) & (qv <= d[i]);
+            let w0 = (qv >= a[i]) & (pv <= d[i]);
+            let bit = (s & (pv > qv)) | (!s & w1);
+            let read = (pv.abs_diff(qv) >= min_contrast) & (s | w0 | w1);
+            code[i] = code[i].wrapping_add(code[i]) | u8::from(bit);
+            unread[i] = unread[i].wrapping_add(unread[i]) | u8::from(!read);
+        }
+    } else {
+        for i in 0..n {
+            let (pv, qv) = (p[i], q[i]);
+            code[i] = code[i].wrapping_add(code[i]) | u8::from(pv > qv);
+            unread[i] =
+                unread[i].wrapping_add(unread[i]) | u8::from(pv.abs_diff(qv) < min_contrast);
+        }
+    }
+}
+
 /// The per-block decoder.
 pub(crate) struct GrayKernel<'a, T: Sample> {
     spec: GrayCodeSpec,
     frames: &'a [Frame<T>],
+    /// The same frames when `T = u8`, for the byte-wide fast path.
+    frames8: Option<Vec<&'a Frame<u8>>>,
     width: usize,
     th: BitThresholds,
     /// First bit (MSB = 0) used for the direct/global estimate.
@@ -422,13 +450,19 @@ pub(crate) struct GrayKernel<'a, T: Sample> {
 
 /// Per-task scratch of [`GrayKernel`].
 pub(crate) struct GrayScratch {
-    lmax: Vec<u16>,
-    lmin: Vec<u16>,
-    ld: Vec<u16>,
-    lg: Vec<u16>,
-    thr2: Vec<u32>,
-    code: Vec<u16>,
-    unread: Vec<u16>,
+    pub(crate) lmax: Vec<u16>,
+    pub(crate) lmin: Vec<u16>,
+    pub(crate) ld: Vec<u16>,
+    pub(crate) lg: Vec<u16>,
+    pub(crate) thr2: Vec<u32>,
+    pub(crate) code: Vec<u16>,
+    pub(crate) unread: Vec<u16>,
+    pub(crate) pos: Vec<f32>,
+    pub(crate) strong: Vec<bool>,
+    pub(crate) a8: Vec<u8>,
+    pub(crate) d8: Vec<u8>,
+    pub(crate) code8: [Vec<u8>; 2],
+    pub(crate) unread8: [Vec<u8>; 2],
 }
 
 impl<'a, T: Sample> GrayKernel<'a, T> {
@@ -448,9 +482,14 @@ impl<'a, T: Sample> GrayKernel<'a, T> {
         check_block("gray", spec.axis, spec.frame_count(), frames)?;
         let bits = spec.bits as usize;
         let dg = (config.direct_global_bits as usize).clamp(1, bits);
+        let frames8 = frames
+            .iter()
+            .map(|f| (f as &dyn std::any::Any).downcast_ref::<Frame<u8>>())
+            .collect::<Option<Vec<_>>>();
         Ok(Self {
             spec: spec.clone(),
             frames,
+            frames8,
             width: dims(frames).0,
             th: BitThresholds::new::<T>(config),
             dg_first_bit: bits - dg,
@@ -463,40 +502,54 @@ impl<'a, T: Sample> GrayKernel<'a, T> {
         self.spec.axis
     }
 
-    pub(crate) fn new_scratch(&self, width: usize) -> GrayScratch {
-        GrayScratch {
-            lmax: vec![0; width],
-            lmin: vec![0; width],
-            ld: vec![0; width],
-            lg: vec![0; width],
-            thr2: vec![0; width],
-            code: vec![0; width],
-            unread: vec![0; width],
-        }
+    pub(crate) fn new_scratch(&self, len: usize) -> GrayScratch {
+        GrayScratch::new(len)
     }
 
-    fn row(&self, frame: usize, y: usize) -> &[T] {
-        self.frames.get(frame).and_then(|f| f.row(y)).unwrap_or(&[])
+    /// Rows `y0 .. y0 + rows` of frame `frame` as one slice (empty if out of range).
+    fn band(&self, frame: usize, y0: usize, rows: usize) -> &[T] {
+        band(self.frames.get(frame), self.width, y0, rows)
     }
 
-    pub(crate) fn decode_row(
+    #[inline(always)]
+    pub(crate) fn decode_band(
         &self,
-        y: usize,
-        offset: usize,
+        y0: usize,
+        rows: usize,
         out: &mut AxisRows<'_>,
         s: &mut GrayScratch,
     ) {
-        let w = self.width;
         let bits = self.spec.bits as usize;
-        s.code.fill(0);
-        s.unread.fill(0);
+        s.fit(self.width * rows);
         match self.spec.reference {
             GrayReference::Inverse => {
-                s.lmax.fill(0);
-                s.lmin.fill(u16::MAX);
-                for b in self.dg_first_bit..bits {
-                    for f in [2 * b, 2 * b + 1] {
-                        let r = self.row(f, y);
+                if let Some(f8) = &self.frames8 {
+                    // Byte-wide brightest/darkest values, widened once.
+                    let ([hi8, lo8], _) = (&mut s.code8, ());
+                    hi8.fill(0);
+                    lo8.fill(u8::MAX);
+                    for f in 2 * self.dg_first_bit..2 * bits {
+                        let r = band(f8.get(f).copied(), self.width, y0, rows);
+                        for ((hi, lo), &v) in hi8.iter_mut().zip(lo8.iter_mut()).zip(r) {
+                            *hi = (*hi).max(v);
+                            *lo = (*lo).min(v);
+                        }
+                    }
+                    for (((h, l), &h8), &l8) in s
+                        .lmax
+                        .iter_mut()
+                        .zip(s.lmin.iter_mut())
+                        .zip(hi8.iter())
+                        .zip(lo8.iter())
+                    {
+                        *h = u16::from(h8);
+                        *l = u16::from(l8);
+                    }
+                } else {
+                    s.lmax.fill(0);
+                    s.lmin.fill(u16::MAX);
+                    for f in 2 * self.dg_first_bit..2 * bits {
+                        let r = self.band(f, y0, rows);
                         for ((hi, lo), v) in s.lmax.iter_mut().zip(s.lmin.iter_mut()).zip(r) {
                             let v = v.to_u16();
                             *hi = (*hi).max(v);
@@ -505,73 +558,309 @@ impl<'a, T: Sample> GrayKernel<'a, T> {
                     }
                 }
                 direct_global_row(&s.lmax, &s.lmin, &mut s.ld, &mut s.lg, self.black);
-                for b in 0..bits {
-                    let (p, q) = (self.row(2 * b, y), self.row(2 * b + 1, y));
-                    if p.len() < w || q.len() < w {
-                        return;
-                    }
-                    read_bit_inverse(p, q, &s.ld, &s.lg, &mut s.code, &mut s.unread, self.th);
-                }
+                let band = Band {
+                    width: self.width,
+                    y0,
+                    rows,
+                };
+                read_inverse_bits(
+                    self.frames,
+                    self.frames8.as_deref(),
+                    0,
+                    bits,
+                    band,
+                    self.th,
+                    s,
+                );
             }
             GrayReference::WhiteBlack | GrayReference::PhaseMean => {
-                let (white, black) = (self.row(0, y), self.row(1, y));
-                for (i, (wv, bv)) in white.iter().zip(black).enumerate().take(w) {
+                let (white, black) = (self.band(0, y0, rows), self.band(1, y0, rows));
+                for ((((t, d), lo), wv), bv) in s
+                    .thr2
+                    .iter_mut()
+                    .zip(s.ld.iter_mut())
+                    .zip(s.lmin.iter_mut())
+                    .zip(white)
+                    .zip(black)
+                {
                     let (wv, bv) = (wv.to_u16(), bv.to_u16());
-                    if let (Some(t), Some(d), Some(lo)) =
-                        (s.thr2.get_mut(i), s.ld.get_mut(i), s.lmin.get_mut(i))
-                    {
-                        *t = u32::from(wv) + u32::from(bv);
-                        *d = wv.saturating_sub(bv);
-                        *lo = bv;
-                    }
+                    *t = u32::from(wv) + u32::from(bv);
+                    *d = wv.saturating_sub(bv);
+                    *lo = bv;
                 }
-                for b in 0..bits {
-                    let p = self.row(b + 2, y);
-                    if p.len() < w {
-                        return;
-                    }
-                    read_bit_threshold(
-                        p,
-                        &s.thr2,
-                        &mut s.code,
-                        &mut s.unread,
-                        self.th.min_contrast,
-                    );
-                }
+                let band = Band {
+                    width: self.width,
+                    y0,
+                    rows,
+                };
+                read_threshold_bits(self.frames, 2, bits, band, self.th.min_contrast, s);
             }
         }
-        let lo_limit = -0.5;
-        let hi_limit = f64::from(self.spec.extent) - 0.5;
-        for x in 0..w {
-            let (ld, lmin) = (s.ld[x], s.lmin[x]);
-            let quality = f32::from(ld) * self.quality_scale;
-            let reason;
-            let mut coord = f32::NAN;
-            if u32::from(lmin) >= self.th.saturation {
-                reason = InvalidReason::Saturated;
-            } else if ld < self.th.min_direct {
-                reason = if lmin < self.th.min_direct {
-                    InvalidReason::Shadow
-                } else {
-                    InvalidReason::LowModulation
-                };
-            } else {
-                match resolve_stripe(s.code[x], s.unread[x], self.spec.binary) {
-                    None => reason = InvalidReason::LowModulation,
-                    Some(pos) => {
-                        let c = self.spec.stripe_center(f64::from(pos));
-                        if (lo_limit..=hi_limit).contains(&c) {
-                            coord = c as f32;
-                            reason = InvalidReason::Valid;
-                        } else {
-                            reason = InvalidReason::InconsistentCode;
-                        }
-                    }
-                }
+        self.finish(out, s);
+    }
+
+    /// Final pass of a band: stripe positions, coordinates, reasons, outputs.
+    #[inline(always)]
+    fn finish(&self, out: &mut AxisRows<'_>, s: &mut GrayScratch) {
+        let p = PixelRule {
+            origin: self.spec.origin as f32,
+            stripe: self.spec.stripe_width as f32,
+            lo: -0.5,
+            hi: self.spec.extent as f32 - 0.5,
+            min_direct: self.th.min_direct,
+            saturation: self.th.saturation,
+            scale: self.quality_scale,
+            binary: self.spec.binary,
+        };
+        let n = s.code.len();
+        let (ld, lmin, code, unread) = (&s.ld[..n], &s.lmin[..n], &s.code[..n], &s.unread[..n]);
+        fill_out!(out.row(0, n), n, |i| p
+            .pixel(code[i], unread[i], ld[i], lmin[i]));
+    }
+}
+
+/// The per-pixel decision of a Gray block, after the bits are read.
+#[derive(Clone, Copy)]
+struct PixelRule {
+    origin: f32,
+    stripe: f32,
+    lo: f32,
+    hi: f32,
+    min_direct: u16,
+    saturation: u32,
+    scale: f32,
+    binary: bool,
+}
+
+impl PixelRule {
+    /// `(coordinate, quality, reason)` of one pixel; branch-free.
+    #[inline(always)]
+    fn pixel(&self, code: u16, unread: u16, ld: u16, lmin: u16) -> (f32, f32, InvalidReason) {
+        let pos = stripe_position(code, unread, self.binary);
+        let c = self.origin + (pos + 0.5) * self.stripe;
+        let r = if (c >= self.lo) & (c <= self.hi) {
+            InvalidReason::Valid
+        } else {
+            InvalidReason::InconsistentCode
+        };
+        let r = if pos.is_nan() {
+            InvalidReason::LowModulation
+        } else {
+            r
+        };
+        let dark = if lmin < self.min_direct {
+            InvalidReason::Shadow
+        } else {
+            InvalidReason::LowModulation
+        };
+        let r = if ld < self.min_direct { dark } else { r };
+        let r = if u32::from(lmin) >= self.saturation {
+            InvalidReason::Saturated
+        } else {
+            r
+        };
+        (c, f32::from(ld) * self.scale, r)
+    }
+}
+
+/// A band of camera rows.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Band {
+    pub(crate) width: usize,
+    pub(crate) y0: usize,
+    pub(crate) rows: usize,
+}
+
+impl Band {
+    #[inline(always)]
+    pub(crate) fn of<'f, T: Sample>(&self, frame: Option<&'f Frame<T>>) -> &'f [T] {
+        band(frame, self.width, self.y0, self.rows)
+    }
+}
+
+/// Reads the `bits` pattern/inverse pairs starting at frame `first` into `s.code`/`s.unread`,
+/// with the direct and global light already in `s.ld`/`s.lg`. 8-bit frames (`frames8`) take a
+/// byte-wide path.
+#[inline(always)]
+pub(crate) fn read_inverse_bits<T: Sample>(
+    frames: &[Frame<T>],
+    frames8: Option<&[&Frame<u8>]>,
+    first: usize,
+    bits: usize,
+    band: Band,
+    th: BitThresholds,
+    s: &mut GrayScratch,
+) {
+    let n = s.code.len();
+    s.code.fill(0);
+    s.unread.fill(0);
+    let Some(frames8) = frames8 else {
+        for b in 0..bits {
+            let (p, q) = (
+                band.of(frames.get(first + 2 * b)),
+                band.of(frames.get(first + 2 * b + 1)),
+            );
+            if p.len() < n || q.len() < n {
+                return;
             }
-            out.put(offset + x, coord, quality, reason);
+            read_bit_inverse(p, q, &s.ld, &s.lg, &mut s.code, &mut s.unread, th);
+        }
+        return;
+    };
+    let mc = u16::from(u8::try_from(th.min_contrast).unwrap_or(u8::MAX));
+    for ((((&d, &g), st), a), dd) in
+        s.ld.iter()
+            .zip(&s.lg)
+            .zip(s.strong.iter_mut())
+            .zip(s.a8.iter_mut())
+            .zip(s.d8.iter_mut())
+    {
+        let m = mc.saturating_add(g >> WEAK_RULE_MARGIN_SHIFT);
+        *st = d > g;
+        *a = g.saturating_add(m).min(255) as u8;
+        *dd = d.saturating_sub(m).min(255) as u8;
+    }
+    for v in s.code8.iter_mut().chain(s.unread8.iter_mut()) {
+        v.fill(0);
+    }
+    // The first `bits - 8` bits go to the high bytes, the last 8 to the low bytes.
+    let high = bits.saturating_sub(8);
+    for b in 0..bits {
+        let p = band.of(frames8.get(first + 2 * b).copied());
+        let q = band.of(frames8.get(first + 2 * b + 1).copied());
+        if p.len() < n || q.len() < n {
+            return;
+        }
+        let ([c0, c1], [u0, u1]) = (&mut s.code8, &mut s.unread8);
+        let (code, unread) = if b < high { (c0, u0) } else { (c1, u1) };
+        read_bit_inverse_u8(
+            p, q, &s.strong, &s.a8, &s.d8, code, unread, mc as u8, th.robust,
+        );
+    }
+    let [ch, cl] = &s.code8;
+    let [uh, ul] = &s.unread8;
+    for (((((c, u), ch), cl), uh), ul) in s
+        .code
+        .iter_mut()
+        .zip(s.unread.iter_mut())
+        .zip(ch)
+        .zip(cl)
+        .zip(uh)
+        .zip(ul)
+    {
+        *c = (u16::from(*ch) << 8) | u16::from(*cl);
+        *u = (u16::from(*uh) << 8) | u16::from(*ul);
+    }
+}
+
+/// Reads the `bits` patterns starting at frame `first` against the doubled thresholds in
+/// `s.thr2` into `s.code`/`s.unread`.
+#[inline(always)]
+pub(crate) fn read_threshold_bits<T: Sample>(
+    frames: &[Frame<T>],
+    first: usize,
+    bits: usize,
+    band: Band,
+    min_contrast: u16,
+    s: &mut GrayScratch,
+) {
+    let n = s.code.len();
+    s.code.fill(0);
+    s.unread.fill(0);
+    for b in 0..bits {
+        let p = band.of(frames.get(first + b));
+        if p.len() < n {
+            return;
+        }
+        read_bit_threshold(p, &s.thr2, &mut s.code, &mut s.unread, min_contrast);
+    }
+}
+
+impl GrayScratch {
+    /// A scratch for bands of up to `len` pixels.
+    pub(crate) fn new(len: usize) -> Self {
+        Self {
+            lmax: vec![0; len],
+            lmin: vec![0; len],
+            ld: vec![0; len],
+            lg: vec![0; len],
+            thr2: vec![0; len],
+            code: vec![0; len],
+            unread: vec![0; len],
+            pos: vec![0.0; len],
+            strong: vec![false; len],
+            a8: vec![0; len],
+            d8: vec![0; len],
+            code8: [vec![0; len], vec![0; len]],
+            unread8: [vec![0; len], vec![0; len]],
         }
     }
+
+    /// Sets every buffer to `n` entries (within the capacity allocated by `new`).
+    pub(crate) fn fit(&mut self, n: usize) {
+        self.lmax.resize(n, 0);
+        self.lmin.resize(n, 0);
+        self.ld.resize(n, 0);
+        self.lg.resize(n, 0);
+        self.thr2.resize(n, 0);
+        self.code.resize(n, 0);
+        self.unread.resize(n, 0);
+        self.pos.resize(n, 0.0);
+        self.strong.resize(n, false);
+        self.a8.resize(n, 0);
+        self.d8.resize(n, 0);
+        for v in self.code8.iter_mut().chain(self.unread8.iter_mut()) {
+            v.resize(n, 0);
+        }
+    }
+}
+
+/// Rows `y0 .. y0 + rows` of a frame of width `width` as one slice (empty if out of range).
+#[inline(always)]
+pub(crate) fn band<T: Sample>(
+    frame: Option<&Frame<T>>,
+    width: usize,
+    y0: usize,
+    rows: usize,
+) -> &[T] {
+    frame
+        .and_then(|f| f.data().get(y0 * width..(y0 + rows) * width))
+        .unwrap_or(&[])
+}
+
+/// Stripe positions of a row of code words (see [`stripe_position`]).
+#[inline(always)]
+pub(crate) fn stripe_positions(code: &[u16], unread: &[u16], binary: bool, pos: &mut [f32]) {
+    let n = pos.len();
+    let (code, unread) = (&code[..n], &unread[..n]);
+    for i in 0..n {
+        pos[i] = stripe_position(code[i], unread[i], binary);
+    }
+}
+
+/// The stripe position of a code word: the stripe index, or the half-integer edge between two
+/// neighbouring stripes when exactly one bit is unread and its two readings are neighbours;
+/// NaN if the pixel cannot be decoded. Branch-free so that the loops calling it vectorise.
+#[inline(always)]
+pub(crate) fn stripe_position(c: u16, u: u16, binary: bool) -> f32 {
+    let decode = |c: u16| -> u16 {
+        let mut b = c;
+        b ^= b >> 1;
+        b ^= b >> 2;
+        b ^= b >> 4;
+        b ^= b >> 8;
+        b
+    };
+    let (idx, alt) = if binary {
+        (c, c ^ u)
+    } else {
+        (decode(c), decode(c ^ u))
+    };
+    let single = u & u.wrapping_sub(1) == 0;
+    let (lo, hi) = (idx.min(alt), idx.max(alt));
+    let ok = single & (hi - lo <= 1);
+    let half = if u != 0 { 0.5 } else { 0.0 };
+    if ok { f32::from(lo) + half } else { f32::NAN }
 }
 
 #[cfg(test)]

@@ -22,12 +22,14 @@
 use crate::correspondence::{AxisMap, InvalidReason};
 use crate::fast_math;
 use crate::gray::{
-    BitThresholds, GrayCodeSpec, GrayReference, check_block, dims, read_bit_inverse,
-    read_bit_threshold, resolve_stripe,
+    Band, BitThresholds, GrayCodeSpec, GrayReference, GrayScratch, check_block, dims,
+    read_inverse_bits, read_threshold_bits, stripe_positions,
 };
-use crate::kernel::{self, AxisRows, Kernel};
+use crate::kernel::{self, AxisRows, Kernel, fill_out};
 use crate::pattern::{ceil_log2, finite, positive};
-use crate::phase_shift::{Fringe, MIN_PERIOD_PIXELS, PhaseRow, StepTable, validate_steps};
+use crate::phase_shift::{
+    Fringe, MAX_STEPS, MIN_PERIOD_PIXELS, PhaseRow, StepTable, fused_pass, validate_steps,
+};
 use crate::{Axis, CodecError, DecodeConfig, Frame, ProjectorSize, Sample, ShiftSign};
 
 /// Parameters of a hybrid block.
@@ -219,6 +221,8 @@ pub fn decode_hybrid<T: Sample>(
 pub(crate) struct HybridKernel<'a, T: Sample> {
     spec: HybridSpec,
     frames: &'a [Frame<T>],
+    /// The same frames when `T = u8`, for the byte-wide Gray reader.
+    frames8: Option<Vec<&'a Frame<u8>>>,
     width: usize,
     table: StepTable,
     th: BitThresholds,
@@ -235,11 +239,18 @@ pub(crate) struct HybridScratch {
     modulation: Vec<f32>,
     background: Vec<f32>,
     maxv: Vec<u16>,
-    ld: Vec<u16>,
-    lg: Vec<u16>,
-    thr2: Vec<u32>,
-    code: Vec<u16>,
-    unread: Vec<u16>,
+    gray: GrayScratch,
+}
+
+impl HybridScratch {
+    fn fit(&mut self, n: usize) {
+        self.acc.fit(n);
+        self.frac.resize(n, 0.0);
+        self.modulation.resize(n, 0.0);
+        self.background.resize(n, 0.0);
+        self.maxv.resize(n, 0);
+        self.gray.fit(n);
+    }
 }
 
 impl<'a, T: Sample> HybridKernel<'a, T> {
@@ -252,9 +263,14 @@ impl<'a, T: Sample> HybridKernel<'a, T> {
         config.validate()?;
         check_block("hybrid", spec.axis, spec.frame_count(), frames)?;
         let scale = T::SCALE_FROM_8BIT;
+        let frames8 = frames
+            .iter()
+            .map(|f| (f as &dyn std::any::Any).downcast_ref::<Frame<u8>>())
+            .collect::<Option<Vec<_>>>();
         Ok(Self {
             spec: spec.clone(),
             frames,
+            frames8,
             width: dims(frames).0,
             table: StepTable::new(spec.steps, spec.shift_sign.value(), spec.phase_offset),
             th: BitThresholds::new::<T>(config),
@@ -270,140 +286,143 @@ impl<'a, T: Sample> HybridKernel<'a, T> {
         self.spec.axis
     }
 
-    pub(crate) fn new_scratch(&self, width: usize) -> HybridScratch {
+    pub(crate) fn new_scratch(&self, len: usize) -> HybridScratch {
         HybridScratch {
-            acc: PhaseRow::new(width),
-            frac: vec![0.0; width],
-            modulation: vec![0.0; width],
-            background: vec![0.0; width],
-            maxv: vec![0; width],
-            ld: vec![0; width],
-            lg: vec![0; width],
-            thr2: vec![0; width],
-            code: vec![0; width],
-            unread: vec![0; width],
+            acc: PhaseRow::new(len),
+            frac: vec![0.0; len],
+            modulation: vec![0.0; len],
+            background: vec![0.0; len],
+            maxv: vec![0; len],
+            gray: GrayScratch::new(len),
         }
     }
 
-    fn row(&self, frame: usize, y: usize) -> &[T] {
-        self.frames.get(frame).and_then(|f| f.row(y)).unwrap_or(&[])
-    }
-
-    pub(crate) fn decode_row(
+    #[inline(always)]
+    pub(crate) fn decode_band(
         &self,
-        y: usize,
-        offset: usize,
+        y0: usize,
+        rows: usize,
         out: &mut AxisRows<'_>,
         s: &mut HybridScratch,
     ) {
-        let w = self.width;
+        let len = self.width * rows;
+        let band = Band {
+            width: self.width,
+            y0,
+            rows,
+        };
         let n = self.spec.steps as usize;
+        s.fit(len);
         s.maxv.fill(0);
-        s.acc
-            .accumulate(&self.table, &mut s.maxv, |k| self.row(k, y));
-        s.acc.finish(
+        s.modulation.fill(f32::INFINITY);
+        s.background.fill(f32::INFINITY);
+        let mut rows: [&[T]; MAX_STEPS as usize] = [&[]; MAX_STEPS as usize];
+        for (k, r) in rows.iter_mut().take(n).enumerate() {
+            *r = band.of(self.frames.get(k));
+        }
+        // One frequency: the merged minimum is the modulation B itself, and the darkest level
+        // A - B; turn the latter into the background A.
+        fused_pass(
+            rows.get(..n).unwrap_or(&[]),
             &self.table,
             &mut s.frac,
             &mut s.modulation,
             &mut s.background,
+            &mut s.maxv,
+            &mut s.acc,
         );
-        s.code.fill(0);
-        s.unread.fill(0);
+        for (a, &b) in s.background.iter_mut().zip(&s.modulation) {
+            *a += b;
+        }
         let gray = &self.spec.gray;
         let bits = gray.bits as usize;
+        let g = &mut s.gray;
         match gray.reference {
             GrayReference::Inverse => {
                 // Direct and global light from the fringes (a high-frequency pattern):
                 // A = (Ld + Lg) / 2 and B = Ld / 2.
-                for i in 0..w.min(s.ld.len()).min(s.lg.len()) {
-                    let (b, a) = (s.modulation[i], s.background[i]);
-                    s.ld[i] = (2.0 * b).clamp(0.0, 65535.0) as u16;
-                    s.lg[i] = (2.0 * (a - b)).clamp(0.0, 65535.0) as u16;
+                for (((ld, lg), &b), &a) in
+                    g.ld.iter_mut()
+                        .zip(g.lg.iter_mut())
+                        .zip(&s.modulation)
+                        .zip(&s.background)
+                {
+                    *ld = (2.0 * b).clamp(0.0, 65535.0) as u16;
+                    *lg = (2.0 * (a - b)).clamp(0.0, 65535.0) as u16;
                 }
-                for b in 0..bits {
-                    let (p, q) = (self.row(n + 2 * b, y), self.row(n + 2 * b + 1, y));
-                    if p.len() < w || q.len() < w {
-                        return;
-                    }
-                    read_bit_inverse(p, q, &s.ld, &s.lg, &mut s.code, &mut s.unread, self.th);
-                }
+                read_inverse_bits(
+                    self.frames,
+                    self.frames8.as_deref(),
+                    n,
+                    bits,
+                    band,
+                    self.th,
+                    g,
+                );
             }
             GrayReference::WhiteBlack => {
-                let (white, black) = (self.row(n, y), self.row(n + 1, y));
-                for ((t, wv), bv) in s.thr2.iter_mut().zip(white).zip(black) {
+                let (white, black) = (band.of(self.frames.get(n)), band.of(self.frames.get(n + 1)));
+                for ((t, wv), bv) in g.thr2.iter_mut().zip(white).zip(black) {
                     *t = u32::from(wv.to_u16()) + u32::from(bv.to_u16());
                 }
-                for b in 0..bits {
-                    let p = self.row(n + 2 + b, y);
-                    if p.len() < w {
-                        return;
-                    }
-                    read_bit_threshold(
-                        p,
-                        &s.thr2,
-                        &mut s.code,
-                        &mut s.unread,
-                        self.th.min_contrast,
-                    );
-                }
+                read_threshold_bits(self.frames, n + 2, bits, band, self.th.min_contrast, g);
             }
             GrayReference::PhaseMean => {
-                for (t, a) in s.thr2.iter_mut().zip(&s.background) {
+                for (t, a) in g.thr2.iter_mut().zip(&s.background) {
                     *t = (2.0 * a).round().clamp(0.0, u32::MAX as f32) as u32;
                 }
-                for b in 0..bits {
-                    let p = self.row(n + b, y);
-                    if p.len() < w {
-                        return;
-                    }
-                    read_bit_threshold(
-                        p,
-                        &s.thr2,
-                        &mut s.code,
-                        &mut s.unread,
-                        self.th.min_contrast,
-                    );
-                }
+                read_threshold_bits(self.frames, n, bits, band, self.th.min_contrast, g);
             }
         }
+        stripe_positions(&g.code, &g.unread, gray.binary, &mut g.pos);
         let lambda = self.spec.period_pixels() as f32;
         let inv_lambda = 1.0 / lambda;
         let origin = self.spec.origin as f32;
+        let (g_origin, g_stripe) = (gray.origin as f32, gray.stripe_width as f32);
+        let (wrap, inv_wrap) = match self.wrap {
+            Some(m) => (m, 1.0 / m),
+            None => (0.0, 0.0),
+        };
         let (lo, hi) = (-0.5_f32, self.spec.extent as f32 - 0.5);
-        for x in 0..w {
-            let b = s.modulation[x];
-            let quality = b * self.quality_scale;
-            let mut coord = f32::NAN;
-            let reason = if u32::from(s.maxv[x]) >= self.th.saturation {
-                InvalidReason::Saturated
-            } else if !(b >= self.min_modulation) {
-                if s.background[x] - b < self.min_modulation {
-                    InvalidReason::Shadow
-                } else {
-                    InvalidReason::LowModulation
-                }
+        let (min_mod, sat, scale) = (self.min_modulation, self.th.saturation, self.quality_scale);
+        let n = len;
+        let (b, a, f, pos, maxv) = (
+            &s.modulation[..n],
+            &s.background[..n],
+            &s.frac[..n],
+            &g.pos[..n],
+            &s.maxv[..n],
+        );
+        fill_out!(out.row(0, n), n, |i| {
+            // Centre of the decoded stripe, then the period index that puts the phase position
+            // nearest to it (modulo the Gray code's wrap, if it wraps inside the projector).
+            let xc = g_origin + (pos[i] + 0.5) * g_stripe;
+            let k = fast_math::round((xc - origin) * inv_lambda - f[i]);
+            let k = k - wrap * fast_math::floor(k * inv_wrap);
+            let c = origin + lambda * (k + f[i]);
+            let r = if (c >= lo) & (c <= hi) {
+                InvalidReason::Valid
             } else {
-                match resolve_stripe(s.code[x], s.unread[x], gray.binary) {
-                    None => InvalidReason::LowModulation,
-                    Some(pos) => {
-                        let xc = gray.stripe_center(f64::from(pos)) as f32;
-                        let f = s.frac[x];
-                        let mut k = fast_math::round((xc - origin) * inv_lambda - f);
-                        if let Some(m) = self.wrap {
-                            k = k.rem_euclid(m);
-                        }
-                        let c = origin + lambda * (k + f);
-                        if (lo..=hi).contains(&c) {
-                            coord = c;
-                            InvalidReason::Valid
-                        } else {
-                            InvalidReason::InconsistentCode
-                        }
-                    }
-                }
+                InvalidReason::InconsistentCode
             };
-            out.put(offset + x, coord, quality, reason);
-        }
+            let r = if pos[i].is_nan() {
+                InvalidReason::LowModulation
+            } else {
+                r
+            };
+            let dark = if a[i] - b[i] < min_mod {
+                InvalidReason::Shadow
+            } else {
+                InvalidReason::LowModulation
+            };
+            let r = if b[i] < min_mod { dark } else { r };
+            let r = if u32::from(maxv[i]) >= sat {
+                InvalidReason::Saturated
+            } else {
+                r
+            };
+            (c, b[i] * scale, r)
+        });
     }
 }
 

@@ -96,7 +96,7 @@ pub use export::{
     write_npy_f32, write_png_grey8, write_png_grey16, write_png_rgb8, write_tiff_f32,
 };
 pub use frame::{Frame, Frames, Sample};
-pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, decode_gray};
+pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIFT, decode_gray};
 pub use hybrid::{HybridSpec, decode_hybrid};
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
 pub use pattern::{Axis, BitDepth, Pattern, ProjectorSize};

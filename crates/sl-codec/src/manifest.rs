@@ -323,13 +323,17 @@ impl Parser<'_> {
 
     fn manifest(&self, v: &Value) -> Result<Manifest, CodecError> {
         let root = self.obj(v, "", ROOT_KEYS)?;
-        if let Some(f) = self.str_opt(&root, "format")? {
-            if f != MANIFEST_FORMAT {
+        if let Some(f) = self.str_opt(&root, "format")?
+            && f != MANIFEST_FORMAT
+        {
+            {
                 return Err(self.err("format", format!("expected '{MANIFEST_FORMAT}', got '{f}'")));
             }
         }
-        if let Some(ver) = self.u64_opt(&root, "version")? {
-            if ver != MANIFEST_VERSION {
+        if let Some(ver) = self.u64_opt(&root, "version")?
+            && ver != MANIFEST_VERSION
+        {
+            {
                 return Err(self.err(
                     "version",
                     format!("this reader knows version {MANIFEST_VERSION}, got {ver}"),

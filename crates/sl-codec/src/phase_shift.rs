@@ -21,8 +21,8 @@ use std::f64::consts::TAU;
 
 use crate::correspondence::{AxisMap, InvalidReason};
 use crate::fast_math;
-use crate::gray::{check_block, dims};
-use crate::kernel::{self, AxisRows, Kernel};
+use crate::gray::{Band, check_block, dims};
+use crate::kernel::{self, AxisRows, Kernel, fill_out};
 use crate::pattern::{finite, positive};
 use crate::unwrap::{Plan, Unwrap, UnwrapScratch, gcd};
 use crate::{Axis, CodecError, DecodeConfig, Frame, ProjectorSize, Sample};
@@ -232,7 +232,7 @@ impl PhaseShiftSpec {
                     ));
                 }
                 let (a, b) = (p[0], p[1]);
-                let int = |v: f64| (v - v.round()).abs() < 1e-9 && v >= 1.0 && v < 1e6;
+                let int = |v: f64| (v - v.round()).abs() < 1e-9 && (1.0..1e6).contains(&v);
                 if !int(a) || !int(b) || gcd(a.round() as u64, b.round() as u64) != 1 {
                     return Err(CodecError::parameter(
                         "periods",
@@ -321,8 +321,15 @@ impl PhaseRow {
         }
     }
 
+    /// Sets the accumulators to `n` entries.
+    pub(crate) fn fit(&mut self, n: usize) {
+        self.s.resize(n, 0.0);
+        self.c.resize(n, 0.0);
+        self.a.resize(n, 0.0);
+    }
+
     /// Accumulates the `N` step rows given by `row(k)`; tracks the largest sample in `maxv`.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn accumulate<'r, T: Sample>(
         &mut self,
         table: &StepTable,
@@ -357,7 +364,7 @@ impl PhaseRow {
 
     /// Writes the wrapped phase in cycles `[0, 1)` (of `Phi`, offset removed), the modulation
     /// `B` and the background `A`.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn finish(
         &self,
         table: &StepTable,
@@ -382,6 +389,87 @@ impl PhaseRow {
             modulation[i] = table.two_over_n * (s[i] * s[i] + c[i] * c[i]).sqrt();
             background[i] = a[i] * table.inv_n;
         }
+    }
+}
+
+/// One frequency of a band in a single pass over its `N` step rows: writes the wrapped phase
+/// (cycles) into `frac`, and merges the modulation into `bmin` (min), the darkest level `A - B`
+/// into `dark` (min) and the largest sample into `maxv` (max). Step counts 3-6 and 8 have
+/// unrolled loops that keep everything in registers; others go through [`PhaseRow`].
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fused_pass<T: Sample>(
+    rows: &[&[T]],
+    table: &StepTable,
+    frac: &mut [f32],
+    bmin: &mut [f32],
+    dark: &mut [f32],
+    maxv: &mut [u16],
+    acc: &mut PhaseRow,
+) {
+    let n = frac.len();
+    if rows.iter().any(|r| r.len() < n) || bmin.len() < n || dark.len() < n || maxv.len() < n {
+        return;
+    }
+    match rows.len() {
+        3 => fused::<T, 3>(rows, table, frac, bmin, dark, maxv),
+        4 => fused::<T, 4>(rows, table, frac, bmin, dark, maxv),
+        5 => fused::<T, 5>(rows, table, frac, bmin, dark, maxv),
+        6 => fused::<T, 6>(rows, table, frac, bmin, dark, maxv),
+        8 => fused::<T, 8>(rows, table, frac, bmin, dark, maxv),
+        _ => {
+            acc.fit(n);
+            acc.accumulate(table, maxv, |k| rows.get(k).copied().unwrap_or(&[]));
+            // Reuse the accumulators as outputs: s -> modulation, c -> background.
+            let (s, c, a) = (&mut acc.s[..n], &mut acc.c[..n], &acc.a[..n]);
+            let inv_tau = 1.0 / std::f32::consts::TAU;
+            for i in 0..n {
+                let theta = fast_math::atan2(s[i], c[i]);
+                let f = fast_math::fract(theta * inv_tau - table.offset_cycles);
+                frac[i] = if f >= 1.0 { 0.0 } else { f };
+                let b = table.two_over_n * (s[i] * s[i] + c[i] * c[i]).sqrt();
+                let bg = a[i] * table.inv_n;
+                bmin[i] = bmin[i].min(b);
+                dark[i] = dark[i].min(bg - b);
+                s[i] = b;
+                c[i] = bg;
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn fused<T: Sample, const N: usize>(
+    rows: &[&[T]],
+    table: &StepTable,
+    frac: &mut [f32],
+    bmin: &mut [f32],
+    dark: &mut [f32],
+    maxv: &mut [u16],
+) {
+    let n = frac.len();
+    let r: [&[T]; N] = std::array::from_fn(|k| rows.get(k).map_or(&[][..], |r| &r[..n]));
+    let sin: [f32; N] = std::array::from_fn(|k| table.sin.get(k).copied().unwrap_or(0.0));
+    let cos: [f32; N] = std::array::from_fn(|k| table.cos.get(k).copied().unwrap_or(0.0));
+    let (bmin, dark, maxv) = (&mut bmin[..n], &mut dark[..n], &mut maxv[..n]);
+    let inv_tau = 1.0 / std::f32::consts::TAU;
+    for i in 0..n {
+        let (mut s, mut c, mut a, mut m) = (0.0_f32, 0.0_f32, 0.0_f32, maxv[i]);
+        for k in 0..N {
+            let v = r[k][i];
+            let vf = v.to_f32();
+            s += vf * sin[k];
+            c += vf * cos[k];
+            a += vf;
+            m = m.max(v.to_u16());
+        }
+        let theta = fast_math::atan2(s, c);
+        let f = fast_math::fract(theta * inv_tau - table.offset_cycles);
+        frac[i] = if f >= 1.0 { 0.0 } else { f };
+        let b = table.two_over_n * (s * s + c * c).sqrt();
+        bmin[i] = bmin[i].min(b);
+        dark[i] = dark[i].min(a * table.inv_n - b);
+        maxv[i] = m;
     }
 }
 
@@ -506,6 +594,21 @@ pub(crate) struct PhaseScratch {
     unwrap: UnwrapScratch,
 }
 
+impl PhaseScratch {
+    fn fit(&mut self, n: usize) {
+        self.acc.fit(n);
+        for f in &mut self.fracs {
+            f.resize(n, 0.0);
+        }
+        self.bmin.resize(n, 0.0);
+        self.modulation.resize(n, 0.0);
+        self.background.resize(n, 0.0);
+        self.dark.resize(n, 0.0);
+        self.maxv.resize(n, 0);
+        self.unwrap.fit(n);
+    }
+}
+
 impl<'a, T: Sample> PhaseKernel<'a, T> {
     pub(crate) fn new(
         spec: &PhaseShiftSpec,
@@ -536,80 +639,87 @@ impl<'a, T: Sample> PhaseKernel<'a, T> {
         self.spec.axis
     }
 
-    pub(crate) fn new_scratch(&self, width: usize) -> PhaseScratch {
+    pub(crate) fn new_scratch(&self, len: usize) -> PhaseScratch {
         PhaseScratch {
-            acc: PhaseRow::new(width),
-            fracs: vec![vec![0.0; width]; self.spec.periods.len()],
-            bmin: vec![0.0; width],
-            modulation: vec![0.0; width],
-            background: vec![0.0; width],
-            dark: vec![0.0; width],
-            maxv: vec![0; width],
-            unwrap: UnwrapScratch::new(width),
+            acc: PhaseRow::new(len),
+            fracs: vec![vec![0.0; len]; self.spec.periods.len()],
+            bmin: vec![0.0; len],
+            modulation: vec![0.0; len],
+            background: vec![0.0; len],
+            dark: vec![0.0; len],
+            maxv: vec![0; len],
+            unwrap: UnwrapScratch::new(len),
         }
     }
 
-    pub(crate) fn decode_row(
+    #[inline(always)]
+    pub(crate) fn decode_band(
         &self,
-        y: usize,
-        offset: usize,
+        y0: usize,
+        rows: usize,
         out: &mut AxisRows<'_>,
         s: &mut PhaseScratch,
     ) {
-        let w = self.width;
+        let len = self.width * rows;
+        let band = Band {
+            width: self.width,
+            y0,
+            rows,
+        };
         let n = self.spec.steps as usize;
+        s.fit(len);
         s.maxv.fill(0);
         s.bmin.fill(f32::INFINITY);
+        s.dark.fill(f32::INFINITY);
+        let mut rows: [&[T]; MAX_STEPS as usize] = [&[]; MAX_STEPS as usize];
         for (i, frac) in s.fracs.iter_mut().enumerate() {
-            let frames = self.frames.get(i * n..(i + 1) * n).unwrap_or(&[]);
-            s.acc.accumulate(&self.table, &mut s.maxv, |k| {
-                frames.get(k).and_then(|f| f.row(y)).unwrap_or(&[])
-            });
-            s.acc
-                .finish(&self.table, frac, &mut s.modulation, &mut s.background);
-            // Keep the weakest frequency's modulation and the darkest level A - B it implies.
-            for (((bmin, dark), &b), &a) in s
-                .bmin
-                .iter_mut()
-                .zip(s.dark.iter_mut())
-                .zip(&s.modulation)
-                .zip(&s.background)
-            {
-                if b < *bmin {
-                    *bmin = b;
-                    *dark = a - b;
-                }
+            for (k, r) in rows.iter_mut().take(n).enumerate() {
+                *r = band.of(self.frames.get(i * n + k));
             }
+            let rows = rows.get(..n).unwrap_or(&[]);
+            fused_pass(
+                rows,
+                &self.table,
+                frac,
+                &mut s.bmin,
+                &mut s.dark,
+                &mut s.maxv,
+                &mut s.acc,
+            );
         }
         self.plan.unwrap_row(&s.fracs, &self.periods, &mut s.unwrap);
         let extent = self.spec.extent as f32;
         let origin = self.spec.origin as f32;
         let (lo, hi) = (-0.5_f32, extent - 0.5);
-        for x in 0..w {
-            let b = s.bmin[x];
-            let quality = b * self.quality_scale;
-            let mut coord = f32::NAN;
-            let reason = if u32::from(s.maxv[x]) >= self.saturation {
-                InvalidReason::Saturated
-            } else if !(b >= self.min_modulation) {
-                if s.dark[x] < self.min_modulation {
-                    InvalidReason::Shadow
-                } else {
-                    InvalidReason::LowModulation
-                }
-            } else if s.unwrap.resid[x] > self.tolerance {
-                InvalidReason::InconsistentCode
+        let (min_mod, sat, tol, scale) = (
+            self.min_modulation,
+            self.saturation,
+            self.tolerance,
+            self.quality_scale,
+        );
+        let n = len;
+        let (b, dark, maxv) = (&s.bmin[..n], &s.dark[..n], &s.maxv[..n]);
+        let (t, resid) = (&s.unwrap.t[..n], &s.unwrap.resid[..n]);
+        fill_out!(out.row(0, n), n, |i| {
+            let c = origin + t[i] * extent;
+            let r = if (c >= lo) & (c <= hi) & (resid[i] <= tol) {
+                InvalidReason::Valid
             } else {
-                let c = origin + s.unwrap.t[x] * extent;
-                if (lo..=hi).contains(&c) {
-                    coord = c;
-                    InvalidReason::Valid
-                } else {
-                    InvalidReason::InconsistentCode
-                }
+                InvalidReason::InconsistentCode
             };
-            out.put(offset + x, coord, quality, reason);
-        }
+            let d = if dark[i] < min_mod {
+                InvalidReason::Shadow
+            } else {
+                InvalidReason::LowModulation
+            };
+            let r = if b[i] < min_mod { d } else { r };
+            let r = if u32::from(maxv[i]) >= sat {
+                InvalidReason::Saturated
+            } else {
+                r
+            };
+            (c, b[i] * scale, r)
+        });
     }
 }
 

@@ -7,12 +7,12 @@ use crate::export::{write_npy_f32, write_png_grey8, write_png_rgb8, write_tiff_f
 use crate::{CodecError, CorrespondenceMap, Frame, InvalidReason, ProjectorSize};
 
 /// Colours of the invalid-reason picture, indexed by the reason's byte value: valid pixels
-/// dark green, shadow black, low modulation blue, inconsistent code red, saturated white.
+/// dark green, inconsistent code red, low modulation blue, shadow black, saturated white.
 pub const INVALID_PALETTE: [[u8; 3]; 5] = [
     [0, 110, 40],
-    [0, 0, 0],
-    [40, 90, 255],
     [230, 20, 20],
+    [40, 90, 255],
+    [0, 0, 0],
     [255, 255, 255],
 ];
 
@@ -232,7 +232,7 @@ mod tests {
             assert!(p.is_file(), "{}", p.display());
         }
         let labels = image::open(&files.labels).unwrap().to_luma8();
-        assert_eq!(labels.get_pixel(1, 1).0, [1]);
+        assert_eq!(labels.get_pixel(1, 1).0, [3]);
         let files = write_outputs(
             &m,
             dir.path(),

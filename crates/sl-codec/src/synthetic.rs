@@ -156,10 +156,11 @@ impl SyntheticScene {
 
     /// Does direct projector light reach camera pixel `(x, y)`?
     pub fn is_lit(&self, x: usize, y: usize) -> bool {
-        if let Some([x0, y0, x1, y1]) = self.shadow {
-            if (x0..x1).contains(&x) && (y0..y1).contains(&y) {
-                return false;
-            }
+        if let Some([x0, y0, x1, y1]) = self.shadow
+            && (x0..x1).contains(&x)
+            && (y0..y1).contains(&y)
+        {
+            return false;
         }
         let (u, v) = self.projector_point(x as f64, y as f64);
         let (w, h) = (
@@ -350,7 +351,7 @@ impl Integral {
     }
 }
 
-/// SplitMix64 with Box-Muller normals: tiny, seedable, good enough for noise.
+/// `SplitMix64` with Box-Muller normals: tiny, seedable, good enough for noise.
 struct SplitMix64(u64);
 
 impl SplitMix64 {

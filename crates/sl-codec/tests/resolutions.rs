@@ -1,5 +1,7 @@
 //! decode(capture(encode(x))) = x, to the codec's precision, for any projector resolution:
 //! powers of two or not (800x600, 1824x1140, 1920x1080 and random sizes), any camera window.
+// Helpers outside #[test] functions unwrap too: a panic there is a failed test.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use proptest::prelude::*;
 use sl_codec::{

@@ -1,6 +1,8 @@
 //! Round trips on synthetic captures: encode -> simulated camera (noise, blur, ambient light,
 //! low albedo, global illumination, shadow) -> decode, compared with the camera's ground-truth
 //! projector coordinates, for every codec.
+// Helpers outside #[test] functions unwrap too: a panic there is a failed test.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use sl_codec::{
     Axis, BitDepth, CaptureSet, CorrespondenceMap, DecodeConfig, Frames, GrayCodeSpec,
@@ -123,8 +125,8 @@ fn hard_scene(projector: ProjectorSize, scale: f64) -> SyntheticScene {
     }
 }
 
-/// Phase noise predicted for the darkest pixels: sigma_phi = sqrt(2/N) sigma / B with
-/// B = albedo_min * gain / 2 reduced by the blur's attenuation (a box of width w attenuates a
+/// Phase noise predicted for the darkest pixels: `sigma_phi = sqrt(2/N) sigma / B` with
+/// `B = albedo_min * gain / 2` reduced by the blur's attenuation (a box of width w attenuates a
 /// sinusoid of period L by sinc(w / L)); returned in projector pixels for period `lambda`.
 fn predicted_sigma_px(scene: &SyntheticScene, steps: u32, lambda: f64, footprint: f64) -> f64 {
     let w = footprint + scene.blur;

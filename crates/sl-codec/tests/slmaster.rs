@@ -7,6 +7,8 @@
 //! Convention mapping: SLMaster's unwrapped phase of the finest pattern is `Phi = 2 pi c /
 //! lambda` for our decoded column `c` (its phase origin is projector column 0, `origin = 0` in the
 //! manifests), so its period index is `floor(c / lambda)`.
+// Helpers outside #[test] functions unwrap too: a panic there is a failed test.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::f64::consts::TAU;
 use std::path::PathBuf;

@@ -30,6 +30,7 @@ impl Heterodyne {
     }
 
     /// Writes the position of each pixel into `s.t`.
+    #[inline(always)]
     pub(crate) fn coarse_row(&self, fracs: &[Vec<f32>], s: &mut UnwrapScratch) {
         let (Some(f1), Some(f2), Some(f3)) = (fracs.first(), fracs.get(1), fracs.get(2)) else {
             return;

@@ -26,6 +26,7 @@ impl Hierarchical {
     }
 
     /// Writes the coarse-to-fine position of each pixel into `s.t`.
+    #[inline(always)]
     pub(crate) fn coarse_row(&self, fracs: &[Vec<f32>], s: &mut UnwrapScratch) {
         let mut steps = self
             .order

@@ -67,6 +67,15 @@ pub(crate) struct UnwrapScratch {
 }
 
 impl UnwrapScratch {
+    /// Sets every buffer to `n` entries.
+    pub(crate) fn fit(&mut self, n: usize) {
+        self.t.resize(n, 0.0);
+        self.resid.resize(n, 0.0);
+        for v in &mut self.tmp {
+            v.resize(n, 0.0);
+        }
+    }
+
     pub(crate) fn new(width: usize) -> Self {
         Self {
             t: vec![0.0; width],
@@ -101,6 +110,7 @@ impl Plan {
     /// their period counts. Writes `s.t` (position as a fraction of the extent) and `s.resid`
     /// (largest rounding residual, cycles). All frequencies are then combined, weighted by
     /// `P^2` (inverse phase variance), and cross-checked.
+    #[inline(always)]
     pub(crate) fn unwrap_row(&self, fracs: &[Vec<f32>], periods: &[f32], s: &mut UnwrapScratch) {
         s.resid.fill(0.0);
         match self {
@@ -132,7 +142,7 @@ pub(crate) fn absolute(f: f32, p: f32) -> f32 {
 /// One unwrapping step: `t` is a position estimate; the measured wrapped phase `f` of a
 /// frequency with `p` periods is unwrapped to `U = f + round(p t - f)`, the residual
 /// `|p t - U|` is folded into `resid`, and `t` becomes `U / p`.
-#[inline]
+#[inline(always)]
 pub(crate) fn stage(t: &mut [f32], resid: &mut [f32], f: &[f32], p: f32) {
     let inv = 1.0 / p;
     let n = t.len();
@@ -147,6 +157,7 @@ pub(crate) fn stage(t: &mut [f32], resid: &mut [f32], f: &[f32], p: f32) {
 
 /// Unwraps every frequency against the coarse `t`, replaces `t` by the `P^2`-weighted mean
 /// of the unwrapped positions, and folds each frequency's disagreement into `resid`.
+#[inline(always)]
 fn combine_row(fracs: &[Vec<f32>], periods: &[f32], s: &mut UnwrapScratch) {
     let n = s.t.len();
     let sum_p2: f32 = periods.iter().map(|p| p * p).sum();
@@ -214,15 +225,13 @@ mod tests {
         } else {
             noise_cycles * sum_p / sum_p2
         };
-        for i in 0..n {
-            let err = (f64::from(s.t[i]) - t[i]).abs();
+        for ((&got, &truth), &resid) in s.t.iter().zip(&t).zip(&s.resid) {
+            let err = (f64::from(got) - truth).abs();
             assert!(
                 err <= bound * 1.01 + 2e-6,
-                "{method:?} {periods:?}: t {} got {} (err {err})",
-                t[i],
-                s.t[i]
+                "{method:?} {periods:?}: t {truth} got {got} (err {err})"
             );
-            assert!(s.resid[i] < 0.25, "resid {}", s.resid[i]);
+            assert!(resid < 0.25, "resid {resid}");
         }
     }
 

@@ -59,6 +59,7 @@ impl NumberTheoretic {
     }
 
     /// Writes the position of each pixel into `s.t`.
+    #[inline(always)]
     pub(crate) fn coarse_row(&self, fracs: &[Vec<f32>], s: &mut UnwrapScratch) {
         let (Some(fa), Some(fb)) = (fracs.first(), fracs.get(1)) else {
             return;
