@@ -400,3 +400,21 @@ fn board_texture_matches_the_printed_squares() {
     let i = (q.y.round() as u32 * t.width + q.x.round() as u32) as usize;
     assert!(f64::from(px[i]) < 0.2 * s.exposure * 65535.0);
 }
+
+#[test]
+fn frames_do_not_depend_on_the_number_of_threads() {
+    let config = small_rig();
+    let rig = VirtualRig::new(config.clone(), Scene::dumbbell()).unwrap();
+    let img = GreyImage::filled_u8(
+        config.projector.size.width,
+        config.projector.size.height,
+        200,
+    );
+    let many = rig.view(10.0, 1).unwrap().capture(&img, 7).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let one = pool.install(|| rig.view(10.0, 1).unwrap().capture(&img, 7).unwrap());
+    assert_eq!(many, one);
+}
