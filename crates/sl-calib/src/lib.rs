@@ -1,12 +1,48 @@
-//! Calibration of a structured-light rig.
+//! Calibration of a structured-light rig: checkerboard detection with sub-pixel saddle-point
+//! refinement and a board-fixed corner order, and Zhang's camera calibration refined by
+//! Levenberg–Marquardt with analytic Jacobians.
 //!
-//! **Status: placeholder.** This crate exists so that the workspace has its final shape; it
-//! contains no code yet, and nothing in it pretends to work.
+//! ```
+//! use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
+//! // A synthetic 5x4 board of 16 px squares on a white page.
+//! let img = image::GrayImage::from_fn(200, 180, |x, y| {
+//!     let (i, j) = ((x as i32 - 40).div_euclid(16), (y as i32 - 40).div_euclid(16));
+//!     let inside = (0..6).contains(&i) && (0..5).contains(&j);
+//!     image::Luma([if inside && (i + j) % 2 == 0 { 20 } else { 230 }])
+//! });
+//! let board = detect_checkerboard(&img, BoardSize::new(5, 4), &DetectorConfig::default(), "page")?;
+//! assert_eq!(board.corners.len(), 20);
+//! // Corner order is fixed by the board: first row first, left to right here.
+//! assert!(board.corners[1].x > board.corners[0].x);
+//! assert!(board.corners[5].y > board.corners[0].y);
+//! # Ok::<(), sl_calib::CalibError>(())
+//! ```
 //!
-//! It will hold checkerboard detection with sub-pixel saddle-point refinement, Zhang's camera
-//! calibration with Levenberg–Marquardt over all parameters, projector calibration by local
-//! homographies (Moreno & Taubin 2012), camera–projector stereo calibration and the calibration
-//! of the turntable axis. Results are written as `sl-camera` calibration files.
+//! # Conventions
 //!
-//! Tracked by issue 5.
+//! As `sl-camera`: axes x right, y down, z forward; pixel `(0, 0)` is the centre of the
+//! top-left pixel; millimetres (or the board's unit) for 3-D points, pixels for image
+//! points and RMS errors; poses `T_cam_board` map board coordinates into the camera frame;
+//! f64 for all geometry. RMS errors follow OpenCV: the square root of the mean over corners
+//! of the squared 2-D residual norm. The board frame is `sl-rig`'s: origin at the first
+//! inner corner, x along a row, y along a column, z into the board.
 #![deny(missing_docs)]
+
+mod detect;
+mod error;
+mod grey;
+mod homography;
+mod saddle;
+mod zhang;
+
+pub use detect::{BoardCorners, BoardSize, DetectorConfig, detect_checkerboard};
+pub use error::CalibError;
+pub use grey::load_grey;
+pub use zhang::{
+    CalibrationView, CameraCalibration, ParameterStdDev, ZhangConfig, calibrate_camera,
+};
+
+/// Re-export of the image crate whose `GrayImage` the detector takes.
+pub use image;
+/// Re-export of `sl-camera`, whose models the calibration produces.
+pub use sl_camera;

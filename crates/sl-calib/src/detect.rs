@@ -1,0 +1,507 @@
+//! Checkerboard detection: saddle-point candidates, a grid grown from them, a board-fixed
+//! corner order, and sub-pixel saddle refinement.
+
+use std::collections::{HashMap, VecDeque};
+
+use nalgebra::{Point2, Vector2};
+use serde::{Deserialize, Serialize};
+
+use crate::CalibError;
+use crate::grey::GreyF32;
+use crate::saddle::refine_saddle;
+
+/// The inner-corner grid of a checkerboard: `cols` corners along a row (the board's `x`),
+/// `rows` corners along a column (the board's `y`). OpenCV's `patternSize = (cols, rows)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BoardSize {
+    /// Inner corners along a row.
+    pub cols: u32,
+    /// Inner corners along a column.
+    pub rows: u32,
+}
+
+impl BoardSize {
+    /// A board of `cols × rows` inner corners.
+    pub fn new(cols: u32, rows: u32) -> Self {
+        Self { cols, rows }
+    }
+
+    /// Number of inner corners.
+    pub fn corner_count(&self) -> usize {
+        self.cols as usize * self.rows as usize
+    }
+
+    /// The inner corners in the board frame for squares of `square` units (mm or any unit),
+    /// row by row: corner `(i, j)` at index `j · cols + i` is `(i · square, j · square, 0)`.
+    pub fn object_points(&self, square: f64) -> Vec<nalgebra::Point3<f64>> {
+        let mut out = Vec::with_capacity(self.corner_count());
+        for j in 0..self.rows {
+            for i in 0..self.cols {
+                out.push(nalgebra::Point3::new(
+                    f64::from(i) * square,
+                    f64::from(j) * square,
+                    0.0,
+                ));
+            }
+        }
+        out
+    }
+}
+
+/// Settings of [`detect_checkerboard`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DetectorConfig {
+    /// Gaussian blur (px) before the saddle response: wide enough to bridge JPEG noise and
+    /// blur, narrow enough to keep neighbouring corners apart (squares of ≥ 8 px).
+    pub detect_sigma: f64,
+    /// Radius (px) of the circle sampled around a candidate; a corner must show exactly two
+    /// dark and two bright sectors on it.
+    pub ring_radius: f64,
+    /// Smallest grey-level difference between the bright and dark sectors on the ring.
+    pub min_contrast: f64,
+    /// Strongest candidates kept after non-maximum suppression (bounds the time on cluttered
+    /// images).
+    pub max_candidates: usize,
+    /// Candidates tried as the seed of the grid before giving up (bounds the time on images
+    /// without a board).
+    pub max_seeds: usize,
+    /// Gaussian blur (px) of the image the saddle fit is made on.
+    pub refine_sigma: f64,
+    /// Half-width of the saddle-fit window as a fraction of the distance to the nearest
+    /// grid neighbour: below one half, the window never reaches the neighbouring corners
+    /// (the cause of `cornerSubPix`'s drift), and the larger it is the more pixels average
+    /// the noise.
+    pub refine_fraction: f64,
+    /// Smallest half-width (px) of the saddle-fit window.
+    pub min_refine_radius: usize,
+    /// Largest half-width (px) of the saddle-fit window (bounds the time on big squares).
+    pub max_refine_radius: usize,
+}
+
+impl Default for DetectorConfig {
+    /// Tuned on 640×480 images with squares of 20–60 px.
+    fn default() -> Self {
+        Self {
+            detect_sigma: 1.5,
+            ring_radius: 5.0,
+            min_contrast: 12.0,
+            max_candidates: 600,
+            max_seeds: 60,
+            refine_sigma: 1.0,
+            refine_fraction: 0.3,
+            min_refine_radius: 2,
+            max_refine_radius: 10,
+        }
+    }
+}
+
+/// The detected inner corners of a board, in the board's own order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BoardCorners {
+    /// The grid searched for.
+    pub size: BoardSize,
+    /// Sub-pixel corner positions (px), row by row: corner `(i, j)` at index `j · cols + i`,
+    /// matching [`BoardSize::object_points`].
+    pub corners: Vec<Point2<f64>>,
+}
+
+/// Samples on the ring test circle (every 11.25°): enough for four sectors of at least two
+/// samples each under 60° of perspective shear.
+const RING_SAMPLES: usize = 32;
+
+/// Largest mean difference between opposite ring samples, relative to the ring's contrast:
+/// a sharp X-junction scores ~0.05 (blur and sampling), a T-junction ≥ 0.5.
+const MAX_ASYMMETRY: f64 = 0.3;
+
+/// Half-width of the non-maximum suppression window (px): about the blur's reach.
+const NMS_RADIUS: isize = 3;
+
+/// Candidates must have a response above this fraction of the strongest one; low enough for
+/// dim corners under uneven light, high enough to drop JPEG noise.
+const RELATIVE_RESPONSE: f32 = 0.01;
+
+/// A predicted grid neighbour is accepted within this fraction of the local grid step:
+/// perspective changes the step by far less between neighbours.
+const MATCH_TOLERANCE: f64 = 0.3;
+
+/// Number of nearest candidates looked at to pick the seed's two grid directions.
+const SEED_NEIGHBOURS: usize = 8;
+
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    p: Point2<f64>,
+    response: f32,
+}
+
+/// Finds the inner corners of a `size` checkerboard in a grey image and refines them to
+/// sub-pixel precision.
+///
+/// The order is fixed by the board, not by the image: corner 0 is the inner corner whose
+/// diagonal outer square is dark, rows run along the `cols` direction, and going from row
+/// to column turns clockwise in the image (the board is seen from its printed side). On
+/// boards where one dimension is even and the other odd this makes the order unique, so a
+/// camera and a projector, or two cameras, always agree; on boards with both dimensions even
+/// or both odd a 180° turn is indistinguishable and the colour test picks one of the two.
+///
+/// `label` names the image in errors (e.g. its file name).
+///
+/// # Errors
+/// [`CalibError::BoardNotFound`] with the reason (no corner-like points, no grid of the
+/// requested size, ...); [`CalibError::InvalidParameter`] for a board smaller than 2×2.
+///
+/// ```
+/// use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
+/// // A synthetic 4x3 board of 20 px squares.
+/// let img = image::GrayImage::from_fn(160, 140, |x, y| {
+///     let (i, j) = ((x as i32 - 30).div_euclid(20), (y as i32 - 30).div_euclid(20));
+///     let inside = (0..5).contains(&i) && (0..4).contains(&j);
+///     image::Luma([if inside && (i + j) % 2 == 0 { 30 } else { 220 }])
+/// });
+/// let found = detect_checkerboard(&img, BoardSize::new(4, 3), &DetectorConfig::default(), "synthetic")?;
+/// // The first inner corner sits between the squares at (30..50, 30..50) and its neighbours.
+/// assert!((found.corners[0].x - 49.5).abs() < 0.05 && (found.corners[0].y - 49.5).abs() < 0.05);
+/// # Ok::<(), sl_calib::CalibError>(())
+/// ```
+pub fn detect_checkerboard(
+    image: &image::GrayImage,
+    size: BoardSize,
+    config: &DetectorConfig,
+    label: &str,
+) -> Result<BoardCorners, CalibError> {
+    if size.cols < 2 || size.rows < 2 {
+        return Err(CalibError::param(
+            "board size",
+            format!("{}x{}: at least 2x2 inner corners", size.cols, size.rows),
+        ));
+    }
+    let not_found = |reason: String| CalibError::BoardNotFound {
+        image: label.to_owned(),
+        cols: size.cols,
+        rows: size.rows,
+        reason,
+    };
+    let grey = GreyF32::from_luma(image);
+    let detect = grey.blurred(config.detect_sigma as f32);
+    let candidates = saddle_candidates(&detect, config);
+    if candidates.len() < size.corner_count() {
+        return Err(not_found(format!(
+            "only {} corner-like points (two dark and two bright sectors, contrast >= {}) in the image",
+            candidates.len(),
+            config.min_contrast
+        )));
+    }
+    let mut best_found = 0usize;
+    for seed in 0..candidates.len().min(config.max_seeds) {
+        let Some(grid) = grow_grid(&candidates, seed) else {
+            continue;
+        };
+        best_found = best_found.max(grid.len());
+        if let Some(ordered) = order_grid(&grid, &candidates, size, &detect) {
+            let refine = grey.blurred(config.refine_sigma as f32);
+            let mut corners = Vec::with_capacity(ordered.len());
+            let (cols, rows) = (size.cols as usize, size.rows as usize);
+            for (k, p) in ordered.iter().enumerate() {
+                let (i, j) = (k % cols, k / cols);
+                let neighbours = [
+                    (i > 0).then(|| k - 1),
+                    (i + 1 < cols).then(|| k + 1),
+                    (j > 0).then(|| k - cols),
+                    (j + 1 < rows).then(|| k + cols),
+                ];
+                let step = neighbours
+                    .iter()
+                    .flatten()
+                    .filter_map(|&n| ordered.get(n))
+                    .map(|q| (q - p).norm())
+                    .fold(f64::INFINITY, f64::min);
+                let radius = ((config.refine_fraction * step).floor() as usize).clamp(
+                    config.min_refine_radius,
+                    config.max_refine_radius.max(config.min_refine_radius),
+                );
+                let q = refine_saddle(&refine, *p, radius).ok_or_else(|| {
+                    not_found(format!(
+                        "corner {k} at ({:.1}, {:.1}) is not a saddle point under refinement",
+                        p.x, p.y
+                    ))
+                })?;
+                corners.push(q);
+            }
+            return Ok(BoardCorners { size, corners });
+        }
+    }
+    Err(not_found(format!(
+        "{} candidate corners, but the largest regular grid grown from the {} strongest has {} corners, not {}",
+        candidates.len(),
+        candidates.len().min(config.max_seeds),
+        best_found,
+        size.corner_count()
+    )))
+}
+
+/// Local maxima of the saddle response `Ixy² − Ixx·Iyy` that pass the ring test, strongest
+/// first.
+fn saddle_candidates(img: &GreyF32, config: &DetectorConfig) -> Vec<Candidate> {
+    let (w, h) = (img.width, img.height);
+    let margin = (config.ring_radius.ceil() as usize + 2).max(NMS_RADIUS as usize + 1);
+    if w <= 2 * margin || h <= 2 * margin {
+        return Vec::new();
+    }
+    let mut response = vec![0.0f32; w * h];
+    let mut max_r = 0.0f32;
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let i = y * w + x;
+            let c = img.data[i];
+            let ixx = img.data[i + 1] - 2.0 * c + img.data[i - 1];
+            let iyy = img.data[i + w] - 2.0 * c + img.data[i - w];
+            let ixy = 0.25
+                * (img.data[i + w + 1] - img.data[i + w - 1] - img.data[i - w + 1]
+                    + img.data[i - w - 1]);
+            let r = ixy * ixy - ixx * iyy;
+            response[i] = r;
+            max_r = max_r.max(r);
+        }
+    }
+    if max_r <= 0.0 {
+        return Vec::new();
+    }
+    let threshold = RELATIVE_RESPONSE * max_r;
+    let mut out = Vec::new();
+    for y in margin..h - margin {
+        'px: for x in margin..w - margin {
+            let r = response[y * w + x];
+            if r <= threshold {
+                continue;
+            }
+            for dy in -NMS_RADIUS..=NMS_RADIUS {
+                for dx in -NMS_RADIUS..=NMS_RADIUS {
+                    if dx == 0 && dy == 0 {
+                        continue;
+                    }
+                    let j = (y as isize + dy) as usize * w + (x as isize + dx) as usize;
+                    let o = response[j];
+                    // Ties broken by index so that a plateau keeps exactly one maximum.
+                    if o > r || (o == r && j < y * w + x) {
+                        continue 'px;
+                    }
+                }
+            }
+            let p = Point2::new(x as f64, y as f64);
+            if ring_test(img, p, config.ring_radius, config.min_contrast) {
+                out.push(Candidate { p, response: r });
+            }
+        }
+    }
+    out.sort_by(|a, b| b.response.total_cmp(&a.response));
+    out.truncate(config.max_candidates);
+    out
+}
+
+/// `true` when the circle of `radius` around `p` crosses exactly four dark/bright sectors
+/// with enough contrast.
+fn ring_test(img: &GreyF32, p: Point2<f64>, radius: f64, min_contrast: f64) -> bool {
+    let mut values = [0.0f64; RING_SAMPLES];
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (k, v) in values.iter_mut().enumerate() {
+        let a = std::f64::consts::TAU * k as f64 / RING_SAMPLES as f64;
+        *v = img.sample(p.x + radius * a.cos(), p.y + radius * a.sin());
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    if hi - lo < min_contrast {
+        return false;
+    }
+    let mid = 0.5 * (lo + hi);
+    let mut transitions = 0;
+    let mut run = 0usize;
+    let mut shortest = usize::MAX;
+    // Start just after a transition so that runs are counted whole.
+    let start = (0..RING_SAMPLES)
+        .find(|&k| (values[k] > mid) != (values[(k + RING_SAMPLES - 1) % RING_SAMPLES] > mid));
+    let Some(start) = start else { return false };
+    for step in 0..RING_SAMPLES {
+        let k = (start + step) % RING_SAMPLES;
+        let next = (k + 1) % RING_SAMPLES;
+        run += 1;
+        if (values[k] > mid) != (values[next] > mid) {
+            transitions += 1;
+            shortest = shortest.min(run);
+            run = 0;
+        }
+    }
+    if transitions != 4 || shortest < 2 {
+        return false;
+    }
+    // An X-junction is centrally symmetric (opposite sectors have the same colour); T- and
+    // L-junctions at the board's outline and clutter are not.
+    let half = RING_SAMPLES / 2;
+    let asym: f64 = (0..half)
+        .map(|k| (values[k] - values[k + half]).abs())
+        .sum::<f64>()
+        / half as f64;
+    asym < MAX_ASYMMETRY * (hi - lo)
+}
+
+/// Grows a grid of candidates from `seed`: grid cell → candidate index. `None` when the seed
+/// has no two independent neighbours.
+fn grow_grid(cands: &[Candidate], seed: usize) -> Option<HashMap<(i32, i32), usize>> {
+    let s = cands.get(seed)?.p;
+    let mut near: Vec<(f64, usize)> = cands
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != seed)
+        .map(|(k, c)| ((c.p - s).norm(), k))
+        .collect();
+    near.sort_by(|a, b| a.0.total_cmp(&b.0));
+    near.truncate(SEED_NEIGHBOURS);
+    let (_, first) = *near.first()?;
+    let v1 = cands.get(first)?.p - s;
+    let (_, second) = *near.iter().find(|(_, k)| {
+        cands
+            .get(*k)
+            .map(|c| (c.p - s).normalize().dot(&v1.normalize()).abs() < 0.5)
+            .unwrap_or(false)
+    })?;
+    let v2 = cands.get(second)?.p - s;
+    let mut grid: HashMap<(i32, i32), usize> = HashMap::new();
+    let mut used = vec![false; cands.len()];
+    grid.insert((0, 0), seed);
+    *used.get_mut(seed)? = true;
+    let mut queue = VecDeque::from([(0i32, 0i32)]);
+    let pos = |grid: &HashMap<(i32, i32), usize>, c: (i32, i32)| -> Option<Point2<f64>> {
+        grid.get(&c).and_then(|&k| cands.get(k)).map(|c| c.p)
+    };
+    // Bound the growth: a board bigger than 64 corners per side is outside the scope.
+    const MAX_EXTENT: i32 = 64;
+    while let Some((i, j)) = queue.pop_front() {
+        let p = pos(&grid, (i, j))?;
+        for (di, dj) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
+            let target = (i + di, j + dj);
+            if grid.contains_key(&target)
+                || target.0.abs() > MAX_EXTENT
+                || target.1.abs() > MAX_EXTENT
+            {
+                continue;
+            }
+            // Predict the step from the known neighbours, second order when possible.
+            let back = pos(&grid, (i - di, j - dj));
+            let back2 = pos(&grid, (i - 2 * di, j - 2 * dj));
+            let step: Vector2<f64> = match (back, back2) {
+                (Some(b), Some(b2)) => (p - b) + ((p - b) - (b - b2)),
+                (Some(b), None) => p - b,
+                _ => {
+                    // A parallel step from a side neighbour, else the seed's vectors.
+                    let side = [(dj, di), (-dj, -di)].iter().find_map(|&(si, sj)| {
+                        let a = pos(&grid, (i + si, j + sj))?;
+                        let b = pos(&grid, (i + si + di, j + sj + dj))?;
+                        Some(b - a)
+                    });
+                    side.unwrap_or(match (di, dj) {
+                        (1, 0) => v1,
+                        (-1, 0) => -v1,
+                        (0, 1) => v2,
+                        _ => -v2,
+                    })
+                }
+            };
+            let predicted = p + step;
+            let tol = MATCH_TOLERANCE * step.norm();
+            let best = cands
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| !used.get(*k).copied().unwrap_or(true))
+                .map(|(k, c)| ((c.p - predicted).norm(), k))
+                .filter(|(d, _)| *d < tol)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((_, k)) = best {
+                grid.insert(target, k);
+                if let Some(u) = used.get_mut(k) {
+                    *u = true;
+                }
+                queue.push_back(target);
+            }
+        }
+    }
+    Some(grid)
+}
+
+/// Checks that `grid` is exactly a `size` board and returns its corners in board order.
+fn order_grid(
+    grid: &HashMap<(i32, i32), usize>,
+    cands: &[Candidate],
+    size: BoardSize,
+    img: &GreyF32,
+) -> Option<Vec<Point2<f64>>> {
+    if grid.len() < size.corner_count() {
+        return None;
+    }
+    let (gi0, gi1) = (
+        grid.keys().map(|c| c.0).min()?,
+        grid.keys().map(|c| c.0).max()?,
+    );
+    let (gj0, gj1) = (
+        grid.keys().map(|c| c.1).min()?,
+        grid.keys().map(|c| c.1).max()?,
+    );
+    // Every fully populated window of the board's size, in either orientation: stray
+    // matches beyond the board's outline are tolerated, an ambiguous grid is not.
+    let mut windows = Vec::new();
+    for (w, h, transpose) in [(size.cols, size.rows, false), (size.rows, size.cols, true)] {
+        if transpose && size.cols == size.rows {
+            break;
+        }
+        let (w, h) = (w as i32, h as i32);
+        for i0 in gi0..=gi1 - w + 1 {
+            for j0 in gj0..=gj1 - h + 1 {
+                let full = (0..h).all(|j| (0..w).all(|i| grid.contains_key(&(i0 + i, j0 + j))));
+                if full {
+                    windows.push((i0, j0, transpose));
+                }
+            }
+        }
+    }
+    let &[(i0, j0, transpose)] = windows.as_slice() else {
+        return None;
+    };
+    let (cols, rows) = (size.cols as i32, size.rows as i32);
+    // Board (i, j) → grid cell, before the orientation fixes.
+    let cell = |i: i32, j: i32| {
+        if transpose {
+            (i0 + j, j0 + i)
+        } else {
+            (i0 + i, j0 + j)
+        }
+    };
+    let mut pts = Vec::with_capacity(size.corner_count());
+    for j in 0..rows {
+        for i in 0..cols {
+            let k = *grid.get(&cell(i, j))?;
+            pts.push(cands.get(k)?.p);
+        }
+    }
+    let at = |pts: &[Point2<f64>], i: i32, j: i32| pts.get((j * cols + i) as usize).copied();
+    // Handedness: x → y must turn clockwise in the image (y down), i.e. a positive cross.
+    let o = at(&pts, 0, 0)?;
+    let dx = at(&pts, 1, 0)? - o;
+    let dy = at(&pts, 0, 1)? - o;
+    if dx.x * dy.y - dx.y * dy.x < 0.0 {
+        pts = (0..rows)
+            .rev()
+            .flat_map(|j| (0..cols).map(move |i| (i, j)))
+            .filter_map(|(i, j)| at(&pts, i, j))
+            .collect();
+    }
+    // Colour: corner 0's outer diagonal square must be the dark one.
+    let o = at(&pts, 0, 0)?;
+    // Diagonal squares of a corner share their colour, so compare the outer square with its
+    // neighbour along the first row (square (0, -1), light on a board whose square (-1, -1)
+    // is dark).
+    let hx = (at(&pts, 1, 0)? - o) * 0.5;
+    let hy = (at(&pts, 0, 1)? - o) * 0.5;
+    let outer = img.sample(o.x - hx.x - hy.x, o.y - hx.y - hy.y);
+    let beside = img.sample(o.x + hx.x - hy.x, o.y + hx.y - hy.y);
+    if outer > beside {
+        pts.reverse();
+    }
+    Some(pts)
+}

@@ -1,0 +1,109 @@
+//! A floating-point grey image with Gaussian blur and bilinear sampling: the working image of
+//! the checkerboard detector.
+
+use std::path::Path;
+
+use crate::CalibError;
+
+/// Loads an image file (PNG, JPEG, TIFF) as 8-bit grey.
+///
+/// # Errors
+/// [`CalibError::Image`] naming the file when it cannot be read or decoded.
+pub fn load_grey(path: impl AsRef<Path>) -> Result<image::GrayImage, CalibError> {
+    let path = path.as_ref();
+    let img = image::open(path).map_err(|source| CalibError::Image {
+        file: path.display().to_string(),
+        source,
+    })?;
+    Ok(img.into_luma8())
+}
+
+/// Row-major `f32` grey image; pixel `(x, y)` at `y · width + x`.
+#[derive(Debug, Clone)]
+pub(crate) struct GreyF32 {
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) data: Vec<f32>,
+}
+
+/// Gaussian kernels are cut at this many standard deviations (the tail beyond holds < 0.3 %
+/// of the weight).
+const KERNEL_SIGMAS: f32 = 3.0;
+
+impl GreyF32 {
+    pub(crate) fn from_luma(img: &image::GrayImage) -> Self {
+        Self {
+            width: img.width() as usize,
+            height: img.height() as usize,
+            data: img.as_raw().iter().map(|&v| f32::from(v)).collect(),
+        }
+    }
+
+    /// Value at integer `(x, y)` clamped to the border.
+    #[inline]
+    pub(crate) fn at(&self, x: isize, y: isize) -> f32 {
+        let xc = x.clamp(0, self.width as isize - 1) as usize;
+        let yc = y.clamp(0, self.height as isize - 1) as usize;
+        self.data.get(yc * self.width + xc).copied().unwrap_or(0.0)
+    }
+
+    /// Bilinear sample at `(x, y)` (pixel centres at integers), clamped to the border.
+    #[inline]
+    pub(crate) fn sample(&self, x: f64, y: f64) -> f64 {
+        let x0 = x.floor();
+        let y0 = y.floor();
+        let fx = x - x0;
+        let fy = y - y0;
+        let (xi, yi) = (x0 as isize, y0 as isize);
+        let a = f64::from(self.at(xi, yi));
+        let b = f64::from(self.at(xi + 1, yi));
+        let c = f64::from(self.at(xi, yi + 1));
+        let d = f64::from(self.at(xi + 1, yi + 1));
+        (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
+    }
+
+    /// Separable Gaussian blur with standard deviation `sigma` (pixels); `sigma <= 0` copies.
+    pub(crate) fn blurred(&self, sigma: f32) -> Self {
+        if sigma <= 0.0 || self.width == 0 || self.height == 0 {
+            return self.clone();
+        }
+        let radius = (KERNEL_SIGMAS * sigma).ceil() as isize;
+        let mut kernel: Vec<f32> = (-radius..=radius)
+            .map(|i| (-(i * i) as f32 / (2.0 * sigma * sigma)).exp())
+            .collect();
+        let sum: f32 = kernel.iter().sum();
+        kernel.iter_mut().for_each(|k| *k /= sum);
+        let (w, h) = (self.width, self.height);
+        let mut tmp = vec![0.0f32; w * h];
+        // Horizontal pass.
+        for y in 0..h {
+            let row = &self.data[y * w..(y + 1) * w];
+            let out = &mut tmp[y * w..(y + 1) * w];
+            for (x, o) in out.iter_mut().enumerate() {
+                let mut acc = 0.0;
+                for (k, &kv) in kernel.iter().enumerate() {
+                    let xs = (x as isize + k as isize - radius).clamp(0, w as isize - 1) as usize;
+                    acc += kv * row[xs];
+                }
+                *o = acc;
+            }
+        }
+        // Vertical pass.
+        let mut data = vec![0.0f32; w * h];
+        for y in 0..h {
+            for (k, &kv) in kernel.iter().enumerate() {
+                let ys = (y as isize + k as isize - radius).clamp(0, h as isize - 1) as usize;
+                let src = &tmp[ys * w..(ys + 1) * w];
+                let dst = &mut data[y * w..(y + 1) * w];
+                for (d, s) in dst.iter_mut().zip(src) {
+                    *d += kv * s;
+                }
+            }
+        }
+        Self {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+}
