@@ -173,11 +173,13 @@ pub struct IcpConfig {
     /// Maximum number of iterations. Default 50: point-to-plane and generalized ICP converge
     /// in 5 to 15 from a few degrees; point-to-point needs more.
     pub max_iterations: usize,
-    /// Converged when one iteration rotates by less than this (rad) *and* moves the source
-    /// centroid by less than `translation_tolerance`. Default 1e-5 rad (0.0006°, far below the
-    /// 0.1° accuracy of a good registration).
+    /// Converged when one iteration (or the last two together, which catches a pose hopping
+    /// between two sets of correspondences) rotates by less than this (rad) *and* moves the
+    /// source centroid by less than `translation_tolerance`. Default 1e-5 rad (0.0006°, far
+    /// below the 0.1° accuracy of a good registration).
     pub rotation_tolerance: f64,
-    /// See `rotation_tolerance`; mm. Default 1e-4 mm (0.1 µm).
+    /// See `rotation_tolerance`; mm. Default 1e-3 mm (1 µm, 1/50 of the 0.05 mm accuracy
+    /// of a good registration).
     pub translation_tolerance: f64,
     /// Also converged when the mean squared distance changes by less than this fraction between
     /// two iterations. Default 1e-7 (tight: it only stops iterations that no longer move).
@@ -197,7 +199,7 @@ impl Default for IcpConfig {
             trimming: Trimming::default(),
             max_iterations: 50,
             rotation_tolerance: 1e-5,
-            translation_tolerance: 1e-4,
+            translation_tolerance: 1e-3,
             relative_error_tolerance: 1e-7,
             gicp_epsilon: 1e-3,
         }

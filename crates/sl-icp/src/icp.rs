@@ -260,7 +260,7 @@ impl<'a> Icp<'a> {
             c.relative_error_tolerance,
         );
         let mut pose = *initial;
-        let mut previous: Option<f64> = None;
+        let mut previous: Option<(f64, Isometry3<f64>)> = None;
         let mut converged = false;
         let mut iterations = 0;
         self.iteration = 0;
@@ -268,11 +268,25 @@ impl<'a> Icp<'a> {
             let s = self.step(&pose)?;
             pose = s.pose;
             iterations += 1;
-            let small_motion = s.rotation_change < rot_tol && s.translation_change < trans_tol;
+            let small =
+                |rotation: f64, translation: f64| rotation < rot_tol && translation < trans_tol;
+            let small_motion = small(s.rotation_change, s.translation_change);
             let e = s.mean_squared_distance;
-            let small_change = previous.is_some_and(|p| (p - e).abs() <= rel_tol * p);
-            previous = Some(e);
-            if small_motion || small_change {
+            // Discrete correspondences can make the last iterations hop between two poses;
+            // the composition of the last two updates is then (nearly) the identity.
+            let (small_change, back_and_forth) = match previous {
+                Some((p, last)) => {
+                    let c = pose * self.source.centroid();
+                    let two = s.update * last;
+                    (
+                        (p - e).abs() <= rel_tol * p,
+                        small(two.rotation.angle(), (two * c - c).norm()),
+                    )
+                }
+                None => (false, false),
+            };
+            previous = Some((e, s.update));
+            if small_motion || small_change || back_and_forth {
                 converged = true;
                 break;
             }
