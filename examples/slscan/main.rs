@@ -9,7 +9,9 @@
 //!   code 1 (2 for a malformed command line, as clap does).
 
 mod common;
+mod decode;
 mod info;
+mod patterns;
 mod reconstruct;
 mod simulate;
 
@@ -27,6 +29,10 @@ struct Cli {
 enum Command {
     /// Summarise a point cloud (PLY) or a calibration file (JSON, OpenCV YAML/XML).
     Info(info::Args),
+    /// Write pattern images and their manifest.json for a projector.
+    Patterns(patterns::Args),
+    /// Decode a capture set into projector column/row maps, pictures and report.json.
+    Decode(decode::Args),
     /// Render capture sets and their ground truth with the virtual rig.
     Simulate(simulate::Args),
     /// Decode a capture set and triangulate it: PLY, depth maps, preview, report.
@@ -37,6 +43,8 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(args) => info::run(&args),
+        Command::Patterns(args) => patterns::run(&args),
+        Command::Decode(args) => decode::run(&args),
         Command::Simulate(args) => simulate::run(&args),
         Command::Reconstruct(args) => reconstruct::run(&args),
     };

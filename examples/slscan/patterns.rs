@@ -1,0 +1,241 @@
+//! `slscan patterns --projector WxH --codec gray|binary|phase|hybrid --out DIR`: write the pattern
+//! images and the `manifest.json` that describes them (and, later, the captured frames).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use sl_codec::{
+    Axis, BitDepth, GrayCodeSpec, GrayReference, HybridSpec, Pattern, PatternSequence,
+    PhaseShiftSpec, ProjectorSize, Unwrap,
+};
+
+use crate::common::{Report, ensure_out_dir};
+
+/// The coding method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum CodecArg {
+    /// Reflected Gray code, one stripe per projector pixel.
+    Gray,
+    /// Plain binary code, one stripe per projector pixel.
+    Binary,
+    /// N-step phase shift at several frequencies with temporal unwrapping.
+    Phase,
+    /// Phase shift plus the complementary Gray code for the period index.
+    Hybrid,
+}
+
+/// Which projector coordinates to code.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum AxesArg {
+    /// Columns only (vertical stripes): enough for ray-plane triangulation.
+    Columns,
+    /// Rows only (horizontal stripes).
+    Rows,
+    /// Columns then rows.
+    Both,
+}
+
+/// What Gray bits are compared with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum ReferenceArg {
+    /// Each pattern followed by its inverse (robust; twice the frames).
+    Inverse,
+    /// One white and one black frame per block.
+    WhiteBlack,
+    /// Hybrid only: the mean of the fringes (no extra frame).
+    PhaseMean,
+}
+
+impl From<ReferenceArg> for GrayReference {
+    fn from(r: ReferenceArg) -> Self {
+        match r {
+            ReferenceArg::Inverse => Self::Inverse,
+            ReferenceArg::WhiteBlack => Self::WhiteBlack,
+            ReferenceArg::PhaseMean => Self::PhaseMean,
+        }
+    }
+}
+
+/// Temporal unwrapping of `--codec phase`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum UnwrapArg {
+    /// Coarsest frequency at most one period, each finer one unwrapped from the previous.
+    Hierarchical,
+    /// Three frequencies whose beat of beats spans the projector.
+    Heterodyne,
+    /// Two coprime integer period counts (plus optional refining ones).
+    NumberTheoretic,
+    /// A single frequency of at most one period.
+    None,
+}
+
+impl From<UnwrapArg> for Unwrap {
+    fn from(u: UnwrapArg) -> Self {
+        match u {
+            UnwrapArg::Hierarchical => Self::Hierarchical,
+            UnwrapArg::Heterodyne => Self::Heterodyne,
+            UnwrapArg::NumberTheoretic => Self::NumberTheoretic,
+            UnwrapArg::None => Self::None,
+        }
+    }
+}
+
+/// Arguments of `slscan patterns`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// Projector size, `WIDTHxHEIGHT` (any size, not only powers of two).
+    #[arg(long, value_parser = parse_size)]
+    pub(crate) projector: ProjectorSize,
+    /// Coding method.
+    #[arg(long, value_enum, default_value_t = CodecArg::Gray)]
+    pub(crate) codec: CodecArg,
+    /// Projector coordinates to code.
+    #[arg(long, value_enum, default_value_t = AxesArg::Both)]
+    pub(crate) axes: AxesArg,
+    /// Output folder for the pattern PNGs and `manifest.json`.
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    /// Gray and hybrid: what each bit is compared with.
+    #[arg(long, value_enum, default_value_t = ReferenceArg::Inverse)]
+    pub(crate) reference: ReferenceArg,
+    /// Gray: do not centre the code on the projector.
+    #[arg(long)]
+    pub(crate) no_center: bool,
+    /// Gray: stripe width in projector pixels (2 or 4 when the camera cannot resolve single
+    /// projector pixels).
+    #[arg(long, default_value_t = 1)]
+    pub(crate) stripe_width: u32,
+    /// Phase and hybrid: phase steps per frequency (>= 3).
+    #[arg(long, default_value_t = 4)]
+    pub(crate) steps: u32,
+    /// Phase: periods across the projector, comma-separated (default: a heterodyne triple
+    /// derived from `--period-px`: P1 = extent / period, P2 = 7/8 P1, P3 = 2 P2 - P1 + 0.9).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) periods: Vec<f64>,
+    /// Phase and hybrid: finest fringe period in projector pixels (when `--periods` is not given).
+    #[arg(long, default_value_t = 30.0)]
+    pub(crate) period_px: f64,
+    /// Phase: temporal unwrapping method.
+    #[arg(long, value_enum, default_value_t = UnwrapArg::Heterodyne)]
+    pub(crate) unwrap: UnwrapArg,
+    /// Phase and hybrid: projector gamma to pre-compensate (1 = none).
+    #[arg(long, default_value_t = 1.0)]
+    pub(crate) gamma: f64,
+    /// Bit depth of the pattern images (8 or 16).
+    #[arg(long, default_value_t = 8)]
+    pub(crate) bit_depth: u8,
+}
+
+fn parse_size(s: &str) -> Result<ProjectorSize, String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad width in '{s}'"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad height in '{s}'"))?;
+    if w == 0 || h == 0 {
+        return Err(format!("'{s}': the projector must not be empty"));
+    }
+    Ok(ProjectorSize::new(w, h))
+}
+
+/// The block of one axis.
+fn block(args: &Args, axis: Axis) -> Pattern {
+    let p = args.projector;
+    let extent = f64::from(p.extent(axis));
+    match args.codec {
+        CodecArg::Gray | CodecArg::Binary => {
+            let mut s = GrayCodeSpec::per_pixel(axis, p, !args.no_center);
+            let w = args.stripe_width.max(1);
+            if w > 1 {
+                let stripes = u64::from(p.extent(axis).div_ceil(w));
+                s.bits = 64 - (stripes.max(2) - 1).leading_zeros();
+                s.stripe_width = f64::from(w);
+                let offset = if args.no_center {
+                    0.0
+                } else {
+                    ((1u64 << s.bits).saturating_sub(stripes) / 2) as f64
+                };
+                s.origin = -0.5 - offset * f64::from(w);
+            }
+            s.reference = args.reference.into();
+            s.binary = args.codec == CodecArg::Binary;
+            Pattern::Gray(s)
+        }
+        CodecArg::Phase => {
+            let periods = if args.periods.is_empty() {
+                let p1 = extent / args.period_px;
+                let p2 = p1 * 7.0 / 8.0;
+                vec![p1, p2, 2.0 * p2 - p1 + 0.9]
+            } else {
+                args.periods.clone()
+            };
+            Pattern::Phase(PhaseShiftSpec {
+                gamma: args.gamma,
+                ..PhaseShiftSpec::new(axis, p, args.steps, periods, args.unwrap.into())
+            })
+        }
+        CodecArg::Hybrid => {
+            let mut s = HybridSpec::complementary(axis, p, args.steps, extent / args.period_px);
+            s.gamma = args.gamma;
+            s.gray.reference = args.reference.into();
+            Pattern::Hybrid(s)
+        }
+    }
+}
+
+/// Runs `slscan patterns`.
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    let mut report = Report::new("patterns");
+    let out = ensure_out_dir(&args.out)?;
+    let depth = match args.bit_depth {
+        8 => BitDepth::Eight,
+        16 => BitDepth::Sixteen,
+        d => anyhow::bail!("--bit-depth must be 8 or 16, got {d}"),
+    };
+    let axes: &[Axis] = match args.axes {
+        AxesArg::Columns => &[Axis::Column],
+        AxesArg::Rows => &[Axis::Row],
+        AxesArg::Both => &[Axis::Column, Axis::Row],
+    };
+    let mut sequence = PatternSequence::new(args.projector);
+    for &axis in axes {
+        sequence = sequence.with(block(args, axis));
+    }
+    sequence
+        .validate()
+        .context("the pattern parameters are not valid")?;
+    let bar = crate::common::progress(1, "patterns");
+    let manifest = report
+        .stage("write", || sequence.write(&out, depth))
+        .with_context(|| format!("cannot write the patterns into {}", out.display()))?;
+    bar.finish_and_clear();
+    for (b, block) in manifest.blocks.iter().enumerate() {
+        println!(
+            "block {b}: {} {} ({} frames: {} .. {})",
+            block.pattern.codec_name(),
+            block.pattern.axis().name(),
+            block.frames.len(),
+            block.frames.first().map_or("", String::as_str),
+            block.frames.last().map_or("", String::as_str),
+        );
+    }
+    println!(
+        "{} patterns of {} written to {} with manifest.json",
+        manifest.frame_count(),
+        args.projector,
+        out.display()
+    );
+    report.figure("projector", args.projector.to_string());
+    report.figure("frames", manifest.frame_count());
+    report.figure("bit_depth", depth.bits());
+    report.figure("manifest", manifest.to_json());
+    let path = report.write(&out)?;
+    println!("report: {}", path.display());
+    Ok(())
+}
