@@ -1,0 +1,68 @@
+//! Detection on one 640×480 image and Zhang's calibration on 13 views.
+//!
+//! The images are OpenCV's samples in `$SL_DATA/chessboard`; without `SL_DATA` the detection
+//! bench uses a synthetic 640×480 board and the calibration bench the corners stored in
+//! `tests/data/left_corners.json`.
+use criterion::{Criterion, criterion_group, criterion_main};
+use sl_calib::{
+    BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera, detect_checkerboard,
+};
+
+fn image() -> Option<image::GrayImage> {
+    let dir = std::env::var_os("SL_DATA")?;
+    sl_calib::load_grey(std::path::Path::new(&dir).join("chessboard/left02.jpg")).ok()
+}
+
+fn synthetic() -> image::GrayImage {
+    image::GrayImage::from_fn(640, 480, |x, y| {
+        let (i, j) = (
+            (x as i32 - 120).div_euclid(40),
+            (y as i32 - 100).div_euclid(40),
+        );
+        let inside = (0..10).contains(&i) && (0..7).contains(&j);
+        image::Luma([if inside && (i + j) % 2 == 0 { 30 } else { 220 }])
+    })
+}
+
+fn views() -> Option<Vec<CalibrationView>> {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/left_corners.json"
+    ))
+    .ok()?;
+    let corners: Vec<Vec<[f64; 2]>> = serde_json::from_str(&text).ok()?;
+    let obj = BoardSize::new(9, 6).object_points(1.0);
+    Some(
+        corners
+            .iter()
+            .map(|c| CalibrationView {
+                object_points: obj.clone(),
+                image_points: c
+                    .iter()
+                    .map(|p| nalgebra::Point2::new(p[0], p[1]))
+                    .collect(),
+            })
+            .collect(),
+    )
+}
+
+fn bench(c: &mut Criterion) {
+    let img = image().unwrap_or_else(synthetic);
+    let cfg = DetectorConfig::default();
+    c.bench_function("detect_checkerboard 640x480 9x6", |b| {
+        b.iter(|| detect_checkerboard(&img, BoardSize::new(9, 6), &cfg, "bench").is_ok())
+    });
+    let blank = image::GrayImage::from_pixel(640, 480, image::Luma([128]));
+    c.bench_function("detect_checkerboard 640x480 no board", |b| {
+        b.iter(|| detect_checkerboard(&blank, BoardSize::new(9, 6), &cfg, "bench").is_err())
+    });
+    if let Some(v) = views() {
+        let size = sl_calib::sl_camera::ImageSize::new(640, 480);
+        c.bench_function("calibrate_camera 13 views 9x6", |b| {
+            b.iter(|| calibrate_camera(&v, size, &ZhangConfig::default()).is_ok())
+        });
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
