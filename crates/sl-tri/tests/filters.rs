@@ -8,7 +8,7 @@ use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3}
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use sl_camera::{Calibration, CameraModel, Distortion, ImageSize, Intrinsics};
-use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
+use sl_codec::{CorrespondenceMap, InvalidReason};
 use sl_tri::{Method, PointStatus, Texture, TriError, TriOptions, Triangulator};
 
 const W: usize = 160;
