@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 use serde_json::json;
 use sl_codec::{MANIFEST_FILE, Manifest};
 use sl_rig::{
-    BitDepth, CalibrationSession, GlobalIllumination, MeshUnits, RigConfig, Scene,
+    BitDepth, CalibrationSession, Checkerboard, GlobalIllumination, MeshUnits, RigConfig, Scene,
     SimulatedCapture, VirtualRig, simulate_calibration, simulate_scan, turntable_angles,
 };
 
@@ -50,6 +50,12 @@ pub(crate) struct Args {
     /// Projector gamma (default 1: linear).
     #[arg(long)]
     pub(crate) gamma: Option<f64>,
+    /// Inner corners of the `board` scene, `COLSxROWS`.
+    #[arg(long, default_value = "9x6")]
+    pub(crate) board: String,
+    /// Square size of the `board` scene (mm).
+    #[arg(long, default_value_t = 20.0)]
+    pub(crate) square_mm: f64,
     /// No photon or read noise.
     #[arg(long)]
     pub(crate) no_noise: bool,
@@ -81,7 +87,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     write_atomically(&out.join("rig.json"), rig_json.as_bytes())?;
 
     let captures = if board {
-        let mut session = CalibrationSession::default();
+        let mut session = CalibrationSession {
+            board: checkerboard(&args.board, args.square_mm)?,
+            ..CalibrationSession::default()
+        };
         session.poses.count = args.views;
         session.poses.seed = args.seed;
         let bar = progress(
@@ -145,6 +154,23 @@ fn config(args: &Args, board: bool) -> anyhow::Result<RigConfig> {
         c.render.effects.sensor.read_noise_electrons = 0.0;
     }
     Ok(c)
+}
+
+fn checkerboard(corners: &str, square_mm: f64) -> anyhow::Result<Checkerboard> {
+    let parsed = corners
+        .split_once(['x', 'X'])
+        .and_then(|(c, r)| Some((c.trim().parse::<u32>().ok()?, r.trim().parse::<u32>().ok()?)));
+    let Some((inner_cols, inner_rows)) = parsed else {
+        anyhow::bail!("--board {corners}: expected inner corners as COLSxROWS, e.g. 9x6");
+    };
+    let board = Checkerboard {
+        inner_cols,
+        inner_rows,
+        square_mm,
+        ..Checkerboard::default()
+    };
+    board.validate()?;
+    Ok(board)
 }
 
 fn scene(name: &str) -> anyhow::Result<Scene> {
