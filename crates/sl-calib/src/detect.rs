@@ -192,10 +192,21 @@ pub fn detect_checkerboard(
         )));
     }
     let mut best_found = 0usize;
+    // Candidates already part of a grid that failed are not tried again as seeds: growing
+    // from them finds the same grid (this keeps the time bounded on cluttered images).
+    let mut tried = vec![false; candidates.len()];
     for seed in 0..candidates.len().min(config.max_seeds) {
+        if tried.get(seed).copied().unwrap_or(true) {
+            continue;
+        }
         let Some(grid) = grow_grid(&candidates, seed) else {
             continue;
         };
+        for &k in grid.values() {
+            if let Some(t) = tried.get_mut(k) {
+                *t = true;
+            }
+        }
         best_found = best_found.max(grid.len());
         if let Some(ordered) = order_grid(&grid, &candidates, size, &detect) {
             let refine = grey.blurred(config.refine_sigma as f32);
