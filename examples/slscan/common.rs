@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 /// Prints an error and its causes on one line: `slscan: error: a: b: c`.
-pub fn print_error(err: &anyhow::Error) {
+pub(crate) fn print_error(err: &anyhow::Error) {
     let chain: Vec<String> = err.chain().map(ToString::to_string).collect();
     // Library errors often repeat their source in their own message; drop exact repeats.
     let mut line = String::new();
@@ -27,7 +27,7 @@ pub fn print_error(err: &anyhow::Error) {
 }
 
 /// Creates the output folder (and its parents) if needed, naming it on failure.
-pub fn ensure_out_dir(out: &Path) -> anyhow::Result<PathBuf> {
+pub(crate) fn ensure_out_dir(out: &Path) -> anyhow::Result<PathBuf> {
     fs::create_dir_all(out)
         .with_context(|| format!("cannot create output folder {}", out.display()))?;
     Ok(out.to_path_buf())
@@ -35,33 +35,33 @@ pub fn ensure_out_dir(out: &Path) -> anyhow::Result<PathBuf> {
 
 /// One timed stage of a command.
 #[derive(Debug, Serialize)]
-pub struct Stage {
+pub(crate) struct Stage {
     /// Stage name, e.g. `read`, `decode`.
-    pub name: String,
+    pub(crate) name: String,
     /// Wall time in milliseconds.
-    pub ms: f64,
+    pub(crate) ms: f64,
 }
 
 /// The `report.json` of a command: what ran, its figures and its per-stage timings.
 #[derive(Debug, Serialize)]
-pub struct Report {
+pub(crate) struct Report {
     /// Subcommand name.
-    pub command: String,
+    pub(crate) command: String,
     /// `slscan` version.
-    pub version: &'static str,
+    pub(crate) version: &'static str,
     /// Figures of the run (counts, errors, fractions), by name.
-    pub figures: BTreeMap<String, serde_json::Value>,
+    pub(crate) figures: BTreeMap<String, serde_json::Value>,
     /// Timed stages, in the order they ran.
-    pub stages: Vec<Stage>,
+    pub(crate) stages: Vec<Stage>,
     /// Total wall time in milliseconds.
-    pub total_ms: f64,
+    pub(crate) total_ms: f64,
     #[serde(skip)]
     started: Option<Instant>,
 }
 
 impl Report {
     /// Starts a report for `command`; the total time runs from now.
-    pub fn new(command: &str) -> Self {
+    pub(crate) fn new(command: &str) -> Self {
         Self {
             command: command.to_owned(),
             version: env!("CARGO_PKG_VERSION"),
@@ -73,20 +73,23 @@ impl Report {
     }
 
     /// Runs `f` as the stage `name` and records its wall time.
-    pub fn stage<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
+    pub(crate) fn stage<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
         let t = Instant::now();
         let out = f();
-        self.stages.push(Stage { name: name.to_owned(), ms: ms(t.elapsed()) });
+        self.stages.push(Stage {
+            name: name.to_owned(),
+            ms: ms(t.elapsed()),
+        });
         out
     }
 
     /// Records a figure.
-    pub fn figure(&mut self, name: &str, value: impl Into<serde_json::Value>) {
+    pub(crate) fn figure(&mut self, name: &str, value: impl Into<serde_json::Value>) {
         self.figures.insert(name.to_owned(), value.into());
     }
 
     /// Writes `report.json` into `out` (atomically: a temporary file renamed into place).
-    pub fn write(&mut self, out: &Path) -> anyhow::Result<PathBuf> {
+    pub(crate) fn write(&mut self, out: &Path) -> anyhow::Result<PathBuf> {
         if let Some(t) = self.started {
             self.total_ms = ms(t.elapsed());
         }
@@ -103,19 +106,23 @@ fn ms(d: Duration) -> f64 {
 
 /// Writes `bytes` to `path` through a temporary file in the same folder, so that a failure
 /// never leaves a half-written file in place of a good one.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let mut tmp = tempfile::NamedTempFile::new_in(dir)
         .with_context(|| format!("cannot write into {}", dir.display()))?;
     std::io::Write::write_all(&mut tmp, bytes)
         .with_context(|| format!("cannot write {}", path.display()))?;
-    tmp.persist(path).with_context(|| format!("cannot write {}", path.display()))?;
+    tmp.persist(path)
+        .with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())
 }
 
 /// A progress bar on stderr for `len` steps (hidden automatically when stderr is not a terminal).
 #[allow(dead_code)] // used by the subcommands that take long; `info` does not.
-pub fn progress(len: u64, message: &str) -> ProgressBar {
+pub(crate) fn progress(len: u64, message: &str) -> ProgressBar {
     let bar = ProgressBar::new(len);
     let style = ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} {elapsed}")
         .unwrap_or_else(|_| ProgressStyle::default_bar())

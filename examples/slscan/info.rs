@@ -11,16 +11,16 @@ use crate::common::{Report, ensure_out_dir};
 
 /// Arguments of `slscan info`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// A PLY point cloud, or a calibration file (.json, or OpenCV FileStorage .yml/.yaml/.xml).
-    pub file: PathBuf,
+    pub(crate) file: PathBuf,
     /// Also write the summary as `report.json` into this folder.
     #[arg(long)]
-    pub out: Option<PathBuf>,
+    pub(crate) out: Option<PathBuf>,
 }
 
 /// Runs `slscan info`.
-pub fn run(args: &Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("info");
     report.figure("file", args.file.display().to_string());
     let ext = args
