@@ -517,3 +517,90 @@ fn order_grid(
     }
     Some(pts)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 9x6 board of `square` px squares, origin square's top-left at `(ox, oy)`, each
+    /// pixel the exact area average of the board over its square (perfect box-filter
+    /// rendering), so the corners sit at exact sub-pixel positions.
+    fn board(w: u32, h: u32, ox: f64, oy: f64, square: f64) -> image::GrayImage {
+        image::GrayImage::from_fn(w, h, |x, y| {
+            let (x0, y0) = (f64::from(x) - 0.5, f64::from(y) - 0.5);
+            let cell = |v: f64, o: f64| ((v - o) / square).floor() as i64;
+            let mut dark_area = 0.0f64;
+            for j in cell(y0, oy)..=cell(y0 + 1.0, oy) {
+                for i in cell(x0, ox)..=cell(x0 + 1.0, ox) {
+                    let dark = (0..10).contains(&i) && (0..7).contains(&j) && (i + j) % 2 == 0;
+                    if !dark {
+                        continue;
+                    }
+                    let (cx0, cy0) = (ox + i as f64 * square, oy + j as f64 * square);
+                    let ovx = ((x0 + 1.0).min(cx0 + square) - x0.max(cx0)).max(0.0);
+                    let ovy = ((y0 + 1.0).min(cy0 + square) - y0.max(cy0)).max(0.0);
+                    dark_area += ovx * ovy;
+                }
+            }
+            image::Luma([(220.0 - 190.0 * dark_area).round() as u8])
+        })
+    }
+
+    #[test]
+    fn sub_pixel_corners_on_an_exact_board() {
+        let (ox, oy, s) = (100.3, 80.7, 30.0);
+        let img = board(480, 360, ox, oy, s);
+        let found =
+            detect_checkerboard(&img, BoardSize::new(9, 6), &DetectorConfig::default(), "t")
+                .unwrap();
+        for (k, p) in found.corners.iter().enumerate() {
+            let (i, j) = ((k % 9) as f64, (k / 9) as f64);
+            let truth = Point2::new(ox + (i + 1.0) * s, oy + (j + 1.0) * s);
+            // 8-bit rounding of the edge pixels (190 levels per pixel of edge shift) is
+            // ~0.003 px of edge position; 0.02 px leaves room for the blur's border effects.
+            assert!((p - truth).norm() < 0.02, "corner {k}: {p} vs {truth}");
+        }
+    }
+
+    #[test]
+    fn order_is_fixed_by_the_board_not_the_image() {
+        let img = board(480, 360, 100.3, 80.7, 30.0);
+        let cfg = DetectorConfig::default();
+        let a = detect_checkerboard(&img, BoardSize::new(9, 6), &cfg, "a").unwrap();
+        // The same board turned by 180° in the image: corner k must be the same board corner.
+        let rotated = image::imageops::rotate180(&img);
+        let b = detect_checkerboard(&rotated, BoardSize::new(9, 6), &cfg, "b").unwrap();
+        for (p, q) in a.corners.iter().zip(&b.corners) {
+            // Rotation by 180° about the image centre: (x, y) -> (w - 1 - x, h - 1 - y).
+            let back = Point2::new(479.0 - q.x, 359.0 - q.y);
+            assert!((p - back).norm() < 0.05, "{p} vs {back}");
+        }
+    }
+
+    #[test]
+    fn no_board_is_a_clear_error() {
+        let img = image::GrayImage::from_pixel(640, 480, image::Luma([128]));
+        let err = detect_checkerboard(
+            &img,
+            BoardSize::new(9, 6),
+            &DetectorConfig::default(),
+            "blank.png",
+        )
+        .unwrap_err();
+        let msg = err.to_string();
+        assert!(
+            msg.contains("blank.png") && msg.contains("not found"),
+            "{msg}"
+        );
+        // A board of another size is not taken for the one asked for.
+        let img = board(480, 360, 100.3, 80.7, 30.0);
+        let err = detect_checkerboard(
+            &img,
+            BoardSize::new(8, 6),
+            &DetectorConfig::default(),
+            "b.png",
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("8x6"), "{err}");
+    }
+}
