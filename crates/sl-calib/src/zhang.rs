@@ -902,4 +902,38 @@ mod tests {
         let err = calibrate_camera(&parallel, truth.size, &ZhangConfig::default()).unwrap_err();
         assert!(err.to_string().contains("tilt the board"), "{err}");
     }
+
+    #[test]
+    fn options_hold_their_constraints() {
+        let (truth, views) = synthetic(0.0);
+        let cfg = ZhangConfig {
+            fix_principal_point: true,
+            aspect_ratio: Some(1.0),
+            fix_k3: true,
+            ..ZhangConfig::default()
+        };
+        let c = calibrate_camera(&views, truth.size, &cfg).unwrap();
+        let i = c.camera.intrinsics;
+        // Constraints are exact by construction (fixed parameters never move).
+        assert_relative_eq!(i.cx, 319.5, epsilon = 1e-12);
+        assert_relative_eq!(i.cy, 239.5, epsilon = 1e-12);
+        assert_relative_eq!(i.fx, i.fy, epsilon = 1e-9);
+        assert_eq!(c.camera.distortion.k3(), 0.0);
+        assert_eq!(c.std_dev.intrinsics[2], 0.0);
+        // The model is wrong (the truth has fx != fy, an off-centre principal point): the
+        // residual shows it.
+        assert!(c.rms > 0.1);
+        // The rational model fits the 5-coefficient truth exactly (k4..k6 = 0 is in it).
+        let r = calibrate_camera(
+            &views,
+            truth.size,
+            &ZhangConfig {
+                rational_model: true,
+                ..ZhangConfig::default()
+            },
+        )
+        .unwrap();
+        assert!(r.rms < 1e-5, "rms {}", r.rms);
+        assert_relative_eq!(r.camera.intrinsics.fx, 800.0, max_relative = 1e-5);
+    }
 }
