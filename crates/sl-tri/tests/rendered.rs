@@ -116,3 +116,26 @@ fn rendered_sphere_radius() {
         );
     }
 }
+
+/// Writes a rendered capture set of the sphere and the rig's calibration into
+/// `$SL_TRI_CAPTURE_OUT` (for trying `slscan reconstruct` by hand); skips when unset.
+#[test]
+#[ignore = "writes files for a manual run of slscan reconstruct"]
+fn write_capture_for_the_cli() {
+    let Some(out) = std::env::var_os("SL_TRI_CAPTURE_OUT") else {
+        eprintln!("SL_TRI_CAPTURE_OUT not set: skipping");
+        return;
+    };
+    let out = std::path::PathBuf::from(out);
+    let config = RigConfig::default();
+    config.calibration().save(out.join("calib.json")).unwrap();
+    let rig = VirtualRig::new(config, Scene::sphere()).unwrap();
+    let projector = ProjectorSize::new(1920, 1080);
+    let sequence = PatternSequence::new(projector).with(Pattern::Hybrid(
+        HybridSpec::complementary(Axis::Column, projector, 8, 64.0),
+    ));
+    let manifest = sequence.manifest(BitDepth::Eight);
+    let images = projector_images(&rig, &manifest).unwrap();
+    let frames = rig.view(0.0, 0).unwrap().capture_all(&images).unwrap();
+    sl_rig::write_capture_set(&out.join("capture"), &manifest, &frames, "sl-tri test").unwrap();
+}
