@@ -4,7 +4,7 @@
 //! cloud to the true surface.
 //!
 //! ```sh
-//! cargo run --release -p sl-icp --example turntable [-- POINTS_PER_VIEW NOISE_MM]
+//! cargo run --release -p sl-icp --example turntable [-- POINTS_PER_VIEW NOISE_MM [--average]]
 //! ```
 
 use std::time::Instant;
@@ -43,29 +43,10 @@ fn main() -> Result<(), IcpError> {
     wrong.point_mm += Vector3::new(0.5, 0.0, -0.3);
     wrong.angle_scale = 1.001;
     let initial = turntable_poses(&wrong, &angles)?;
-    let mut config = MergeConfig::default();
-    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
-    if let Some(v) = env("X_DIST") {
-        config.icp.max_correspondence_distance = v;
-    }
-    if let Some(v) = env("X_VOXEL") {
-        config.registration_voxel_size = v;
-    }
-    if let Some(v) = env("X_TUKEY") {
-        config.icp.kernel = sl_icp::RobustKernel::Tukey { c: v };
-    }
-    if let Some(v) = env("X_TRIM") {
-        config.icp.trimming = sl_icp::Trimming::Fixed { overlap: v };
-    }
-    if let Some(v) = env("X_K") {
-        config.registration_normals.k = v as usize;
-    }
-    if let Some(v) = env("X_NB") {
-        config.neighbours = v as usize;
-    }
-    if env("X_GICP").is_some() {
-        config.icp.metric = sl_icp::Metric::Generalized;
-    }
+    let config = MergeConfig {
+        average_overlaps: args.iter().any(|a| a == "--average"),
+        ..MergeConfig::default()
+    };
     let t = Instant::now();
     let merged = merge_views(&views, &initial, &config)?;
     let secs = t.elapsed().as_secs_f64();
@@ -80,7 +61,7 @@ fn main() -> Result<(), IcpError> {
         init_rot = init_rot.max(e0.rotation_deg);
         init_rms = init_rms.max(e0.rms_displacement_mm);
     }
-    if std::env::var_os("SL_VERBOSE").is_some() {
+    if args.iter().any(|a| a == "--verbose") {
         for p in &merged.alignment.pairs {
             if let Some(r) = &p.registration {
                 let truth = scene.true_pose(0.0, angles[p.target]).inverse()

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use sl_cloud::{MergePolicy, NormalConfig, PointCloud, VoxelGridConfig, voxel_downsample};
 
 use crate::kdtree::KdTree;
-use crate::normals::local_planes;
+use crate::normals::{local_planes, quadric_projection};
 use crate::{
     IcpConfig, IcpError, Metric, NormalSource, PoseGraph, PoseGraphConfig, PoseGraphEdge,
     PoseGraphSolution, PrepareConfig, PreparedCloud, Registration, optimize_pose_graph, register,
@@ -47,9 +47,11 @@ pub struct MergeConfig {
     /// Neighbours for the normals of the merged cloud (oriented toward the cameras that saw
     /// each point); 0 for no normals. Default 16.
     pub output_normal_neighbours: usize,
-    /// Average overlapping points across the surface: move each merged point onto the
-    /// least-squares plane of its `output_normal_neighbours` neighbours (along the normal only,
-    /// so the surface is not shrunk sideways). Default false.
+    /// Average overlapping points across the surface: move each merged point along its normal
+    /// onto the least-squares quadratic surface of its `output_normal_neighbours` neighbours
+    /// (moving least squares of degree 2: averages the noise of overlapping views without
+    /// flattening curved parts or shrinking the surface sideways). Needs normals. Default
+    /// false.
     pub average_overlaps: bool,
 }
 
@@ -121,6 +123,13 @@ impl MergeConfig {
                 "output_normal_neighbours",
                 k,
                 "must be 0 (no normals) or in 3..=64",
+            ));
+        }
+        if self.average_overlaps && k == 0 {
+            return Err(IcpError::invalid(
+                "average_overlaps",
+                true,
+                "needs output_normal_neighbours > 0 (the averaging fits the neighbourhoods)",
             ));
         }
         Ok(())
@@ -345,19 +354,24 @@ pub fn merge_aligned(
         return Ok(PointCloud::from_parts(positions, None, colors, quality)?);
     }
     let tree = KdTree::new(&positions);
-    let planes = local_planes(&positions, &tree, k);
+    let frames = if config.average_overlaps {
+        quadric_projection(&positions, &tree, k)
+    } else {
+        local_planes(&positions, &tree, k)
+            .into_iter()
+            .zip(&positions)
+            .map(|((n, _), p)| (n, *p))
+            .collect()
+    };
     let reference = reference.unwrap_or_default();
-    let normals: Vec<Vector3<f64>> = planes
+    let normals: Vec<Vector3<f64>> = frames
         .iter()
         .zip(positions.iter_mut())
         .enumerate()
-        .map(|(i, ((n, mean), p))| {
+        .map(|(i, ((n, moved), p))| {
             let toward = reference.get(i).copied().unwrap_or_default();
-            let n = if n.dot(&toward) < 0.0 { -n } else { *n };
-            if config.average_overlaps && n.norm_squared() > 0.0 {
-                *p -= n * n.dot(&(*p - mean));
-            }
-            n
+            *p = *moved;
+            if n.dot(&toward) < 0.0 { -n } else { *n }
         })
         .collect();
     Ok(PointCloud::from_parts(

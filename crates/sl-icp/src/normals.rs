@@ -74,6 +74,56 @@ pub(crate) fn local_planes(
         .collect()
 }
 
+/// For every point: the unit PCA normal of its `k` nearest neighbours (unoriented, zero where
+/// undefined) and the point moved along that normal onto the least-squares quadratic surface
+/// `w = a + b u + c v + d u² + e uv + f v²` of the neighbourhood in the frame (tangent u, v;
+/// normal w) at the point (moving least squares of degree 2, which unlike a plane fit does
+/// not flatten curved surfaces). Where the fit is singular the point is projected on the PCA
+/// plane instead.
+pub(crate) fn quadric_projection(
+    points: &[Point3<f64>],
+    tree: &KdTree,
+    k: usize,
+) -> Vec<(Vector3<f64>, Point3<f64>)> {
+    points
+        .par_iter()
+        .with_min_len(512)
+        .map_init(
+            || Neighbours::new(k),
+            |buf, p| {
+                tree.knn_into(p, buf);
+                let (n, mean) = pca(points, buf.as_slice());
+                if n.norm_squared() == 0.0 {
+                    return (n, *p);
+                }
+                let planar = p - n * n.dot(&(p - mean));
+                let e1 = n
+                    .cross(&Vector3::x())
+                    .try_normalize(1e-6)
+                    .unwrap_or_else(|| n.cross(&Vector3::y()).normalize());
+                let e2 = n.cross(&e1);
+                let mut h = nalgebra::Matrix6::<f64>::zeros();
+                let mut g = nalgebra::Vector6::<f64>::zeros();
+                for q in buf
+                    .as_slice()
+                    .iter()
+                    .filter_map(|&(_, i)| points.get(i as usize))
+                {
+                    let d = q - p;
+                    let (u, v, w) = (d.dot(&e1), d.dot(&e2), d.dot(&n));
+                    let row = nalgebra::Vector6::new(1.0, u, v, u * u, u * v, v * v);
+                    h.ger(1.0, &row, &row, 1.0);
+                    g += row * w;
+                }
+                match h.cholesky().map(|c| c.solve(&g)) {
+                    Some(x) if x[0].is_finite() && buf.as_slice().len() >= 6 => (n, p + n * x[0]),
+                    _ => (n, planar),
+                }
+            },
+        )
+        .collect()
+}
+
 /// The smallest-eigenvalue eigenvector of the covariance of the neighbours (or zero) and
 /// their mean (or the origin when there are fewer than 3).
 fn pca(points: &[Point3<f64>], neighbours: &[(f64, u32)]) -> (Vector3<f64>, Point3<f64>) {

@@ -35,7 +35,7 @@ pub(crate) fn threshold(trimming: &Trimming, d2: &mut [f64], n_source: usize) ->
                 let kept = (m + 1) as f64;
                 let xi = kept / n;
                 let psi = (sum / kept) / xi.powf(1.0 + TRICP_LAMBDA);
-                if psi < best.0 {
+                if psi <= best.0 {
                     best = (psi, m + 1);
                 }
             }
