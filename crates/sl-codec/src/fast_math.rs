@@ -1,8 +1,8 @@
-//! Branch-free `f32` helpers that the compiler can vectorise with plain SSE2.
+//! Branch-free `f32` helpers that the compiler can vectorise.
 //!
-//! `f32::atan2`, `f32::floor` and `f32::round` compile to library calls on the baseline x86-64
-//! target, which stops the decode loops from being vectorised; these replacements compile to a
-//! handful of vector instructions.
+//! `f32::atan2` is a library call on every target, which stops the decode loops from being
+//! vectorised; the polynomial below compiles to a dozen vector instructions. `floor`/`round` use
+//! the standard ones, which are single instructions in the AVX2 code the decoders dispatch to.
 
 use std::f32::consts::{FRAC_PI_2, PI};
 
@@ -40,16 +40,14 @@ pub(crate) fn atan2(y: f32, x: f32) -> f32 {
     if y < 0.0 { -r } else { r }
 }
 
-/// Adding and subtracting 1.5 * 2^23 rounds an `f32` of magnitude below 2^22 to the nearest
-/// integer (ties to even) with two additions: the sum has no fraction bits left. Without
-/// fast-math the compiler keeps both operations.
-const ROUNDING_MAGIC: f32 = 12_582_912.0;
-
-/// `floor(x)` for `|x| < 2^22`; vectorisable with plain SSE2 (no conversion to integers).
+/// `floor(x)`.
+///
+/// The decode loops run inside `pulp`'s runtime dispatch, compiled for AVX2 (x86-64-v3) where the
+/// CPU has it; there `f32::floor` is one `vroundps` per 8 lanes. (On the SSE2 baseline it is a
+/// library call, which is correct but slow; no CPU made in the last ten years takes that path.)
 #[inline(always)]
 pub(crate) fn floor(x: f32) -> f32 {
-    let r = (x + ROUNDING_MAGIC) - ROUNDING_MAGIC;
-    if r > x { r - 1.0 } else { r }
+    x.floor()
 }
 
 /// `x - floor(x)`: the fractional part in `[0, 1)` (up to rounding: may return exactly 1.0 for

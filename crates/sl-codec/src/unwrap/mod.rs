@@ -122,7 +122,7 @@ impl Plan {
                 }
             }
             Self::Hierarchical(h) => h.coarse_row(fracs, s),
-            Self::Heterodyne(h) => h.coarse_row(fracs, s),
+            Self::Heterodyne(h) => return h.unwrap_row(fracs, s),
             Self::NumberTheoretic(n) => n.coarse_row(fracs, s),
         }
         combine_row(fracs, periods, s);
@@ -158,7 +158,7 @@ pub(crate) fn stage(t: &mut [f32], resid: &mut [f32], f: &[f32], p: f32) {
 /// Unwraps every frequency against the coarse `t`, replaces `t` by the `P^2`-weighted mean
 /// of the unwrapped positions, and folds each frequency's disagreement into `resid`.
 #[inline(always)]
-fn combine_row(fracs: &[Vec<f32>], periods: &[f32], s: &mut UnwrapScratch) {
+pub(crate) fn combine_row(fracs: &[Vec<f32>], periods: &[f32], s: &mut UnwrapScratch) {
     let n = s.t.len();
     let sum_p2: f32 = periods.iter().map(|p| p * p).sum();
     if fracs.len() <= 1 || sum_p2 <= 0.0 {
