@@ -490,3 +490,42 @@ fn wrong_frame_count_and_size_are_named() {
     frames.push(last);
     assert!(CaptureSet::from_frames(manifest, Frames::U8(frames)).is_ok());
 }
+
+#[test]
+fn saturation_is_reported() {
+    // Phase: a gain of 400 grey levels clips the bright half of every fringe, which distorts the
+    // phase; those pixels must be Saturated, not decoded wrongly.
+    let p = ProjectorSize::new(800, 600);
+    let seq = PatternSequence::new(p).with(Pattern::Phase(PhaseShiftSpec::new(
+        Axis::Column,
+        p,
+        4,
+        vec![1.0, 8.0, 40.0],
+        Unwrap::Hierarchical,
+    )));
+    let scene = SyntheticScene {
+        gain: 400.0,
+        albedo_min: 0.2,
+        ..SyntheticScene::window(p, 120, 90, 1.2)
+    };
+    let map = run::<u8>(&seq, &scene, &DecodeConfig::default());
+    let counts = map.reason_counts();
+    let saturated = counts[InvalidReason::Saturated as usize];
+    assert!(saturated > 1000, "{counts:?}");
+    // Where the albedo keeps the peak below 255 the pixels still decode, and correctly.
+    let s = stats(&scene, &map, Axis::Column);
+    assert!(s.valid > 200, "{counts:?}");
+    assert!(s.max() < 0.2, "max error {}", s.max());
+    // Gray code: ambient light alone at the top level leaves no bit readable.
+    let seq = PatternSequence::new(p).with(Pattern::Gray(GrayCodeSpec::per_pixel(
+        Axis::Column,
+        p,
+        true,
+    )));
+    let scene = SyntheticScene {
+        ambient: 300.0,
+        ..SyntheticScene::window(p, 60, 40, 1.2)
+    };
+    let map = run::<u8>(&seq, &scene, &DecodeConfig::default());
+    assert!(map.invalid.iter().all(|&r| r == InvalidReason::Saturated));
+}
