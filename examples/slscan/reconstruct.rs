@@ -159,14 +159,18 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     drop(capture);
 
     let ply = out.join("cloud.ply");
-    report.stage("write ply", || write_ply(&ply, &result.cloud, PlyFormat::default()))?;
+    report.stage("write ply", || {
+        write_ply(&ply, &result.cloud, PlyFormat::default())
+    })?;
     let depth = result.depth_map();
     let (w, h) = (result.width, result.height);
     report.stage("write depth", || -> anyhow::Result<()> {
         atomically(&out.join("depth.png"), |p| {
             write_depth_png16(p, w, h, &depth, args.depth_scale)
         })?;
-        atomically(&out.join("depth.tiff"), |p| write_depth_tiff(p, w, h, &depth))
+        atomically(&out.join("depth.tiff"), |p| {
+            write_depth_tiff(p, w, h, &depth)
+        })
     })?;
     report.stage("preview", || -> anyhow::Result<()> {
         let preview = render_preview(
@@ -191,7 +195,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("points", c.valid);
     report.figure("decoded_fraction", map.valid_fraction());
     report.figure("valid_fraction", result.valid_fraction());
-    report.figure("rms_reprojection_px", nan_to_null(result.rms_reprojection_px()));
+    report.figure(
+        "rms_reprojection_px",
+        nan_to_null(result.rms_reprojection_px()),
+    );
     report.figure("depth_png_scale_mm", args.depth_scale);
     let by_status: serde_json::Map<String, serde_json::Value> = PointStatus::ALL
         .iter()
@@ -222,5 +229,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
 }
 
 fn nan_to_null(v: f64) -> serde_json::Value {
-    if v.is_finite() { v.into() } else { serde_json::Value::Null }
+    if v.is_finite() {
+        v.into()
+    } else {
+        serde_json::Value::Null
+    }
 }
