@@ -7,11 +7,11 @@
 //! |---|---|---|
 //! | [`camera`] | `sl-camera` | pinhole intrinsics, OpenCV distortion, projection, poses, calibration files |
 //! | [`cloud`] | `sl-cloud` | point clouds, PLY, voxel grid, neighbours, normals, outliers |
-//! | [`codec`] | `sl-codec` | pattern sequences and decoders (placeholder) |
-//! | [`calib`] | `sl-calib` | checkerboards, camera/projector/turntable calibration (placeholder) |
-//! | [`tri`] | `sl-tri` | triangulation into metric clouds (placeholder) |
-//! | [`icp`] | `sl-icp` | ICP and turntable merging (placeholder) |
-//! | [`rig`] | `sl-rig` | hardware and the virtual rig (placeholder) |
+//! | [`codec`] | `sl-codec` | pattern sequences and decoders |
+//! | [`calib`] | `sl-calib` | checkerboard detection, Zhang's camera calibration |
+//! | [`tri`] | `sl-tri` | triangulation into metric clouds |
+//! | [`icp`] | `sl-icp` | ICP and turntable merging |
+//! | [`rig`] | `sl-rig` | device traits and the virtual rig |
 //!
 //! The command line `slscan` (in `examples/slscan`) composes them; run
 //! `cargo run --release --example slscan -- --help`.
