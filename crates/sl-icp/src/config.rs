@@ -130,7 +130,7 @@ pub enum Trimming {
         /// Expected overlap of the source with the target, in (0, 1].
         overlap: f64,
     },
-    /// Estimate the overlap at each iteration as TrICP does: the `ξ` in
+    /// Estimate the overlap at each iteration as `TrICP` does: the `ξ` in
     /// `[min_overlap, 1]` that minimises `e(ξ) / ξ^3`, `e(ξ)` the mean squared distance of the
     /// `ξN` closest correspondences (λ = 2 in the paper's `ξ^-(1+λ)`).
     Auto {
@@ -185,7 +185,7 @@ pub struct IcpConfig {
     /// two iterations. Default 1e-7 (tight: it only stops iterations that no longer move).
     pub relative_error_tolerance: f64,
     /// Variance of a point's Gaussian along its normal for generalized ICP, relative to the
-    /// unit variances along the surface. Default 1e-3, as Segal et al., Open3D and small_gicp.
+    /// unit variances along the surface. Default 1e-3, as Segal et al., Open3D and `small_gicp`.
     pub gicp_epsilon: f64,
 }
 
@@ -213,7 +213,7 @@ impl IcpConfig {
     /// [`IcpError::InvalidParameter`].
     pub fn validate(&self) -> Result<(), IcpError> {
         let d = self.max_correspondence_distance;
-        if !(d > 0.0) || d.is_nan() {
+        if d.is_nan() || d <= 0.0 {
             return Err(IcpError::invalid(
                 "max_correspondence_distance",
                 d,

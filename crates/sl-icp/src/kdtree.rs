@@ -254,7 +254,6 @@ fn build(items: &mut [([f64; 3], u32)], offset: usize, nodes: &mut Vec<Node>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Vector3;
     use rand::{Rng, SeedableRng};
     use rand_pcg::Pcg64;
 

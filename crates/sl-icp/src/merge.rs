@@ -20,7 +20,7 @@ pub struct MergeConfig {
     /// for a 100 mm object, plenty to pin 6 degrees of freedom, and fast.
     pub registration_voxel_size: f64,
     /// Normals of the downsampled views (when the views carry none). Default: 10 neighbours
-    /// (as small_gicp's covariances), facing the camera at each view's origin.
+    /// (as `small_gicp`'s covariances), facing the camera at each view's origin.
     pub registration_normals: NormalConfig,
     /// A first, coarse ICP pass for each pair, whose result starts `icp`; `None` to skip it.
     /// Default: generalized ICP with a 5 mm maximum distance, which absorbs the millimetre
@@ -98,14 +98,14 @@ impl MergeConfig {
                 "must be finite and > 0",
             ));
         }
-        if let Some(v) = self.output_voxel_size {
-            if !(v > 0.0 && v.is_finite()) {
-                return Err(IcpError::invalid(
-                    "output_voxel_size",
-                    v,
-                    "must be finite and > 0 (or None)",
-                ));
-            }
+        if let Some(v) = self.output_voxel_size
+            && !(v.is_finite() && v > 0.0)
+        {
+            return Err(IcpError::invalid(
+                "output_voxel_size",
+                v,
+                "must be finite and > 0 (or None)",
+            ));
         }
         if self.neighbours == 0 {
             return Err(IcpError::invalid("neighbours", 0, "must be at least 1"));

@@ -11,7 +11,7 @@ use crate::kdtree::{KdTree, MAX_K, Neighbours};
 
 /// Eigenvalue gap (relative to the trace) under which the smallest eigenvector is called
 /// undefined: the neighbourhood is isotropic or a line, and its normal is noise. The
-/// trigonometric eigenvalues lose precision to ~sqrt(f64::EPSILON) = 1.5e-8 near a repeated
+/// trigonometric eigenvalues lose precision to ~`sqrt(f64::EPSILON)` = 1.5e-8 near a repeated
 /// root, so the gap must be well above that.
 const MIN_GAP: f64 = 1e-6;
 
@@ -157,7 +157,7 @@ fn pca(points: &[Point3<f64>], neighbours: &[(f64, u32)]) -> (Vector3<f64>, Poin
 /// eigenvector as the largest cross product of two rows of `C - λ I`.
 pub(crate) fn smallest_eigenvector(c: &Matrix3<f64>) -> Option<Vector3<f64>> {
     let trace = c.trace();
-    if !(trace > 0.0) || !trace.is_finite() {
+    if trace.is_nan() || trace <= 0.0 || !trace.is_finite() {
         return None;
     }
     // Scale to unit trace for a scale-free tolerance.

@@ -217,11 +217,11 @@ fn unreachable(n: usize, edges: &[PoseGraphEdge]) -> Option<usize> {
             } else {
                 continue;
             };
-            if let Some(s) = seen.get_mut(other) {
-                if !*s {
-                    *s = true;
-                    stack.push(other);
-                }
+            if let Some(s) = seen.get_mut(other)
+                && !*s
+            {
+                *s = true;
+                stack.push(other);
             }
         }
     }

@@ -72,7 +72,7 @@ impl PinholeGrid {
     /// the camera and inside the image.
     #[inline]
     pub fn pixel_of(&self, p: &Point3<f64>) -> Option<(usize, usize)> {
-        if !(p.z > 0.0) {
+        if p.z.is_nan() || p.z <= 0.0 {
             return None;
         }
         let u = (self.fx * p.x / p.z + self.cx).round();
@@ -210,7 +210,7 @@ impl PreparedCloud {
                 "an organised cloud cannot be downsampled (use None)",
             ));
         }
-        let expected = grid.width.checked_mul(grid.height).unwrap_or(usize::MAX);
+        let expected = grid.width.saturating_mul(grid.height);
         if cloud.len() != expected {
             return Err(IcpError::GridSize {
                 width: grid.width,

@@ -1,9 +1,9 @@
 //! Trimmed ICP (Chetverikov et al. 2002): the squared-distance threshold that keeps the best
-//! fraction of the correspondences, fixed or estimated by TrICP's overlap criterion.
+//! fraction of the correspondences, fixed or estimated by the overlap criterion of their `TrICP`.
 
 use crate::Trimming;
 
-/// TrICP's λ in the objective `e(ξ) / ξ^(1+λ)`; the paper uses 2 ("λ = 2 gave good results in
+/// `TrICP`'s λ in the objective `e(ξ) / ξ^(1+λ)`; the paper uses 2 ("λ = 2 gave good results in
 /// all our tests").
 const TRICP_LAMBDA: f64 = 2.0;
 

@@ -5,6 +5,8 @@
 //! The reference poses are good to about 0.1° (see `$SL_DATA/README.md`), so the bounds below
 //! cannot be much tighter than that.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)] // tests: helpers fail loudly
+
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_icp::{
     IcpConfig, MergeConfig, Metric, NormalSource, PoseError, PrepareConfig, PreparedCloud,

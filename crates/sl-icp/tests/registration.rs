@@ -2,6 +2,8 @@
 //! association, trimming, robust kernels, the information matrix, failures, and the law that a
 //! rigid motion of both clouds moves the answer with them.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)] // tests: helpers fail loudly
+
 use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Matrix3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;

@@ -1,6 +1,8 @@
 //! The turntable merge on a virtual rig: 36 views at 10° of a known object, initial poses from
 //! a slightly wrong axis, merged and compared with the true poses and the true surface.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)] // tests: helpers fail loudly
+
 use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 use sl_icp::{
     IcpError, MergeConfig, PointCloud, PoseError, TurntableAxis, align_views, merge_aligned,

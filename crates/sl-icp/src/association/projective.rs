@@ -1,4 +1,4 @@
-//! Projective data association for organised targets (as KinectFusion and the seed's scanner):
+//! Projective data association for organised targets (as `KinectFusion` and the seed's scanner):
 //! project the source point into the target camera and look only at the pixels around where
 //! it lands.
 

@@ -17,7 +17,7 @@ pub(crate) fn solve6(h: &Matrix6<f64>, g: &Vector6<f64>) -> Option<Vector6<f64>>
     let eig = SymmetricEigen::new(*h);
     let max = eig.eigenvalues.max();
     let min = eig.eigenvalues.min();
-    if !(max > 0.0) || min <= max * SINGULAR_RATIO {
+    if max.is_nan() || max <= 0.0 || min <= max * SINGULAR_RATIO {
         return None;
     }
     let delta = -h.cholesky()?.solve(g);

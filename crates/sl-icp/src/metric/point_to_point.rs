@@ -47,7 +47,7 @@ impl PointToPoint {
     /// The motion that best maps the `a`s onto the `b`s, as a motion of absolute coordinates
     /// (pairs were taken relative to `centre`); `None` if degenerate.
     pub(crate) fn solve(&self, centre: &Point3<f64>) -> Option<Isometry3<f64>> {
-        if !(self.w > 0.0) {
+        if self.w.is_nan() || self.w <= 0.0 {
             return None;
         }
         let ma = self.sa / self.w;
@@ -57,7 +57,8 @@ impl PointToPoint {
         let svd = s.svd(true, true);
         let (u, v_t) = (svd.u?, svd.v_t?);
         let sv = svd.singular_values;
-        if !(sv.max() > 0.0)
+        if sv.max().is_nan()
+            || sv.max() <= 0.0
             || sv
                 .iter()
                 .filter(|&&x| x > sv.max() * COLLINEAR_RATIO)

@@ -7,7 +7,7 @@
 //! object (sphere tracing on the exact distance, to 1e-7 mm), drops grazing hits (beyond 75°
 //! from the surface normal, as a scanner would), and adds seeded Gaussian noise along the
 //! view ray.
-#![allow(dead_code)]
+#![allow(dead_code, clippy::unwrap_used, clippy::expect_used)] // test support: fail loudly
 
 use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 use rand::SeedableRng;
@@ -34,7 +34,7 @@ const MIN_COS: f64 = 0.2588;
 
 /// Signed distance (mm) to the object in its own frame: exact outside, a lower bound of the
 /// distance inside (so `|sdf|` never overstates how far a point is from the surface).
-pub fn sdf(p: &Point3<f64>) -> f64 {
+pub(crate) fn sdf(p: &Point3<f64>) -> f64 {
     let q = p - Point3::from(BOX_CENTRE);
     let d = Vector3::new(
         q.x.abs() - BOX_HALF[0],
@@ -60,22 +60,22 @@ fn gradient(p: &Point3<f64>) -> Vector3<f64> {
 
 /// The virtual rig.
 #[derive(Clone, Copy)]
-pub struct Scene {
+pub(crate) struct Scene {
     /// The true turntable axis (camera frame).
-    pub axis: TurntableAxis,
+    pub(crate) axis: TurntableAxis,
     /// `T_cam_object` at platter angle 0.
-    pub object_at_zero: Isometry3<f64>,
+    pub(crate) object_at_zero: Isometry3<f64>,
     /// Image size and focal length (pixels); principal point at the centre.
-    pub width: usize,
-    pub height: usize,
-    pub focal: f64,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) focal: f64,
     /// Noise along the view ray, standard deviation in mm.
-    pub noise_mm: f64,
+    pub(crate) noise_mm: f64,
 }
 
 impl Scene {
     /// The rig at a resolution giving about `points_per_view` points per view.
-    pub fn new(points_per_view: usize, noise_mm: f64) -> Self {
+    pub(crate) fn new(points_per_view: usize, noise_mm: f64) -> Self {
         // The axis: -y tilted 25° toward the camera (top of the platter visible).
         let tilt = Rotation3::from_axis_angle(&Vector3::x_axis(), -25f64.to_radians());
         let direction = tilt * -Vector3::y();
@@ -103,17 +103,17 @@ impl Scene {
     }
 
     /// `T_cam_object` at platter angle `deg`.
-    pub fn object_pose(&self, deg: f64) -> Isometry3<f64> {
+    pub(crate) fn object_pose(&self, deg: f64) -> Isometry3<f64> {
         self.axis.motion(deg) * self.object_at_zero
     }
 
     /// The true `T_world_view` of the view at `deg` (world = the view at `first_deg`).
-    pub fn true_pose(&self, first_deg: f64, deg: f64) -> Isometry3<f64> {
+    pub(crate) fn true_pose(&self, first_deg: f64, deg: f64) -> Isometry3<f64> {
         self.axis.motion(first_deg) * self.axis.motion(deg).inverse()
     }
 
     /// One view at platter angle `deg`, noise seeded by `seed`.
-    pub fn view(&self, deg: f64, seed: u64) -> PointCloud {
+    pub(crate) fn view(&self, deg: f64, seed: u64) -> PointCloud {
         let t_obj_cam = self.object_pose(deg).inverse();
         let origin = t_obj_cam * Point3::origin();
         // Principal point so that the object's bounding centre (at angle 0) is mid-image.
@@ -148,7 +148,7 @@ impl Scene {
 
     /// RMS of the distances of `points` (world = camera frame of the view at `first_deg`) to
     /// the true surface, and the largest.
-    pub fn surface_error(&self, first_deg: f64, points: &[Point3<f64>]) -> (f64, f64) {
+    pub(crate) fn surface_error(&self, first_deg: f64, points: &[Point3<f64>]) -> (f64, f64) {
         let t_obj_world = self.object_pose(first_deg).inverse();
         let d: Vec<f64> = points
             .par_iter()
