@@ -18,10 +18,6 @@ const LEAF: usize = 12;
 /// Largest `k` a query supports (normals use 10 to 30 neighbours).
 pub(crate) const MAX_K: usize = 64;
 
-/// Depth bound of the explicit search stack: a median-split tree over `u32::MAX` points with
-/// 12-point leaves is at most 29 levels deep; 64 leaves ample room.
-const STACK: usize = 64;
-
 #[derive(Debug, Clone, Copy)]
 enum Node {
     /// Points `start..end` of the reordered arrays.
@@ -137,8 +133,8 @@ impl KdTree {
         if self.nodes.is_empty() {
             return None;
         }
-        let q = [q.x, q.y, q.z];
         let mut best = (u32::MAX, max_d2);
+        let q = [q.x, q.y, q.z];
         search(
             &self.nodes,
             q,
@@ -164,51 +160,48 @@ impl KdTree {
 /// Depth-first branch-and-bound over the tree: `leaf(start, end, worst)` scans a leaf and
 /// returns the new pruning radius (squared). Cells are pruned on the exact squared distance
 /// from `q` to their box as far as the splits above them bound it (per-axis offsets, as in
-/// Arya & Mount's incremental distance computation).
+/// Arya & Mount's incremental distance computation). Recursive: the depth is that of the
+/// tree, at most 29 for `u32::MAX` points in 12-point leaves, and the call stack costs
+/// nothing to set up, unlike an explicit stack array.
 #[inline]
 fn search(nodes: &[Node], q: [f64; 3], mut leaf: impl FnMut(usize, usize, f64) -> f64, init: f64) {
     let mut worst = init;
-    // (node, squared distance bound, per-axis offsets)
-    let mut stack = [(0u32, 0.0f64, [0.0f64; 3]); STACK];
-    let mut top = 1usize;
-    while top > 0 {
-        top -= 1;
-        let Some(&(node, rd, off)) = stack.get(top) else {
-            break;
-        };
-        if rd >= worst {
-            continue;
+    let mut off = [0.0f64; 3];
+    descend(nodes, 0, &q, 0.0, &mut off, &mut leaf, &mut worst);
+}
+
+fn descend<F: FnMut(usize, usize, f64) -> f64>(
+    nodes: &[Node],
+    node: usize,
+    q: &[f64; 3],
+    rd: f64,
+    off: &mut [f64; 3],
+    leaf: &mut F,
+    worst: &mut f64,
+) {
+    match nodes.get(node) {
+        Some(&Node::Leaf { start, end }) => {
+            *worst = leaf(start as usize, end as usize, *worst);
         }
-        let mut node = node as usize;
-        loop {
-            match nodes.get(node) {
-                Some(&Node::Leaf { start, end }) => {
-                    worst = leaf(start as usize, end as usize, worst);
-                    break;
-                }
-                Some(&Node::Split { dim, value, right }) => {
-                    let d = (dim as usize).min(2);
-                    let diff = q[d] - value;
-                    let (near, far) = if diff < 0.0 {
-                        (node + 1, right as usize)
-                    } else {
-                        (right as usize, node + 1)
-                    };
-                    let far_rd = rd - off[d] * off[d] + diff * diff;
-                    if far_rd < worst {
-                        let mut far_off = off;
-                        far_off[d] = diff.abs();
-                        if let Some(slot) = stack.get_mut(top) {
-                            *slot = (far as u32, far_rd, far_off);
-                            top += 1;
-                        }
-                    }
-                    // The near side keeps rd and off unchanged.
-                    node = near;
-                }
-                None => break,
+        Some(&Node::Split { dim, value, right }) => {
+            let d = (dim as usize).min(2);
+            let diff = q[d] - value;
+            let (near, far) = if diff < 0.0 {
+                (node + 1, right as usize)
+            } else {
+                (right as usize, node + 1)
+            };
+            // The near side keeps rd and the offsets.
+            descend(nodes, near, q, rd, off, leaf, worst);
+            let old = off[d];
+            let far_rd = rd - old * old + diff * diff;
+            if far_rd < *worst {
+                off[d] = diff.abs();
+                descend(nodes, far, q, far_rd, off, leaf, worst);
+                off[d] = old;
             }
         }
+        None => {}
     }
 }
 
