@@ -11,8 +11,10 @@
 mod common;
 mod decode;
 mod info;
+mod merge;
 mod patterns;
 mod reconstruct;
+mod register;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -37,6 +39,10 @@ enum Command {
     Simulate(simulate::Args),
     /// Decode a capture set and triangulate it: PLY, depth maps, preview, report.
     Reconstruct(reconstruct::Args),
+    /// Register one cloud onto another (ICP): moved cloud, transform, preview, report.
+    Register(register::Args),
+    /// Register and merge the views of a turntable scan: merged cloud, poses, preview, report.
+    Merge(merge::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -47,6 +53,8 @@ fn main() -> std::process::ExitCode {
         Command::Decode(args) => decode::run(&args),
         Command::Simulate(args) => simulate::run(&args),
         Command::Reconstruct(args) => reconstruct::run(&args),
+        Command::Register(args) => register::run(&args),
+        Command::Merge(args) => merge::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

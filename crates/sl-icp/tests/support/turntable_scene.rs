@@ -89,8 +89,8 @@ impl Scene {
             nalgebra::Translation3::new(0.0, 0.0, 400.0),
             nalgebra::UnitQuaternion::from_rotation_matrix(&r),
         );
-        // About 36 % of a square image around the object is hit: size the image for the count.
-        let side = ((points_per_view as f64 / 0.36).sqrt()).ceil() as usize;
+        // About 16 % of a square image around the object is hit: size the image for the count.
+        let side = ((points_per_view as f64 / 0.16).sqrt()).ceil() as usize;
         Self {
             axis,
             object_at_zero,

@@ -1,0 +1,241 @@
+//! `slscan merge VIEW... --out merged.ply`: register the views of a turntable scan with one
+//! another (initial poses from the turntable axis and angles when known), spread the drift
+//! with a pose graph, merge, downsample and estimate normals; writes the merged cloud, the
+//! view poses, a preview and `report.json`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use nalgebra::{Isometry3, Point3, Vector3};
+use sl_camera::{Calibration, TurntableAxis};
+use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
+use sl_icp::{MergeConfig, align_views, merge_aligned, turntable_poses};
+
+use crate::common::{Report, ensure_out_dir, progress, write_atomically};
+use crate::register::{matrix_rows, read_scaled, write_preview};
+
+/// Arguments of `slscan merge`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// The views, in turntable order: PLY files, or folders holding `cloud.ply` (as written by
+    /// `slscan reconstruct`).
+    #[arg(required = true)]
+    pub(crate) views: Vec<PathBuf>,
+    /// The merged cloud (`*.ply`; `report.json`, `poses.json` and `preview.png` go beside it),
+    /// or an output folder (the cloud is then `merged.ply` in it).
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    /// Calibration file whose turntable axis gives the initial poses.
+    #[arg(long)]
+    pub(crate) calib: Option<PathBuf>,
+    /// Turntable axis direction in the camera frame, "dx,dy,dz" (overrides the calibration's).
+    #[arg(long)]
+    pub(crate) axis: Option<String>,
+    /// A point of the turntable axis in the camera frame, "x,y,z" in mm (with --axis).
+    #[arg(long)]
+    pub(crate) axis_point: Option<String>,
+    /// Motor angle of each view in degrees, "a0,a1,..." (one per view).
+    #[arg(long)]
+    pub(crate) angles: Option<String>,
+    /// Motor step between consecutive views in degrees (view i at i * step), instead of
+    /// --angles.
+    #[arg(long)]
+    pub(crate) step: Option<f64>,
+    /// Voxel size the views are downsampled to for registration (mm).
+    #[arg(long, default_value_t = 1.0)]
+    pub(crate) registration_voxel: f64,
+    /// Voxel size of the merged cloud (mm; 0 keeps every point).
+    #[arg(long, default_value_t = 0.5)]
+    pub(crate) voxel: f64,
+    /// Average overlapping points along the normals (moving least squares of degree 2).
+    #[arg(long)]
+    pub(crate) average: bool,
+    /// Do not register the first view onto the last (for a scan that is not a full turn).
+    #[arg(long)]
+    pub(crate) no_loop: bool,
+    /// Multiply coordinates by this when reading (1000 for clouds in metres).
+    #[arg(long, default_value_t = 1.0)]
+    pub(crate) scale: f64,
+}
+
+fn triple(arg: &str, what: &str) -> anyhow::Result<Vector3<f64>> {
+    let v: Vec<f64> = arg
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("{what} \"{arg}\": expected three comma-separated numbers"))?;
+    match v.as_slice() {
+        [x, y, z] => Ok(Vector3::new(*x, *y, *z)),
+        _ => anyhow::bail!(
+            "{what} \"{arg}\": expected three numbers, found {}",
+            v.len()
+        ),
+    }
+}
+
+fn view_file(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.join("cloud.ply")
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// The initial poses `T_world_view`: from the turntable when an axis is known, else identity
+/// (views already in one frame).
+fn initial_poses(args: &Args, n: usize) -> anyhow::Result<(Vec<Isometry3<f64>>, &'static str)> {
+    let mut axis: Option<TurntableAxis> = match &args.calib {
+        Some(path) => {
+            let calib = Calibration::load(path)?;
+            Some(calib.turntable.with_context(|| {
+                format!("{}: the calibration has no turntable axis", path.display())
+            })?)
+        }
+        None => None,
+    };
+    if let Some(d) = &args.axis {
+        let point = args
+            .axis_point
+            .as_deref()
+            .context("--axis needs --axis-point")?;
+        axis = Some(TurntableAxis::new(
+            triple(d, "--axis")?,
+            Point3::from(triple(point, "--axis-point")?),
+        )?);
+    }
+    let angles: Option<Vec<f64>> = match (&args.angles, args.step) {
+        (Some(_), Some(_)) => anyhow::bail!("give --angles or --step, not both"),
+        (Some(list), None) => Some(
+            list.split(',')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .with_context(|| {
+                    format!("--angles \"{list}\": expected comma-separated degrees")
+                })?,
+        ),
+        (None, Some(step)) => Some((0..n).map(|i| i as f64 * step).collect()),
+        (None, None) => None,
+    };
+    match (axis, angles) {
+        (Some(axis), Some(angles)) => {
+            if angles.len() != n {
+                anyhow::bail!("--angles gives {} angles for {n} views", angles.len());
+            }
+            Ok((turntable_poses(&axis, &angles)?, "turntable"))
+        }
+        (Some(_), None) => {
+            anyhow::bail!("a turntable axis needs the view angles (--angles or --step)")
+        }
+        (None, Some(_)) => anyhow::bail!("view angles need a turntable axis (--calib or --axis)"),
+        (None, None) => Ok((vec![Isometry3::identity(); n], "identity")),
+    }
+}
+
+/// Runs `slscan merge`.
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    let mut report = Report::new("merge");
+    let is_ply = args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    let (dir, ply) = if is_ply {
+        let dir = args
+            .out
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        (ensure_out_dir(dir)?, args.out.clone())
+    } else {
+        let dir = ensure_out_dir(&args.out)?;
+        let ply = dir.join("merged.ply");
+        (dir, ply)
+    };
+    let n = args.views.len();
+    let (initial, source_of_poses) = initial_poses(args, n)?;
+    let config = MergeConfig {
+        registration_voxel_size: args.registration_voxel,
+        output_voxel_size: (args.voxel > 0.0).then_some(args.voxel),
+        average_overlaps: args.average,
+        loop_closure: !args.no_loop,
+        ..MergeConfig::default()
+    };
+    let bar = progress(4, "merge");
+    let views: Vec<PointCloud> = report.stage("read", || {
+        args.views
+            .iter()
+            .map(|v| read_scaled(&view_file(v), args.scale))
+            .collect::<anyhow::Result<_>>()
+    })?;
+    bar.inc(1);
+    let alignment = report.stage("register views", || align_views(&views, &initial, &config))?;
+    bar.inc(1);
+    let merged = report.stage("merge", || merge_aligned(&views, &alignment.poses, &config))?;
+    bar.inc(1);
+    report.stage("write", || -> anyhow::Result<()> {
+        write_ply(&ply, &merged, PlyFormat::default())?;
+        let poses = serde_json::json!({
+            "world": "camera frame of view 0",
+            "units": "mm",
+            "initial_poses_from": source_of_poses,
+            "views": args.views.iter().zip(&alignment.poses).map(|(v, p)| serde_json::json!({
+                "view": v.display().to_string(),
+                "T_world_view": matrix_rows(p),
+            })).collect::<Vec<_>>(),
+        });
+        write_atomically(
+            &dir.join("poses.json"),
+            serde_json::to_string_pretty(&poses)?.as_bytes(),
+        )
+    })?;
+    report.stage("preview", || {
+        write_preview(&dir, &merged, PreviewColoring::Grey)
+    })?;
+    bar.finish_and_clear();
+
+    let pairs: Vec<serde_json::Value> = alignment
+        .pairs
+        .iter()
+        .map(|p| {
+            serde_json::json!({
+                "target": p.target,
+                "source": p.source,
+                "used": p.used,
+                "rmse_mm": p.registration.as_ref().map(|r| r.rmse),
+                "fitness": p.registration.as_ref().map(|r| r.fitness),
+                "iterations": p.registration.as_ref().map(|r| r.iterations),
+                "failure": p.failure,
+            })
+        })
+        .collect();
+    let used = alignment.pairs.iter().filter(|p| p.used).count();
+    let moved_deg: f64 = initial
+        .iter()
+        .zip(&alignment.poses)
+        .map(|(a, b)| a.rotation.angle_to(&b.rotation).to_degrees())
+        .fold(0.0, f64::max);
+    report.figure("views", n);
+    report.figure(
+        "input_points",
+        views.iter().map(PointCloud::len).sum::<usize>(),
+    );
+    report.figure("merged_points", merged.len());
+    report.figure("initial_poses_from", source_of_poses);
+    report.figure("pairs", serde_json::Value::Array(pairs));
+    report.figure("pairs_used", used);
+    report.figure("pose_graph_initial_cost", alignment.pose_graph.initial_cost);
+    report.figure("pose_graph_final_cost", alignment.pose_graph.final_cost);
+    report.figure("pose_graph_iterations", alignment.pose_graph.iterations);
+    report.figure("largest_pose_correction_deg", moved_deg);
+    let path = report.write(&dir)?;
+    println!(
+        "{}: {} views ({} pairs used of {}), {} points; largest pose correction {:.3} deg",
+        ply.display(),
+        n,
+        used,
+        alignment.pairs.len(),
+        merged.len(),
+        moved_deg
+    );
+    println!("report: {}", path.display());
+    Ok(())
+}

@@ -1,0 +1,278 @@
+//! `slscan register SOURCE.ply TARGET.ply --out DIR`: ICP of one cloud onto another; writes
+//! the moved source, the transform, a preview and `report.json`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use nalgebra::{Isometry3, Matrix4};
+use sl_cloud::{
+    MergePolicy, PlyFormat, PointCloud, PreviewColoring, PreviewConfig, read_ply, render_preview,
+    write_ply,
+};
+use sl_icp::{
+    IcpConfig, Metric, NormalSource, PrepareConfig, PreparedCloud, RobustKernel, Trimming, register,
+};
+
+use crate::common::{Report, ensure_out_dir, write_atomically};
+
+/// Error metric on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum MetricArg {
+    /// Closed-form point-to-point (SVD).
+    PointToPoint,
+    /// Linearised point-to-plane (needs target normals; estimated when missing).
+    PointToPlane,
+    /// Generalized ICP, plane-to-plane (normals on both sides).
+    Generalized,
+}
+
+impl From<MetricArg> for Metric {
+    fn from(m: MetricArg) -> Self {
+        match m {
+            MetricArg::PointToPoint => Metric::PointToPoint,
+            MetricArg::PointToPlane => Metric::PointToPlane,
+            MetricArg::Generalized => Metric::Generalized,
+        }
+    }
+}
+
+/// Arguments of `slscan register`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// The cloud to move (PLY).
+    pub(crate) source: PathBuf,
+    /// The cloud it is registered onto (PLY).
+    pub(crate) target: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    /// Error metric.
+    #[arg(long, value_enum, default_value_t = MetricArg::PointToPlane)]
+    pub(crate) metric: MetricArg,
+    /// Voxel size for downsampling both clouds first (mm; 0 keeps every point).
+    #[arg(long, default_value_t = 1.0)]
+    pub(crate) voxel: f64,
+    /// Correspondences farther apart than this are ignored (mm).
+    #[arg(long, default_value_t = 5.0)]
+    pub(crate) max_distance: f64,
+    /// Maximum number of iterations.
+    #[arg(long, default_value_t = 50)]
+    pub(crate) iterations: usize,
+    /// Huber kernel threshold (mm); off by default.
+    #[arg(long)]
+    pub(crate) huber: Option<f64>,
+    /// Trimmed ICP: expected overlap of the source with the target, in (0, 1]; "auto" for the
+    /// trimmed-ICP estimate of the overlap. Off by default.
+    #[arg(long)]
+    pub(crate) trim: Option<String>,
+    /// Initial `T_target_source`: a JSON file with a 4x4 row-major matrix under
+    /// `"T_target_source"` (the `transform.json` this command writes). Default: identity.
+    #[arg(long)]
+    pub(crate) init: Option<PathBuf>,
+    /// Multiply the coordinates of both clouds by this when reading (1000 for clouds in
+    /// metres, such as the Stanford scans: the workspace works in mm).
+    #[arg(long, default_value_t = 1.0)]
+    pub(crate) scale: f64,
+}
+
+/// Reads a PLY and scales its positions (units to mm).
+pub(crate) fn read_scaled(path: &Path, scale: f64) -> anyhow::Result<PointCloud> {
+    if !(scale.is_finite() && scale > 0.0) {
+        anyhow::bail!("--scale {scale}: must be finite and > 0");
+    }
+    let mut cloud = read_ply(path)?;
+    if scale != 1.0 {
+        for p in cloud.positions_mut() {
+            p.coords *= scale;
+        }
+    }
+    if cloud.is_empty() {
+        anyhow::bail!("{}: the cloud has no point", path.display());
+    }
+    Ok(cloud)
+}
+
+/// A pose as a row-major 4x4 matrix.
+pub(crate) fn matrix_rows(pose: &Isometry3<f64>) -> Vec<Vec<f64>> {
+    let m = pose.to_homogeneous();
+    (0..4)
+        .map(|r| (0..4).map(|c| m[(r, c)]).collect())
+        .collect()
+}
+
+fn read_init(path: &Path) -> anyhow::Result<Isometry3<f64>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let json: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    let rows = json
+        .get("T_target_source")
+        .and_then(|v| v.as_array())
+        .with_context(|| format!("{}: no \"T_target_source\" array", path.display()))?;
+    let mut m = Matrix4::zeros();
+    for (r, row) in rows.iter().enumerate().take(4) {
+        for (c, v) in row.as_array().into_iter().flatten().enumerate().take(4) {
+            m[(r, c)] = v.as_f64().with_context(|| {
+                format!(
+                    "{}: T_target_source[{r}][{c}] is not a number",
+                    path.display()
+                )
+            })?;
+        }
+    }
+    let rot = nalgebra::Rotation3::from_matrix(&m.fixed_view::<3, 3>(0, 0).into_owned());
+    let t = nalgebra::Translation3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]);
+    let pose = Isometry3::from_parts(t, rot.into());
+    if (pose.to_homogeneous() - m).abs().max() > 1e-6 {
+        anyhow::bail!(
+            "{}: T_target_source is not a rigid motion (rotation part not orthonormal, or last row not 0 0 0 1)",
+            path.display()
+        );
+    }
+    Ok(pose)
+}
+
+fn trimming(arg: &Option<String>) -> anyhow::Result<Trimming> {
+    Ok(match arg.as_deref() {
+        None => Trimming::None,
+        Some("auto") => Trimming::Auto { min_overlap: 0.3 },
+        Some(v) => Trimming::Fixed {
+            overlap: v
+                .parse()
+                .with_context(|| format!("--trim {v}: expected a number in (0, 1] or \"auto\""))?,
+        },
+    })
+}
+
+/// Renders `cloud` (grey shading from its normals, or its colours) into `out/preview.png`.
+pub(crate) fn write_preview(
+    out: &Path,
+    cloud: &PointCloud,
+    coloring: PreviewColoring<'_>,
+) -> anyhow::Result<()> {
+    let preview = render_preview(cloud, coloring, &PreviewConfig::default())?;
+    let path = out.join("preview.png");
+    let tmp = out.join(".preview.partial.png");
+    sl_codec::write_png_rgb8(
+        &tmp,
+        preview.width as usize,
+        preview.height as usize,
+        &preview.rgb,
+    )?;
+    std::fs::rename(&tmp, &path).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Runs `slscan register`.
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    let mut report = Report::new("register");
+    let out = ensure_out_dir(&args.out)?;
+    let metric = Metric::from(args.metric);
+    let config = IcpConfig {
+        metric,
+        max_correspondence_distance: args.max_distance,
+        max_iterations: args.iterations,
+        kernel: args
+            .huber
+            .map_or(RobustKernel::L2, |k| RobustKernel::Huber { k }),
+        trimming: trimming(&args.trim)?,
+        ..IcpConfig::default()
+    };
+    config.validate()?;
+    let initial = match &args.init {
+        Some(p) => read_init(p)?,
+        None => Isometry3::identity(),
+    };
+    let (source, target) = report.stage("read", || -> anyhow::Result<_> {
+        Ok((
+            read_scaled(&args.source, args.scale)?,
+            read_scaled(&args.target, args.scale)?,
+        ))
+    })?;
+    let voxel = (args.voxel > 0.0).then_some(args.voxel);
+    let needs = |side_needs: bool| {
+        if side_needs {
+            NormalSource::default()
+        } else {
+            NormalSource::None
+        }
+    };
+    let (s, t) = report.stage("prepare", || -> anyhow::Result<_> {
+        let s = PreparedCloud::new(
+            &source,
+            &PrepareConfig {
+                voxel_size: voxel,
+                normals: needs(metric == Metric::Generalized),
+            },
+        )?;
+        let t = PreparedCloud::new(
+            &target,
+            &PrepareConfig {
+                voxel_size: voxel,
+                normals: needs(metric != Metric::PointToPoint),
+            },
+        )?;
+        t.build_index();
+        Ok((s, t))
+    })?;
+    let r = report.stage("register", || register(&s, &t, &initial, &config))?;
+
+    let moved = source.transformed(&r.pose);
+    let ply = out.join("registered.ply");
+    report.stage("write", || -> anyhow::Result<()> {
+        write_ply(&ply, &moved, PlyFormat::default())?;
+        let transform = serde_json::json!({
+            "T_target_source": matrix_rows(&r.pose),
+            "units": "mm",
+            "rmse_mm": r.rmse,
+            "fitness": r.fitness,
+            "inliers": r.inliers,
+            "iterations": r.iterations,
+            "converged": r.converged,
+            "information": (0..6).map(|i| (0..6).map(|j| r.information[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
+        });
+        write_atomically(
+            &out.join("transform.json"),
+            serde_json::to_string_pretty(&transform)?.as_bytes(),
+        )
+    })?;
+    report.stage("preview", || -> anyhow::Result<()> {
+        // Target in blue-grey, the moved source in orange: where they interleave, they agree.
+        let paint = |c: &PointCloud, rgb: [u8; 3]| -> anyhow::Result<PointCloud> {
+            let bare = PointCloud::from_positions(c.positions().to_vec());
+            Ok(bare.with_colors(vec![rgb; c.len()])?)
+        };
+        let mut both = paint(&target, [120, 150, 200])?;
+        both.extend(&paint(&moved, [240, 150, 40])?, MergePolicy::DropMismatched)?;
+        write_preview(&out, &both, PreviewColoring::Colors)
+    })?;
+
+    let rotation_deg = r.pose.rotation.angle().to_degrees();
+    report.figure("metric", format!("{:?}", args.metric));
+    report.figure("source_points", source.len());
+    report.figure("target_points", target.len());
+    report.figure("registered_points", s.len());
+    report.figure("rmse_mm", r.rmse);
+    report.figure("fitness", r.fitness);
+    report.figure("iterations", r.iterations);
+    report.figure("converged", r.converged);
+    report.figure("rotation_deg", rotation_deg);
+    report.figure("translation_mm", r.pose.translation.vector.norm());
+    report.figure("T_target_source", serde_json::json!(matrix_rows(&r.pose)));
+    let path = report.write(&out)?;
+    println!(
+        "{}: {} iterations ({}), rotation {:.3} deg, translation {:.3} mm, RMSE {:.4} mm, fitness {:.3}",
+        ply.display(),
+        r.iterations,
+        if r.converged {
+            "converged"
+        } else {
+            "NOT converged"
+        },
+        rotation_deg,
+        r.pose.translation.vector.norm(),
+        r.rmse,
+        r.fitness
+    );
+    println!("report: {}", path.display());
+    Ok(())
+}
