@@ -33,9 +33,13 @@ struct Case {
     from_raw: bool,
 }
 
-/// Neighbours for the normals: 20 as Open3D's defaults, 10 for generalized ICP as small_gicp.
+/// Neighbours for the normals: 20 as Open3D's defaults, 10 for generalized ICP as `small_gicp`.
 fn neighbours(metric: Metric) -> usize {
-    if metric == Metric::Generalized { 10 } else { 20 }
+    if metric == Metric::Generalized {
+        10
+    } else {
+        20
+    }
 }
 
 fn main() -> Result<(), IcpError> {
@@ -126,7 +130,17 @@ fn main() -> Result<(), IcpError> {
     ];
     println!(
         "{:<34} {:>8} {:>8} {:>8} {:>9} {:>6} {:>8} {:>8} {:>8} {:>7} {:>5}",
-        "case", "prep med", "icp med", "icp min", "total med", "iters", "rot deg", "trans mm", "rms mm", "fitness", "conv"
+        "case",
+        "prep med",
+        "icp med",
+        "icp min",
+        "total med",
+        "iters",
+        "rot deg",
+        "trans mm",
+        "rms mm",
+        "fitness",
+        "conv"
     );
     for case in &cases {
         // Normals only where the metric needs them: the target's for point-to-plane, both
