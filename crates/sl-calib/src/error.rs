@@ -45,6 +45,56 @@ pub enum CalibError {
         /// What is wrong with it.
         reason: String,
     },
+    /// Too few decoded pixels around a board corner to map it into the projector.
+    #[error(
+        "{frame}: corner {corner}: {decoded} decoded pixels around it, {needed} needed (is the projector lighting the whole board? is the decoding threshold too strict?)"
+    )]
+    SparseCorner {
+        /// The view (frame) name.
+        frame: String,
+        /// Index of the corner in board order.
+        corner: usize,
+        /// Decoded pixels found in its window.
+        decoded: usize,
+        /// Decoded pixels required.
+        needed: usize,
+    },
+    /// One named view of a projector–camera calibration is malformed.
+    #[error("{frame}: {reason}")]
+    Frame {
+        /// The view (frame) name.
+        frame: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// Too few turntable views (motor readings) with a board.
+    #[error(
+        "turntable: {found} views with a board, at least {needed} needed (capture the board on the platter at more motor angles)"
+    )]
+    TooFewAngles {
+        /// Views given.
+        found: usize,
+        /// Views required.
+        needed: usize,
+    },
+    /// The motor readings of the turntable views span too small an angle.
+    #[error(
+        "turntable: the motor angles span {span_deg:.2} degrees, at least {needed_deg} needed (turn the platter further between the first and last view)"
+    )]
+    AngleSpan {
+        /// Span of the readings (degrees).
+        span_deg: f64,
+        /// Span required (degrees).
+        needed_deg: f64,
+    },
+    /// The board was not found in the image of a turntable view.
+    #[error("turntable view at motor angle {motor_angle_deg} degrees: {source}")]
+    BoardNotFoundAtAngle {
+        /// The motor reading of the view.
+        motor_angle_deg: f64,
+        /// The detector's error, which names the image.
+        source: Box<CalibError>,
+    },
     /// An error of the camera model (e.g. an estimate outside the model's valid range).
     #[error(transparent)]
     Camera(#[from] CameraError),

@@ -33,11 +33,16 @@ mod error;
 mod grey;
 mod homography;
 mod saddle;
+mod turntable;
 mod zhang;
 
 pub use detect::{BoardCorners, BoardSize, DetectorConfig, detect_checkerboard};
 pub use error::CalibError;
 pub use grey::load_grey;
+pub use turntable::{
+    MIN_TURNTABLE_VIEWS, PoseAtAngle, TurntableCalibration, TurntableConfig, TurntableStdDev,
+    TurntableView, board_pose, calibrate_turntable, fit_turntable_axis,
+};
 pub use zhang::{
     CalibrationView, CameraCalibration, ParameterStdDev, ZhangConfig, calibrate_camera,
 };
