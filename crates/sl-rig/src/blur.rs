@@ -23,9 +23,19 @@ pub(crate) fn gaussian(src: &[f32], width: usize, height: usize, sigma: f64) -> 
         .collect();
     let sum: f32 = kernel.iter().sum();
     kernel.iter_mut().for_each(|k| *k /= sum);
-    let tmp = convolve_rows(src, width, &kernel, radius);
+    separable(src, width, height, &kernel)
+}
+
+/// Convolves a `width × height` row-major image with `kernel` (odd length `2 r + 1`, centred)
+/// along both axes, borders clamped.
+pub(crate) fn separable(src: &[f32], width: usize, height: usize, kernel: &[f32]) -> Vec<f32> {
+    if width == 0 || height == 0 || kernel.is_empty() {
+        return src.to_vec();
+    }
+    let radius = kernel.len() / 2;
+    let tmp = convolve_rows(src, width, kernel, radius);
     let t = transpose(&tmp, width, height);
-    let t = convolve_rows(&t, height, &kernel, radius);
+    let t = convolve_rows(&t, height, kernel, radius);
     transpose(&t, height, width)
 }
 

@@ -4,13 +4,19 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::UNLIT;
-use crate::{GreyImage, Pixels, RigError, ViewGeometry};
+use crate::{GreyImage, Pixels, RigError, ViewGeometry, blur};
 
-/// The light in the scene: the room's ambient light and the projector's response.
+/// The light in the scene: the room's ambient light and the projector's response and optics.
 ///
 /// A surface point of albedo `ρ` lit by projector value `v` (a fraction of full scale) under
 /// an angle `θ` to its normal has radiance
 /// `ρ · (ambient + power · (black_level + (1 − black_level) · v^gamma) · cos θ)`.
+///
+/// Where the projector image has pixels, `v` is not the value of one pixel: each pixel lights
+/// a square (a box of one projector pixel) that the projection lens blurs with a Gaussian of
+/// standard deviation [`projector_blur_px`](Self::projector_blur_px), so the light at the
+/// continuous projector coordinate `(x, y)` is `Σ P(v_ij) K(x − i) K(y − j)` with
+/// `K = box ⊗ Gaussian` (see [`Illumination::pixel_spread`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Illumination {
     /// Ambient light reaching every surface (in units of the projector's full white at normal
@@ -24,18 +30,95 @@ pub struct Illumination {
     /// Light the projector emits for a black pixel, as a fraction of white (a DLP's contrast
     /// ratio of 1000:1 is 0.001).
     pub black_level: f64,
+    /// Standard deviation (projector pixels) of the projection lens's point-spread function,
+    /// a Gaussian applied to the square of every projector pixel. 0 renders ideal hard-edged
+    /// pixels: their stair-stepped fringes, sampled by camera pixels of another pitch, put a
+    /// moiré error of ~0.16 px rms on the decoded phase (docs/triangulation.md), which real
+    /// projectors do not show because their optics do not resolve the pixel grid that sharply.
+    #[serde(default = "default_projector_blur_px")]
+    pub projector_blur_px: f64,
+}
+
+impl Illumination {
+    /// Default of [`Illumination::projector_blur_px`]: a Gaussian of σ = 0.5 px leaves a contrast
+    /// (MTF) of 0.29 at the pixel grid's Nyquist frequency (0.5 cycle/px; 0.18 with the pixel's own
+    /// box), as a projection lens that is sharp but does not resolve the micromirror gaps, and
+    /// damps the grid's 1 cycle/px harmonics of a fringe by 100×.
+    pub const DEFAULT_PROJECTOR_BLUR_PX: f64 = 0.5;
+
+    /// Largest projector blur accepted (px): a wider blur is a badly defocused projector, and
+    /// the kernel (and its cost) grows with it.
+    pub const MAX_PROJECTOR_BLUR_PX: f64 = 8.0;
+
+    /// Light that one projector pixel sends to the point `d` pixels from its centre (along
+    /// one axis), as a fraction of its value: its square (a box one pixel wide) blurred by a
+    /// Gaussian of standard deviation `σ =` [`projector_blur_px`](Self::projector_blur_px),
+    /// `Φ((d + ½)/σ) − Φ((d − ½)/σ)` (`Φ` the normal distribution function); the box itself
+    /// when `σ = 0`. Sums to 1 over any grid of unit spacing.
+    ///
+    /// ```
+    /// let light = sl_rig::Illumination::default();
+    /// let total: f64 = (-5..=5).map(|m| light.pixel_spread(m as f64 + 0.3)).sum();
+    /// assert!((total - 1.0).abs() < 1e-6);
+    /// ```
+    pub fn pixel_spread(&self, d: f64) -> f64 {
+        pixel_spread(d, self.projector_blur_px)
+    }
+}
+
+fn default_projector_blur_px() -> f64 {
+    Illumination::DEFAULT_PROJECTOR_BLUR_PX
+}
+
+/// The kernel is cut where the Gaussian's tail holds under 1e-4 of the light (4σ), well below
+/// one grey level of a 16-bit frame's noise.
+const PSF_TRUNCATE_SIGMAS: f64 = 4.0;
+
+/// Samples per projector pixel of the tabulated light of a one-dimensional pattern (stripes or
+/// fringes), read by linear interpolation: its own 1 cycle/px ripple is then
+/// `sinc²(1 − 1/(16 λ))`, under 1e-5 of the fringe for any period `λ ≥ 2` px.
+const FIELD_SAMPLES_PER_PIXEL: usize = 16;
+
+/// Light that projector pixel `i` sends to the projector coordinate `i + d` (pixels), as a
+/// fraction of its value: a box of one pixel blurred by a Gaussian of standard deviation
+/// `sigma`, `Φ((d + ½)/σ) − Φ((d − ½)/σ)`. Sums to 1 over any grid of unit spacing. `sigma <= 0`
+/// gives the box itself.
+pub(crate) fn pixel_spread(d: f64, sigma: f64) -> f64 {
+    if sigma <= 0.0 {
+        return if (-0.5..0.5).contains(&d) { 1.0 } else { 0.0 };
+    }
+    let z = std::f64::consts::FRAC_1_SQRT_2 / sigma;
+    0.5 * (erfc(-(d + 0.5) * z) - erfc(-(d - 0.5) * z))
+}
+
+/// Complementary error function, with a fractional error below 1.2e-7 everywhere (the
+/// Chebyshev fit of Numerical Recipes' `erfcc`): far below a 16-bit grey level.
+fn erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let poly = -z * z - 1.265_512_23
+        + t * (1.000_023_68
+            + t * (0.374_091_96
+                + t * (0.096_784_18
+                    + t * (-0.186_288_06
+                        + t * (0.278_868_07
+                            + t * (-1.135_203_98
+                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+    let r = t * poly.exp();
+    if x >= 0.0 { r } else { 2.0 - r }
 }
 
 impl Default for Illumination {
-    /// A dim room (10 % ambient), a linear projector with a 1000:1 contrast ratio. Linear
-    /// (`gamma = 1`) because structured-light projectors are normally run that way; set 2.2 to
-    /// test gamma pre-compensation.
+    /// A dim room (10 % ambient), a linear projector with a 1000:1 contrast ratio and a
+    /// [`Self::DEFAULT_PROJECTOR_BLUR_PX`] lens blur. Linear (`gamma = 1`) because structured-light
+    /// projectors are normally run that way; set 2.2 to test gamma pre-compensation.
     fn default() -> Self {
         Self {
             ambient: 0.1,
             projector_power: 1.0,
             gamma: 1.0,
             black_level: 0.001,
+            projector_blur_px: Self::DEFAULT_PROJECTOR_BLUR_PX,
         }
     }
 }
@@ -59,6 +142,16 @@ impl Illumination {
             return Err(RigError::param(
                 "illumination gamma",
                 format!("{} is not positive", self.gamma),
+            ));
+        }
+        if !(0.0..=Self::MAX_PROJECTOR_BLUR_PX).contains(&self.projector_blur_px) {
+            return Err(RigError::param(
+                "illumination projector_blur_px",
+                format!(
+                    "{} is not in [0, {}]",
+                    self.projector_blur_px,
+                    Self::MAX_PROJECTOR_BLUR_PX
+                ),
             ));
         }
         if !(0.0..1.0).contains(&self.black_level) {
@@ -105,11 +198,26 @@ impl ViewGeometry {
                 height: image.height,
             });
         }
+        if light.projector_blur_px > 0.0 {
+            let out: Vec<f32> = match &image.pixels {
+                Pixels::U8(p) => {
+                    let lut = output_lut(light, u8::MAX.into());
+                    p.iter()
+                        .map(|&v| lut.get(usize::from(v)).copied().unwrap_or(0.0))
+                        .collect()
+                }
+                Pixels::U16(p) => {
+                    let lut = output_lut(light, u16::MAX.into());
+                    p.iter()
+                        .map(|&v| lut.get(usize::from(v)).copied().unwrap_or(0.0))
+                        .collect()
+                }
+            };
+            return Ok(self.render_light(&out, light));
+        }
         Ok(match &image.pixels {
             Pixels::U8(p) => {
-                let lut: Vec<f32> = (0..=u8::MAX)
-                    .map(|v| light.projector_output(f64::from(v) / f64::from(u8::MAX)) as f32)
-                    .collect();
+                let lut = output_lut(light, u8::MAX.into());
                 self.lookup(light, |i| {
                     p.get(i)
                         .and_then(|&v| lut.get(usize::from(v)))
@@ -118,9 +226,7 @@ impl ViewGeometry {
                 })
             }
             Pixels::U16(p) => {
-                let lut: Vec<f32> = (0..=u16::MAX)
-                    .map(|v| light.projector_output(f64::from(v) / f64::from(u16::MAX)) as f32)
-                    .collect();
+                let lut = output_lut(light, u16::MAX.into());
                 self.lookup(light, |i| {
                     p.get(i)
                         .and_then(|&v| lut.get(usize::from(v)))
@@ -133,7 +239,10 @@ impl ViewGeometry {
 
     /// The direct image under a pattern given as a function of the projector coordinate
     /// `(x, y)` (pixels, pixel centres at integers) returning a value in `[0, 1]`: the fast
-    /// path for patterns that are cheap to evaluate, with no projector image in memory.
+    /// path for patterns that are cheap to evaluate. With [`ProjectorSampling::Nearest`] the
+    /// pattern is read at projector pixel centres and shown through the lens blur, exactly as
+    /// [`render_image`](Self::render_image) shows an image of those values;
+    /// [`ProjectorSampling::Continuous`] is an ideal projector (no pixels, no blur).
     pub fn render_fn<F>(
         &self,
         pattern: F,
@@ -143,6 +252,15 @@ impl ViewGeometry {
     where
         F: Fn(f64, f64) -> f64 + Sync,
     {
+        if sampling == ProjectorSampling::Nearest && light.projector_blur_px > 0.0 {
+            let pw = self.projector_width.max(1) as usize;
+            let n = pw * self.projector_height as usize;
+            let out: Vec<f32> = (0..n)
+                .into_par_iter()
+                .map(|i| light.projector_output(pattern((i % pw) as f64, (i / pw) as f64)) as f32)
+                .collect();
+            return self.render_light(&out, light);
+        }
         let per_pixel = (self.supersampling * self.supersampling) as usize;
         let ambient = light.ambient as f32;
         let mut out = vec![0.0f32; self.width as usize * self.height as usize];
@@ -177,6 +295,46 @@ impl ViewGeometry {
         out
     }
 
+    /// The direct image when projector pixel `i` emits `out[i]` (units of full white, row-major
+    /// `projector_width × projector_height`), seen through the lens blur: the light reaching
+    /// each sub-sample is read from the blurred light field at its continuous projector
+    /// coordinate.
+    fn render_light(&self, out: &[f32], light: &Illumination) -> Vec<f32> {
+        let field = LightField::new(
+            out,
+            self.projector_width as usize,
+            self.projector_height as usize,
+            light.projector_blur_px,
+        );
+        let per_pixel = (self.supersampling * self.supersampling) as usize;
+        let ambient = light.ambient as f32;
+        let inv = 1.0 / per_pixel as f32;
+        let mut img = vec![0.0f32; self.width as usize * self.height as usize];
+        let row_samples = (self.width as usize * per_pixel).max(1);
+        img.par_chunks_mut(self.width.max(1) as usize)
+            .zip(self.proj_xy.par_chunks(row_samples))
+            .zip(self.lit_weight.par_chunks(row_samples))
+            .zip(self.ambient_weight.par_chunks(row_samples))
+            .for_each(|(((row, xy), lit), amb)| {
+                for (((o, xy), lit), amb) in row
+                    .iter_mut()
+                    .zip(xy.chunks_exact(per_pixel))
+                    .zip(lit.chunks_exact(per_pixel))
+                    .zip(amb.chunks_exact(per_pixel))
+                {
+                    let mut acc = 0.0f32;
+                    for ((&[qx, qy], &l), &a) in xy.iter().zip(lit).zip(amb) {
+                        acc += a * ambient;
+                        if !qx.is_nan() {
+                            acc += l * field.at(qx, qy);
+                        }
+                    }
+                    *o = acc * inv;
+                }
+            });
+        img
+    }
+
     /// Averages `ambient · albedo + value(projector pixel) · albedo · cos` over the sub-samples.
     fn lookup<V>(&self, light: &Illumination, value: V) -> Vec<f32>
     where
@@ -209,5 +367,230 @@ impl ViewGeometry {
                 }
             });
         out
+    }
+}
+
+/// `P(v)` for every value of a `max + 1`-level image.
+fn output_lut(light: &Illumination, max: u32) -> Vec<f32> {
+    (0..=max)
+        .map(|v| light.projector_output(f64::from(v) / f64::from(max)) as f32)
+        .collect()
+}
+
+/// The light leaving the projector lens as a function of the continuous projector coordinate,
+/// tabulated on a grid and read by bilinear interpolation.
+///
+/// Grid sample `(j, k)` sits at projector coordinate `((j + ½)/scale_x − ½, (k + ½)/scale_y − ½)`.
+/// A pattern that varies along one axis only (every Gray code and fringe pattern) is tabulated
+/// exactly at [`FIELD_SAMPLES_PER_PIXEL`] samples per pixel along that axis; any other image at
+/// the pixel centres (one sample per pixel), where the interpolation adds a ripple of
+/// `sinc²(1 − f)` at a spatial frequency `f` (0.1 % of a 30 px fringe).
+struct LightField {
+    data: Vec<f32>,
+    width: usize,
+    height: usize,
+    scale_x: f32,
+    scale_y: f32,
+}
+
+impl LightField {
+    /// The field of a `width × height` projector whose pixel `i` emits `out[i]`, blurred by a
+    /// Gaussian of standard deviation `sigma` (> 0) pixels.
+    fn new(out: &[f32], width: usize, height: usize, sigma: f64) -> Self {
+        let width = width.max(1);
+        let first_row = out.get(..width).unwrap_or(&[]);
+        let u = FIELD_SAMPLES_PER_PIXEL;
+        if out.chunks_exact(width).all(|r| r == first_row) {
+            return Self {
+                data: upsample(first_row, sigma),
+                width: first_row.len() * u,
+                height: 1,
+                scale_x: u as f32,
+                scale_y: 1.0,
+            };
+        }
+        if out
+            .chunks_exact(width)
+            .all(|r| r.iter().all(|&v| r.first() == Some(&v)))
+        {
+            let column: Vec<f32> = out.iter().step_by(width).copied().collect();
+            return Self {
+                data: upsample(&column, sigma),
+                width: 1,
+                height: column.len() * u,
+                scale_x: 1.0,
+                scale_y: u as f32,
+            };
+        }
+        let r = kernel_radius(sigma);
+        let kernel: Vec<f32> = (-r..=r)
+            .map(|m| pixel_spread(m as f64, sigma) as f32)
+            .collect();
+        Self {
+            data: blur::separable(out, width, height, &kernel),
+            width,
+            height,
+            scale_x: 1.0,
+            scale_y: 1.0,
+        }
+    }
+
+    /// The light at projector coordinate `(x, y)`, bilinearly interpolated (clamped to the
+    /// edge samples outside the grid).
+    fn at(&self, x: f32, y: f32) -> f32 {
+        let gx = ((x + 0.5) * self.scale_x - 0.5).clamp(0.0, (self.width - 1) as f32);
+        let gy = ((y + 0.5) * self.scale_y - 0.5).clamp(0.0, (self.height - 1) as f32);
+        let (x0, y0) = (gx as usize, gy as usize);
+        let (fx, fy) = (gx - x0 as f32, gy - y0 as f32);
+        let x1 = (x0 + 1).min(self.width - 1);
+        let y1 = (y0 + 1).min(self.height - 1);
+        let v = |x: usize, y: usize| self.data.get(y * self.width + x).copied().unwrap_or(0.0);
+        let top = v(x0, y0) + fx * (v(x1, y0) - v(x0, y0));
+        if y1 == y0 {
+            return top;
+        }
+        let bottom = v(x0, y1) + fx * (v(x1, y1) - v(x0, y1));
+        top + fy * (bottom - top)
+    }
+}
+
+/// Half-width (pixels) of the blurred pixel's footprint that is kept: half a pixel of box plus
+/// the Gaussian's [`PSF_TRUNCATE_SIGMAS`].
+fn kernel_radius(sigma: f64) -> isize {
+    (PSF_TRUNCATE_SIGMAS * sigma + 0.5).ceil() as isize
+}
+
+/// The light of a one-dimensional projector line (`v[i]` from pixel `i`) blurred by
+/// [`pixel_spread`], at [`FIELD_SAMPLES_PER_PIXEL`] points per pixel; beyond the ends the
+/// edge pixels are repeated.
+fn upsample(v: &[f32], sigma: f64) -> Vec<f32> {
+    let u = FIELD_SAMPLES_PER_PIXEL;
+    let r = kernel_radius(sigma);
+    // weights[p][m + r]: light of pixel i + m at sub-position p of pixel i.
+    let weights: Vec<Vec<f32>> = (0..u)
+        .map(|p| {
+            let offset = (p as f64 + 0.5) / u as f64 - 0.5;
+            (-r..=r)
+                .map(|m| pixel_spread(offset - m as f64, sigma) as f32)
+                .collect()
+        })
+        .collect();
+    let last = v.len() as isize - 1;
+    (0..v.len() * u)
+        .into_par_iter()
+        .map(|j| {
+            let i = (j / u) as isize;
+            weights.get(j % u).map_or(0.0, |w| {
+                w.iter()
+                    .zip(-r..=r)
+                    .map(|(&w, m)| {
+                        let k = (i + m).clamp(0, last.max(0)) as usize;
+                        w * v.get(k).copied().unwrap_or(0.0)
+                    })
+                    .sum()
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_abs_diff_eq;
+
+    #[test]
+    fn pixel_spread_is_a_blurred_box() {
+        for sigma in [0.2, 0.5, 1.0, 2.5] {
+            for shift in [0.0, 0.25, 0.5, 0.9] {
+                let taps: Vec<(f64, f64)> = (-40..=40)
+                    .map(|m| {
+                        let d = f64::from(m) + shift;
+                        (d, pixel_spread(d, sigma))
+                    })
+                    .collect();
+                let sum: f64 = taps.iter().map(|t| t.1).sum();
+                // Φ differences telescope to Φ(+∞) − Φ(−∞) = 1; erfc's fit is good to 1.2e-7
+                // relative, and each tap's two errors do not all cancel.
+                assert_abs_diff_eq!(sum, 1.0, epsilon = 1e-6);
+            }
+            // Variance of box ⊗ Gaussian = 1/12 + σ² (variances add); integrated finely.
+            let h = 1e-3;
+            let (mut m0, mut m2) = (0.0, 0.0);
+            for i in -20_000..=20_000 {
+                let d = f64::from(i) * h;
+                let k = pixel_spread(d, sigma);
+                m0 += k * h;
+                m2 += k * d * d * h;
+            }
+            assert_abs_diff_eq!(m0, 1.0, epsilon = 1e-6);
+            assert_abs_diff_eq!(m2, 1.0 / 12.0 + sigma * sigma, epsilon = 1e-5);
+        }
+        assert_abs_diff_eq!(pixel_spread(0.49, 0.0), 1.0);
+        assert_abs_diff_eq!(pixel_spread(0.5, 0.0), 0.0);
+    }
+
+    #[test]
+    fn blurred_fringes_have_the_closed_form_amplitude_and_no_phase_shift() {
+        // A projector row showing 1/2 + 1/2 cos(2π i / λ): the light field is the sampled
+        // fringe convolved with box ⊗ Gaussian. Its fundamental is the fringe scaled by the
+        // kernel's transfer function sinc(1/λ) · exp(−2π²σ²/λ²), unshifted; the grid's
+        // replicas at 1 ± 1/λ cycle/px are scaled by sinc(1 ∓ 1/λ) · exp(−2π²σ²(1 ∓ 1/λ)²),
+        // under 2.5e-4 each for σ = 0.5 and λ = 30: the bound below is their sum, plus 1e-5
+        // for the linear interpolation of the 16-per-pixel table (sinc²(1 − 1/480)).
+        let (lambda, sigma, width) = (30.0f64, 0.5f64, 600usize);
+        let row: Vec<f32> = (0..width)
+            .map(|i| (0.5 + 0.5 * (std::f64::consts::TAU * i as f64 / lambda).cos()) as f32)
+            .collect();
+        let out: Vec<f32> = (0..4).flat_map(|_| row.iter().copied()).collect();
+        let field = LightField::new(&out, width, 4, sigma);
+        assert_eq!(
+            (field.height, field.width),
+            (1, width * FIELD_SAMPLES_PER_PIXEL)
+        );
+        let sinc = |f: f64| (std::f64::consts::PI * f).sin() / (std::f64::consts::PI * f);
+        let gauss = |f: f64| (-2.0 * (std::f64::consts::PI * sigma * f).powi(2)).exp();
+        let gain = sinc(1.0 / lambda) * gauss(1.0 / lambda);
+        let alias: f64 = [1.0 - 1.0 / lambda, 1.0 + 1.0 / lambda]
+            .iter()
+            .map(|&f| (sinc(f) * gauss(f)).abs() * 0.5)
+            .sum();
+        let mut worst = 0.0f64;
+        for k in 0..4000 {
+            let x = 50.0 + k as f64 * 0.1237;
+            let want = 0.5 + 0.5 * gain * (std::f64::consts::TAU * x / lambda).cos();
+            let got = f64::from(field.at(x as f32, 2.0));
+            worst = worst.max((got - want).abs());
+        }
+        assert!(
+            worst <= alias + 1e-5,
+            "worst {worst}, bound {}",
+            alias + 1e-5
+        );
+        // Hard-edged pixels (the staircase) miss by far more: the same bound fails there.
+        let hard_alias = [1.0 - 1.0 / lambda, 1.0 + 1.0 / lambda]
+            .iter()
+            .map(|&f| sinc(f).abs() * 0.5)
+            .sum::<f64>();
+        assert!(hard_alias > 20.0 * alias);
+    }
+
+    #[test]
+    fn images_that_vary_in_two_dimensions_are_blurred_separably() {
+        // A single lit pixel: its light at offset (dx, dy) is K(dx) K(dy) at the pixel
+        // centres, where the table is exact (bilinear reads grid points unchanged).
+        let (w, h) = (21usize, 15usize);
+        let mut out = vec![0.0f32; w * h];
+        out[7 * w + 10] = 1.0;
+        let sigma = 0.7;
+        let field = LightField::new(&out, w, h, sigma);
+        assert_eq!((field.width, field.height), (w, h));
+        for dy in -3i32..=3 {
+            for dx in -3i32..=3 {
+                let want = pixel_spread(f64::from(dx), sigma) * pixel_spread(f64::from(dy), sigma);
+                let got = field.at((10 + dx) as f32, (7 + dy) as f32);
+                // f32 storage: 1e-7 relative, plus the erfc fit.
+                assert_abs_diff_eq!(f64::from(got), want, epsilon = 1e-6);
+            }
+        }
     }
 }
