@@ -34,6 +34,7 @@ mod grey;
 mod homography;
 mod saddle;
 mod turntable;
+mod pictures;
 mod zhang;
 
 pub use detect::{BoardCorners, BoardSize, DetectorConfig, detect_checkerboard};
@@ -42,6 +43,10 @@ pub use grey::load_grey;
 pub use turntable::{
     MIN_TURNTABLE_VIEWS, PoseAtAngle, TurntableCalibration, TurntableConfig, TurntableStdDev,
     TurntableView, board_pose, calibrate_turntable, fit_turntable_axis,
+};
+pub use pictures::{
+    BAR, BarChart, FIRST_CORNER, OUTLIER_BAR, OUTLIER_FACTOR, PALETTE, PictureConfig, ResidualPlot,
+    draw_corners, error_bars, residual_plot, save_png,
 };
 pub use zhang::{
     CalibrationView, CameraCalibration, ParameterStdDev, ZhangConfig, calibrate_camera,

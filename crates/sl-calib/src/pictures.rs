@@ -1,0 +1,377 @@
+//! Pictures of a calibration, drawn with `imageproc`: the detected corners on each image
+//! (first corner and order visible), per-view RMS error bars, and a residual vector plot.
+
+use std::path::Path;
+
+use image::{GrayImage, Rgb, RgbImage};
+use imageproc::drawing::{
+    draw_antialiased_line_segment_mut, draw_filled_circle_mut, draw_filled_rect_mut,
+    draw_hollow_circle_mut, draw_line_segment_mut, draw_polygon_mut,
+};
+use imageproc::pixelops::interpolate;
+use imageproc::point::Point;
+use imageproc::rect::Rect;
+use nalgebra::{Point2, Vector2};
+
+use crate::{BoardCorners, CalibError};
+
+/// Colours cycled through by board rows (corner pictures) and views (residual plots): the
+/// eight-colour palette of Okabe and Ito, distinguishable with the common colour-vision
+/// deficiencies.
+pub const PALETTE: [Rgb<u8>; 8] = [
+    Rgb([0, 114, 178]),
+    Rgb([230, 159, 0]),
+    Rgb([0, 158, 115]),
+    Rgb([204, 121, 167]),
+    Rgb([86, 180, 233]),
+    Rgb([213, 94, 0]),
+    Rgb([240, 228, 66]),
+    Rgb([0, 0, 0]),
+];
+
+/// Colour of the disc marking the first corner (corner 0).
+pub const FIRST_CORNER: Rgb<u8> = Rgb([255, 0, 0]);
+
+/// Colour of the bars of views whose RMS is above [`OUTLIER_FACTOR`] times the median.
+pub const OUTLIER_BAR: Rgb<u8> = Rgb([213, 94, 0]);
+
+/// Colour of the other bars.
+pub const BAR: Rgb<u8> = Rgb([0, 114, 178]);
+
+/// A view whose RMS exceeds this multiple of the median RMS is drawn as an outlier: twice the
+/// median is well outside the spread of views of one session with the same detector.
+pub const OUTLIER_FACTOR: f64 = 2.0;
+
+const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
+const GRID: Rgb<u8> = Rgb([220, 220, 220]);
+const FRAME: Rgb<u8> = Rgb([96, 96, 96]);
+const MEAN_LINE: Rgb<u8> = Rgb([200, 0, 0]);
+
+/// Corner markers are this fraction of the smaller image side (≥ 2 px): visible on a
+/// 640×480 phone picture and on a 1280×720 render alike.
+const MARKER_FRACTION: f64 = 1.0 / 160.0;
+
+/// The longest residual arrow of an automatic magnification spans this fraction of the
+/// smaller image side: long enough to read directions, short enough not to cross the grid.
+const ARROW_FRACTION: f64 = 0.06;
+
+/// Options of the pictures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PictureConfig {
+    /// Height of the bar chart's plot area (px).
+    pub bar_chart_height: u32,
+    /// Width of one bar (px); bars are separated by half a bar.
+    pub bar_width: u32,
+    /// Residual arrows are drawn this many times longer than the residual; `None` picks a
+    /// round value (1, 2 or 5 × 10ⁿ) that makes the longest arrow about 6 % of the image.
+    pub magnification: Option<f64>,
+}
+
+impl Default for PictureConfig {
+    fn default() -> Self {
+        Self {
+            bar_chart_height: 240,
+            bar_width: 16,
+            magnification: None,
+        }
+    }
+}
+
+/// The per-view error bar chart and its scale.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BarChart {
+    /// The picture.
+    pub image: RgbImage,
+    /// Bar height in pixels per pixel of RMS error.
+    pub px_per_unit: f64,
+    /// Light horizontal grid lines are drawn every `grid_step` px of RMS error.
+    pub grid_step: f64,
+    /// Bottom row of the plot area (bars grow upward from the row above it).
+    pub baseline_y: u32,
+    /// Horizontal centre of each bar (px), in view order.
+    pub bar_centres: Vec<u32>,
+}
+
+/// The residual vector plot and its magnification.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResidualPlot {
+    /// The picture, of the calibrated image's size.
+    pub image: RgbImage,
+    /// Arrow length over residual length.
+    pub magnification: f64,
+}
+
+/// `(x, y)` of a point as the `f32` pair `imageproc` takes.
+fn xy(p: &Point2<f64>) -> (f32, f32) {
+    (p.x as f32, p.y as f32)
+}
+
+/// Nearest pixel of a point, saturating far outside any image.
+fn ixy(p: &Point2<f64>) -> (i32, i32) {
+    (p.x.round() as i32, p.y.round() as i32)
+}
+
+fn marker_radius(width: u32, height: u32) -> i32 {
+    ((f64::from(width.min(height)) * MARKER_FRACTION).round() as i32).max(2)
+}
+
+/// The grey image in colour with the detected corners drawn over it, OpenCV style: the
+/// corners of each row joined in order in the row's colour, rows joined last to first,
+/// every corner circled, corner 0 a filled red disc and the last corner a filled disc of
+/// its row's colour.
+///
+/// ```
+/// use sl_calib::{BoardCorners, BoardSize, draw_corners};
+/// use nalgebra::Point2;
+/// let img = image::GrayImage::from_pixel(100, 80, image::Luma([128]));
+/// let corners = BoardCorners {
+///     size: BoardSize::new(2, 2),
+///     corners: vec![Point2::new(20.0, 20.0), Point2::new(60.0, 20.0),
+///                   Point2::new(20.0, 50.0), Point2::new(60.0, 50.0)],
+/// };
+/// let pic = draw_corners(&img, &corners);
+/// assert_eq!(pic.get_pixel(20, 20).0, [255, 0, 0]); // corner 0 in red
+/// ```
+pub fn draw_corners(image: &GrayImage, corners: &BoardCorners) -> RgbImage {
+    let mut out = RgbImage::from_fn(image.width(), image.height(), |x, y| {
+        let v = image.get_pixel(x, y).0[0];
+        Rgb([v, v, v])
+    });
+    let r = marker_radius(image.width(), image.height());
+    let cols = (corners.size.cols as usize).max(1);
+    let colour = |k: usize| PALETTE[(k / cols) % PALETTE.len()];
+    for (k, pair) in corners.corners.windows(2).enumerate() {
+        if let [a, b] = pair {
+            draw_line_segment_mut(&mut out, xy(a), xy(b), colour(k + 1));
+        }
+    }
+    for (k, p) in corners.corners.iter().enumerate() {
+        draw_hollow_circle_mut(&mut out, ixy(p), r, colour(k));
+        draw_hollow_circle_mut(&mut out, ixy(p), r + 1, colour(k));
+    }
+    if let Some(last) = corners.corners.last() {
+        let k = corners.corners.len() - 1;
+        draw_filled_circle_mut(&mut out, ixy(last), r, colour(k));
+    }
+    if let Some(first) = corners.corners.first() {
+        draw_filled_circle_mut(&mut out, ixy(first), r + 1, FIRST_CORNER);
+    }
+    out
+}
+
+/// The round value (1, 2 or 5 × 10ⁿ) at or below `x > 0`.
+fn round_down_125(x: f64) -> f64 {
+    let e = x.log10().floor();
+    let base = 10f64.powf(e);
+    let m = x / base;
+    let f = if m >= 5.0 {
+        5.0
+    } else if m >= 2.0 {
+        2.0
+    } else {
+        1.0
+    };
+    f * base
+}
+
+/// A bar per view, of height proportional to its RMS error, on light grid lines, with the
+/// overall RMS as a red horizontal line; views above [`OUTLIER_FACTOR`] × the median are
+/// drawn in [`OUTLIER_BAR`]. The vertical scale puts the largest of the bars and the overall
+/// RMS at 90 % of the plot height. Non-finite or negative values are drawn as empty bars.
+///
+/// ```
+/// use sl_calib::{PictureConfig, error_bars};
+/// let chart = error_bars(&[0.1, 0.2, 0.15], 0.16, &PictureConfig::default());
+/// assert_eq!(chart.bar_centres.len(), 3);
+/// ```
+pub fn error_bars(view_rms: &[f64], overall_rms: f64, config: &PictureConfig) -> BarChart {
+    let bar_w = config.bar_width.max(1);
+    let gap = (bar_w / 2).max(1);
+    let margin = 2 * bar_w;
+    let plot_h = config.bar_chart_height.max(10);
+    let n = view_rms.len() as u32;
+    let width = 2 * margin + n * bar_w + n.saturating_sub(1) * gap;
+    let height = plot_h + 2 * margin;
+    let mut img = RgbImage::from_pixel(width, height, WHITE);
+    let clean = |v: f64| if v.is_finite() && v > 0.0 { v } else { 0.0 };
+    let top = view_rms
+        .iter()
+        .copied()
+        .map(clean)
+        .chain(std::iter::once(clean(overall_rms)))
+        .fold(0.0, f64::max);
+    let top = if top > 0.0 { top } else { 1.0 };
+    let px_per_unit = 0.9 * f64::from(plot_h) / top;
+    let grid_step = round_down_125(top / 4.0);
+    let baseline_y = margin + plot_h;
+    let mut g = grid_step;
+    while g <= top * 1.1 {
+        let y = f64::from(baseline_y) - g * px_per_unit;
+        draw_line_segment_mut(
+            &mut img,
+            (margin as f32, y as f32),
+            ((width - margin) as f32, y as f32),
+            GRID,
+        );
+        g += grid_step;
+    }
+    let mut sorted: Vec<f64> = view_rms.iter().copied().map(clean).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let mut bar_centres = Vec::with_capacity(view_rms.len());
+    for (k, &v) in view_rms.iter().enumerate() {
+        let x = margin + k as u32 * (bar_w + gap);
+        bar_centres.push(x + bar_w / 2);
+        let h = (clean(v) * px_per_unit).round() as u32;
+        if h > 0 {
+            let colour = if median > 0.0 && clean(v) > OUTLIER_FACTOR * median {
+                OUTLIER_BAR
+            } else {
+                BAR
+            };
+            draw_filled_rect_mut(
+                &mut img,
+                Rect::at(x as i32, (baseline_y - h) as i32).of_size(bar_w, h),
+                colour,
+            );
+        }
+    }
+    // Axes, then the overall RMS on top of the bars.
+    draw_line_segment_mut(
+        &mut img,
+        (margin as f32 - 1.0, baseline_y as f32),
+        ((width - margin) as f32, baseline_y as f32),
+        FRAME,
+    );
+    draw_line_segment_mut(
+        &mut img,
+        (margin as f32 - 1.0, baseline_y as f32),
+        (margin as f32 - 1.0, margin as f32),
+        FRAME,
+    );
+    let y = (f64::from(baseline_y) - clean(overall_rms) * px_per_unit) as f32;
+    draw_line_segment_mut(
+        &mut img,
+        (margin as f32 / 2.0, y),
+        ((width - margin / 2) as f32, y),
+        MEAN_LINE,
+    );
+    BarChart {
+        image: img,
+        px_per_unit,
+        grid_step,
+        baseline_y: baseline_y - 1,
+        bar_centres,
+    }
+}
+
+/// An arrow from `a` to `b` with a small filled head.
+fn arrow(img: &mut RgbImage, a: &Point2<f64>, b: &Point2<f64>, colour: Rgb<u8>, head: f64) {
+    let ia = ixy(a);
+    let ib = ixy(b);
+    draw_antialiased_line_segment_mut(img, ia, ib, colour, interpolate);
+    let d = b - a;
+    let len = d.norm();
+    if len < 2.0 * head || !len.is_finite() {
+        return;
+    }
+    let u = d / len;
+    let n = Vector2::new(-u.y, u.x);
+    let base = b - u * head;
+    let p1 = base + n * (head * 0.5);
+    let p2 = base - n * (head * 0.5);
+    let poly = [
+        Point::new(ib.0, ib.1),
+        Point::new(p1.x.round() as i32, p1.y.round() as i32),
+        Point::new(p2.x.round() as i32, p2.y.round() as i32),
+    ];
+    if poly[0] != poly[1] && poly[1] != poly[2] && poly[0] != poly[2] {
+        draw_polygon_mut(img, &poly, colour);
+    }
+}
+
+/// Every corner's residual (observed − predicted, px) as an arrow from the corner, magnified,
+/// over a white picture of the image area (`width × height`, the calibrated image's size)
+/// framed in grey; one colour per view (cycling through [`PALETTE`]). A scale arrow of one
+/// pixel of residual is drawn in the bottom-left corner. Views and residuals are matched by
+/// index; extra entries of either are ignored.
+///
+/// ```
+/// use sl_calib::{PictureConfig, residual_plot};
+/// use nalgebra::{Point2, Vector2};
+/// let plot = residual_plot(
+///     200, 100,
+///     &[vec![Point2::new(50.0, 50.0)]],
+///     &[vec![Vector2::new(0.5, 0.0)]],
+///     &PictureConfig { magnification: Some(40.0), ..PictureConfig::default() },
+/// );
+/// assert_eq!(plot.image.get_pixel(60, 50).0, [0, 114, 178]); // on the arrow
+/// ```
+pub fn residual_plot(
+    width: u32,
+    height: u32,
+    corners: &[Vec<Point2<f64>>],
+    residuals: &[Vec<Vector2<f64>>],
+    config: &PictureConfig,
+) -> ResidualPlot {
+    let (w, h) = (width.max(1), height.max(1));
+    let mut img = RgbImage::from_pixel(w, h, WHITE);
+    let longest = residuals
+        .iter()
+        .flatten()
+        .map(|r| r.norm())
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let target = ARROW_FRACTION * f64::from(w.min(h));
+    let magnification = match config.magnification {
+        Some(m) if m.is_finite() && m > 0.0 => m,
+        _ if longest > 0.0 => round_down_125(target / longest),
+        _ => 1.0,
+    };
+    let head = f64::from(marker_radius(w, h)) * 1.5;
+    for (k, (view, res)) in corners.iter().zip(residuals).enumerate() {
+        let colour = PALETTE[k % PALETTE.len()];
+        for (p, r) in view.iter().zip(res) {
+            let tip = p + r * magnification;
+            draw_filled_circle_mut(&mut img, ixy(p), 1, colour);
+            arrow(&mut img, p, &tip, colour, head);
+        }
+    }
+    // Frame of the image area and the scale arrow (1 px of residual).
+    let frame = Rect::at(0, 0).of_size(w, h);
+    imageproc::drawing::draw_hollow_rect_mut(&mut img, frame, FRAME);
+    let y = f64::from(h) - 3.0 * head;
+    let a = Point2::new(3.0 * head, y);
+    let b = Point2::new(3.0 * head + magnification, y);
+    arrow(&mut img, &a, &b, FRAME, head);
+    ResidualPlot {
+        image: img,
+        magnification,
+    }
+}
+
+/// Writes a picture as PNG.
+///
+/// # Errors
+/// [`CalibError::Image`] naming the file when it cannot be written.
+pub fn save_png(image: &RgbImage, path: impl AsRef<Path>) -> Result<(), CalibError> {
+    let path = path.as_ref();
+    image
+        .save_with_format(path, image::ImageFormat::Png)
+        .map_err(|source| CalibError::Image {
+            file: path.display().to_string(),
+            source,
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_values() {
+        assert_eq!(round_down_125(0.37), 0.2);
+        assert_eq!(round_down_125(7.0), 5.0);
+        assert_eq!(round_down_125(19.0), 10.0);
+    }
+}
