@@ -40,13 +40,13 @@ mod zhang;
 pub use detect::{BoardCorners, BoardSize, DetectorConfig, detect_checkerboard};
 pub use error::CalibError;
 pub use grey::load_grey;
-pub use turntable::{
-    MIN_TURNTABLE_VIEWS, PoseAtAngle, TurntableCalibration, TurntableConfig, TurntableStdDev,
-    TurntableView, board_pose, calibrate_turntable, fit_turntable_axis,
-};
 pub use pictures::{
     BAR, BarChart, FIRST_CORNER, OUTLIER_BAR, OUTLIER_FACTOR, PALETTE, PictureConfig, ResidualPlot,
     draw_corners, error_bars, residual_plot, save_png,
+};
+pub use turntable::{
+    MIN_TURNTABLE_VIEWS, PoseAtAngle, TurntableCalibration, TurntableConfig, TurntableStdDev,
+    TurntableView, board_pose, calibrate_turntable, fit_turntable_axis,
 };
 pub use zhang::{
     CalibrationView, CameraCalibration, ParameterStdDev, ZhangConfig, calibrate_camera,
