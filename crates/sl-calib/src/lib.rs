@@ -32,9 +32,9 @@ mod detect;
 mod error;
 mod grey;
 mod homography;
+mod pictures;
 mod saddle;
 mod turntable;
-mod pictures;
 mod zhang;
 
 pub use detect::{BoardCorners, BoardSize, DetectorConfig, detect_checkerboard};
