@@ -304,16 +304,27 @@ impl Distortion {
         self.max_radius_sq.sqrt()
     }
 
+    /// Whether the normalised point `(x, y)` lies in the valid disc (radius below
+    /// [`Distortion::max_radius`]; `false` for NaN). Branch-free form of
+    /// [`Distortion::is_valid_at`] for hot loops: the Jacobian determinant is positive on the
+    /// whole disc by construction, so the radius alone decides.
+    #[inline(always)]
+    pub fn in_valid_disc(&self, x: f64, y: f64) -> bool {
+        x * x + y * y < self.max_radius_sq
+    }
+
     /// Radial factor `f(s)` and its derivative `df/ds`.
-    #[inline]
+    #[inline(always)]
     fn radial_factor(&self, s: f64) -> (f64, f64) {
         let [k1, k2, _, _, k3, k4, k5, k6] = self.k;
         let n = 1.0 + s * (k1 + s * (k2 + s * k3));
         let d = 1.0 + s * (k4 + s * (k5 + s * k6));
         let dn = k1 + s * (2.0 * k2 + 3.0 * k3 * s);
         let dd = k4 + s * (2.0 * k5 + 3.0 * k6 * s);
-        let f = n / d;
-        (f, (dn - f * dd) / d)
+        // One division for both (the hot loops of triangulation evaluate this per pixel).
+        let inv = 1.0 / d;
+        let f = n * inv;
+        (f, (dn - f * dd) * inv)
     }
 
     /// Distorts a normalised point (the formula above; no validity check — see
@@ -323,33 +334,49 @@ impl Distortion {
         if self.model == DistortionModel::None {
             return *p;
         }
-        let (x, y) = (p.x, p.y);
+        let [xd, yd] = self.distort_xy(p.x, p.y);
+        Point2::new(xd, yd)
+    }
+
+    /// [`Distortion::distort`] on plain numbers, without the branch on the model (with no
+    /// distortion every coefficient is zero and the formula is the identity for finite
+    /// input), for hot loops that the compiler should vectorise.
+    #[inline(always)]
+    pub fn distort_xy(&self, x: f64, y: f64) -> [f64; 2] {
         let s = x * x + y * y;
         let (f, _) = self.radial_factor(s);
         let [_, _, p1, p2, ..] = self.k;
-        Point2::new(
+        [
             x * f + 2.0 * p1 * x * y + p2 * (s + 2.0 * x * x),
             y * f + p1 * (s + 2.0 * y * y) + 2.0 * p2 * x * y,
-        )
+        ]
     }
 
-    /// Distorted point and its Jacobian with respect to the point.
-    #[inline]
-    fn distort_with_point_jacobian(&self, p: &Point2<f64>) -> (Point2<f64>, Matrix2<f64>) {
-        let (x, y) = (p.x, p.y);
+    /// The distorted point `[xd, yd]` and its Jacobian `[[∂xd/∂x, ∂xd/∂y], [∂yd/∂x, ∂yd/∂y]]`
+    /// on plain numbers, branch-free (see [`Distortion::distort_xy`]): the one evaluation of
+    /// the formula and its point derivatives that every other path of this crate uses.
+    #[inline(always)]
+    pub fn distort_xy_with_jacobian(&self, x: f64, y: f64) -> ([f64; 2], [[f64; 2]; 2]) {
         let s = x * x + y * y;
         let (f, fs) = self.radial_factor(s);
         let [_, _, p1, p2, ..] = self.k;
         let xd = x * f + 2.0 * p1 * x * y + p2 * (s + 2.0 * x * x);
         let yd = y * f + p1 * (s + 2.0 * y * y) + 2.0 * p2 * x * y;
         let cross = 2.0 * x * y * fs + 2.0 * p1 * x + 2.0 * p2 * y;
-        let j = Matrix2::new(
-            f + 2.0 * x * x * fs + 2.0 * p1 * y + 6.0 * p2 * x,
-            cross,
-            cross,
-            f + 2.0 * y * y * fs + 6.0 * p1 * y + 2.0 * p2 * x,
-        );
-        (Point2::new(xd, yd), j)
+        (
+            [xd, yd],
+            [
+                [f + 2.0 * x * x * fs + 2.0 * p1 * y + 6.0 * p2 * x, cross],
+                [cross, f + 2.0 * y * y * fs + 6.0 * p1 * y + 2.0 * p2 * x],
+            ],
+        )
+    }
+
+    /// Distorted point and its Jacobian with respect to the point.
+    #[inline]
+    fn distort_with_point_jacobian(&self, p: &Point2<f64>) -> (Point2<f64>, Matrix2<f64>) {
+        let ([xd, yd], [[a, b], [c, d]]) = self.distort_xy_with_jacobian(p.x, p.y);
+        (Point2::new(xd, yd), Matrix2::new(a, b, c, d))
     }
 
     /// Distorted point with its analytic derivatives with respect to the point and to the
@@ -423,8 +450,10 @@ impl Distortion {
     }
 
     /// Like [`Distortion::undistort`] but tries Newton from `guess` (e.g. the solution at a
-    /// neighbouring pixel) first, falling back to the radial start if that fails.
-    pub(crate) fn undistort_near(
+    /// neighbouring pixel) first, falling back to the radial start if that fails. The answer
+    /// passes the same convergence and validity checks, so it is the same point (to a few
+    /// ulps); a guess within ~1e-6 of it saves the radial start and most Newton steps.
+    pub fn undistort_from(
         &self,
         pd: &Point2<f64>,
         guess: &Point2<f64>,

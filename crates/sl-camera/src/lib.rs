@@ -83,7 +83,7 @@ pub use distortion::{DISTORTION_PARAMETERS, Distortion, DistortionJacobians, Dis
 pub use error::CameraError;
 pub use intrinsics::{ImageSize, Intrinsics};
 pub use jacobians::{INTRINSIC_PARAMETERS, PoseProjectionJacobians, ProjectionJacobians};
-pub use model::{CameraModel, FieldOfView, ProjectorModel};
+pub use model::{CameraModel, FieldOfView, PixelJacobian, ProjectorModel};
 pub use pose::{
     RvecTvec, isometry_from_rt, rotation_from_rvec, rotation_jacobian, rvec_from_rotation,
 };

@@ -107,6 +107,65 @@ impl CameraModel {
         Some(Vector3::new(n.x, n.y, 1.0))
     }
 
+    /// Like [`CameraModel::unproject`], with Newton's iteration started from `guess` (the
+    /// undistorted normalised point of a nearby pixel, e.g. the left neighbour when walking a
+    /// row): the same answer in one or two steps instead of a radial start and three to
+    /// five. A bad guess costs a fallback to the normal start, never a wrong ray.
+    ///
+    /// ```
+    /// use sl_camera::{CameraModel, Distortion, ImageSize, Intrinsics};
+    /// use nalgebra::Point2;
+    /// let cam = CameraModel::new(
+    ///     Intrinsics::new(500.0, 500.0, 320.0, 240.0),
+    ///     Distortion::from_opencv(&[-0.2, 0.05, 0.001, 0.0, 0.0])?,
+    ///     ImageSize::new(640, 480),
+    /// )?;
+    /// let left = cam.unproject(&Point2::new(99.0, 50.0)).unwrap();
+    /// let fast = cam.unproject_from(&Point2::new(100.0, 50.0), &Point2::new(left.x, left.y));
+    /// let slow = cam.unproject(&Point2::new(100.0, 50.0));
+    /// assert!((fast.unwrap() - slow.unwrap()).norm() < 1e-14);
+    /// # Ok::<(), sl_camera::CameraError>(())
+    /// ```
+    #[inline]
+    pub fn unproject_from(&self, px: &Point2<f64>, guess: &Point2<f64>) -> Option<Vector3<f64>> {
+        let pd = self.intrinsics.normalised_from_pixel(px);
+        let n = self.distortion.undistort_from(&pd, guess)?;
+        Some(Vector3::new(n.x, n.y, 1.0))
+    }
+
+    /// The pixel of the normalised point `(x, y)` (distortion and intrinsics; no validity
+    /// check — see [`CameraModel::in_valid_region`]). The same numbers as
+    /// [`CameraModel::project`] of `(x, y, 1)`, on plain `f64`s and branch-free, for hot loops.
+    #[inline(always)]
+    pub fn project_normalised(&self, x: f64, y: f64) -> Point2<f64> {
+        let [xd, yd] = self.distortion.distort_xy(x, y);
+        let k = &self.intrinsics;
+        Point2::new(k.fx * xd + k.skew * yd + k.cx, k.fy * yd + k.cy)
+    }
+
+    /// [`CameraModel::project_normalised`] with the derivatives of the pixel with respect to
+    /// the normalised point.
+    #[inline(always)]
+    pub fn project_normalised_with_jacobian(&self, x: f64, y: f64) -> PixelJacobian {
+        let ([xd, yd], [[a, c], [c2, b]]) = self.distortion.distort_xy_with_jacobian(x, y);
+        let k = &self.intrinsics;
+        PixelJacobian {
+            u: k.fx * xd + k.skew * yd + k.cx,
+            v: k.fy * yd + k.cy,
+            du_dx: k.fx * a + k.skew * c2,
+            du_dy: k.fx * c + k.skew * b,
+            dv_dx: k.fy * c2,
+            dv_dy: k.fy * b,
+        }
+    }
+
+    /// Whether the normalised point `(x, y)` is in the valid region of the distortion, where
+    /// [`CameraModel::project_normalised`] is one-to-one (see [`Distortion::in_valid_disc`]).
+    #[inline(always)]
+    pub fn in_valid_region(&self, x: f64, y: f64) -> bool {
+        self.distortion.in_valid_disc(x, y)
+    }
+
     /// Like [`CameraModel::unproject`], as a unit vector.
     pub fn unproject_ray(&self, px: &Point2<f64>) -> Option<Unit<Vector3<f64>>> {
         self.unproject(px).map(Unit::new_normalize)
@@ -157,6 +216,24 @@ impl CameraModel {
             vertical_deg: angle(Point2::new(cx, -0.5), Point2::new(cx, h))?,
         })
     }
+}
+
+/// A pixel and its derivatives with respect to the normalised point `(x, y)` it is the image
+/// of (see [`CameraModel::project_normalised_with_jacobian`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelJacobian {
+    /// Pixel column.
+    pub u: f64,
+    /// Pixel row.
+    pub v: f64,
+    /// `∂u/∂x` (pixels per normalised unit).
+    pub du_dx: f64,
+    /// `∂u/∂y`.
+    pub du_dy: f64,
+    /// `∂v/∂x`.
+    pub dv_dx: f64,
+    /// `∂v/∂y`.
+    pub dv_dy: f64,
 }
 
 /// Field of view of a camera or projector (see [`CameraModel::field_of_view`]).
@@ -212,6 +289,65 @@ mod tests {
         assert_relative_eq!(px.y, 990.0 * -0.04 + 240.0, epsilon = 1e-12);
         let ray = cam.unproject(&px).unwrap();
         assert_relative_eq!(ray, Vector3::new(0.02, -0.04, 1.0), epsilon = 1e-15);
+    }
+
+    /// The plain-number paths against the checked ones over a whole (coarse) image grid of
+    /// the strong reference lens: `project_normalised` is `project` (same formula, so equal
+    /// to a few ulps of ~1e3 px), its Jacobian equals central differences (step 1e-6:
+    /// truncation ~1e-12·f, rounding ~1e-16/1e-6·f ≈ 1e-7 px per unit; 1e-3 is safe while a
+    /// wrong derivative is off by O(f) = 1e3), and `unproject_from` a neighbour's ray is
+    /// `unproject` (same Newton root, a few ulps).
+    #[test]
+    fn plain_number_paths_match_the_checked_ones() {
+        let cam = reference();
+        let mut left: Option<Vector3<f64>> = None;
+        for y in (0..720).step_by(9) {
+            for x in (0..1280).step_by(5) {
+                let px = Point2::new(f64::from(x), f64::from(y));
+                let Some(ray) = cam.unproject(&px) else {
+                    left = None;
+                    continue;
+                };
+                assert!(cam.in_valid_region(ray.x, ray.y));
+                let back = cam.project_normalised(ray.x, ray.y);
+                let checked = cam.project(&Point3::from(ray)).unwrap();
+                assert_relative_eq!(back, checked, epsilon = 1e-9);
+                let pj = cam.project_normalised_with_jacobian(ray.x, ray.y);
+                assert_relative_eq!(pj.u, back.x, epsilon = 1e-9);
+                assert_relative_eq!(pj.v, back.y, epsilon = 1e-9);
+                let h = 1e-6;
+                let (a, b) = (
+                    cam.project_normalised(ray.x + h, ray.y),
+                    cam.project_normalised(ray.x - h, ray.y),
+                );
+                assert_relative_eq!(pj.du_dx, (a.x - b.x) / (2.0 * h), epsilon = 1e-3);
+                assert_relative_eq!(pj.dv_dx, (a.y - b.y) / (2.0 * h), epsilon = 1e-3);
+                let (a, b) = (
+                    cam.project_normalised(ray.x, ray.y + h),
+                    cam.project_normalised(ray.x, ray.y - h),
+                );
+                assert_relative_eq!(pj.du_dy, (a.x - b.x) / (2.0 * h), epsilon = 1e-3);
+                assert_relative_eq!(pj.dv_dy, (a.y - b.y) / (2.0 * h), epsilon = 1e-3);
+                if let Some(l) = left {
+                    let fast = cam.unproject_from(&px, &Point2::new(l.x, l.y)).unwrap();
+                    assert_relative_eq!(fast, ray, epsilon = 1e-14);
+                }
+                left = Some(ray);
+            }
+        }
+        // A hopeless guess falls back to the normal start; a pixel with no preimage stays
+        // without one whatever the guess.
+        let px = Point2::new(100.0, 600.0);
+        let far = cam.unproject_from(&px, &Point2::new(50.0, -50.0)).unwrap();
+        assert_relative_eq!(far, cam.unproject(&px).unwrap(), epsilon = 1e-14);
+        assert!(
+            cam.unproject_from(&Point2::new(f64::NAN, 0.0), &Point2::origin())
+                .is_none()
+        );
+        // Outside the valid disc, and NaN, are refused.
+        let r = cam.distortion.max_radius();
+        assert!(!cam.in_valid_region(r, 0.0));
+        assert!(!cam.in_valid_region(f64::NAN, 0.0));
     }
 
     #[test]

@@ -33,22 +33,31 @@ use crate::{CameraModel, ImageSize};
 #[derive(Clone, Debug, PartialEq)]
 pub struct RayTable {
     size: ImageSize,
-    rays: Vec<Option<Point2<f64>>>,
+    /// Normalised `x` of every pixel, row-major; NaN where the model has no ray.
+    x: Vec<f64>,
+    /// Normalised `y` of every pixel, row-major; NaN where the model has no ray.
+    y: Vec<f64>,
 }
 
 impl RayTable {
     /// Computes the table of a camera (see [`CameraModel::ray_table`]).
     pub fn new(camera: &CameraModel) -> Self {
         let width = camera.size.width as usize;
-        let mut rays = vec![None; camera.size.pixel_count()];
+        let n = camera.size.pixel_count();
+        // Zero-initialised (the allocator hands out fresh zero pages without writing them);
+        // every entry is then written once, by the worker that owns its row.
+        let mut x = vec![0.0; n];
+        let mut y = vec![0.0; n];
         if width > 0 {
-            rays.par_chunks_mut(width)
+            x.par_chunks_mut(width)
+                .zip(y.par_chunks_mut(width))
                 .enumerate()
-                .for_each(|(row, out)| fill_row(camera, row, out));
+                .for_each(|(row, (xs, ys))| fill_row(camera, row, xs, ys));
         }
         Self {
             size: camera.size,
-            rays,
+            x,
+            y,
         }
     }
 
@@ -72,37 +81,44 @@ impl RayTable {
             return None;
         }
         let index = y as usize * self.size.width as usize + x as usize;
-        self.rays.get(index).copied().flatten()
+        let (nx, ny) = (*self.x.get(index)?, *self.y.get(index)?);
+        nx.is_finite().then(|| Point2::new(nx, ny))
     }
 
-    /// All entries, row-major (`index = y · width + x`).
-    pub fn as_slice(&self) -> &[Option<Point2<f64>>] {
-        &self.rays
+    /// Normalised `x` of every pixel, row-major (`index = y · width + x`), NaN where the
+    /// model has no ray: the structure-of-arrays layout hot loops stream through.
+    pub fn xs(&self) -> &[f64] {
+        &self.x
+    }
+
+    /// Normalised `y` of every pixel, row-major, NaN where the model has no ray.
+    pub fn ys(&self) -> &[f64] {
+        &self.y
     }
 
     /// Number of pixels with a ray.
     pub fn valid_count(&self) -> usize {
-        self.rays.iter().filter(|r| r.is_some()).count()
+        self.x.iter().filter(|v| v.is_finite()).count()
     }
 }
 
-fn fill_row(camera: &CameraModel, row: usize, out: &mut [Option<Point2<f64>>]) {
+fn fill_row(camera: &CameraModel, row: usize, xs: &mut [f64], ys: &mut [f64]) {
     let v = row as f64;
     // Solutions at the two previous pixels: their linear extrapolation is within ~1e-7 of
     // this pixel's solution, so Newton needs 1–2 steps.
     let mut previous: [Option<Point2<f64>>; 2] = [None, None];
-    for (col, slot) in out.iter_mut().enumerate() {
+    for (col, (ox, oy)) in xs.iter_mut().zip(ys.iter_mut()).enumerate() {
         let pd = camera
             .intrinsics
             .normalised_from_pixel(&Point2::new(col as f64, v));
         let n = match previous {
             [Some(a), Some(b)] => camera
                 .distortion
-                .undistort_near(&pd, &Point2::from(2.0 * a.coords - b.coords)),
-            [Some(a), None] => camera.distortion.undistort_near(&pd, &a),
+                .undistort_from(&pd, &Point2::from(2.0 * a.coords - b.coords)),
+            [Some(a), None] => camera.distortion.undistort_from(&pd, &a),
             _ => camera.distortion.undistort(&pd),
         };
-        *slot = n;
+        (*ox, *oy) = n.map_or((f64::NAN, f64::NAN), |p| (p.x, p.y));
         previous = [n, previous[0]];
     }
 }
@@ -123,7 +139,8 @@ mod tests {
         .unwrap();
         let t = cam.ray_table();
         assert_eq!(t.size(), cam.size);
-        assert_eq!(t.as_slice().len(), 128 * 72);
+        assert_eq!(t.xs().len(), 128 * 72);
+        assert_eq!(t.ys().len(), 128 * 72);
         for y in 0..72 {
             for x in 0..128 {
                 let a = t.get(x, y);

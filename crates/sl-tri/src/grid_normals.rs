@@ -2,7 +2,6 @@
 //! vertical differences, central where both neighbours are valid, one-sided otherwise.
 
 use nalgebra::{Point3, Vector3};
-use rayon::prelude::*;
 
 /// Difference along one grid direction around `i`, given the neighbour before and after.
 #[inline]
@@ -22,39 +21,28 @@ fn diff(
     }
 }
 
-/// Unit normals of the organised `points` (`width × height`, NaN = no point), facing the
-/// camera at the origin; the zero vector where a pixel has no point or no neighbour pair.
-pub(crate) fn grid_normals(points: &[Point3<f64>], width: usize) -> Vec<Vector3<f64>> {
-    let mut normals = vec![Vector3::zeros(); points.len()];
+/// Unit normal of the organised `points` (`width` columns, NaN = no point) at pixel `i`,
+/// facing the camera at the origin; `None` where the pixel has no point or no neighbour pair.
+/// Evaluated only at the cloud's points, so no full-image normal map is written.
+#[inline]
+pub(crate) fn normal_at(points: &[Point3<f64>], width: usize, i: usize) -> Option<Vector3<f64>> {
     if width == 0 {
-        return normals;
+        return None;
     }
     let height = points.len() / width;
-    normals
-        .par_chunks_mut(width)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, n) in row.iter_mut().enumerate() {
-                let i = y * width + x;
-                let Some(p) = points.get(i).filter(|p| p.z.is_finite()) else {
-                    continue;
-                };
-                let left = (x > 0).then(|| i - 1);
-                let right = (x + 1 < width).then_some(i + 1);
-                let up = (y > 0).then(|| i - width);
-                let down = (y + 1 < height).then_some(i + width);
-                let (Some(dx), Some(dy)) =
-                    (diff(points, i, left, right), diff(points, i, up, down))
-                else {
-                    continue;
-                };
-                let c = dx.cross(&dy);
-                let len = c.norm();
-                if len > 0.0 && len.is_finite() {
-                    let c = c / len;
-                    *n = if c.dot(&p.coords) > 0.0 { -c } else { c };
-                }
-            }
-        });
-    normals
+    let p = points.get(i).filter(|p| p.z.is_finite())?;
+    let (x, y) = (i % width, i / width);
+    let left = (x > 0).then(|| i - 1);
+    let right = (x + 1 < width).then_some(i + 1);
+    let up = (y > 0).then(|| i - width);
+    let down = (y + 1 < height).then_some(i + width);
+    let dx = diff(points, i, left, right)?;
+    let dy = diff(points, i, up, down)?;
+    let c = dx.cross(&dy);
+    let len = c.norm();
+    if !(len > 0.0 && len.is_finite()) {
+        return None;
+    }
+    let c = c / len;
+    Some(if c.dot(&p.coords) > 0.0 { -c } else { c })
 }

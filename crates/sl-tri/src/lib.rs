@@ -83,12 +83,15 @@
 #![deny(missing_docs)]
 // `!(x > 0.0)` is used on purpose: it is true for NaN, which must be rejected as well.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+// The lane kernels index several fixed-size arrays with one lane index on purpose: that is
+// the form the compiler vectorises.
+#![allow(clippy::needless_range_loop)]
 
 mod depth;
 mod error;
 mod fit;
 mod grid_normals;
-mod lens;
+mod kernel;
 mod linear;
 mod midpoint;
 mod mixed_pixels;
@@ -108,6 +111,7 @@ pub use options::{
 };
 pub use triangulation::{PointStatus, TriCounts, Triangulation};
 pub use triangulator::Triangulator;
+
 
 /// Re-exports of the types of the lower crates in this crate's API, so that one import does.
 pub use sl_camera::{Calibration, CameraModel};

@@ -8,9 +8,9 @@
 //! which already has zero camera and column residuals, so one or two Gauss–Newton steps
 //! reach the optimum.
 
-use nalgebra::{Matrix2x3, Matrix3, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix2x3, Matrix3, Vector2, Vector3};
+use sl_camera::CameraModel;
 
-use crate::lens::Lens;
 use crate::stereo::Stereo;
 
 /// Step (mm) below which Gauss–Newton stops: the optimum is then known to far better than
@@ -20,7 +20,7 @@ const OPTIMAL_STEP_TOLERANCE_MM: f64 = 1e-7;
 /// Residual and Jacobian of the projection of `q` (lens frame) with respect to `q`.
 #[inline(always)]
 fn residual(
-    lens: &Lens,
+    lens: &CameraModel,
     q: &Vector3<f64>,
     target: (f64, f64),
 ) -> Option<(Vector2<f64>, Matrix2x3<f64>)> {
@@ -29,16 +29,19 @@ fn residual(
     }
     let iz = 1.0 / q.z;
     let (x, y) = (q.x * iz, q.y * iz);
-    if !lens.valid(x, y) {
+    if !lens.in_valid_region(x, y) {
         return None;
     }
-    let pj = lens.pixel_jac(x, y);
+    let pj = lens.project_normalised_with_jacobian(x, y);
     let dn = Matrix2x3::new(iz, 0.0, -x * iz, 0.0, iz, -y * iz);
-    let j = nalgebra::Matrix2::new(pj.j[0][0], pj.j[0][1], pj.j[1][0], pj.j[1][1]) * dn;
+    let j = Matrix2::new(pj.du_dx, pj.du_dy, pj.dv_dx, pj.dv_dy) * dn;
     Some((Vector2::new(pj.u - target.0, pj.v - target.1), j))
 }
 
 /// Refines `start` (camera frame, mm) for camera pixel `(u, v)` and projector point `(c, r)`.
+///
+/// Scalar and iterative (each pixel stops when its own step is small): the start already
+/// has zero camera and column residuals, so most pixels stop after two steps.
 #[inline]
 pub(crate) fn refine(
     s: &Stereo,
@@ -47,12 +50,17 @@ pub(crate) fn refine(
     (c, r): (f64, f64),
     max_iterations: usize,
 ) -> Option<Vector3<f64>> {
+    let [r0, r1, r2] = s.r_pc;
+    let r_pc = Matrix3::new(
+        r0[0], r0[1], r0[2], r1[0], r1[1], r1[2], r2[0], r2[1], r2[2],
+    );
+    let t_pc = Vector3::from(s.t_pc);
     let mut p = start;
     for _ in 0..max_iterations {
         let (ec, jc) = residual(&s.cam, &p, (u, v))?;
-        let q = s.r_pc * p + s.t_pc;
+        let q = r_pc * p + t_pc;
         let (ep, jq) = residual(&s.proj, &q, (c, r))?;
-        let jp = jq * s.r_pc;
+        let jp = jq * r_pc;
         let h: Matrix3<f64> = jc.transpose() * jc + jp.transpose() * jp;
         let g = jc.transpose() * ec + jp.transpose() * ep;
         let step = h.try_inverse()? * g;

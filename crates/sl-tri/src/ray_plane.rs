@@ -8,67 +8,182 @@
 //! from the pinhole column plane (closed form) and finishes with Newton's method on
 //! `u(t) = c`, with the analytic derivative of the distorted projection. No undistortion and
 //! no guess of the row is needed, so the answer is exact for the full OpenCV model.
+//!
+//! Two forms of the same iteration: [`ray_surface_lanes`] runs a fixed number of Newton steps
+//! on [`LANES`] pixels at once without branches, so that the compiler vectorises it (it is
+//! the hot loop of the default method, hand-written for that reason: an early exit per pixel
+//! would keep it scalar); [`ray_surface_depth`] is the general iteration with every check at
+//! every step, used for the few pixels whose lanes did not converge.
 
-use nalgebra::Vector3;
+use sl_camera::PixelJacobian;
 use sl_codec::Axis;
 
+use crate::kernel::LANES;
 use crate::stereo::Stereo;
 
-/// Newton iterations allowed on the projector surface. From the pinhole plane the depth is off
-/// by the distortion (a few px, i.e. a few mm); Newton then converges quadratically, in 2–3
-/// steps for projector lenses, so 12 leaves room for strong ones.
+/// Newton iterations allowed on the projector surface by the general solver. From the pinhole
+/// plane the depth is off by the distortion (a few px, i.e. a few mm); Newton then converges
+/// quadratically, in 3 steps for projector lenses, so 12 leaves room for strong ones.
 const MAX_SURFACE_ITERATIONS: usize = 12;
 
-/// Depth step (mm) at which Newton stops: quadratic convergence means the depth is then
-/// exact to far below 1e-9 mm.
-const SURFACE_STEP_TOLERANCE_MM: f64 = 1e-6;
+/// Newton steps of the branch-free solver from a warm start. From the extrapolated depths of
+/// the previous lane groups (error e0 ≲ 0.03 mm on smooth surfaces) the errors are about
+/// κ·e0² with κ = |u''/2u'| ≈ 1/depth: 0.03 mm → 2e-6 mm, so the second step is below
+/// [`SURFACE_STEP_TOLERANCE_MM`] and accepted. From the pinhole plane (error of a few mm:
+/// 4.5 mm → 0.05 mm → 5e-6 mm) a third step is needed, which the group then takes; lanes
+/// still not converged go to the general solver.
+const WARM_SURFACE_STEPS: usize = 2;
 
-/// Depth `t` (mm; the point is `t · ray`) at which the camera ray `ray = (x, y, 1)` meets the
-/// projector surface of coordinate `target` on `axis`. `None` if the ray misses it in front
-/// of both devices or leaves the projector's valid region.
-#[inline]
+/// Depth step (mm) below which Newton has converged. The error left after a step `s` is
+/// about κ·s² with κ = |u''/2u'|: for the pinhole part of the projection u(t) is a Möbius
+/// function of the depth and κ = |`a_z`/`q_z`| ≤ 1/(projector depth), below 1/50 mm⁻¹ for any
+/// rig; the distortion adds a curvature of the same order. So a step of 1e-4 mm leaves
+/// an error below ~1e-9 mm, far below the f32 resolution of the decoded input (~1e-5 mm).
+const SURFACE_STEP_TOLERANCE_MM: f64 = 1e-4;
+
+/// A camera ray's meeting with a projector surface.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SurfaceHit {
+    /// Depth (mm); the point is `t · ray`.
+    pub(crate) t: f64,
+    /// The other projector coordinate at the point (the row on a column surface), px.
+    pub(crate) other: f64,
+}
+
+/// [`ray_surface_lanes`]' answer per lane.
+pub(crate) struct SurfaceLanes {
+    pub(crate) t: [f64; LANES],
+    pub(crate) other: [f64; LANES],
+    /// Converged inside the projector's valid region, in front of both devices.
+    pub(crate) ok: [bool; LANES],
+}
+
+/// The pinhole plane `n · q = 0` (projector frame) through the decoded coordinate `target`.
+#[inline(always)]
+fn pinhole_plane(s: &Stereo, column: bool, target: f64) -> [f64; 3] {
+    let k = &s.proj.intrinsics;
+    if column {
+        [k.fx, k.skew, k.cx - target]
+    } else {
+        [0.0, k.fy, k.cy - target]
+    }
+}
+
+/// Value and slope (per mm of depth) of the decoded and of the other coordinate.
+#[inline(always)]
+fn coordinates(column: bool, pj: &PixelJacobian, dx: f64, dy: f64) -> [f64; 4] {
+    let du = pj.du_dx * dx + pj.du_dy * dy;
+    let dv = pj.dv_dx * dx + pj.dv_dy * dy;
+    if column {
+        [pj.u, du, pj.v, dv]
+    } else {
+        [pj.v, dv, pj.u, du]
+    }
+}
+
+/// One Newton step at depth `t` along `q(t) = a t + b`: the new depth, the step, and the other
+/// coordinate at the new depth (to first order, which is exact to the order of the error).
+#[inline(always)]
+fn newton_step(s: &Stereo, column: bool, a: [f64; 3], b: [f64; 3], t: f64, target: f64) -> [f64; 3] {
+    let q = [a[0] * t + b[0], a[1] * t + b[1], a[2] * t + b[2]];
+    let iz = 1.0 / q[2];
+    let (x, y) = (q[0] * iz, q[1] * iz);
+    let pj = s.proj.project_normalised_with_jacobian(x, y);
+    let dx = (a[0] - x * a[2]) * iz;
+    let dy = (a[1] - y * a[2]) * iz;
+    let [value, slope, other, other_slope] = coordinates(column, &pj, dx, dy);
+    let step = (value - target) / slope;
+    [t - step, step, other - other_slope * step]
+}
+
+/// Whether depth `t` on `q(t) = a t + b` is in front of both devices and inside the
+/// projector's valid region.
+#[inline(always)]
+fn in_front_and_valid(s: &Stereo, a: [f64; 3], b: [f64; 3], t: f64) -> bool {
+    let q = [a[0] * t + b[0], a[1] * t + b[1], a[2] * t + b[2]];
+    let iz = 1.0 / q[2];
+    t > 0.0 && q[2] > 0.0 && s.proj.in_valid_region(q[0] * iz, q[1] * iz)
+}
+
+/// The surface solve on [`LANES`] camera rays `(rx, ry, 1)` at once, branch-free: the
+/// pinhole-plane start and [`FIXED_SURFACE_STEPS`] Newton steps; a lane is `ok` if its last
+/// step is below the tolerance and the point is valid. NaN inputs give lanes that are not ok.
+#[inline(always)]
+pub(crate) fn ray_surface_lanes(
+    s: &Stereo,
+    axis: Axis,
+    rx: &[f64; LANES],
+    ry: &[f64; LANES],
+    target: &[f64; LANES],
+    guess: &[f64; LANES],
+) -> SurfaceLanes {
+    let column = axis == Axis::Column;
+    let b = s.t_pc;
+    // Step-major: each loop below runs one stage on all lanes, a straight-line body the
+    // compiler vectorises (a lane-major loop around the Newton loop would be an outer loop,
+    // which it does not vectorise, and a latency-bound chain of divisions per pixel).
+    let mut a = [[0.0; 3]; LANES];
+    let mut t = [0.0; LANES];
+    for l in 0..LANES {
+        a[l] = crate::stereo::mul(&s.r_pc, [rx[l], ry[l], 1.0]);
+        let n = pinhole_plane(s, column, target[l]);
+        let plane = -(n[0] * b[0] + n[1] * b[1] + n[2] * b[2])
+            / (n[0] * a[l][0] + n[1] * a[l][1] + n[2] * a[l][2]);
+        t[l] = if guess[l].is_finite() { guess[l] } else { plane };
+    }
+    let mut step = [f64::INFINITY; LANES];
+    let mut other = [f64::NAN; LANES];
+    for _ in 0..WARM_SURFACE_STEPS {
+        for l in 0..LANES {
+            [t[l], step[l], other[l]] = newton_step(s, column, a[l], b, t[l], target[l]);
+        }
+    }
+    // Lanes that started cold (pinhole plane) need one more step; the group takes it only
+    // if one of its lanes has not converged.
+    if step.iter().any(|s| !(s.abs() < SURFACE_STEP_TOLERANCE_MM)) {
+        for l in 0..LANES {
+            [t[l], step[l], other[l]] = newton_step(s, column, a[l], b, t[l], target[l]);
+        }
+    }
+    let mut ok = [false; LANES];
+    for l in 0..LANES {
+        ok[l] = step[l].abs() < SURFACE_STEP_TOLERANCE_MM && in_front_and_valid(s, a[l], b, t[l]);
+    }
+    SurfaceLanes { t, other, ok }
+}
+
+/// The general solver: depth `t` (mm; the point is `t · ray`) at which the camera ray
+/// `(rx, ry, 1)` meets the projector surface of coordinate `target` on `axis`, with every
+/// check at every step. `None` if the ray misses it in front of both devices or leaves the
+/// projector's valid region.
+#[inline(never)]
 pub(crate) fn ray_surface_depth(
     s: &Stereo,
-    ray: &Vector3<f64>,
+    rx: f64,
+    ry: f64,
     target: f64,
     axis: Axis,
-) -> Option<f64> {
-    let a = s.r_pc * ray;
+) -> Option<SurfaceHit> {
+    let column = axis == Axis::Column;
+    let a = crate::stereo::mul(&s.r_pc, [rx, ry, 1.0]);
     let b = s.t_pc;
-    let n = match axis {
-        Axis::Column => s.proj.column_plane(target),
-        Axis::Row => s.proj.row_plane(target),
-    };
-    let n = Vector3::new(n[0], n[1], n[2]);
-    let na = n.dot(&a);
-    let mut t = -n.dot(&b) / na;
+    let n = pinhole_plane(s, column, target);
+    let mut t = -(n[0] * b[0] + n[1] * b[1] + n[2] * b[2])
+        / (n[0] * a[0] + n[1] * a[1] + n[2] * a[2]);
     if !t.is_finite() {
         return None;
     }
     for _ in 0..MAX_SURFACE_ITERATIONS {
-        let q = a * t + b;
-        if !(q.z > 0.0) || !(t > 0.0) {
+        if !in_front_and_valid(s, a, b, t) {
             return None;
         }
-        let (x, y) = (q.x / q.z, q.y / q.z);
-        if !s.proj.valid(x, y) {
-            return None;
-        }
-        let pj = s.proj.pixel_jac(x, y);
-        let dx = (a.x - x * a.z) / q.z;
-        let dy = (a.y - y * a.z) / q.z;
-        let (value, slope) = match axis {
-            Axis::Column => (pj.u, pj.j[0][0] * dx + pj.j[0][1] * dy),
-            Axis::Row => (pj.v, pj.j[1][0] * dx + pj.j[1][1] * dy),
-        };
-        let step = (value - target) / slope;
+        let [next, step, other] = newton_step(s, column, a, b, t, target);
         if !step.is_finite() {
             return None;
         }
-        t -= step;
+        t = next;
         if step.abs() < SURFACE_STEP_TOLERANCE_MM {
-            let q = a * t + b;
-            return (t > 0.0 && q.z > 0.0 && s.proj.valid(q.x / q.z, q.y / q.z)).then_some(t);
+            return in_front_and_valid(s, a, b, t).then_some(SurfaceHit { t, other });
         }
     }
     None

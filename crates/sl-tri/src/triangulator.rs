@@ -4,35 +4,34 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 use sl_camera::{Calibration, CameraModel, RayTable};
 use sl_cloud::PointCloud;
-use sl_codec::{Axis, CorrespondenceMap};
+use sl_codec::CorrespondenceMap;
 
-use crate::grid_normals::grid_normals;
-use crate::lens::Lens;
-use crate::linear::linear_point;
-use crate::midpoint::midpoint;
+use crate::grid_normals::normal_at;
+use crate::kernel::{BLOCK, BlockOut, Pass};
 use crate::mixed_pixels::filter_mixed_pixels;
-use crate::optimal::refine;
-use crate::ray_plane::ray_surface_depth;
 use crate::stereo::Stereo;
-use crate::{Method, PointStatus, Texture, TriCounts, TriError, TriOptions, Triangulation};
+use crate::{PointStatus, Texture, TriCounts, TriError, TriOptions, Triangulation};
+
+/// Smallest number of blocks a parallel task takes: 16 blocks (2048 pixels), so that the
+/// task overhead is negligible while the two cores still get dozens of tasks each to
+/// balance.
+const MIN_BLOCKS_PER_TASK: usize = 16;
+
+/// Pixels per band of the cloud compaction: as many as a task of the pass.
+const MIN_PIXELS_PER_TASK: usize = MIN_BLOCKS_PER_TASK * BLOCK;
 
 /// Turns correspondence maps into points for one calibration.
 ///
 /// Building it computes what every map needs: the undistorted ray of every camera pixel
-/// ([`RayTable`]), the projector's ray table, the pose both ways and flat copies of both lens
-/// models. [`Triangulator::triangulate`] then runs row-parallel (rayon) without allocating
-/// per pixel.
+/// ([`RayTable`], structure of arrays), the pose both ways and the lens models. The
+/// projector's ray table, which only the methods using both decoded coordinates need, is
+/// built on their first use. [`Triangulator::triangulate`] then runs in parallel (rayon)
+/// without allocating per pixel.
 #[derive(Clone, Debug)]
 pub struct Triangulator {
     camera: CameraModel,
     camera_rays: RayTable,
     stereo: Stereo,
-}
-
-/// One pixel's answer of the first pass.
-struct Solved {
-    p: Vector3<f64>,
-    reprojection: f64,
 }
 
 impl Triangulator {
@@ -73,23 +72,10 @@ impl Triangulator {
         if !finite {
             return Err(TriError::param("t_cam_proj", "pose is not finite"));
         }
-        let t_proj_cam = t_cam_proj.inverse();
-        let r_pc = *t_proj_cam.rotation.to_rotation_matrix().matrix();
-        let r_cp = *t_cam_proj.rotation.to_rotation_matrix().matrix();
-        let stereo = Stereo {
-            cam: Lens::new(camera),
-            proj: Lens::new(projector),
-            r_pc,
-            t_pc: t_proj_cam.translation.vector,
-            r_cp,
-            c_p: t_cam_proj.translation.vector,
-            proj_model: *projector,
-            proj_rays: projector.ray_table(),
-        };
         Ok(Self {
             camera: *camera,
             camera_rays: camera.ray_table(),
-            stereo,
+            stereo: Stereo::new(camera, projector, t_cam_proj),
         })
     }
 
@@ -162,45 +148,71 @@ impl Triangulator {
             });
         }
 
-        let nan = Point3::new(f64::NAN, f64::NAN, f64::NAN);
-        let mut points = vec![nan; n];
-        let mut reprojection = vec![f32::NAN; n];
-        let mut status = vec![PointStatus::NotDecoded; n];
-        if width > 0 {
-            points
-                .par_chunks_mut(width)
-                .zip(reprojection.par_chunks_mut(width))
-                .zip(status.par_chunks_mut(width))
-                .enumerate()
-                .for_each(|(y, ((p_row, e_row), s_row))| {
-                    self.row(map, options, y, p_row, e_row, s_row);
-                });
-        }
+        let proj_rays = options
+            .method
+            .needs_both()
+            .then(|| self.stereo.proj_rays());
+        let pass = Pass {
+            stereo: &self.stereo,
+            rays: &self.camera_rays,
+            proj_rays,
+            map,
+            options,
+            width,
+            arch: pulp::Arch::new(),
+        };
+        // The per-pixel pass, block by block, collected straight into the three organised
+        // vectors by an indexed parallel iterator (each worker writes its own range, nothing
+        // is initialised twice), then flattened without a copy.
+        type Blocks = (
+            Vec<[Point3<f64>; BLOCK]>,
+            (Vec<[f32; BLOCK]>, Vec<[PointStatus; BLOCK]>),
+        );
+        let (points, (reprojection, status)): Blocks = (0..n.div_ceil(BLOCK))
+            .into_par_iter()
+            .with_min_len(MIN_BLOCKS_PER_TASK)
+            .map(|b| {
+                let BlockOut {
+                    points,
+                    reprojection,
+                    status,
+                } = pass.block(b * BLOCK);
+                (points, (reprojection, status))
+            })
+            .unzip();
+        let mut points = points.into_flattened();
+        let mut reprojection = reprojection.into_flattened();
+        let mut status = status.into_flattened();
+        points.truncate(n);
+        reprojection.truncate(n);
+        status.truncate(n);
         filter_mixed_pixels(&mut points, &mut status, width, options.max_depth_jump);
-        let normals = options.normals.then(|| grid_normals(&points, width));
-
-        // Compaction into the cloud.
         let counts = TriCounts::from_status(&status);
-        let mut positions = Vec::with_capacity(counts.valid);
-        let mut quality = Vec::with_capacity(counts.valid);
-        let mut cloud_pixels = Vec::with_capacity(counts.valid);
-        let mut colors = texture.map(|_| Vec::with_capacity(counts.valid));
-        let mut cloud_normals = normals.as_ref().map(|_| Vec::with_capacity(counts.valid));
-        for (i, (p, s)) in points.iter().zip(&status).enumerate() {
-            if *s != PointStatus::Valid {
-                continue;
-            }
-            positions.push(*p);
-            quality.push(map.quality.get(i).copied().unwrap_or(f32::NAN));
-            cloud_pixels.push(i as u32);
-            if let (Some(c), Some(t)) = (colors.as_mut(), texture.as_ref()) {
-                c.push(t.color(i));
-            }
-            if let (Some(out), Some(all)) = (cloud_normals.as_mut(), normals.as_ref()) {
-                out.push(all.get(i).copied().unwrap_or_else(Vector3::zeros));
-            }
-        }
-        let cloud = PointCloud::from_parts(positions, cloud_normals, colors, Some(quality))?;
+        let cloud_pixels = valid_pixels(&status, width, counts.valid);
+
+        // The cloud: gathers of the organised vectors at the valid pixels, in parallel.
+        let nan = Point3::new(f64::NAN, f64::NAN, f64::NAN);
+        let positions: Vec<Point3<f64>> = cloud_pixels
+            .par_iter()
+            .map(|&i| points.get(i as usize).copied().unwrap_or(nan))
+            .collect();
+        let quality: Vec<f32> = cloud_pixels
+            .par_iter()
+            .map(|&i| map.quality.get(i as usize).copied().unwrap_or(f32::NAN))
+            .collect();
+        let colors = texture.map(|t| {
+            cloud_pixels
+                .par_iter()
+                .map(|&i| t.color(i as usize))
+                .collect::<Vec<_>>()
+        });
+        let normals = options.normals.then(|| {
+            cloud_pixels
+                .par_iter()
+                .map(|&i| normal_at(&points, width, i as usize).unwrap_or_else(Vector3::zeros))
+                .collect::<Vec<_>>()
+        });
+        let cloud = PointCloud::from_parts(positions, normals, colors, Some(quality))?;
         Ok(Triangulation {
             width,
             height,
@@ -212,100 +224,38 @@ impl Triangulator {
             counts,
         })
     }
+}
 
-    /// First pass over one camera row: solve, then the per-pixel filters.
-    fn row(
-        &self,
-        map: &CorrespondenceMap,
-        options: &TriOptions,
-        y: usize,
-        p_row: &mut [Point3<f64>],
-        e_row: &mut [f32],
-        s_row: &mut [PointStatus],
-    ) {
-        let width = p_row.len();
-        let base = y * width;
-        let rays = self.camera_rays.as_slice();
-        for (x, ((p_out, e_out), s_out)) in p_row
-            .iter_mut()
-            .zip(e_row.iter_mut())
-            .zip(s_row.iter_mut())
-            .enumerate()
-        {
-            let i = base + x;
-            let (Some(c), Some(r), Some(q), Some(inv)) = (
-                map.col.get(i),
-                map.row.get(i),
-                map.quality.get(i),
-                map.invalid.get(i),
-            ) else {
-                continue;
-            };
-            let (c, r) = (f64::from(*c), f64::from(*r));
-            let decoded = inv.is_valid()
-                && match options.method {
-                    Method::RayPlane { axis: Axis::Column } => c.is_finite(),
-                    Method::RayPlane { axis: Axis::Row } => r.is_finite(),
-                    _ => c.is_finite() && r.is_finite(),
-                };
-            if !decoded {
-                continue;
-            }
-            if !(*q >= options.min_quality) {
-                *s_out = PointStatus::LowQuality;
-                continue;
-            }
-            let Some(Some(n)) = rays.get(i) else {
-                *s_out = PointStatus::NoSolution;
-                continue;
-            };
-            let ray = Vector3::new(n.x, n.y, 1.0);
-            let Some(solved) = self.solve(options, &ray, (x as f64, y as f64), c, r) else {
-                *s_out = PointStatus::NoSolution;
-                continue;
-            };
-            *e_out = solved.reprojection as f32;
-            let z = solved.p.z;
-            *s_out = if !(z >= options.min_depth_mm && z <= options.max_depth_mm) {
-                PointStatus::OutOfDepthRange
-            } else if !(solved.reprojection <= options.max_reprojection_px) {
-                PointStatus::Reprojection
-            } else {
-                *p_out = Point3::from(solved.p);
-                PointStatus::Valid
-            };
-        }
+/// Indices of the valid pixels, in order: counts per band of rows, prefix sums, then every
+/// band fills its own slice of the output in parallel.
+fn valid_pixels(status: &[PointStatus], width: usize, valid: usize) -> Vec<u32> {
+    let chunk = MIN_PIXELS_PER_TASK.div_ceil(width.max(1)).max(1) * width.max(1);
+    let counts: Vec<usize> = status
+        .par_chunks(chunk)
+        .map(|band| band.iter().filter(|s| **s == PointStatus::Valid).count())
+        .collect();
+    let mut out = vec![0u32; valid];
+    let mut slices = Vec::with_capacity(counts.len());
+    let mut rest: &mut [u32] = &mut out;
+    for &c in &counts {
+        let (head, tail) = rest.split_at_mut(c.min(rest.len()));
+        slices.push(head);
+        rest = tail;
     }
-
-    #[inline]
-    fn solve(
-        &self,
-        options: &TriOptions,
-        ray: &Vector3<f64>,
-        (u, v): (f64, f64),
-        c: f64,
-        r: f64,
-    ) -> Option<Solved> {
-        let s = &self.stereo;
-        let p = match options.method {
-            Method::RayPlane { axis } => {
-                let target = if axis == Axis::Column { c } else { r };
-                ray * ray_surface_depth(s, ray, target, axis)?
+    slices
+        .into_par_iter()
+        .zip(status.par_chunks(chunk))
+        .enumerate()
+        .for_each(|(k, (slice, band))| {
+            let base = k * chunk;
+            let indices = band
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| **s == PointStatus::Valid)
+                .map(|(x, _)| (base + x) as u32);
+            for (o, i) in slice.iter_mut().zip(indices) {
+                *o = i;
             }
-            Method::Linear => {
-                let (xp, yp) = s.proj_normalised(c, r)?;
-                linear_point(s, ray, xp, yp)?
-            }
-            Method::Midpoint => {
-                let (xp, yp) = s.proj_normalised(c, r)?;
-                midpoint(s, ray, xp, yp)?
-            }
-            Method::Optimal => {
-                let start = ray * ray_surface_depth(s, ray, c, Axis::Column)?;
-                refine(s, start, (u, v), (c, r), options.optimal_iterations)?
-            }
-        };
-        let reprojection = s.reprojection(&p, u, v, c, r)?;
-        Some(Solved { p, reprojection })
-    }
+        });
+    out
 }
