@@ -77,6 +77,10 @@ pub enum RigError {
     /// A mesh file was refused by `sl-cloud`.
     #[error(transparent)]
     Cloud(#[from] sl_cloud::CloudError),
+    /// The Dynamixel turntable (serial port, servo, protocol) failed.
+    #[cfg(all(feature = "dynamixel", unix))]
+    #[error(transparent)]
+    Dynamixel(#[from] crate::DynamixelError),
     /// A JSON file could not be written or parsed.
     #[error("{}: {source}", path.display())]
     Json {

@@ -23,6 +23,9 @@
 //!   [`capture_board_on_table`], [`simulate_calibration`]);
 //! - **files**: capture sets in `sl-codec`'s format with their truth ([`simulate_scan`],
 //!   [`write_view_truth`]). `docs/virtual-rig.md` describes scenes, parameters and files.
+//! - the **turntable hardware** (feature `dynamixel`, on by default): `DynamixelTurntable`
+//!   drives a Dynamixel MX-64 over Protocol 2.0 and `Mx64Emulator` answers for it on a
+//!   pseudo-terminal, so the driver is tested without hardware (`docs/hardware-turntable.md`).
 //!
 //! ```
 //! use sl_rig::{GreyImage, RigConfig, Scene, VirtualRig};
@@ -68,6 +71,8 @@ mod board;
 mod calib;
 mod config;
 mod device;
+#[cfg(all(feature = "dynamixel", unix))]
+mod dynamixel;
 mod error;
 mod files;
 mod geometry;
@@ -90,6 +95,12 @@ pub use config::{
     MAX_SUPERSAMPLING, RenderConfig, RigConfig,
 };
 pub use device::{Camera, Projector, Turntable, capture_sequence};
+#[cfg(all(feature = "dynamixel", unix))]
+pub use dynamixel::{
+    DEG_PER_TICK, DynamixelConfig, DynamixelError, DynamixelTurntable,
+    EXTENDED_POSITION_LIMIT_TICKS, EmulatorConfig, EmulatorSnapshot, HardwareErrorStatus,
+    MX64_MODEL_NUMBER, MidMoveFault, Mx64Emulator, ServoStatus, TICKS_PER_TURN, dynamixel_crc16,
+};
 pub use error::RigError;
 pub use files::{TRUTH_DIR, VIEW_JSON, pose_matrix, write_capture_set, write_view_truth};
 pub use geometry::{CameraRays, ViewGeometry};
