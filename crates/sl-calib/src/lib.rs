@@ -32,17 +32,26 @@ mod detect;
 mod error;
 mod grey;
 mod homography;
+mod local_homography;
 mod pictures;
+mod procam;
 mod saddle;
+mod stereo;
 mod turntable;
 mod zhang;
 
 pub use detect::{BoardCorners, BoardSize, DetectorConfig, detect_checkerboard};
 pub use error::CalibError;
 pub use grey::load_grey;
+pub use local_homography::{
+    CornerFit, LocalHomographyConfig, ProjectorCorners, SkippedCorner, projector_corners,
+};
 pub use pictures::{
     BAR, BarChart, FIRST_CORNER, OUTLIER_BAR, OUTLIER_FACTOR, PALETTE, PictureConfig, ResidualPlot,
     draw_corners, error_bars, residual_plot, save_png,
+};
+pub use procam::{
+    ProcamCalibration, ProcamConfig, ProcamView, ProcamViewReport, SkippedView, calibrate_procam,
 };
 pub use turntable::{
     MIN_TURNTABLE_VIEWS, PoseAtAngle, TurntableCalibration, TurntableConfig, TurntableStdDev,
@@ -56,3 +65,5 @@ pub use zhang::{
 pub use image;
 /// Re-export of `sl-camera`, whose models the calibration produces.
 pub use sl_camera;
+/// Re-export of `sl-codec`, whose decoded maps the projector calibration takes.
+pub use sl_codec;

@@ -101,7 +101,7 @@ pub struct CameraCalibration {
 }
 
 /// Number of camera parameters in the full vector: `fx fy cx cy skew k1 k2 p1 p2 k3 k4 k5 k6`.
-const FULL: usize = 13;
+pub(crate) const FULL: usize = 13;
 
 /// Views fewer than this leave Zhang's closed form underdetermined with noise.
 const MIN_VIEWS: usize = 3;
@@ -118,14 +118,14 @@ const INITIAL_DAMPING: f64 = 1e-3;
 const MAX_DAMPING: f64 = 1e12;
 
 /// Which free parameters are estimated, as linear maps into the full 13-vector.
-struct Layout {
+pub(crate) struct Layout {
     /// Column `c` of `t` maps free parameter `c` into the full vector.
-    t: DMatrix<f64>,
-    model: DistortionModel,
+    pub(crate) t: DMatrix<f64>,
+    pub(crate) model: DistortionModel,
 }
 
 impl Layout {
-    fn new(cfg: &ZhangConfig) -> Self {
+    pub(crate) fn new(cfg: &ZhangConfig) -> Self {
         let mut cols: Vec<[f64; FULL]> = Vec::new();
         let unit = |i: usize| {
             let mut c = [0.0; FULL];
@@ -184,7 +184,7 @@ impl Layout {
     }
 }
 
-fn camera_from_full(
+pub(crate) fn camera_from_full(
     p: &SMatrix<f64, FULL, 1>,
     model: DistortionModel,
     size: ImageSize,
@@ -243,7 +243,20 @@ pub fn calibrate_camera(
     size: ImageSize,
     config: &ZhangConfig,
 ) -> Result<CameraCalibration, CalibError> {
-    validate(views, size, config)?;
+    validate(views, size, config, true)?;
+    let init = initial_estimate(views, size, config)?;
+    refine(views, size, config, init)
+}
+
+/// As [`calibrate_camera`], but views may hold different numbers of points (a subset of the
+/// board's corners each): the projector calibration, where corners without enough decoded
+/// pixels around them are left out.
+pub(crate) fn calibrate_camera_subsets(
+    views: &[CalibrationView],
+    size: ImageSize,
+    config: &ZhangConfig,
+) -> Result<CameraCalibration, CalibError> {
+    validate(views, size, config, false)?;
     let init = initial_estimate(views, size, config)?;
     refine(views, size, config, init)
 }
@@ -252,6 +265,7 @@ fn validate(
     views: &[CalibrationView],
     size: ImageSize,
     config: &ZhangConfig,
+    same_count: bool,
 ) -> Result<(), CalibError> {
     if views.len() < MIN_VIEWS {
         return Err(CalibError::Degenerate(format!(
@@ -289,7 +303,7 @@ fn validate(
                 ),
             });
         }
-        if v.object_points.len() != first {
+        if same_count && v.object_points.len() != first {
             return Err(CalibError::View {
                 view: k,
                 reason: format!(
@@ -542,13 +556,19 @@ fn total_cost(cam: &CameraModel, views: &[CalibrationView], poses: &[RvecTvec]) 
 
 /// Normal equations of one linearisation, split into the camera block, the pose blocks and
 /// their coupling.
-struct Normal {
-    u: DMatrix<f64>,
-    g_c: DVector<f64>,
-    v: Vec<Matrix6<f64>>,
-    w: Vec<DMatrix<f64>>,
-    g_p: Vec<Vector6<f64>>,
-    cost: f64,
+pub(crate) struct Normal {
+    /// `JcᵀJc` of the shared (camera) parameters.
+    pub(crate) u: DMatrix<f64>,
+    /// `Jcᵀr`.
+    pub(crate) g_c: DVector<f64>,
+    /// Per view `JpᵀJp` of its pose.
+    pub(crate) v: Vec<Matrix6<f64>>,
+    /// Per view `JcᵀJp`.
+    pub(crate) w: Vec<DMatrix<f64>>,
+    /// Per view `Jpᵀr`.
+    pub(crate) g_p: Vec<Vector6<f64>>,
+    /// Sum of squared residuals at the linearisation point.
+    pub(crate) cost: f64,
 }
 
 fn build_normal(
@@ -611,7 +631,7 @@ fn build_normal(
 
 /// Solves the damped normal equations by the Schur complement over the poses; returns the
 /// camera step and the pose steps.
-fn solve_step(n: &Normal, mu: f64) -> Option<(DVector<f64>, Vec<Vector6<f64>>)> {
+pub(crate) fn solve_step(n: &Normal, mu: f64) -> Option<(DVector<f64>, Vec<Vector6<f64>>)> {
     let mut s = n.u.clone();
     for i in 0..s.nrows() {
         s[(i, i)] += mu * n.u[(i, i)].max(1e-12);
@@ -764,35 +784,57 @@ fn std_deviations(
         distortion: [0.0; 8],
         poses: vec![[0.0; 6]; views],
     };
-    let mut s = n.u.clone();
-    let mut v_inv = Vec::with_capacity(n.v.len());
-    for (v, w) in n.v.iter().zip(&n.w) {
-        let Some(vi) = v.try_inverse() else {
-            return out;
-        };
-        let vid = DMatrix::from_column_slice(6, 6, vi.as_slice());
-        s -= w * &vid * w.transpose();
-        v_inv.push(vid);
-    }
-    let Some(s_inv) = s.try_inverse() else {
+    let Some(cov) = unscaled_covariance(n) else {
         return out;
     };
     // Free-parameter covariance mapped to the full vector: T S⁻¹ Tᵀ.
-    let full = &layout.t * &s_inv * layout.t.transpose();
+    let full = &layout.t * &cov.shared * layout.t.transpose();
     for i in 0..5 {
         out.intrinsics[i] = (sigma2 * full[(i, i)]).max(0.0).sqrt();
     }
     for i in 0..8 {
         out.distortion[i] = (sigma2 * full[(5 + i, 5 + i)]).max(0.0).sqrt();
     }
-    for ((vi, w), o) in v_inv.iter().zip(&n.w).zip(out.poses.iter_mut()) {
-        let a = w * vi;
-        let block = vi + a.transpose() * &s_inv * &a;
-        for (i, v) in o.iter_mut().enumerate() {
-            *v = (sigma2 * block[(i, i)]).max(0.0).sqrt();
+    for (diag, o) in cov.pose_diagonals.iter().zip(out.poses.iter_mut()) {
+        for (v, d) in o.iter_mut().zip(diag.iter()) {
+            *v = (sigma2 * d).max(0.0).sqrt();
         }
     }
     out
+}
+
+/// Blocks of `(JᵀJ)⁻¹` (not yet scaled by `σ²`).
+pub(crate) struct Covariance {
+    /// The shared parameters' block: the inverse of the Schur complement `S`.
+    pub(crate) shared: DMatrix<f64>,
+    /// The diagonal of each pose's block `V⁻¹ + V⁻¹ Wᵀ S⁻¹ W V⁻¹`.
+    pub(crate) pose_diagonals: Vec<Vector6<f64>>,
+}
+
+/// `(JᵀJ)⁻¹` by the Schur complement over the poses; `None` when singular.
+pub(crate) fn unscaled_covariance(n: &Normal) -> Option<Covariance> {
+    let mut s = n.u.clone();
+    let mut v_inv = Vec::with_capacity(n.v.len());
+    for (v, w) in n.v.iter().zip(&n.w) {
+        let vi = v.try_inverse()?;
+        let vid = DMatrix::from_column_slice(6, 6, vi.as_slice());
+        s -= w * &vid * w.transpose();
+        v_inv.push(vid);
+    }
+    let s_inv = s.try_inverse()?;
+    let pose_diagonals = v_inv
+        .iter()
+        .zip(&n.w)
+        .map(|(vi, w)| {
+            let a = w * vi;
+            let block = vi + a.transpose() * &s_inv * &a;
+            Vector6::from_fn(|i, _| block[(i, i)])
+        })
+        .collect();
+    Some(Covariance {
+        shared: s_inv,
+        pose_diagonals,
+    })
 }
 
 #[cfg(test)]

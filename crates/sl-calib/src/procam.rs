@@ -1,0 +1,425 @@
+//! Projector–camera calibration (Moreno & Taubin 2012): board corners detected in the camera,
+//! mapped into the projector by local homographies of the decoded patterns, each device
+//! calibrated by Zhang's method, then everything refined jointly.
+
+use image::GrayImage;
+use nalgebra::{Isometry3, Matrix3, Point2, Vector2, Vector3};
+use serde::{Deserialize, Serialize};
+use sl_camera::{Calibration, ImageSize, RmsErrors, RvecTvec, isometry_from_rt};
+use sl_codec::CorrespondenceMap;
+
+use crate::stereo::{StereoOptions, StereoStart, StereoView, refine_stereo};
+use crate::zhang::calibrate_camera_subsets;
+use crate::{
+    BoardSize, CalibError, CalibrationView, CameraCalibration, DetectorConfig,
+    LocalHomographyConfig, ProjectorCorners, ZhangConfig, calibrate_camera, detect_checkerboard,
+    projector_corners,
+};
+
+/// One board pose of a projector–camera calibration.
+#[derive(Debug, Clone)]
+pub struct ProcamView {
+    /// Name used in messages and reports (e.g. the capture folder).
+    pub name: String,
+    /// The board under full white projector light (for corner detection).
+    pub lit: GrayImage,
+    /// The decoded pattern sequence: projector column and row per camera pixel, both axes
+    /// coded (same size as `lit`).
+    pub map: CorrespondenceMap,
+}
+
+/// Options of [`calibrate_procam`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ProcamConfig {
+    /// Inner corners of the board.
+    pub board: BoardSize,
+    /// Side of a square (mm): the unit of the poses and of `T_cam_proj`.
+    pub square_mm: f64,
+    /// The projector's image size (px).
+    pub projector_size: ImageSize,
+    /// Checkerboard detection in the lit images.
+    pub detector: DetectorConfig,
+    /// Mapping of the corners into the projector.
+    pub homography: LocalHomographyConfig,
+    /// The camera's model and fixed parameters.
+    pub camera: ZhangConfig,
+    /// The projector's model and fixed parameters.
+    pub projector: ZhangConfig,
+    /// Views with fewer corners mapped into the projector are left out of the projector's
+    /// own calibration (they still count in the joint refinement).
+    pub min_projector_corners: usize,
+    /// `true`: a view whose board is not found is left out and listed in
+    /// [`ProcamCalibration::skipped_views`]; `false`: it is an error.
+    pub skip_unusable_views: bool,
+    /// Largest number of Levenberg–Marquardt iterations of the joint refinement.
+    pub max_iterations: usize,
+    /// Relative decrease of the squared error below which the joint refinement stops.
+    pub tolerance: f64,
+}
+
+impl ProcamConfig {
+    /// The defaults for a board of `board` inner corners with squares of `square_mm`, and a
+    /// projector of `projector_size`.
+    pub fn new(board: BoardSize, square_mm: f64, projector_size: ImageSize) -> Self {
+        Self {
+            board,
+            square_mm,
+            projector_size,
+            ..Self::default()
+        }
+    }
+}
+
+/// Corners a view needs in the projector to enter the projector's own Zhang calibration: a
+/// homography needs 4, and a few more keep one badly covered view from steering the start.
+const MIN_PROJECTOR_CORNERS: usize = 8;
+
+impl Default for ProcamConfig {
+    /// `sl-rig`'s default board (9×6 inner corners, 20 mm squares) and projector
+    /// (1920×1080), OpenCV's default models for both devices, views without a board skipped.
+    fn default() -> Self {
+        Self {
+            board: BoardSize::new(9, 6),
+            square_mm: 20.0,
+            projector_size: ImageSize::new(1920, 1080),
+            detector: DetectorConfig::default(),
+            homography: LocalHomographyConfig::default(),
+            camera: ZhangConfig::default(),
+            projector: ZhangConfig::default(),
+            min_projector_corners: MIN_PROJECTOR_CORNERS,
+            skip_unusable_views: true,
+            max_iterations: 100,
+            tolerance: 1e-15,
+        }
+    }
+}
+
+/// A view left out of the calibration, and why.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SkippedView {
+    /// The view's name.
+    pub name: String,
+    /// Why it was left out.
+    pub reason: String,
+}
+
+/// What became of one used view.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProcamViewReport {
+    /// The view's name.
+    pub name: String,
+    /// Camera corners (px), board order.
+    pub camera_corners: Vec<Point2<f64>>,
+    /// The corners mapped into the projector, with the corners skipped and why.
+    pub projector_corners: ProjectorCorners,
+    /// Whether the view entered the projector's own Zhang calibration.
+    pub in_projector_calibration: bool,
+    /// RMS camera residual of the joint solution in this view (px).
+    pub camera_rms: f64,
+    /// RMS projector residual of the joint solution in this view (projector px; 0 when no
+    /// corner was mapped).
+    pub projector_rms: f64,
+}
+
+/// The result of [`calibrate_procam`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProcamCalibration {
+    /// The camera after the joint refinement: model, `T_cam_board` per used view, its RMS,
+    /// per-view RMS and residuals in the joint solution, and standard deviations.
+    pub camera: CameraCalibration,
+    /// The projector after the joint refinement: model, `T_proj_board = T_proj_cam ·
+    /// T_cam_board` per used view, RMS and residuals in the joint solution (corners not
+    /// mapped are left out of `residuals`), standard deviations of intrinsics and distortion
+    /// (`std_dev.poses` is empty: the projector's poses are not free parameters).
+    pub projector: CameraCalibration,
+    /// Pose of the projector in the camera frame: `p_cam = T_cam_proj · p_proj` (mm).
+    pub t_cam_proj: Isometry3<f64>,
+    /// Standard deviations of `T_proj_cam = T_cam_proj⁻¹` as estimated: rvec (rad), tvec
+    /// (mm).
+    pub t_proj_cam_std_dev: [f64; 6],
+    /// RMS of the camera calibrated alone (Zhang, OpenCV's `calibrateCamera` definition).
+    pub rms_camera: f64,
+    /// RMS of the projector calibrated alone on the mapped corners (projector px).
+    pub rms_projector: f64,
+    /// RMS of the joint refinement over the camera and projector residuals together
+    /// (OpenCV's `stereoCalibrate` definition: `sqrt(Σ|r|² / observations)`).
+    pub rms_stereo: f64,
+    /// The used views, in the order of `camera.poses`.
+    pub views: Vec<ProcamViewReport>,
+    /// The views left out, with the reason.
+    pub skipped_views: Vec<SkippedView>,
+    /// Levenberg–Marquardt iterations of the joint refinement.
+    pub iterations: usize,
+}
+
+impl ProcamCalibration {
+    /// The calibration file's content: both models, `T_cam_proj` and the three RMS errors.
+    pub fn to_calibration(&self) -> Calibration {
+        let mut c = Calibration::new(self.camera.camera.clone());
+        c.projector = Some(self.projector.camera.clone());
+        c.t_cam_proj = Some(self.t_cam_proj);
+        c.rms = RmsErrors {
+            camera: Some(self.rms_camera),
+            projector: Some(self.rms_projector),
+            stereo: Some(self.rms_stereo),
+        };
+        c
+    }
+
+    /// Number of board corners mapped into the projector over the used views.
+    pub fn projector_corner_count(&self) -> usize {
+        self.views
+            .iter()
+            .map(|v| v.projector_corners.mapped_count())
+            .sum()
+    }
+}
+
+/// Views fewer than this leave Zhang's method underdetermined.
+const MIN_VIEWS: usize = 3;
+
+fn validate(views: &[ProcamView], cfg: &ProcamConfig) -> Result<(), CalibError> {
+    if !(cfg.square_mm.is_finite() && cfg.square_mm > 0.0) {
+        return Err(CalibError::param(
+            "square_mm",
+            format!("{} is not a positive length", cfg.square_mm),
+        ));
+    }
+    cfg.projector_size.validate()?;
+    if cfg.min_projector_corners < 4 {
+        return Err(CalibError::param(
+            "min_projector_corners",
+            format!(
+                "{}: a view needs at least 4 corners in the projector for a homography",
+                cfg.min_projector_corners
+            ),
+        ));
+    }
+    for v in views {
+        let (w, h) = (v.lit.width() as usize, v.lit.height() as usize);
+        if v.map.width != w || v.map.height != h {
+            return Err(CalibError::Frame {
+                frame: v.name.clone(),
+                reason: format!(
+                    "the decoded map is {}x{} but the lit image is {w}x{h}",
+                    v.map.width, v.map.height
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+fn too_few_views(used: usize, skipped: &[SkippedView], what: &str) -> CalibError {
+    let mut msg = format!(
+        "{used} usable view(s) for the {what}: capture at least {MIN_VIEWS} board poses (10–20 is better), tilted by 10–40° in different directions, the whole board lit by the projector"
+    );
+    for s in skipped {
+        msg.push_str(&format!("; {} left out: {}", s.name, s.reason));
+    }
+    CalibError::Degenerate(msg)
+}
+
+/// Calibrates a camera and a projector from board views (Moreno & Taubin 2012): detects the
+/// board in each lit image, maps its corners into the projector by local homographies of the
+/// decoded patterns ([`projector_corners`]), calibrates each device by Zhang's method, then
+/// refines both models, every board pose and `T_cam_proj` jointly by Levenberg–Marquardt
+/// (as `cv::stereoCalibrate` without fixed intrinsics).
+///
+/// # Errors
+/// [`CalibError::Degenerate`] with fewer than 3 usable views (listing the views left out and
+/// why) or boards that do not determine the intrinsics (all parallel), saying what to capture
+/// instead; [`CalibError::BoardNotFound`] naming the view when `skip_unusable_views` is off;
+/// [`CalibError::SparseCorner`] when `homography.skip_sparse` is off; [`CalibError::Frame`]
+/// when a view's map and image sizes differ; [`CalibError::InvalidParameter`] for bad options.
+///
+/// See `tests/procam.rs` for a run on the virtual rig's renders.
+pub fn calibrate_procam(
+    views: &[ProcamView],
+    cfg: &ProcamConfig,
+) -> Result<ProcamCalibration, CalibError> {
+    validate(views, cfg)?;
+    let mut skipped_views = Vec::new();
+    let mut found = Vec::new();
+    for v in views {
+        match detect_checkerboard(&v.lit, cfg.board, &cfg.detector, &v.name) {
+            Ok(b) => {
+                let p = projector_corners(&b, &v.map, &cfg.homography, &v.name)?;
+                found.push((v, b, p));
+            }
+            Err(e) if cfg.skip_unusable_views => skipped_views.push(SkippedView {
+                name: v.name.clone(),
+                reason: e.to_string(),
+            }),
+            Err(e) => return Err(e),
+        }
+    }
+    if found.len() < MIN_VIEWS {
+        return Err(too_few_views(found.len(), &skipped_views, "camera"));
+    }
+    let object = cfg.board.object_points(cfg.square_mm);
+    // The camera alone.
+    let camera_views: Vec<CalibrationView> = found
+        .iter()
+        .map(|(_, b, _)| CalibrationView::from_corners(b, cfg.square_mm))
+        .collect();
+    let camera_size = found
+        .first()
+        .map(|(v, _, _)| ImageSize::new(v.lit.width(), v.lit.height()))
+        .unwrap_or(ImageSize::new(0, 0));
+    let camera_alone = calibrate_camera(&camera_views, camera_size, &cfg.camera)?;
+    // The projector alone, on the views with enough mapped corners.
+    let mut projector_views = Vec::new();
+    let mut projector_index = Vec::new();
+    for (k, (_, _, p)) in found.iter().enumerate() {
+        if p.mapped_count() < cfg.min_projector_corners {
+            continue;
+        }
+        let (obj, img): (Vec<_>, Vec<_>) = object
+            .iter()
+            .zip(&p.fits)
+            .filter_map(|(o, f)| f.map(|f| (*o, f.projector)))
+            .unzip();
+        projector_views.push(CalibrationView {
+            object_points: obj,
+            image_points: img,
+        });
+        projector_index.push(k);
+    }
+    if projector_views.len() < MIN_VIEWS {
+        let mut why = skipped_views.clone();
+        for (v, _, p) in &found {
+            if p.mapped_count() < cfg.min_projector_corners {
+                why.push(SkippedView {
+                    name: v.name.clone(),
+                    reason: format!(
+                        "{} of {} corners mapped into the projector, {} needed",
+                        p.mapped_count(),
+                        p.fits.len(),
+                        cfg.min_projector_corners
+                    ),
+                });
+            }
+        }
+        return Err(too_few_views(projector_views.len(), &why, "projector"));
+    }
+    let projector_alone =
+        calibrate_camera_subsets(&projector_views, cfg.projector_size, &cfg.projector)?;
+    // T_proj_cam from every view seen by both: the chordal mean of the rotations.
+    let mut r_sum = Matrix3::zeros();
+    let mut t_sum = Vector3::zeros();
+    for (pose_p, &k) in projector_alone.poses.iter().zip(&projector_index) {
+        let Some(pose_c) = camera_alone.poses.get(k) else {
+            continue;
+        };
+        let t = pose_p.to_isometry() * pose_c.to_isometry().inverse();
+        r_sum += t.rotation.to_rotation_matrix().into_inner();
+        t_sum += t.translation.vector;
+    }
+    let n = projector_index.len() as f64;
+    let svd = r_sum.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return Err(CalibError::Degenerate(
+            "the per-view camera-to-projector rotations have no mean".to_owned(),
+        ));
+    };
+    let mut rot = u * vt;
+    if rot.determinant() < 0.0 {
+        let mut u = u;
+        u.column_mut(2).neg_mut();
+        rot = u * vt;
+    }
+    let start_extrinsics = RvecTvec::from_isometry(&isometry_from_rt(&rot, &(t_sum / n))?);
+    // Joint refinement.
+    let projector_points: Vec<Vec<Option<Point2<f64>>>> =
+        found.iter().map(|(_, _, p)| p.points()).collect();
+    let stereo_views: Vec<StereoView<'_>> = found
+        .iter()
+        .zip(&projector_points)
+        .map(|((_, b, _), pp)| StereoView {
+            object: &object,
+            camera: &b.corners,
+            projector: pp,
+        })
+        .collect();
+    let start = StereoStart {
+        camera: camera_alone.camera.clone(),
+        projector: projector_alone.camera.clone(),
+        extrinsics: start_extrinsics,
+        poses: camera_alone.poses.clone(),
+    };
+    let sol = refine_stereo(
+        &stereo_views,
+        &start,
+        &StereoOptions {
+            camera: &cfg.camera,
+            projector: &cfg.projector,
+            max_iterations: cfg.max_iterations,
+            tolerance: cfg.tolerance,
+        },
+    )?;
+    // Statistics.
+    let rms = |r: &[Vector2<f64>]| {
+        if r.is_empty() {
+            0.0
+        } else {
+            (r.iter().map(Vector2::norm_squared).sum::<f64>() / r.len() as f64).sqrt()
+        }
+    };
+    let projector_residuals: Vec<Vec<Vector2<f64>>> = sol
+        .projector_residuals
+        .iter()
+        .map(|r| r.iter().flatten().copied().collect())
+        .collect();
+    let all_camera: Vec<Vector2<f64>> = sol.camera_residuals.iter().flatten().copied().collect();
+    let all_projector: Vec<Vector2<f64>> = projector_residuals.iter().flatten().copied().collect();
+    let both: Vec<Vector2<f64>> = all_camera.iter().chain(&all_projector).copied().collect();
+    let t_proj_cam = sol.extrinsics.to_isometry();
+    let views_report = found
+        .iter()
+        .zip(sol.camera_residuals.iter().zip(&projector_residuals))
+        .enumerate()
+        .map(|(k, ((v, b, p), (rc, rp)))| ProcamViewReport {
+            name: v.name.clone(),
+            camera_corners: b.corners.clone(),
+            projector_corners: p.clone(),
+            in_projector_calibration: projector_index.contains(&k),
+            camera_rms: rms(rc),
+            projector_rms: rms(rp),
+        })
+        .collect();
+    let camera = CameraCalibration {
+        camera: sol.camera,
+        poses: sol.poses.clone(),
+        rms: rms(&all_camera),
+        view_rms: sol.camera_residuals.iter().map(|r| rms(r)).collect(),
+        residuals: sol.camera_residuals,
+        std_dev: sol.camera_std,
+        iterations: sol.iterations,
+    };
+    let projector = CameraCalibration {
+        camera: sol.projector,
+        poses: sol
+            .poses
+            .iter()
+            .map(|p| RvecTvec::from_isometry(&(t_proj_cam * p.to_isometry())))
+            .collect(),
+        rms: rms(&all_projector),
+        view_rms: projector_residuals.iter().map(|r| rms(r)).collect(),
+        residuals: projector_residuals,
+        std_dev: sol.projector_std,
+        iterations: sol.iterations,
+    };
+    Ok(ProcamCalibration {
+        camera,
+        projector,
+        t_cam_proj: t_proj_cam.inverse(),
+        t_proj_cam_std_dev: sol.extrinsics_std,
+        rms_camera: camera_alone.rms,
+        rms_projector: projector_alone.rms,
+        rms_stereo: rms(&both),
+        views: views_report,
+        skipped_views,
+        iterations: sol.iterations,
+    })
+}

@@ -1,0 +1,366 @@
+//! Joint refinement of a camera–projector pair (as `cv::stereoCalibrate`): camera intrinsics
+//! and distortion, projector intrinsics and distortion, one pose per board view and the single
+//! `T_proj_cam`, by Levenberg–Marquardt with analytic Jacobians, solved through the Schur
+//! complement over the per-view poses (the normal-equation pieces of `zhang.rs`).
+
+use nalgebra::{DMatrix, DVector, Matrix6, Point2, Point3, SMatrix, Vector2, Vector3, Vector6};
+use sl_camera::{CameraModel, ImageSize, RvecTvec, rotation_jacobian};
+
+use crate::CalibError;
+use crate::zhang::{FULL, Layout, Normal, camera_from_full, solve_step, unscaled_covariance};
+use crate::{ParameterStdDev, ZhangConfig};
+
+/// Full shared vector: camera (13), projector (13), `T_proj_cam` (rvec, tvec).
+const SHARED: usize = 2 * FULL + 6;
+
+/// Damping at the start of Levenberg–Marquardt, relative to the diagonal (as `zhang.rs`).
+const INITIAL_DAMPING: f64 = 1e-3;
+
+/// Damping beyond which LM gives up: the steps are then vanishingly small.
+const MAX_DAMPING: f64 = 1e12;
+
+/// One board view: the board points, their camera pixels and (where mapped) projector pixels.
+pub(crate) struct StereoView<'a> {
+    pub(crate) object: &'a [Point3<f64>],
+    pub(crate) camera: &'a [Point2<f64>],
+    pub(crate) projector: &'a [Option<Point2<f64>>],
+}
+
+/// Where the refinement starts.
+pub(crate) struct StereoStart {
+    pub(crate) camera: CameraModel,
+    pub(crate) projector: CameraModel,
+    /// `T_proj_cam`.
+    pub(crate) extrinsics: RvecTvec,
+    /// `T_cam_board` per view.
+    pub(crate) poses: Vec<RvecTvec>,
+}
+
+/// Options of the refinement.
+pub(crate) struct StereoOptions<'a> {
+    pub(crate) camera: &'a ZhangConfig,
+    pub(crate) projector: &'a ZhangConfig,
+    pub(crate) max_iterations: usize,
+    pub(crate) tolerance: f64,
+}
+
+/// The refined pair with residuals and standard deviations.
+pub(crate) struct StereoSolution {
+    pub(crate) camera: CameraModel,
+    pub(crate) projector: CameraModel,
+    pub(crate) extrinsics: RvecTvec,
+    pub(crate) poses: Vec<RvecTvec>,
+    /// Per view, per corner: observed minus projected camera pixel.
+    pub(crate) camera_residuals: Vec<Vec<Vector2<f64>>>,
+    /// Per view, per corner: observed minus projected projector pixel (`None`: not mapped).
+    pub(crate) projector_residuals: Vec<Vec<Option<Vector2<f64>>>>,
+    pub(crate) camera_std: ParameterStdDev,
+    pub(crate) projector_std: ParameterStdDev,
+    /// `T_proj_cam`: rvec (rad) then tvec (board units).
+    pub(crate) extrinsics_std: [f64; 6],
+    pub(crate) iterations: usize,
+}
+
+struct State {
+    camera: SMatrix<f64, FULL, 1>,
+    projector: SMatrix<f64, FULL, 1>,
+    extrinsics: RvecTvec,
+    poses: Vec<RvecTvec>,
+}
+
+struct Models {
+    camera: CameraModel,
+    projector: CameraModel,
+}
+
+fn full_vector(m: &CameraModel) -> SMatrix<f64, FULL, 1> {
+    let i = &m.intrinsics;
+    let mut v = SMatrix::<f64, FULL, 1>::zeros();
+    v[0] = i.fx;
+    v[1] = i.fy;
+    v[2] = i.cx;
+    v[3] = i.cy;
+    v[4] = i.skew;
+    for (k, c) in m.distortion.coefficients().iter().enumerate() {
+        v[5 + k] = *c;
+    }
+    v
+}
+
+struct Problem<'a> {
+    views: &'a [StereoView<'a>],
+    camera_layout: Layout,
+    projector_layout: Layout,
+    camera_size: ImageSize,
+    projector_size: ImageSize,
+    /// Block-diagonal map of the free shared parameters into the full `SHARED` vector.
+    t: DMatrix<f64>,
+}
+
+impl Problem<'_> {
+    fn models(&self, s: &State) -> Option<Models> {
+        Some(Models {
+            camera: camera_from_full(&s.camera, self.camera_layout.model, self.camera_size)?,
+            projector: camera_from_full(
+                &s.projector,
+                self.projector_layout.model,
+                self.projector_size,
+            )?,
+        })
+    }
+
+    fn cost(&self, m: &Models, s: &State) -> Option<f64> {
+        let mut sum = 0.0;
+        for (v, pose) in self.views.iter().zip(&s.poses) {
+            for ((x, qc), qp) in v.object.iter().zip(v.camera).zip(v.projector) {
+                let pc = pose.transform_point(x);
+                sum += (qc - m.camera.project(&pc)?).norm_squared();
+                if let Some(qp) = qp {
+                    let pp = s.extrinsics.transform_point(&pc);
+                    sum += (qp - m.projector.project(&pp)?).norm_squared();
+                }
+            }
+        }
+        Some(sum)
+    }
+
+    fn normal(&self, m: &Models, s: &State) -> Option<Normal> {
+        let ng = self.t.ncols();
+        let tt = self.t.transpose();
+        let mut out = Normal {
+            u: DMatrix::zeros(ng, ng),
+            g_c: DVector::zeros(ng),
+            v: Vec::with_capacity(self.views.len()),
+            w: Vec::with_capacity(self.views.len()),
+            g_p: Vec::with_capacity(self.views.len()),
+            cost: 0.0,
+        };
+        for (view, pose) in self.views.iter().zip(&s.poses) {
+            let mut u_full = SMatrix::<f64, SHARED, SHARED>::zeros();
+            let mut g_full = SMatrix::<f64, SHARED, 1>::zeros();
+            let mut w_full = SMatrix::<f64, SHARED, 6>::zeros();
+            let mut v = Matrix6::zeros();
+            let mut gp = Vector6::zeros();
+            let mut add =
+                |jg: &SMatrix<f64, 2, SHARED>, jp: &SMatrix<f64, 2, 6>, r: Vector2<f64>| {
+                    u_full += jg.transpose() * jg;
+                    g_full += jg.transpose() * r;
+                    w_full += jg.transpose() * jp;
+                    v += jp.transpose() * jp;
+                    gp += jp.transpose() * r;
+                    r.norm_squared()
+                };
+            for ((x, qc), qp) in view.object.iter().zip(view.camera).zip(view.projector) {
+                // Camera: p_cam = T_cam_board x.
+                let j = m.camera.project_with_pose_jacobians(pose, x)?;
+                let mut jg = SMatrix::<f64, 2, SHARED>::zeros();
+                jg.fixed_view_mut::<2, 5>(0, 0)
+                    .copy_from(&j.projection.d_intrinsics);
+                jg.fixed_view_mut::<2, 8>(0, 5)
+                    .copy_from(&j.projection.d_distortion);
+                let mut jp = SMatrix::<f64, 2, 6>::zeros();
+                jp.fixed_view_mut::<2, 3>(0, 0).copy_from(&j.d_rvec);
+                jp.fixed_view_mut::<2, 3>(0, 3).copy_from(&j.d_tvec);
+                out.cost += add(&jg, &jp, qc - j.projection.pixel);
+                // Projector: p_proj = T_proj_cam p_cam.
+                let Some(qp) = qp else { continue };
+                let pc = pose.transform_point(x);
+                let k = m
+                    .projector
+                    .project_with_pose_jacobians(&s.extrinsics, &pc)?;
+                let mut jg = SMatrix::<f64, 2, SHARED>::zeros();
+                jg.fixed_view_mut::<2, 5>(0, FULL)
+                    .copy_from(&k.projection.d_intrinsics);
+                jg.fixed_view_mut::<2, 8>(0, FULL + 5)
+                    .copy_from(&k.projection.d_distortion);
+                jg.fixed_view_mut::<2, 3>(0, 2 * FULL).copy_from(&k.d_rvec);
+                jg.fixed_view_mut::<2, 3>(0, 2 * FULL + 3)
+                    .copy_from(&k.d_tvec);
+                // ∂p_cam/∂rvec_i = ∂(R_i x)/∂rvec_i, ∂p_cam/∂tvec_i = I.
+                let mut jp = SMatrix::<f64, 2, 6>::zeros();
+                jp.fixed_view_mut::<2, 3>(0, 0)
+                    .copy_from(&(k.d_point_world * rotation_jacobian(&pose.rvec, &x.coords)));
+                jp.fixed_view_mut::<2, 3>(0, 3).copy_from(&k.d_point_world);
+                out.cost += add(&jg, &jp, qp - k.projection.pixel);
+            }
+            let u = DMatrix::from_column_slice(SHARED, SHARED, u_full.as_slice());
+            out.u += &tt * u * &self.t;
+            out.g_c += &tt * DVector::from_column_slice(g_full.as_slice());
+            out.w
+                .push(&tt * DMatrix::from_column_slice(SHARED, 6, w_full.as_slice()));
+            out.v.push(v);
+            out.g_p.push(gp);
+        }
+        Some(out)
+    }
+
+    fn apply(&self, s: &State, dc: &DVector<f64>, dp: &[Vector6<f64>]) -> State {
+        let full = &self.t * dc;
+        let mut camera = s.camera;
+        let mut projector = s.projector;
+        for i in 0..FULL {
+            camera[i] += full[i];
+            projector[i] += full[FULL + i];
+        }
+        let e = 2 * FULL;
+        let extrinsics = RvecTvec::new(
+            s.extrinsics.rvec + Vector3::new(full[e], full[e + 1], full[e + 2]),
+            s.extrinsics.tvec + Vector3::new(full[e + 3], full[e + 4], full[e + 5]),
+        );
+        let poses = s
+            .poses
+            .iter()
+            .zip(dp)
+            .map(|(p, d)| {
+                RvecTvec::new(
+                    p.rvec + Vector3::new(d[0], d[1], d[2]),
+                    p.tvec + Vector3::new(d[3], d[4], d[5]),
+                )
+            })
+            .collect();
+        State {
+            camera,
+            projector,
+            extrinsics,
+            poses,
+        }
+    }
+}
+
+/// Refines camera, projector, `T_proj_cam` and the board poses jointly.
+pub(crate) fn refine_stereo(
+    views: &[StereoView<'_>],
+    start: &StereoStart,
+    opts: &StereoOptions<'_>,
+) -> Result<StereoSolution, CalibError> {
+    let camera_layout = Layout::new(opts.camera);
+    let projector_layout = Layout::new(opts.projector);
+    let (nc, np) = (camera_layout.t.ncols(), projector_layout.t.ncols());
+    let mut t = DMatrix::zeros(SHARED, nc + np + 6);
+    t.view_mut((0, 0), (FULL, nc)).copy_from(&camera_layout.t);
+    t.view_mut((FULL, nc), (FULL, np))
+        .copy_from(&projector_layout.t);
+    t.view_mut((2 * FULL, nc + np), (6, 6))
+        .copy_from(&DMatrix::<f64>::identity(6, 6));
+    let problem = Problem {
+        views,
+        camera_size: start.camera.size,
+        projector_size: start.projector.size,
+        camera_layout,
+        projector_layout,
+        t,
+    };
+    let not_projecting = || {
+        CalibError::Degenerate(
+            "the joint camera–projector estimate does not project every corner: check that camera and projector see the board from its printed side in every view".to_owned(),
+        )
+    };
+    let mut state = State {
+        camera: full_vector(&start.camera),
+        projector: full_vector(&start.projector),
+        extrinsics: start.extrinsics,
+        poses: start.poses.clone(),
+    };
+    let mut models = problem.models(&state).ok_or_else(not_projecting)?;
+    let mut normal = problem.normal(&models, &state).ok_or_else(not_projecting)?;
+    let mut mu = INITIAL_DAMPING;
+    let mut iterations = 0;
+    while iterations < opts.max_iterations {
+        iterations += 1;
+        let mut improved = false;
+        while mu < MAX_DAMPING {
+            let Some((dc, dp)) = solve_step(&normal, mu) else {
+                mu *= 10.0;
+                continue;
+            };
+            let trial = problem.apply(&state, &dc, &dp);
+            let trial_models = problem.models(&trial);
+            let cost = trial_models.as_ref().and_then(|m| problem.cost(m, &trial));
+            match (trial_models, cost) {
+                (Some(m), Some(c)) if c <= normal.cost => {
+                    let rel = (normal.cost - c) / normal.cost.max(f64::MIN_POSITIVE);
+                    state = trial;
+                    models = m;
+                    normal = problem.normal(&models, &state).ok_or_else(not_projecting)?;
+                    mu = (mu / 10.0).max(1e-12);
+                    improved = rel > opts.tolerance;
+                    break;
+                }
+                _ => mu *= 10.0,
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    // Residuals at the solution.
+    let mut camera_residuals = Vec::with_capacity(views.len());
+    let mut projector_residuals = Vec::with_capacity(views.len());
+    let mut observations = 0usize;
+    for (v, pose) in views.iter().zip(&state.poses) {
+        let mut rc = Vec::with_capacity(v.camera.len());
+        let mut rp = Vec::with_capacity(v.projector.len());
+        for ((x, qc), qp) in v.object.iter().zip(v.camera).zip(v.projector) {
+            let pc = pose.transform_point(x);
+            rc.push(qc - models.camera.project(&pc).ok_or_else(not_projecting)?);
+            observations += 1;
+            rp.push(match qp {
+                Some(qp) => {
+                    observations += 1;
+                    let pp = state.extrinsics.transform_point(&pc);
+                    Some(qp - models.projector.project(&pp).ok_or_else(not_projecting)?)
+                }
+                None => None,
+            });
+        }
+        camera_residuals.push(rc);
+        projector_residuals.push(rp);
+    }
+    // σ² (JᵀJ)⁻¹ with σ² = cost / (2·observations − parameters), as OpenCV.
+    let params = problem.t.ncols() + 6 * views.len();
+    let dof = (2 * observations).saturating_sub(params).max(1) as f64;
+    let sigma2 = normal.cost / dof;
+    let mut camera_std = ParameterStdDev {
+        intrinsics: [0.0; 5],
+        distortion: [0.0; 8],
+        poses: vec![[0.0; 6]; views.len()],
+    };
+    let mut projector_std = ParameterStdDev {
+        intrinsics: [0.0; 5],
+        distortion: [0.0; 8],
+        poses: Vec::new(),
+    };
+    let mut extrinsics_std = [0.0; 6];
+    if let Some(cov) = unscaled_covariance(&normal) {
+        let full = &problem.t * &cov.shared * problem.t.transpose();
+        let sd = |i: usize| (sigma2 * full[(i, i)]).max(0.0).sqrt();
+        for i in 0..5 {
+            camera_std.intrinsics[i] = sd(i);
+            projector_std.intrinsics[i] = sd(FULL + i);
+        }
+        for i in 0..8 {
+            camera_std.distortion[i] = sd(5 + i);
+            projector_std.distortion[i] = sd(FULL + 5 + i);
+        }
+        for (i, e) in extrinsics_std.iter_mut().enumerate() {
+            *e = sd(2 * FULL + i);
+        }
+        for (diag, o) in cov.pose_diagonals.iter().zip(camera_std.poses.iter_mut()) {
+            for (v, d) in o.iter_mut().zip(diag.iter()) {
+                *v = (sigma2 * d).max(0.0).sqrt();
+            }
+        }
+    }
+    Ok(StereoSolution {
+        camera: models.camera,
+        projector: models.projector,
+        extrinsics: state.extrinsics,
+        poses: state.poses,
+        camera_residuals,
+        projector_residuals,
+        camera_std,
+        projector_std,
+        extrinsics_std,
+        iterations,
+    })
+}
