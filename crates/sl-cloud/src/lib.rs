@@ -62,7 +62,8 @@ pub use cloud::{Aabb, MergePolicy, PointCloud};
 pub use error::CloudError;
 pub use neighbours::{KdIndex, Neighbour};
 pub use normals::{
-    NormalConfig, NormalEstimate, NormalOrientation, estimate_normals, estimate_normals_with_index,
+    LocalPlane, NormalConfig, NormalEstimate, NormalOrientation, estimate_normals,
+    estimate_normals_with_index, fit_local_plane,
 };
 pub use outliers::{
     RadiusOutlierConfig, RadiusOutliers, StatisticalOutlierConfig, StatisticalOutliers,

@@ -159,25 +159,68 @@ pub fn estimate_normals_with_index(
     })
 }
 
-/// PCA normal of the neighbourhood `idx` of `p`, oriented.
+/// PCA normal of the neighbourhood `idx` of `p`, oriented, and its surface variation.
 fn normal_of(
     points: &[Point3<f64>],
     idx: impl Iterator<Item = usize> + Clone,
     p: &Point3<f64>,
     orientation: NormalOrientation,
 ) -> (Vector3<f64>, f64) {
+    let Some(plane) = fit_local_plane(points, idx) else {
+        return (Vector3::zeros(), 0.0);
+    };
+    let normal = plane.normal;
+    let flip = match orientation {
+        NormalOrientation::Unoriented => false,
+        NormalOrientation::TowardViewpoint(v) => normal.dot(&(v - p)) < 0.0,
+        NormalOrientation::TowardDirection(d) => normal.dot(&d) < 0.0,
+    };
+    (if flip { -normal } else { normal }, plane.surface_variation)
+}
+
+/// The least-squares plane of a neighbourhood, found by PCA (see [`fit_local_plane`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalPlane {
+    /// Unit normal: the eigenvector of the smallest eigenvalue of the covariance
+    /// (unoriented: its sign is the eigen-solver's).
+    pub normal: Vector3<f64>,
+    /// The mean of the neighbourhood, a point of the plane.
+    pub centroid: Point3<f64>,
+    /// Surface variation `λ0 / (λ0 + λ1 + λ2)` (eigenvalues ascending): 0 on a plane, up to
+    /// 1/3 for isotropic noise.
+    pub surface_variation: f64,
+}
+
+/// Fits a plane by PCA to the points `points[i]` for `i` in `neighbours` (indices out of
+/// range are skipped): the covariance about the mean and the eigenvector of its smallest
+/// eigenvalue, from a closed-form symmetric 3x3 solver. `None` with fewer than 3 points or
+/// when they all coincide. This is the fit behind [`estimate_normals`]; `sl-icp` uses it for
+/// the normals and the overlap averaging of a merged scan.
+///
+/// ```
+/// use nalgebra::{Point3, Vector3};
+/// use sl_cloud::fit_local_plane;
+/// let pts: Vec<_> = (0..9).map(|i| Point3::new((i % 3) as f64, (i / 3) as f64, 2.0)).collect();
+/// let plane = fit_local_plane(&pts, 0..9).unwrap();
+/// assert!((plane.normal.z.abs() - 1.0).abs() < 1e-12);
+/// assert_eq!(plane.centroid, Point3::new(1.0, 1.0, 2.0));
+/// ```
+pub fn fit_local_plane(
+    points: &[Point3<f64>],
+    neighbours: impl Iterator<Item = usize> + Clone,
+) -> Option<LocalPlane> {
     let mut n = 0usize;
     let mut sum = Vector3::zeros();
-    for q in idx.clone().filter_map(|i| points.get(i)) {
+    for q in neighbours.clone().filter_map(|i| points.get(i)) {
         sum += q.coords;
         n += 1;
     }
     if n < 3 {
-        return (Vector3::zeros(), 0.0);
+        return None;
     }
     let mean = sum / n as f64;
     let mut c = [0.0; 6];
-    for q in idx.filter_map(|i| points.get(i)) {
+    for q in neighbours.filter_map(|i| points.get(i)) {
         let d = q.coords - mean;
         c[0] += d.x * d.x;
         c[1] += d.x * d.y;
@@ -186,26 +229,21 @@ fn normal_of(
         c[4] += d.y * d.z;
         c[5] += d.z * d.z;
     }
-    if c.iter().all(|v| *v == 0.0) {
-        return (Vector3::zeros(), 0.0);
+    if c.iter().all(|v| *v == 0.0) || !c.iter().all(|v| v.is_finite()) {
+        return None;
     }
     let e = smallest_eigen(&c);
     let total = e.values[0] + e.values[1] + e.values[2];
-    let variation = if total > 0.0 {
+    let surface_variation = if total > 0.0 {
         (e.values[0] / total).max(0.0)
     } else {
         0.0
     };
-    let mut normal = e.vector;
-    let flip = match orientation {
-        NormalOrientation::Unoriented => false,
-        NormalOrientation::TowardViewpoint(v) => normal.dot(&(v - p)) < 0.0,
-        NormalOrientation::TowardDirection(d) => normal.dot(&d) < 0.0,
-    };
-    if flip {
-        normal = -normal;
-    }
-    (normal, variation)
+    Some(LocalPlane {
+        normal: e.vector,
+        centroid: Point3::from(mean),
+        surface_variation,
+    })
 }
 
 #[cfg(test)]

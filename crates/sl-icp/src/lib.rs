@@ -63,7 +63,6 @@ mod association;
 mod config;
 mod error;
 mod icp;
-mod kdtree;
 mod merge;
 mod metric;
 mod normals;

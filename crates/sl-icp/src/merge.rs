@@ -4,9 +4,8 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
-use sl_cloud::{MergePolicy, NormalConfig, PointCloud, VoxelGridConfig, voxel_downsample};
+use sl_cloud::{KdIndex, MergePolicy, NormalConfig, PointCloud, VoxelGridConfig, voxel_downsample};
 
-use crate::kdtree::KdTree;
 use crate::normals::{local_planes, quadric_projection};
 use crate::{
     IcpConfig, IcpError, Metric, NormalSource, PoseGraph, PoseGraphConfig, PoseGraphEdge,
@@ -118,11 +117,11 @@ impl MergeConfig {
             ));
         }
         let k = self.output_normal_neighbours;
-        if k != 0 && !(3..=crate::kdtree::MAX_K).contains(&k) {
+        if k != 0 && k < 3 {
             return Err(IcpError::invalid(
                 "output_normal_neighbours",
                 k,
-                "must be 0 (no normals) or in 3..=64",
+                "must be 0 (no normals) or at least 3",
             ));
         }
         if self.average_overlaps && k == 0 {
@@ -353,7 +352,7 @@ pub fn merge_aligned(
     if k == 0 {
         return Ok(PointCloud::from_parts(positions, None, colors, quality)?);
     }
-    let tree = KdTree::new(&positions);
+    let tree = KdIndex::new(&positions)?;
     let frames = if config.average_overlaps {
         quadric_projection(&positions, &tree, k)
     } else {

@@ -4,10 +4,12 @@
 use std::sync::OnceLock;
 
 use nalgebra::{Point3, Vector3};
-use sl_cloud::{NormalConfig, PointCloud, VoxelGridConfig, voxel_downsample};
+use sl_cloud::{
+    KdIndex, NormalConfig, PointCloud, VoxelGridConfig, estimate_normals_with_index,
+    voxel_downsample,
+};
 
 use crate::IcpError;
-use crate::kdtree::KdTree;
 
 /// Marks a pixel of an organised grid without a point.
 const NO_POINT: u32 = u32::MAX;
@@ -144,7 +146,7 @@ pub struct PreparedCloud {
     points: Vec<Point3<f64>>,
     normals: Option<Vec<Vector3<f64>>>,
     centroid: Point3<f64>,
-    index: OnceLock<KdTree>,
+    index: OnceLock<KdIndex>,
     organized: Option<Organized>,
 }
 
@@ -257,8 +259,14 @@ impl PreparedCloud {
         }
         let index = OnceLock::new();
         let estimate = |config: &NormalConfig| -> Result<Vec<Vector3<f64>>, IcpError> {
-            let tree = index.get_or_init(|| KdTree::new(&points));
-            crate::normals::estimate(&points, tree, config)
+            let tree = match index.get() {
+                Some(tree) => tree,
+                None => {
+                    let tree = KdIndex::new(&points)?;
+                    index.get_or_init(|| tree)
+                }
+            };
+            Ok(estimate_normals_with_index(&points, tree, config)?.normals)
         };
         let normals = match source {
             NormalSource::None => None,
@@ -333,8 +341,10 @@ impl PreparedCloud {
         c
     }
 
-    pub(crate) fn index(&self) -> &KdTree {
-        self.index.get_or_init(|| KdTree::new(&self.points))
+    pub(crate) fn index(&self) -> &KdIndex {
+        // Cannot fail: `build` checked the point count, and the points are finite.
+        self.index
+            .get_or_init(|| KdIndex::new(&self.points).unwrap_or_default())
     }
 
     pub(crate) fn organized(&self) -> Option<&Organized> {

@@ -4,7 +4,7 @@
 
 use nalgebra::{Point3, Vector3};
 
-use crate::kdtree::KdTree;
+use sl_cloud::KdIndex;
 
 /// Line-plane intersection steps: the first lands on the surface to first order, the second
 /// corrects for curvature; more changed nothing on the bunny.
@@ -20,14 +20,14 @@ const MIN_COS: f64 = 0.1;
 /// line grazes the surface or leaves the target.
 #[inline]
 pub(crate) fn find(
-    index: &KdTree,
+    index: &KdIndex,
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
     p: &Point3<f64>,
     n: &Vector3<f64>,
     max_d2: f64,
 ) -> Option<(u32, f64)> {
-    let (mut j, mut d2) = index.nearest_within(p, max_d2)?;
+    let (mut j, mut d2) = super::closest::find(index, p, max_d2)?;
     for _ in 0..STEPS {
         let (Some(q), Some(nq)) = (points.get(j as usize), normals.get(j as usize)) else {
             break;
@@ -38,7 +38,7 @@ pub(crate) fn find(
         }
         let s = (q - p).dot(nq) / cos;
         let x = p + n * s;
-        let Some((k, _)) = index.nearest_within(&x, max_d2) else {
+        let Some((k, _)) = super::closest::find(index, &x, max_d2) else {
             break;
         };
         if k == j {
@@ -68,7 +68,7 @@ mod tests {
             }
         }
         let normals = vec![Vector3::z(); pts.len()];
-        let index = KdTree::new(&pts);
+        let index = KdIndex::new(&pts).unwrap();
         let p = Point3::new(1.0, 0.0, 3.0);
         let (a, b) = (30f64.to_radians().sin(), 30f64.to_radians().cos());
         let n = Vector3::new(a, 0.0, b);
