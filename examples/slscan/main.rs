@@ -8,6 +8,7 @@
 //! - a bad input ends with one line `slscan: error: …` naming the file or parameter, and exit
 //!   code 1 (2 for a malformed command line, as clap does).
 
+mod calibrate;
 mod common;
 mod decode;
 mod info;
@@ -31,6 +32,9 @@ struct Cli {
 enum Command {
     /// Summarise a point cloud (PLY) or a calibration file (JSON, OpenCV YAML/XML).
     Info(info::Args),
+    /// Calibrate the camera or the turntable axis from checkerboard pictures: calibration.json,
+    /// report.json and pictures.
+    Calibrate(calibrate::Args),
     /// Write pattern images and their manifest.json for a projector.
     Patterns(patterns::Args),
     /// Decode a capture set into projector column/row maps, pictures and report.json.
@@ -49,6 +53,7 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(args) => info::run(&args),
+        Command::Calibrate(args) => calibrate::run(&args),
         Command::Patterns(args) => patterns::run(&args),
         Command::Decode(args) => decode::run(&args),
         Command::Simulate(args) => simulate::run(&args),

@@ -1,0 +1,636 @@
+//! `slscan calibrate camera|turntable|all`: calibration from checkerboard pictures, writing
+//! `calibration.json` (and OpenCV YAML on request), `report.json` and pictures: the detected
+//! corners on every image, the per-view RMS bars and the residual vector plot.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use serde_json::json;
+use sl_calib::sl_camera::{Calibration, ImageSize};
+use sl_calib::{
+    BoardCorners, BoardSize, CalibError, CalibrationView, CameraCalibration, DetectorConfig,
+    PictureConfig, TurntableCalibration, TurntableConfig, TurntableView, ZhangConfig,
+    calibrate_camera, calibrate_turntable, detect_checkerboard, draw_corners, error_bars,
+    load_grey, residual_plot, save_png,
+};
+
+use crate::common::{Report, ensure_out_dir, progress, write_atomically};
+
+/// Image files accepted in a folder, by lower-case extension.
+const IMAGE_EXTENSIONS: [&str; 6] = ["png", "jpg", "jpeg", "tif", "tiff", "bmp"];
+
+/// The white-light picture of a capture folder written by `slscan simulate --scene board`.
+const WHITE_IMAGE: &str = "white.png";
+
+/// The per-view file of a simulated session that holds the motor reading.
+const BOARD_FILE: &str = "board.json";
+
+/// Arguments of `slscan calibrate`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    #[command(subcommand)]
+    pub(crate) what: What,
+}
+
+/// What to calibrate.
+#[derive(Debug, clap::Subcommand)]
+pub(crate) enum What {
+    /// The camera (Zhang's method) from checkerboard pictures: image files, folders of
+    /// images, folders of capture folders holding `white.png`, or an `slscan simulate`
+    /// calibration session (its `board/` poses).
+    Camera(CameraArgs),
+    /// The turntable axis from a board standing on the platter at several motor angles, added
+    /// to an existing calibration.
+    Turntable(TurntableArgs),
+    /// Camera then turntable axis on an `slscan simulate --scene board` session.
+    All(AllArgs),
+}
+
+/// Board and output options shared by the subcommands.
+#[derive(Debug, clap::Args)]
+pub(crate) struct BoardArgs {
+    /// Inner corners of the board, `COLSxROWS`.
+    #[arg(long, default_value = "9x6")]
+    pub(crate) board: String,
+    /// Side of a square (mm).
+    #[arg(long, default_value_t = 20.0)]
+    pub(crate) square: f64,
+    /// Output folder.
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    /// Also write the calibration as OpenCV FileStorage YAML (`calibration.yml`).
+    #[arg(long)]
+    pub(crate) yaml: bool,
+}
+
+/// Arguments of `slscan calibrate camera`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct CameraArgs {
+    /// Image files or folders.
+    #[arg(required = true)]
+    pub(crate) inputs: Vec<PathBuf>,
+    #[command(flatten)]
+    pub(crate) common: BoardArgs,
+    /// Keep the principal point at the image centre.
+    #[arg(long)]
+    pub(crate) fix_principal_point: bool,
+    /// Keep k3 at zero.
+    #[arg(long)]
+    pub(crate) fix_k3: bool,
+    /// Estimate the 8-coefficient rational distortion model.
+    #[arg(long)]
+    pub(crate) rational: bool,
+}
+
+/// Arguments of `slscan calibrate turntable`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct TurntableArgs {
+    /// Session folder: its `turntable/` subfolder, or the folder itself, holds one folder per
+    /// motor angle (with `white.png`) or the images themselves.
+    pub(crate) session: PathBuf,
+    /// The calibration (JSON, OpenCV YAML/XML) whose camera sees the board; the axis is added
+    /// to it.
+    #[arg(long)]
+    pub(crate) calib: PathBuf,
+    /// Motor angles in degrees, one per view in name order (default: each view folder's
+    /// `board.json` field `motor_angle_deg`).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub(crate) angles: Option<Vec<f64>>,
+    /// Smallest accepted span of the motor angles (degrees).
+    #[arg(long, default_value_t = TurntableConfig::default().min_span_deg)]
+    pub(crate) min_span: f64,
+    #[command(flatten)]
+    pub(crate) common: BoardArgs,
+}
+
+/// Arguments of `slscan calibrate all`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct AllArgs {
+    /// An `slscan simulate --scene board` session (with `board/` and `turntable/`).
+    pub(crate) session: PathBuf,
+    #[command(flatten)]
+    pub(crate) common: BoardArgs,
+}
+
+/// Runs `slscan calibrate`.
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    match &args.what {
+        What::Camera(a) => {
+            let zhang = ZhangConfig {
+                fix_principal_point: a.fix_principal_point,
+                fix_k3: a.fix_k3,
+                rational_model: a.rational,
+                ..ZhangConfig::default()
+            };
+            let images = camera_images(&a.inputs)?;
+            let (calib, _) = camera(&images, &a.common, &zhang, "calibrate camera")?;
+            println!(
+                "camera calibrated: RMS {:.4} px over {} views; {}",
+                calib.rms.camera.unwrap_or(f64::NAN),
+                images.len(),
+                a.common.out.join("calibration.json").display()
+            );
+            Ok(())
+        }
+        What::Turntable(a) => {
+            let calib = Calibration::load(&a.calib)
+                .with_context(|| format!("cannot read the calibration {}", a.calib.display()))?;
+            let cfg = TurntableConfig {
+                min_span_deg: a.min_span,
+                ..TurntableConfig::default()
+            };
+            let views = turntable_views(&a.session, a.angles.as_deref())?;
+            let fit = turntable(calib, &views, &a.common, &cfg, "calibrate turntable")?;
+            print_axis(&fit, &a.common.out);
+            Ok(())
+        }
+        What::All(a) => {
+            let board_dir = a.session.join("board");
+            anyhow::ensure!(
+                board_dir.is_dir(),
+                "{}: no board/ folder: expected an `slscan simulate --scene board` session",
+                a.session.display()
+            );
+            let images = camera_images(std::slice::from_ref(&board_dir))?;
+            let cam_out = BoardArgs {
+                out: a.common.out.join("camera"),
+                board: a.common.board.clone(),
+                square: a.common.square,
+                yaml: a.common.yaml,
+            };
+            let (calib, cam) = camera(
+                &images,
+                &cam_out,
+                &ZhangConfig::default(),
+                "calibrate all: camera",
+            )?;
+            println!(
+                "camera: RMS {:.4} px over {} views",
+                cam.rms,
+                cam.view_rms.len()
+            );
+            let views = turntable_views(&a.session, None)?;
+            let fit = turntable(
+                calib,
+                &views,
+                &a.common,
+                &TurntableConfig::default(),
+                "calibrate all: turntable",
+            )?;
+            print_axis(&fit, &a.common.out);
+            Ok(())
+        }
+    }
+}
+
+fn print_axis(fit: &TurntableCalibration, out: &Path) {
+    let d = fit.axis.direction;
+    let p = fit.axis.point_mm;
+    println!(
+        "turntable axis: direction ({:.5}, {:.5}, {:.5}) ± {:.4}°, through ({:.2}, {:.2}, {:.2}) mm ± {:.3} mm, scale {:.5}, RMS {:.4} px; {}",
+        d.x,
+        d.y,
+        d.z,
+        fit.std_dev.direction_deg,
+        p.x,
+        p.y,
+        p.z,
+        fit.std_dev.point_mm,
+        fit.axis.angle_scale,
+        fit.rms,
+        out.join("calibration.json").display()
+    );
+}
+
+fn parse_board(text: &str) -> anyhow::Result<BoardSize> {
+    let (c, r) = text
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--board {text}: expected COLSxROWS, e.g. 9x6"))?;
+    let cols: u32 = c
+        .trim()
+        .parse()
+        .with_context(|| format!("--board {text}: `{c}` is not a number of corners"))?;
+    let rows: u32 = r
+        .trim()
+        .parse()
+        .with_context(|| format!("--board {text}: `{r}` is not a number of corners"))?;
+    anyhow::ensure!(
+        cols >= 2 && rows >= 2,
+        "--board {text}: at least 2x2 inner corners"
+    );
+    Ok(BoardSize::new(cols, rows))
+}
+
+fn is_image(path: &Path) -> bool {
+    path.is_file()
+        && path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+fn sorted_entries(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut entries: Vec<PathBuf> = fs::read_dir(dir)
+        .with_context(|| format!("cannot list {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .collect();
+    entries.sort();
+    Ok(entries)
+}
+
+/// The images of a folder: its image files, else its subfolders' `white.png`.
+fn images_in(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let entries = sorted_entries(dir)?;
+    let files: Vec<PathBuf> = entries.iter().filter(|p| is_image(p)).cloned().collect();
+    if !files.is_empty() {
+        return Ok(files);
+    }
+    Ok(entries
+        .iter()
+        .map(|p| p.join(WHITE_IMAGE))
+        .filter(|p| p.is_file())
+        .collect())
+}
+
+/// Expands the camera command's inputs into image files.
+fn camera_images(inputs: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut images = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let session_boards = input.join("board");
+            let dir = if session_boards.is_dir() {
+                session_boards
+            } else {
+                input.clone()
+            };
+            let found = images_in(&dir)?;
+            anyhow::ensure!(
+                !found.is_empty(),
+                "{}: no checkerboard images: expected image files (.png, .jpg, .tif, .bmp) or \
+                 capture folders holding {WHITE_IMAGE}",
+                dir.display()
+            );
+            images.extend(found);
+        } else if input.is_file() {
+            images.push(input.clone());
+        } else {
+            anyhow::bail!("{}: no such file or folder", input.display());
+        }
+    }
+    Ok(images)
+}
+
+/// A short name of an image for messages and picture file names: the file name, or
+/// `folder/white.png` for capture folders.
+fn short_name(path: &Path) -> String {
+    let file = path
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    match path.parent().and_then(|p| p.file_name()) {
+        Some(parent) if file == WHITE_IMAGE => format!("{}/{file}", parent.to_string_lossy()),
+        _ => file,
+    }
+}
+
+fn picture_name(k: usize, name: &str) -> String {
+    let stem: String = name
+        .trim_end_matches(".png")
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    format!("corners_{k:03}_{stem}.png")
+}
+
+/// One image with its detected board.
+struct Detected {
+    /// Index of the image in the input list.
+    index: usize,
+    name: String,
+    image: sl_calib::image::GrayImage,
+    corners: BoardCorners,
+}
+
+/// Loads and detects every image; images without a board are skipped with the reason.
+fn detect_all(
+    paths: &[PathBuf],
+    size: BoardSize,
+    report: &mut Report,
+) -> anyhow::Result<(Vec<Detected>, Vec<serde_json::Value>, ImageSize)> {
+    let bar = progress(paths.len() as u64, "detecting");
+    let mut found = Vec::new();
+    let mut skipped = Vec::new();
+    let mut dims: Option<(u32, u32, String)> = None;
+    let cfg = DetectorConfig::default();
+    report.stage("read and detect", || -> anyhow::Result<()> {
+        for (index, path) in paths.iter().enumerate() {
+            bar.inc(1);
+            let name = short_name(path);
+            let image = load_grey(path)?;
+            match &dims {
+                None => dims = Some((image.width(), image.height(), name.clone())),
+                Some((w, h, first)) => anyhow::ensure!(
+                    (*w, *h) == image.dimensions(),
+                    "{}: {}x{} pixels, but {first} has {w}x{h}: one camera, one image size",
+                    path.display(),
+                    image.width(),
+                    image.height()
+                ),
+            }
+            match detect_checkerboard(&image, size, &cfg, &path.display().to_string()) {
+                Ok(corners) => found.push(Detected {
+                    index,
+                    name,
+                    image,
+                    corners,
+                }),
+                Err(e @ CalibError::BoardNotFound { .. }) => {
+                    eprintln!("slscan: skipping {e}");
+                    skipped.push(
+                        json!({ "image": path.display().to_string(), "reason": e.to_string() }),
+                    );
+                }
+                Err(e) => return Err(e.into()),
+            }
+        }
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    let (w, h, _) = dims.context("no images given")?;
+    Ok((found, skipped, ImageSize::new(w, h)))
+}
+
+/// Writes `calibration.json` (and `.yml`) atomically.
+fn write_calibration(calib: &Calibration, common: &BoardArgs) -> anyhow::Result<()> {
+    let out = &common.out;
+    let text = calib
+        .to_json()
+        .context("cannot serialise the calibration")?;
+    write_atomically(&out.join("calibration.json"), text.as_bytes())?;
+    if common.yaml {
+        let yaml = calib
+            .to_opencv_yaml()
+            .context("cannot write the calibration as OpenCV YAML")?;
+        write_atomically(&out.join("calibration.yml"), yaml.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// The three kinds of pictures for a set of views; returns the residual magnification.
+fn pictures(
+    dir: &Path,
+    detected: &[Detected],
+    view_rms: &[f64],
+    rms: f64,
+    residuals: &[Vec<nalgebra::Vector2<f64>>],
+    size: ImageSize,
+) -> anyhow::Result<f64> {
+    let pics = ensure_out_dir(&dir.join("pictures"))?;
+    let cfg = PictureConfig::default();
+    for (k, d) in detected.iter().enumerate() {
+        save_png(
+            &draw_corners(&d.image, &d.corners),
+            pics.join(picture_name(k, &d.name)),
+        )?;
+    }
+    save_png(
+        &error_bars(view_rms, rms, &cfg).image,
+        pics.join("error_bars.png"),
+    )?;
+    let corners: Vec<_> = detected.iter().map(|d| d.corners.corners.clone()).collect();
+    let plot = residual_plot(size.width, size.height, &corners, residuals, &cfg);
+    save_png(&plot.image, pics.join("residuals.png"))?;
+    Ok(plot.magnification)
+}
+
+/// Camera calibration of `images`, with its files in `common.out`.
+fn camera(
+    images: &[PathBuf],
+    common: &BoardArgs,
+    zhang: &ZhangConfig,
+    command: &str,
+) -> anyhow::Result<(Calibration, CameraCalibration)> {
+    let mut report = Report::new(command);
+    let out = ensure_out_dir(&common.out)?;
+    let size = parse_board(&common.board)?;
+    let (detected, skipped, image_size) = detect_all(images, size, &mut report)?;
+    let views: Vec<CalibrationView> = detected
+        .iter()
+        .map(|d| CalibrationView::from_corners(&d.corners, common.square))
+        .collect();
+    let cal = report
+        .stage("calibrate", || calibrate_camera(&views, image_size, zhang))
+        .with_context(|| {
+            format!(
+                "camera calibration from {} views with a board ({} skipped)",
+                views.len(),
+                skipped.len()
+            )
+        })?;
+    let magnification = report.stage("pictures", || {
+        pictures(
+            &out,
+            &detected,
+            &cal.view_rms,
+            cal.rms,
+            &cal.residuals,
+            image_size,
+        )
+    })?;
+    let mut calib = Calibration::new(cal.camera);
+    calib.rms.camera = Some(cal.rms);
+    calib.metadata.notes = format!(
+        "slscan calibrate camera: {} views of a {}x{} board of {} mm squares",
+        views.len(),
+        size.cols,
+        size.rows,
+        common.square
+    );
+    report.stage("write", || write_calibration(&calib, common))?;
+    let i = &cal.camera.intrinsics;
+    report.figure("rms_px", cal.rms);
+    report.figure(
+        "view_rms_px",
+        detected
+            .iter()
+            .zip(&cal.view_rms)
+            .map(|(d, r)| json!({ "image": d.name, "rms": r }))
+            .collect::<Vec<_>>(),
+    );
+    report.figure(
+        "intrinsics",
+        json!({ "fx": i.fx, "fy": i.fy, "cx": i.cx, "cy": i.cy, "skew": i.skew }),
+    );
+    report.figure("distortion", cal.camera.distortion.to_opencv_vec());
+    report.figure(
+        "std_dev",
+        json!({ "intrinsics": cal.std_dev.intrinsics, "distortion": cal.std_dev.distortion }),
+    );
+    report.figure("views_used", views.len());
+    report.figure("skipped", skipped);
+    report.figure("iterations", cal.iterations);
+    report.figure("residual_magnification", magnification);
+    report.figure("image_size", json!([image_size.width, image_size.height]));
+    report.write(&out)?;
+    Ok((calib, cal))
+}
+
+/// Reads `motor_angle_deg` from a view folder's `board.json`.
+fn angle_from_board_file(folder: &Path) -> anyhow::Result<f64> {
+    let path = folder.join(BOARD_FILE);
+    let text = fs::read_to_string(&path).with_context(|| {
+        format!(
+            "{}: cannot read it for the motor angle (give --angles instead)",
+            path.display()
+        )
+    })?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    value
+        .get("motor_angle_deg")
+        .and_then(serde_json::Value::as_f64)
+        .with_context(|| format!("{}: no number `motor_angle_deg`", path.display()))
+}
+
+/// The turntable views of a session: `(image, motor angle)` in name order.
+fn turntable_views(session: &Path, angles: Option<&[f64]>) -> anyhow::Result<Vec<(PathBuf, f64)>> {
+    let sub = session.join("turntable");
+    let dir = if sub.is_dir() {
+        sub
+    } else {
+        session.to_path_buf()
+    };
+    anyhow::ensure!(dir.is_dir(), "{}: no such folder", dir.display());
+    let images = images_in(&dir)?;
+    anyhow::ensure!(
+        !images.is_empty(),
+        "{}: no turntable views: expected one folder per motor angle holding {WHITE_IMAGE} \
+         (and {BOARD_FILE} with motor_angle_deg, or --angles), or image files with --angles",
+        dir.display()
+    );
+    match angles {
+        Some(a) => {
+            anyhow::ensure!(
+                a.len() == images.len(),
+                "--angles: {} angles for {} views in {}",
+                a.len(),
+                images.len(),
+                dir.display()
+            );
+            Ok(images.into_iter().zip(a.iter().copied()).collect())
+        }
+        None => images
+            .into_iter()
+            .map(|p| {
+                let folder = p.parent().unwrap_or(Path::new(".")).to_path_buf();
+                Ok((p, angle_from_board_file(&folder)?))
+            })
+            .collect(),
+    }
+}
+
+/// Turntable calibration added to `calib`, with its files in `common.out`.
+fn turntable(
+    mut calib: Calibration,
+    views: &[(PathBuf, f64)],
+    common: &BoardArgs,
+    cfg: &TurntableConfig,
+    command: &str,
+) -> anyhow::Result<TurntableCalibration> {
+    let mut report = Report::new(command);
+    let out = ensure_out_dir(&common.out)?;
+    let size = parse_board(&common.board)?;
+    let paths: Vec<PathBuf> = views.iter().map(|v| v.0.clone()).collect();
+    let (detected, skipped, image_size) = detect_all(&paths, size, &mut report)?;
+    anyhow::ensure!(
+        image_size == calib.camera.size,
+        "{}: {}x{} pixels, but the calibration's camera has {}x{}",
+        paths
+            .first()
+            .map(|p| p.display().to_string())
+            .unwrap_or_default(),
+        image_size.width,
+        image_size.height,
+        calib.camera.size.width,
+        calib.camera.size.height
+    );
+    let tviews: Vec<TurntableView> = detected
+        .iter()
+        .filter_map(|d| {
+            let (_, angle) = views.get(d.index)?;
+            Some(TurntableView::from_corners(
+                d.name.clone(),
+                *angle,
+                &d.corners,
+                common.square,
+            ))
+        })
+        .collect();
+    let fit = report
+        .stage("fit axis", || {
+            calibrate_turntable(&calib.camera, &tviews, cfg)
+        })
+        .with_context(|| {
+            format!(
+                "turntable axis from {} views with a board ({} skipped)",
+                tviews.len(),
+                skipped.len()
+            )
+        })?;
+    let magnification = report.stage("pictures", || {
+        pictures(
+            &out,
+            &detected,
+            &fit.view_rms,
+            fit.rms,
+            &fit.residuals,
+            image_size,
+        )
+    })?;
+    calib.turntable = Some(fit.axis);
+    report.stage("write", || write_calibration(&calib, common))?;
+    let a = &fit.axis;
+    report.figure(
+        "axis",
+        json!({
+            "direction": [a.direction.x, a.direction.y, a.direction.z],
+            "point_mm": [a.point_mm.x, a.point_mm.y, a.point_mm.z],
+            "point": "foot of the axis nearest the camera centre",
+            "angle_scale": a.angle_scale,
+            "angle_offset_deg": a.angle_offset_deg,
+        }),
+    );
+    let i = &fit.initial_axis;
+    report.figure(
+        "closed_form_axis",
+        json!({
+            "direction": [i.direction.x, i.direction.y, i.direction.z],
+            "point_mm": [i.point_mm.x, i.point_mm.y, i.point_mm.z],
+            "angle_scale": i.angle_scale,
+        }),
+    );
+    report.figure(
+        "std_dev",
+        json!({
+            "direction_deg": fit.std_dev.direction_deg,
+            "point_mm": fit.std_dev.point_mm,
+            "angle_scale": fit.std_dev.angle_scale,
+        }),
+    );
+    report.figure("rms_px", fit.rms);
+    report.figure(
+        "view_rms_px",
+        tviews
+            .iter()
+            .zip(&fit.view_rms)
+            .map(|(v, r)| json!({ "image": v.label, "motor_angle_deg": v.motor_angle_deg, "rms": r }))
+            .collect::<Vec<_>>(),
+    );
+    report.figure("views_used", tviews.len());
+    report.figure("skipped", skipped);
+    report.figure("iterations", fit.iterations);
+    report.figure("residual_magnification", magnification);
+    report.write(&out)?;
+    Ok(fit)
+}
