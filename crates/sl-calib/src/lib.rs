@@ -33,8 +33,8 @@ mod error;
 mod grey;
 mod homography;
 mod local_homography;
-mod procam;
 mod pictures;
+mod procam;
 mod saddle;
 mod stereo;
 mod turntable;
@@ -46,12 +46,12 @@ pub use grey::load_grey;
 pub use local_homography::{
     CornerFit, LocalHomographyConfig, ProjectorCorners, SkippedCorner, projector_corners,
 };
-pub use procam::{
-    ProcamCalibration, ProcamConfig, ProcamView, ProcamViewReport, SkippedView, calibrate_procam,
-};
 pub use pictures::{
     BAR, BarChart, FIRST_CORNER, OUTLIER_BAR, OUTLIER_FACTOR, PALETTE, PictureConfig, ResidualPlot,
     draw_corners, error_bars, residual_plot, save_png,
+};
+pub use procam::{
+    ProcamCalibration, ProcamConfig, ProcamView, ProcamViewReport, SkippedView, calibrate_procam,
 };
 pub use turntable::{
     MIN_TURNTABLE_VIEWS, PoseAtAngle, TurntableCalibration, TurntableConfig, TurntableStdDev,
