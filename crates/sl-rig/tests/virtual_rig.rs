@@ -1,5 +1,8 @@
 //! End-to-end tests of the virtual rig against closed forms.
 
+// Test helpers (not `#[test]` functions) unwrap too: a failure there is a test failure.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
 use sl_camera::{CameraModel, ImageSize, Intrinsics};
