@@ -51,6 +51,15 @@ pub enum RigError {
         /// Declared height.
         height: u32,
     },
+    /// A camera frame's bytes do not hold what its pixel format and size say (a short buffer,
+    /// a JPEG that does not decode).
+    #[error("{what}: {reason}")]
+    FrameData {
+        /// Which frame (device and frame number).
+        what: String,
+        /// What is wrong with its bytes.
+        reason: String,
+    },
     /// A device could not do what it was asked (a real driver's failure, or a virtual device
     /// used out of order).
     #[error("{device}: {reason}")]

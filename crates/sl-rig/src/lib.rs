@@ -26,6 +26,11 @@
 //! - the **turntable hardware** (feature `dynamixel`, on by default): `DynamixelTurntable`
 //!   drives a Dynamixel MX-64 over Protocol 2.0 and `Mx64Emulator` answers for it on a
 //!   pseudo-terminal, so the driver is tested without hardware (`docs/hardware-turntable.md`).
+//! - the **camera and projector hardware**: `V4lCamera` (feature `v4l`, Linux V4L2:
+//!   enumeration, format, manual exposure/gain/white balance, memory-mapped streaming and the
+//!   flush of stale frames) with its pixel-format conversions ([`convert_frame`]) compiled and
+//!   tested always, and `run_projector` / `ProjectorWindow` (feature `window`: a full-screen
+//!   window on a chosen monitor, pixel for pixel) — see `docs/hardware-camera-projector.md`.
 //!
 //! ```
 //! use sl_rig::{GreyImage, RigConfig, Scene, VirtualRig};
@@ -77,12 +82,18 @@ mod error;
 mod files;
 mod geometry;
 mod image;
+mod pixel_format;
+#[cfg(feature = "window")]
+mod projector_window;
 mod raycast;
 mod render;
 mod scene;
 mod sensor;
 mod simulate;
 mod truth;
+#[cfg(feature = "v4l")]
+mod v4l_camera;
+mod v4l_camera_controls;
 mod virtual_rig;
 
 pub use board::{BOARD_DARK_ALBEDO, BOARD_LIGHT_ALBEDO, Checkerboard};
@@ -105,6 +116,12 @@ pub use error::RigError;
 pub use files::{TRUTH_DIR, VIEW_JSON, pose_matrix, write_capture_set, write_view_truth};
 pub use geometry::{CameraRays, ViewGeometry};
 pub use image::{GreyImage, Pixels};
+pub use pixel_format::{FrameLayout, PixelFormat, convert_frame};
+#[cfg(feature = "window")]
+pub use projector_window::{
+    DEFAULT_PRESENT_TIMEOUT, MonitorInfo, PROJECTOR_WINDOW_TITLE, ProjectorWindow,
+    ProjectorWindowConfig, list_monitors, run_projector,
+};
 pub use raycast::{Hit, PlacedScene};
 pub use render::{Illumination, ProjectorSampling};
 pub use scene::{
@@ -117,4 +134,10 @@ pub use simulate::{
     turntable_angles,
 };
 pub use truth::{NO_OBJECT, ObjectPose, ViewTruth};
+#[cfg(feature = "v4l")]
+pub use v4l_camera::{
+    DEFAULT_FRAME_TIMEOUT, DEFAULT_IN_FLIGHT_FRAMES, DEFAULT_V4L_BUFFERS, V4lCamera,
+    V4lCameraConfig, V4lControlInfo, V4lDeviceInfo, V4lFormatInfo, list_v4l_cameras,
+};
+pub use v4l_camera_controls::ControlKey;
 pub use virtual_rig::{View, VirtualCamera, VirtualProjector, VirtualRig, VirtualTurntable};

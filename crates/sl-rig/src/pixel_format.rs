@@ -1,0 +1,412 @@
+//! Camera pixel formats and their conversion to grey frames.
+//!
+//! Plain functions, compiled with or without the `v4l` feature, so that every conversion a real
+//! camera needs is unit-tested on machines without a camera.
+
+use crate::{GreyImage, Pixels, RigError};
+
+/// A pixel format a camera delivers, as V4L2 names it (its four-character code).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum PixelFormat {
+    /// `GREY`: 8-bit luminance, one byte per pixel (machine-vision cameras).
+    Grey,
+    /// `Y16 `: 16-bit little-endian luminance, two bytes per pixel.
+    Y16,
+    /// `YUYV`: packed 4:2:2, `Y0 U Y1 V` for each pair of pixels (most USB webcams).
+    Yuyv,
+    /// `MJPG`: one JPEG image per frame (USB webcams at high resolutions).
+    Mjpg,
+}
+
+impl PixelFormat {
+    /// Every format this crate converts, in order of preference for structured light
+    /// (uncompressed grey first, JPEG last: its compression blurs stripe edges).
+    pub const ALL: [Self; 4] = [Self::Grey, Self::Y16, Self::Yuyv, Self::Mjpg];
+
+    /// The V4L2 four-character code.
+    pub fn fourcc(self) -> [u8; 4] {
+        match self {
+            Self::Grey => *b"GREY",
+            Self::Y16 => *b"Y16 ",
+            Self::Yuyv => *b"YUYV",
+            Self::Mjpg => *b"MJPG",
+        }
+    }
+
+    /// The format with this four-character code, or `None` when this crate cannot convert it.
+    /// `JPEG` is taken as `MJPG` (some drivers name it so).
+    pub fn from_fourcc(code: [u8; 4]) -> Option<Self> {
+        match &code {
+            b"GREY" => Some(Self::Grey),
+            b"Y16 " => Some(Self::Y16),
+            b"YUYV" => Some(Self::Yuyv),
+            b"MJPG" | b"JPEG" => Some(Self::Mjpg),
+            _ => None,
+        }
+    }
+
+    /// The format named `name` (its four-character code, case-insensitive, trailing spaces
+    /// optional: `grey`, `y16`, `yuyv`, `mjpg`).
+    pub fn from_name(name: &str) -> Result<Self, RigError> {
+        let upper = name.trim().to_ascii_uppercase();
+        Self::ALL
+            .into_iter()
+            .find(|f| f.name() == upper)
+            .or_else(|| (upper == "JPEG").then_some(Self::Mjpg))
+            .ok_or_else(|| {
+                RigError::param(
+                    "pixel_format",
+                    format!("`{name}` is not one of GREY, Y16, YUYV, MJPG"),
+                )
+            })
+    }
+
+    /// The four-character code as text, trailing spaces removed (`GREY`, `Y16`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Grey => "GREY",
+            Self::Y16 => "Y16",
+            Self::Yuyv => "YUYV",
+            Self::Mjpg => "MJPG",
+        }
+    }
+
+    /// Bytes per pixel of the uncompressed formats, `None` for JPEG.
+    pub fn bytes_per_pixel(self) -> Option<usize> {
+        match self {
+            Self::Grey => Some(1),
+            Self::Y16 | Self::Yuyv => Some(2),
+            Self::Mjpg => None,
+        }
+    }
+}
+
+impl std::fmt::Display for PixelFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// How a raw frame is laid out in the driver's buffer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameLayout {
+    /// Pixel format.
+    pub format: PixelFormat,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Bytes from the start of one row to the start of the next (V4L2's `bytesperline`); `0`
+    /// means rows are packed (`width × bytes per pixel`). Ignored for JPEG.
+    pub stride: u32,
+}
+
+impl FrameLayout {
+    /// A packed layout (no padding at the end of rows).
+    pub fn packed(format: PixelFormat, width: u32, height: u32) -> Self {
+        Self {
+            format,
+            width,
+            height,
+            stride: 0,
+        }
+    }
+}
+
+/// Converts one raw camera frame to a grey image: 8-bit for `GREY`, `YUYV` (the luma `Y`) and
+/// `MJPG` (decoded, then its luma), 16-bit for `Y16`.
+///
+/// `frame` is the part of the driver's buffer that holds the frame (V4L2's `bytesused`
+/// bytes); padding at the end of rows (`stride`) is dropped. `what` names the frame in errors
+/// (e.g. `/dev/video0 frame 12`).
+///
+/// # Errors
+/// [`RigError::InvalidParameter`] for an empty size, a stride shorter than a row or an odd
+/// `YUYV` width; [`RigError::FrameData`] for a buffer shorter than the layout needs or a JPEG
+/// that does not decode or has another size than the layout.
+///
+/// ```
+/// use sl_rig::{FrameLayout, PixelFormat, convert_frame};
+/// # fn main() -> Result<(), sl_rig::RigError> {
+/// // Two YUYV pixels: Y0=10, U=128, Y1=20, V=128.
+/// let layout = FrameLayout::packed(PixelFormat::Yuyv, 2, 1);
+/// let grey = convert_frame(&[10, 128, 20, 128], &layout, "frame 0")?;
+/// assert_eq!(grey.get(0, 0), Some(10));
+/// assert_eq!(grey.get(1, 0), Some(20));
+/// # Ok(())
+/// # }
+/// ```
+pub fn convert_frame(
+    frame: &[u8],
+    layout: &FrameLayout,
+    what: &str,
+) -> Result<GreyImage, RigError> {
+    if layout.width == 0 || layout.height == 0 {
+        return Err(RigError::param(
+            "frame size",
+            format!("{what}: {}x{} has no pixel", layout.width, layout.height),
+        ));
+    }
+    match layout.format {
+        PixelFormat::Grey => {
+            let rows = packed_rows(frame, layout, 1, what)?;
+            GreyImage::new(layout.width, layout.height, Pixels::U8(rows))
+        }
+        PixelFormat::Y16 => {
+            let rows = packed_rows(frame, layout, 2, what)?;
+            let values = rows
+                .chunks_exact(2)
+                .map(|b| u16::from_le_bytes([b[0], b[1]]))
+                .collect();
+            GreyImage::new(layout.width, layout.height, Pixels::U16(values))
+        }
+        PixelFormat::Yuyv => {
+            if !layout.width.is_multiple_of(2) {
+                return Err(RigError::param(
+                    "frame size",
+                    format!(
+                        "{what}: YUYV needs an even width (pixels come in pairs), got {}",
+                        layout.width
+                    ),
+                ));
+            }
+            let rows = packed_rows(frame, layout, 2, what)?;
+            // Y0 U Y1 V: the luma of every pixel is at the even bytes.
+            let luma = rows.iter().step_by(2).copied().collect();
+            GreyImage::new(layout.width, layout.height, Pixels::U8(luma))
+        }
+        PixelFormat::Mjpg => decode_mjpg(frame, layout, what),
+    }
+}
+
+/// The rows of an uncompressed frame, padding removed: `height` rows of
+/// `width × bytes_per_pixel` bytes.
+fn packed_rows(
+    frame: &[u8],
+    layout: &FrameLayout,
+    bytes_per_pixel: usize,
+    what: &str,
+) -> Result<Vec<u8>, RigError> {
+    let too_big = || {
+        RigError::param(
+            "frame size",
+            format!(
+                "{what}: {}x{} overflows memory",
+                layout.width, layout.height
+            ),
+        )
+    };
+    let row = (layout.width as usize)
+        .checked_mul(bytes_per_pixel)
+        .ok_or_else(too_big)?;
+    let stride = if layout.stride == 0 {
+        row
+    } else {
+        layout.stride as usize
+    };
+    if stride < row {
+        return Err(RigError::param(
+            "stride",
+            format!(
+                "{what}: {stride} bytes per line is less than a {}-pixel {} row ({row} bytes)",
+                layout.width, layout.format
+            ),
+        ));
+    }
+    let height = layout.height as usize;
+    // The last row needs no padding after it: drivers may end the buffer there.
+    let needed = stride
+        .checked_mul(height - 1)
+        .and_then(|n| n.checked_add(row))
+        .ok_or_else(too_big)?;
+    if frame.len() < needed {
+        return Err(RigError::FrameData {
+            what: what.to_owned(),
+            reason: format!(
+                "{} bytes for a {}x{} {} frame with {stride} bytes per line (needs {needed})",
+                frame.len(),
+                layout.width,
+                layout.height,
+                layout.format
+            ),
+        });
+    }
+    let mut out = Vec::with_capacity(row * height);
+    for line in frame.chunks(stride).take(height) {
+        out.extend_from_slice(line.get(..row).unwrap_or(line));
+    }
+    Ok(out)
+}
+
+/// Decodes a JPEG frame to 8-bit luma.
+fn decode_mjpg(frame: &[u8], layout: &FrameLayout, what: &str) -> Result<GreyImage, RigError> {
+    use ::image::ImageDecoder as _;
+    let bad = |reason: String| RigError::FrameData {
+        what: what.to_owned(),
+        reason,
+    };
+    let decoder =
+        ::image::codecs::jpeg::JpegDecoder::new(std::io::Cursor::new(frame)).map_err(|e| {
+            bad(format!(
+                "MJPG frame of {} bytes does not decode: {e}",
+                frame.len()
+            ))
+        })?;
+    let (width, height) = decoder.dimensions();
+    if (width, height) != (layout.width, layout.height) {
+        return Err(bad(format!(
+            "MJPG frame is {width}x{height}, the camera was set to {}x{}",
+            layout.width, layout.height
+        )));
+    }
+    let decoded = ::image::DynamicImage::from_decoder(decoder)
+        .map_err(|e| bad(format!("MJPG frame does not decode: {e}")))?;
+    // Rec. 601 luma, as the JPEG's own Y channel (image's `to_luma8`).
+    let luma = decoded.into_luma8();
+    GreyImage::new(width, height, Pixels::U8(luma.into_raw()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fourcc_round_trip() {
+        for f in PixelFormat::ALL {
+            assert_eq!(PixelFormat::from_fourcc(f.fourcc()), Some(f));
+            assert_eq!(PixelFormat::from_name(&f.name().to_lowercase()).unwrap(), f);
+        }
+        assert_eq!(PixelFormat::from_fourcc(*b"JPEG"), Some(PixelFormat::Mjpg));
+        assert_eq!(PixelFormat::from_fourcc(*b"NV12"), None);
+        let err = PixelFormat::from_name("rgb3").unwrap_err().to_string();
+        assert!(
+            err.contains("pixel_format") && err.contains("rgb3"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn grey_with_stride_drops_padding() {
+        // 3x2 image, 5 bytes per line: two bytes of padding (0xEE) after each row; the last
+        // row's padding is missing, as some drivers end the buffer after the last pixel.
+        let frame = [1, 2, 3, 0xEE, 0xEE, 4, 5, 6];
+        let layout = FrameLayout {
+            format: PixelFormat::Grey,
+            width: 3,
+            height: 2,
+            stride: 5,
+        };
+        let img = convert_frame(&frame, &layout, "f").unwrap();
+        assert_eq!(img.pixels, Pixels::U8(vec![1, 2, 3, 4, 5, 6]));
+    }
+
+    #[test]
+    fn yuyv_takes_luma_with_odd_height() {
+        // 4x3 frame: Y = 10·row + column, chroma bytes 0xAA / 0x55 that must not leak in.
+        let (w, h) = (4u32, 3u32);
+        let mut frame = Vec::new();
+        for y in 0..h {
+            for x in (0..w).step_by(2) {
+                frame.extend_from_slice(&[(10 * y + x) as u8, 0xAA, (10 * y + x + 1) as u8, 0x55]);
+            }
+        }
+        let img =
+            convert_frame(&frame, &FrameLayout::packed(PixelFormat::Yuyv, w, h), "f").unwrap();
+        for y in 0..h {
+            for x in 0..w {
+                assert_eq!(img.get(x, y), Some(u16::from((10 * y + x) as u8)));
+            }
+        }
+    }
+
+    #[test]
+    fn y16_is_little_endian() {
+        let frame = [0x34, 0x12, 0xFF, 0xFF];
+        let img = convert_frame(&frame, &FrameLayout::packed(PixelFormat::Y16, 2, 1), "f").unwrap();
+        assert_eq!(img.pixels, Pixels::U16(vec![0x1234, 0xFFFF]));
+    }
+
+    #[test]
+    fn odd_yuyv_width_and_short_stride_are_parameter_errors() {
+        let err = convert_frame(
+            &[0; 64],
+            &FrameLayout::packed(PixelFormat::Yuyv, 3, 2),
+            "cam frame 7",
+        )
+        .unwrap_err();
+        assert!(matches!(err, RigError::InvalidParameter { .. }), "{err}");
+        assert!(err.to_string().contains("cam frame 7"), "{err}");
+        let layout = FrameLayout {
+            format: PixelFormat::Yuyv,
+            width: 4,
+            height: 2,
+            stride: 6,
+        };
+        let err = convert_frame(&[0; 64], &layout, "f").unwrap_err();
+        assert!(err.to_string().contains("stride"), "{err}");
+        let err =
+            convert_frame(&[], &FrameLayout::packed(PixelFormat::Grey, 0, 5), "f").unwrap_err();
+        assert!(matches!(err, RigError::InvalidParameter { .. }), "{err}");
+    }
+
+    #[test]
+    fn short_buffers_are_frame_data_errors() {
+        for format in [PixelFormat::Grey, PixelFormat::Y16, PixelFormat::Yuyv] {
+            let layout = FrameLayout::packed(format, 4, 4);
+            let needed = 16 * format.bytes_per_pixel().unwrap();
+            let err = convert_frame(&vec![0; needed - 1], &layout, "frame 3").unwrap_err();
+            assert!(matches!(err, RigError::FrameData { .. }), "{format}: {err}");
+            assert!(err.to_string().contains("frame 3"), "{err}");
+            assert!(convert_frame(&vec![0; needed], &layout, "frame 3").is_ok());
+        }
+    }
+
+    /// Encodes `pixels` (w×h grey) as a JPEG with the `image` crate's encoder: an independent
+    /// producer of the frames a webcam sends.
+    fn jpeg(pixels: &[u8], w: u32, h: u32, quality: u8) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut enc = ::image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, quality);
+        enc.encode(pixels, w, h, ::image::ExtendedColorType::L8)
+            .unwrap();
+        out
+    }
+
+    #[test]
+    fn mjpg_decodes_to_luma() {
+        // A smooth ramp survives JPEG at quality 100 within a few grey levels: the DCT
+        // quantisation step is 1 at that quality and the only loss is rounding in the
+        // colour transform and IDCT, a few levels at most.
+        let (w, h) = (33u32, 17u32); // odd sizes: partial 8x8 blocks on both axes
+        let pixels: Vec<u8> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (4 * x + 2 * y) as u8))
+            .collect();
+        let frame = jpeg(&pixels, w, h, 100);
+        let img =
+            convert_frame(&frame, &FrameLayout::packed(PixelFormat::Mjpg, w, h), "f").unwrap();
+        let Pixels::U8(got) = &img.pixels else {
+            panic!("8-bit expected")
+        };
+        for (i, (&a, &b)) in got.iter().zip(&pixels).enumerate() {
+            assert!(a.abs_diff(b) <= 3, "pixel {i}: {a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn mjpg_refuses_garbage_and_wrong_size() {
+        let layout = FrameLayout::packed(PixelFormat::Mjpg, 8, 8);
+        let err = convert_frame(&[0xFF, 0xD8, 0x00, 0x01], &layout, "frame 9").unwrap_err();
+        assert!(matches!(err, RigError::FrameData { .. }), "{err}");
+        assert!(err.to_string().contains("frame 9"), "{err}");
+        let frame = jpeg(&[128; 16 * 8], 16, 8, 90);
+        let err = convert_frame(&frame, &layout, "frame 9").unwrap_err();
+        assert!(err.to_string().contains("16x8"), "{err}");
+        // A truncated JPEG (as a USB transfer cut short delivers) is an error, not a panic.
+        let full = jpeg(&[7; 64], 8, 8, 90);
+        for cut in [0, 2] {
+            assert!(convert_frame(&full[..cut], &layout, "f").is_err());
+        }
+        // Cut in the entropy-coded data: the decoder may pad or refuse; it must not panic.
+        let _ = convert_frame(&full[..full.len() / 2], &layout, "f");
+    }
+}
