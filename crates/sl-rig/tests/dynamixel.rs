@@ -245,6 +245,18 @@ fn bad_crc_is_retried_then_reported() {
 }
 
 #[test]
+fn malformed_headers_do_not_crash() {
+    let servo = emulator();
+    let mut table = DynamixelTurntable::open(servo.port_path(), fast()).unwrap();
+    servo.send_bad_length(1);
+    assert_abs_diff_eq!(table.angle_deg().unwrap(), 0.0);
+    servo.send_bad_length(3);
+    let err = dxl(table.angle_deg().unwrap_err());
+    assert!(matches!(err, DynamixelError::BadAnswer { .. }), "{err}");
+    assert!(err.to_string().contains("read Present Position"), "{err}");
+}
+
+#[test]
 fn slow_answers() {
     let servo = emulator();
     let mut table = DynamixelTurntable::open(servo.port_path(), fast()).unwrap();

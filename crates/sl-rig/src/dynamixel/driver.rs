@@ -350,14 +350,8 @@ impl DynamixelTurntable {
     /// # Errors
     /// Communication errors ([`RigError::Dynamixel`]).
     pub fn hardware_error(&mut self) -> Result<HardwareErrorStatus, RigError> {
-        let r = self.transact(
-            "read Hardware Error Status",
-            instruction::READ,
-            &read_params(ct::HARDWARE_ERROR_STATUS, 1),
-            1,
-            false,
-        )?;
-        Ok(HardwareErrorStatus(r.params.first().copied().unwrap_or(0)))
+        let status = self.read_u8(ct::HARDWARE_ERROR_STATUS, "Hardware Error Status", false)?;
+        Ok(HardwareErrorStatus(status))
     }
 
     /// Position, motion, torque, temperature, voltage and hardware error, as the servo
@@ -371,7 +365,11 @@ impl DynamixelTurntable {
         let moving = self.read_u8(ct::MOVING, "Moving", false)?;
         let torque = self.read_u8(ct::TORQUE_ENABLE, "Torque Enable", false)?;
         let temperature = self.read_u8(ct::PRESENT_TEMPERATURE, "Present Temperature", false)?;
-        let voltage = self.read_u16(ct::PRESENT_INPUT_VOLTAGE, "Present Input Voltage", false)?;
+        let voltage = u16::from_le_bytes(self.read(
+            ct::PRESENT_INPUT_VOLTAGE,
+            "Present Input Voltage",
+            false,
+        )?);
         Ok(ServoStatus {
             angle_deg: self.ticks_to_deg(present),
             present_ticks: present,
@@ -513,46 +511,39 @@ impl DynamixelTurntable {
         (present + self.turn_offset - self.config.zero_ticks) as f64 * DEG_PER_TICK
     }
 
+    /// Reads `N` bytes from `address` (`name` for messages). Registers are read one at a
+    /// time: `dynamixel2` 0.9 misses the byte stuffing of `FF FF FF FD` runs, which a
+    /// multi-register read (a velocity of −1 followed by a position byte `FD`) can contain.
+    fn read<const N: usize>(
+        &mut self,
+        address: u16,
+        name: &str,
+        check_alert: bool,
+    ) -> Result<[u8; N], RigError> {
+        let len = u16::try_from(N).unwrap_or(u16::MAX);
+        let r = self.transact(
+            &format!("read {name}"),
+            instruction::READ,
+            &read_params(address, len),
+            N,
+            check_alert,
+        )?;
+        // `transact` checked the length.
+        Ok(<[u8; N]>::try_from(r.params.as_slice()).unwrap_or([0; N]))
+    }
+
     fn read_u8(&mut self, address: u16, name: &str, check_alert: bool) -> Result<u8, RigError> {
-        let r = self.transact(
-            &format!("read {name}"),
-            instruction::READ,
-            &read_params(address, 1),
-            1,
-            check_alert,
-        )?;
-        Ok(r.params.first().copied().unwrap_or(0))
+        let [v] = self.read(address, name, check_alert)?;
+        Ok(v)
     }
 
-    fn read_u16(&mut self, address: u16, name: &str, check_alert: bool) -> Result<u16, RigError> {
-        let r = self.transact(
-            &format!("read {name}"),
-            instruction::READ,
-            &read_params(address, 2),
-            2,
-            check_alert,
-        )?;
-        Ok(match r.params.as_slice() {
-            [a, b] => u16::from_le_bytes([*a, *b]),
-            _ => 0,
-        })
-    }
-
-    /// Reads a signed 4-byte register. Registers are read one at a time: `dynamixel2` 0.9
-    /// misses the byte stuffing of `FF FF FF FD` runs, which a multi-register read (a
-    /// velocity of −1 followed by a position byte `FD`) can contain.
+    /// A signed 4-byte register (positions), widened.
     fn read_i32(&mut self, address: u16, name: &str, check_alert: bool) -> Result<i64, RigError> {
-        let r = self.transact(
-            &format!("read {name}"),
-            instruction::READ,
-            &read_params(address, 4),
-            4,
+        Ok(i64::from(i32::from_le_bytes(self.read(
+            address,
+            name,
             check_alert,
-        )?;
-        Ok(match r.params.as_slice() {
-            [a, b, c, d] => i64::from(i32::from_le_bytes([*a, *b, *c, *d])),
-            _ => 0,
-        })
+        )?)))
     }
 
     fn write(&mut self, address: u16, name: &str, data: &[u8]) -> Result<(), RigError> {
@@ -674,25 +665,33 @@ impl DynamixelTurntable {
                 }),
             })?;
         let deadline = Instant::now() + self.config.response_timeout;
-        match self.bus.read_status_response_deadline(deadline) {
-            Ok(packet) => {
-                if packet.packet_id() != id {
+        // `dynamixel2` 0.9 subtracts 2 from the length field of a status header without
+        // checking it, which panics (debug builds) on a corrupted length below 2: a noisy
+        // line must not crash the scanner, so such a panic counts as a malformed answer.
+        let bus = &mut self.bus;
+        let received = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            bus.read_status_response_deadline(deadline)
+                .map(|p| (p.packet_id(), p.alert(), p.parameters().to_vec()))
+        }))
+        .map_err(|_| {
+            Failure::Retry(Retry::Malformed(
+                "status header with an impossible length".to_owned(),
+            ))
+        })?;
+        match received {
+            Ok((packet_id, alert, params)) => {
+                if packet_id != id {
                     return Err(Failure::Retry(Retry::Malformed(format!(
-                        "answer from id {}",
-                        packet.packet_id()
+                        "answer from id {packet_id}"
                     ))));
                 }
-                let p = packet.parameters();
-                if p.len() != expected_len {
+                if params.len() != expected_len {
                     return Err(Failure::Retry(Retry::Malformed(format!(
                         "{} parameter bytes, expected {expected_len}",
-                        p.len()
+                        params.len()
                     ))));
                 }
-                Ok(Reply {
-                    params: p.to_vec(),
-                    alert: packet.alert(),
-                })
+                Ok(Reply { params, alert })
             }
             Err(ReadError::Io(e)) if e.kind() == std::io::ErrorKind::TimedOut => {
                 Err(Failure::Retry(Retry::Silence))
@@ -887,33 +886,17 @@ mod tests {
 
     #[test]
     fn rejects_bad_configs() {
-        let bad = [
-            DynamixelConfig {
-                id: 253,
-                ..Default::default()
-            },
-            DynamixelConfig {
-                baud: 0,
-                ..Default::default()
-            },
-            DynamixelConfig {
-                attempts: 0,
-                ..Default::default()
-            },
-            DynamixelConfig {
-                profile_velocity_deg_s: 0.0,
-                ..Default::default()
-            },
-            DynamixelConfig {
-                profile_acceleration_deg_s2: f64::NAN,
-                ..Default::default()
-            },
-            DynamixelConfig {
-                tolerance_deg: -1.0,
-                ..Default::default()
-            },
+        let breakers: [fn(&mut DynamixelConfig); 6] = [
+            |c| c.id = 253,
+            |c| c.baud = 0,
+            |c| c.attempts = 0,
+            |c| c.profile_velocity_deg_s = 0.0,
+            |c| c.profile_acceleration_deg_s2 = f64::NAN,
+            |c| c.tolerance_deg = -1.0,
         ];
-        for c in bad {
+        for breaker in breakers {
+            let mut c = DynamixelConfig::default();
+            breaker(&mut c);
             assert!(
                 matches!(c.validate(), Err(RigError::InvalidParameter { .. })),
                 "{c:?}"

@@ -147,7 +147,7 @@ pub struct EmulatorSnapshot {
 ///
 /// Fault injection: [`drop_answers`](Self::drop_answers),
 /// [`set_silent`](Self::set_silent), [`corrupt_crc`](Self::corrupt_crc),
-/// [`set_answer_delay`](Self::set_answer_delay),
+/// [`set_answer_delay`](Self::set_answer_delay), [`send_bad_length`](Self::send_bad_length),
 /// [`raise_hardware_error`](Self::raise_hardware_error),
 /// [`arm_mid_move_fault`](Self::arm_mid_move_fault), [`close_port`](Self::close_port).
 ///
@@ -203,6 +203,7 @@ struct Servo {
     drop_next: u32,
     silent: bool,
     corrupt_next: u32,
+    bad_length_next: u32,
     answer_delay: Duration,
     mid_move_fault: Option<MidMoveFault>,
     close_requested: bool,
@@ -307,6 +308,12 @@ impl Mx64Emulator {
         lock(&self.shared.servo).corrupt_next = n;
     }
 
+    /// Sends the next `n` status packets with a length field of 1, shorter than any packet
+    /// can be (a corrupted header; the instruction is executed).
+    pub fn send_bad_length(&self, n: u32) {
+        lock(&self.shared.servo).bad_length_next = n;
+    }
+
     /// Delays every answer by `delay` (a slow adapter or a long Return Delay Time).
     pub fn set_answer_delay(&self, delay: Duration) {
         lock(&self.shared.servo).answer_delay = delay;
@@ -408,6 +415,7 @@ impl Servo {
             drop_next: 0,
             silent: false,
             corrupt_next: 0,
+            bad_length_next: 0,
             answer_delay: Duration::ZERO,
             mid_move_fault: None,
             close_requested: false,
@@ -605,6 +613,12 @@ impl Servo {
             self.corrupt_next -= 1;
             if let Some(last) = packet.last_mut() {
                 *last ^= 0x5A;
+            }
+        }
+        if self.bad_length_next > 0 {
+            self.bad_length_next -= 1;
+            if let Some(len) = packet.get_mut(5..7) {
+                len.copy_from_slice(&[1, 0]);
             }
         }
         Some((packet, self.answer_delay))
