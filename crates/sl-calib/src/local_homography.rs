@@ -472,3 +472,50 @@ mod tests {
         assert!(msg.contains("v7") && msg.contains("corner 0"), "{msg}");
     }
 }
+
+#[cfg(test)]
+mod laws {
+    use super::*;
+    use crate::BoardSize;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// A plane seen by camera and projector gives a camera-to-projector map that is a
+        /// homography: without noise, the local fit maps the corner exactly, wherever it is
+        /// between pixel centres, even with a fifth of the window's pixels decoded wrongly.
+        #[test]
+        fn local_homography_is_exact_for_a_plane(
+            a in 1.2f64..1.8, b in -0.2f64..0.2, c in -0.2f64..0.2, d in 1.2f64..1.8,
+            g in -4e-4f64..4e-4, h in -4e-4f64..4e-4,
+            cx in 30.0f64..90.0, cy in 30.0f64..70.0,
+            outliers in 0usize..5,
+        ) {
+            let hm = Matrix3::new(a, b, 12.0, c, d, -7.0, g, h, 1.0);
+            let (w, ht) = (120usize, 100usize);
+            let mut map = CorrespondenceMap::new(w, ht);
+            for y in 0..ht {
+                for x in 0..w {
+                    let q = Point2::from_homogeneous(hm * Point2::new(x as f64, y as f64).to_homogeneous()).unwrap();
+                    let i = y * w + x;
+                    map.col[i] = q.x as f32;
+                    map.row[i] = q.y as f32;
+                    // Every fifth pixel (when asked) decoded to garbage tens of pixels off.
+                    if outliers > 0 && (x * 7 + y * 3) % 5 == 0 && (x + y) % outliers == 0 {
+                        map.col[i] += 37.0;
+                        map.row[i] -= 23.0;
+                    }
+                }
+            }
+            let corner = Point2::new(cx, cy);
+            let board = BoardCorners { size: BoardSize::new(1, 1), corners: vec![corner] };
+            let p = projector_corners(&board, &map, &LocalHomographyConfig::default(), "law").unwrap();
+            let fit = p.fits[0].unwrap();
+            let truth = Point2::from_homogeneous(hm * corner.to_homogeneous()).unwrap();
+            // The decoded values are stored as f32 (≈1e-4 px at these magnitudes): the fit
+            // is exact to that rounding.
+            prop_assert!((fit.projector - truth).norm() < 1e-3, "{:?} vs {:?}", fit.projector, truth);
+            prop_assert!(fit.rms < 1e-3);
+        }
+    }
+}

@@ -11,7 +11,7 @@ use sl_codec::CorrespondenceMap;
 use crate::stereo::{StereoOptions, StereoStart, StereoView, refine_stereo};
 use crate::zhang::calibrate_camera_subsets;
 use crate::{
-    BoardSize, CalibError, CalibrationView, CameraCalibration, DetectorConfig,
+    BoardCorners, BoardSize, CalibError, CalibrationView, CameraCalibration, DetectorConfig,
     LocalHomographyConfig, ProjectorCorners, ZhangConfig, calibrate_camera, detect_checkerboard,
     projector_corners,
 };
@@ -155,8 +155,8 @@ pub struct ProcamCalibration {
 impl ProcamCalibration {
     /// The calibration file's content: both models, `T_cam_proj` and the three RMS errors.
     pub fn to_calibration(&self) -> Calibration {
-        let mut c = Calibration::new(self.camera.camera.clone());
-        c.projector = Some(self.projector.camera.clone());
+        let mut c = Calibration::new(self.camera.camera);
+        c.projector = Some(self.projector.camera);
         c.t_cam_proj = Some(self.t_cam_proj);
         c.rms = RmsErrors {
             camera: Some(self.rms_camera),
@@ -245,7 +245,11 @@ pub fn calibrate_procam(
         match detect_checkerboard(&v.lit, cfg.board, &cfg.detector, &v.name) {
             Ok(b) => {
                 let p = projector_corners(&b, &v.map, &cfg.homography, &v.name)?;
-                found.push((v, b, p));
+                found.push(Found {
+                    name: v.name.clone(),
+                    camera: b,
+                    projector: p,
+                });
             }
             Err(e) if cfg.skip_unusable_views => skipped_views.push(SkippedView {
                 name: v.name.clone(),
@@ -254,6 +258,27 @@ pub fn calibrate_procam(
             Err(e) => return Err(e),
         }
     }
+    let camera_size = views
+        .first()
+        .map(|v| ImageSize::new(v.lit.width(), v.lit.height()))
+        .unwrap_or(ImageSize::new(0, 0));
+    calibrate_from_corners(found, camera_size, cfg, skipped_views)
+}
+
+/// One view whose board was found: its corners in the camera and in the projector.
+struct Found {
+    name: String,
+    camera: BoardCorners,
+    projector: ProjectorCorners,
+}
+
+/// The calibration once the corners are known.
+fn calibrate_from_corners(
+    found: Vec<Found>,
+    camera_size: ImageSize,
+    cfg: &ProcamConfig,
+    skipped_views: Vec<SkippedView>,
+) -> Result<ProcamCalibration, CalibError> {
     if found.len() < MIN_VIEWS {
         return Err(too_few_views(found.len(), &skipped_views, "camera"));
     }
@@ -261,17 +286,14 @@ pub fn calibrate_procam(
     // The camera alone.
     let camera_views: Vec<CalibrationView> = found
         .iter()
-        .map(|(_, b, _)| CalibrationView::from_corners(b, cfg.square_mm))
+        .map(|f| CalibrationView::from_corners(&f.camera, cfg.square_mm))
         .collect();
-    let camera_size = found
-        .first()
-        .map(|(v, _, _)| ImageSize::new(v.lit.width(), v.lit.height()))
-        .unwrap_or(ImageSize::new(0, 0));
     let camera_alone = calibrate_camera(&camera_views, camera_size, &cfg.camera)?;
     // The projector alone, on the views with enough mapped corners.
     let mut projector_views = Vec::new();
     let mut projector_index = Vec::new();
-    for (k, (_, _, p)) in found.iter().enumerate() {
+    for (k, f) in found.iter().enumerate() {
+        let p = &f.projector;
         if p.mapped_count() < cfg.min_projector_corners {
             continue;
         }
@@ -288,10 +310,11 @@ pub fn calibrate_procam(
     }
     if projector_views.len() < MIN_VIEWS {
         let mut why = skipped_views.clone();
-        for (v, _, p) in &found {
+        for f in &found {
+            let p = &f.projector;
             if p.mapped_count() < cfg.min_projector_corners {
                 why.push(SkippedView {
-                    name: v.name.clone(),
+                    name: f.name.clone(),
                     reason: format!(
                         "{} of {} corners mapped into the projector, {} needed",
                         p.mapped_count(),
@@ -332,19 +355,19 @@ pub fn calibrate_procam(
     let start_extrinsics = RvecTvec::from_isometry(&isometry_from_rt(&rot, &(t_sum / n))?);
     // Joint refinement.
     let projector_points: Vec<Vec<Option<Point2<f64>>>> =
-        found.iter().map(|(_, _, p)| p.points()).collect();
+        found.iter().map(|f| f.projector.points()).collect();
     let stereo_views: Vec<StereoView<'_>> = found
         .iter()
         .zip(&projector_points)
-        .map(|((_, b, _), pp)| StereoView {
+        .map(|(f, pp)| StereoView {
             object: &object,
-            camera: &b.corners,
+            camera: &f.camera.corners,
             projector: pp,
         })
         .collect();
     let start = StereoStart {
-        camera: camera_alone.camera.clone(),
-        projector: projector_alone.camera.clone(),
+        camera: camera_alone.camera,
+        projector: projector_alone.camera,
         extrinsics: start_extrinsics,
         poses: camera_alone.poses.clone(),
     };
@@ -376,13 +399,13 @@ pub fn calibrate_procam(
     let both: Vec<Vector2<f64>> = all_camera.iter().chain(&all_projector).copied().collect();
     let t_proj_cam = sol.extrinsics.to_isometry();
     let views_report = found
-        .iter()
+        .into_iter()
         .zip(sol.camera_residuals.iter().zip(&projector_residuals))
         .enumerate()
-        .map(|(k, ((v, b, p), (rc, rp)))| ProcamViewReport {
-            name: v.name.clone(),
-            camera_corners: b.corners.clone(),
-            projector_corners: p.clone(),
+        .map(|(k, (f, (rc, rp)))| ProcamViewReport {
+            name: f.name,
+            camera_corners: f.camera.corners,
+            projector_corners: f.projector,
             in_projector_calibration: projector_index.contains(&k),
             camera_rms: rms(rc),
             projector_rms: rms(rp),
@@ -422,4 +445,219 @@ pub fn calibrate_procam(
         skipped_views,
         iterations: sol.iterations,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::CornerFit;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    use sl_camera::{CameraModel, Distortion, Intrinsics};
+
+    struct Truth {
+        camera: CameraModel,
+        projector: CameraModel,
+        t_cam_proj: Isometry3<f64>,
+    }
+
+    fn truth() -> Truth {
+        Truth {
+            camera: CameraModel::new(
+                Intrinsics::new(1440.0, 1442.0, 641.0, 358.0),
+                Distortion::from_opencv(&[-0.08, 0.12, 0.0004, -0.0003, 0.0]).unwrap(),
+                ImageSize::new(1280, 720),
+            )
+            .unwrap(),
+            projector: CameraModel::new(
+                Intrinsics::new(2200.0, 2195.0, 955.0, 545.0),
+                Distortion::from_opencv(&[0.04, -0.05, 0.0, 0.0, 0.0]).unwrap(),
+                ImageSize::new(1920, 1080),
+            )
+            .unwrap(),
+            // Projector 200 mm to the right, toed in by 24° about y.
+            t_cam_proj: Isometry3::new(
+                Vector3::new(200.0, 3.0, 10.0),
+                Vector3::new(0.02, -0.42, 0.01),
+            ),
+        }
+    }
+
+    /// Exact (or noisy, `sigma` px per axis) corners of six board poses; corner `k` of view 1
+    /// for `k` in `unmapped` is left out of the projector.
+    fn corners(t: &Truth, sigma: f64, unmapped: &[usize]) -> Vec<Found> {
+        let size = BoardSize::new(9, 6);
+        let object = size.object_points(20.0);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(11);
+        let n = Normal::new(0.0, 1.0).unwrap();
+        let mut noisy = |q: Point2<f64>| {
+            Point2::new(
+                q.x + sigma * n.sample(&mut rng),
+                q.y + sigma * n.sample(&mut rng),
+            )
+        };
+        [
+            (0.3, -0.2, 0.1),
+            (-0.25, 0.15, -0.2),
+            (0.1, 0.4, 0.3),
+            (-0.3, -0.3, 0.0),
+            (0.35, 0.2, -0.1),
+            (0.0, -0.35, 0.2),
+        ]
+        .iter()
+        .enumerate()
+        .map(|(k, &(a, b, c))| {
+            let pose = Isometry3::new(
+                Vector3::new(-80.0 + 10.0 * k as f64, -50.0, 430.0 + 15.0 * k as f64),
+                Vector3::new(a, b, c),
+            );
+            let cam: Vec<Point2<f64>> = object
+                .iter()
+                .map(|p| noisy(t.camera.project(&(pose * p)).unwrap()))
+                .collect();
+            let fits = object
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    if k == 1 && unmapped.contains(&i) {
+                        return None;
+                    }
+                    let q = t
+                        .projector
+                        .project(&t.t_cam_proj.inverse_transform_point(&(pose * p)))
+                        .unwrap();
+                    Some(CornerFit {
+                        projector: noisy(q),
+                        decoded: 1000,
+                        inliers: 1000,
+                        rms: 0.0,
+                    })
+                })
+                .collect();
+            Found {
+                name: format!("view {k}"),
+                camera: BoardCorners { size, corners: cam },
+                projector: ProjectorCorners {
+                    frame: format!("view {k}"),
+                    fits,
+                    skipped: Vec::new(),
+                },
+            }
+        })
+        .collect()
+    }
+
+    fn config() -> ProcamConfig {
+        ProcamConfig::new(BoardSize::new(9, 6), 20.0, ImageSize::new(1920, 1080))
+    }
+
+    #[test]
+    fn exact_corners_recover_both_devices_and_the_extrinsics() {
+        let t = truth();
+        let found = corners(&t, 0.0, &[0, 1, 2, 20, 53]);
+        let c = calibrate_from_corners(found, t.camera.size, &config(), Vec::new()).unwrap();
+        // Noise-free: the minimum is the truth, up to the LM tolerance.
+        for (e, tr) in [
+            (&c.camera.camera, &t.camera),
+            (&c.projector.camera, &t.projector),
+        ] {
+            let (e, tr) = (e.intrinsics, tr.intrinsics);
+            assert!(
+                (e.fx / tr.fx - 1.0).abs() < 1e-8,
+                "fx {} vs {}",
+                e.fx,
+                tr.fx
+            );
+            assert!(
+                (e.fy / tr.fy - 1.0).abs() < 1e-8,
+                "fy {} vs {}",
+                e.fy,
+                tr.fy
+            );
+            assert!((e.cx - tr.cx).abs() < 1e-5 && (e.cy - tr.cy).abs() < 1e-5);
+        }
+        let k1 = c.projector.camera.distortion.k1();
+        assert!((k1 - 0.04).abs() < 1e-7, "projector k1 {k1}");
+        let dt = (c.t_cam_proj.translation.vector - t.t_cam_proj.translation.vector).norm();
+        assert!(dt < 1e-6, "translation error {dt} mm");
+        assert!(c.t_cam_proj.rotation.angle_to(&t.t_cam_proj.rotation) < 1e-9);
+        assert!(c.rms_camera < 1e-6 && c.rms_projector < 1e-6 && c.rms_stereo < 1e-6);
+        // The five unmapped corners are left out of the projector's residuals only.
+        assert_eq!(c.projector.residuals[1].len(), 54 - 5);
+        assert_eq!(c.camera.residuals[1].len(), 54);
+        assert_eq!(c.projector_corner_count(), 6 * 54 - 5);
+        let file = c.to_calibration();
+        assert_eq!(file.rms.projector, Some(c.rms_projector));
+        assert_eq!(file.t_cam_proj, Some(c.t_cam_proj));
+    }
+
+    #[test]
+    fn noisy_corners_give_consistent_standard_deviations() {
+        let t = truth();
+        let sigma = 0.05;
+        let c = calibrate_from_corners(
+            corners(&t, sigma, &[]),
+            t.camera.size,
+            &config(),
+            Vec::new(),
+        )
+        .unwrap();
+        // RMS of 2-D residuals with σ per axis: ≈ σ√2 less the fitted degrees of freedom.
+        assert!(
+            c.rms_stereo > 0.8 * sigma && c.rms_stereo < 1.5 * sigma,
+            "{}",
+            c.rms_stereo
+        );
+        // The truth within 4 reported standard deviations (a 1-in-15 000 miss per check
+        // for a correct σ; a wrong Jacobian or scale of σ shows up as a gross miss).
+        let within = |e: f64, tr: f64, sd: f64, what: &str| {
+            assert!(sd > 0.0, "{what}: σ = 0");
+            assert!((e - tr).abs() < 4.0 * sd, "{what}: {e} vs {tr}, σ {sd}");
+        };
+        let ci = c.camera.camera.intrinsics;
+        let pi = c.projector.camera.intrinsics;
+        within(ci.fx, 1440.0, c.camera.std_dev.intrinsics[0], "camera fx");
+        within(
+            pi.fx,
+            2200.0,
+            c.projector.std_dev.intrinsics[0],
+            "projector fx",
+        );
+        within(
+            pi.cy,
+            545.0,
+            c.projector.std_dev.intrinsics[3],
+            "projector cy",
+        );
+        let t_proj_cam = c.t_cam_proj.inverse();
+        let truth_proj_cam = t.t_cam_proj.inverse();
+        for i in 0..3 {
+            within(
+                t_proj_cam.translation.vector[i],
+                truth_proj_cam.translation.vector[i],
+                c.t_proj_cam_std_dev[3 + i],
+                "T_proj_cam tvec",
+            );
+        }
+    }
+
+    #[test]
+    fn too_few_projector_views_are_named() {
+        let t = truth();
+        let mut found = corners(&t, 0.0, &[]);
+        found.truncate(3);
+        if let Some(f) = found.get_mut(2) {
+            for fit in f.projector.fits.iter_mut().skip(5) {
+                *fit = None;
+            }
+        }
+        let err = calibrate_from_corners(found, t.camera.size, &config(), Vec::new())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("view 2") && err.contains("5 of 54 corners"),
+            "{err}"
+        );
+        assert!(err.contains("at least 3"), "{err}");
+    }
 }

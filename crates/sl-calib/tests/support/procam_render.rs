@@ -1,0 +1,104 @@
+//! Board poses rendered by the virtual rig with the hybrid code on both projector axes, and
+//! decoded: the input of a projector–camera calibration, with the rig's truth. Shared by
+//! `tests/procam.rs` and `benches/procam.rs` (included with `#[path]`).
+
+// The bench reads the views only; the truth is for the tests.
+#![allow(dead_code)]
+
+use std::time::Instant;
+
+use sl_calib::ProcamView;
+use sl_codec::{
+    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
+    ProjectorSize, decode,
+};
+use sl_rig::{
+    BoardPoseConfig, BoardTruth, Checkerboard, GreyImage, Pixels, RigConfig, Scene, VirtualRig,
+    capture_board, random_board_poses,
+};
+
+/// Electrons per grey level of the default sensor (10 000 e⁻ full well over 255 levels):
+/// read noise of this many electrons is 1 grey level, as in `tests/virtual_rig.rs`.
+const ONE_GREY_LEVEL_E: f64 = 10_000.0 / 255.0;
+
+fn grey(img: GreyImage) -> image::GrayImage {
+    let Pixels::U8(px) = img.pixels else {
+        panic!("8-bit sensor expected")
+    };
+    image::GrayImage::from_raw(img.width, img.height, px).unwrap()
+}
+
+/// Views, their truth and the rig.
+pub(crate) struct Rendered {
+    pub(crate) views: Vec<ProcamView>,
+    pub(crate) truth: Vec<BoardTruth>,
+    pub(crate) config: RigConfig,
+}
+
+/// `count` board poses (seeded) with the hybrid code (8-step phase shift + complementary Gray
+/// code) on both projector axes, decoded.
+pub(crate) fn render(count: usize, seed: u64) -> Rendered {
+    let mut config = RigConfig::default();
+    config.render.effects.sensor.photon_noise = false;
+    config.render.effects.sensor.read_noise_electrons = ONE_GREY_LEVEL_E;
+    let board = Checkerboard::default();
+    let poses = random_board_poses(
+        &config,
+        &board,
+        &BoardPoseConfig {
+            count,
+            seed,
+            ..BoardPoseConfig::default()
+        },
+    )
+    .unwrap();
+    let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
+    // ~30 projector px per period on both axes.
+    let sequence = PatternSequence::new(p)
+        .with(Pattern::Hybrid(HybridSpec::complementary(
+            Axis::Column,
+            p,
+            8,
+            64.0,
+        )))
+        .with(Pattern::Hybrid(HybridSpec::complementary(
+            Axis::Row,
+            p,
+            8,
+            36.0,
+        )));
+    let manifest = sequence.manifest(BitDepth::Eight);
+    let rig = VirtualRig::new(config.clone(), Scene::sphere()).unwrap();
+    let mut views = Vec::new();
+    let mut truth = Vec::new();
+    let t = Instant::now();
+    for (k, pose) in poses.iter().enumerate() {
+        let cap = capture_board(&rig, &board, pose, Some(&sequence), k as u64).unwrap();
+        let frames: Vec<Frame<u8>> = cap
+            .frames
+            .into_iter()
+            .map(|img| {
+                let g = grey(img);
+                Frame::new(g.width() as usize, g.height() as usize, g.into_raw()).unwrap()
+            })
+            .collect();
+        let set = CaptureSet::from_frames(manifest.clone(), Frames::U8(frames)).unwrap();
+        let map = decode(&set, &DecodeConfig::default()).unwrap();
+        views.push(ProcamView {
+            name: format!("pose {k}"),
+            lit: grey(cap.white),
+            map,
+        });
+        truth.push(cap.board);
+    }
+    eprintln!(
+        "rendered and decoded {count} poses x {} frames in {:.1} s",
+        sequence.frame_count(),
+        t.elapsed().as_secs_f64()
+    );
+    Rendered {
+        views,
+        truth,
+        config,
+    }
+}
