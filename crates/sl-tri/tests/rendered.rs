@@ -187,6 +187,32 @@ fn plane_figures(knobs: Knobs) -> PlaneFigures {
     }
 }
 
+struct SphereFigures {
+    radius: f64,
+    rms: f64,
+    form: f64,
+    size: f64,
+    count: usize,
+}
+
+fn sphere_figures(knobs: Knobs) -> SphereFigures {
+    let s = scan(Scene::sphere(), knobs);
+    let fit = fit_sphere(&s.points).unwrap();
+    let form = vdi_range(
+        s.points
+            .iter()
+            .map(|p| (p - fit.centre).norm() - fit.radius)
+            .collect(),
+    );
+    SphereFigures {
+        radius: fit.radius,
+        rms: fit.rms,
+        form,
+        size: 2.0 * (fit.radius - 50.0),
+        count: fit.count,
+    }
+}
+
 #[test]
 #[cfg_attr(debug_assertions, ignore = "slow in debug builds; run with --release")]
 fn rendered_plane_is_flat() {
@@ -197,14 +223,25 @@ fn rendered_plane_is_flat() {
         f.count, f.rms, f.range, f.max_abs, f.to_truth
     );
     assert!(f.count > 100_000);
-    assert!(f.rms <= PLANE_FLATNESS_BOUND_MM, "flatness RMS {} mm", f.rms);
+    assert!(
+        f.rms <= PLANE_FLATNESS_BOUND_MM,
+        "flatness RMS {} mm",
+        f.rms
+    );
     // The fitted plane is the true one: the points' RMS distance to their true surface points
     // is the flatness RMS plus at most a small bias (a tilted or offset plane would add it).
-    assert!(f.to_truth <= 1.2 * f.rms + 0.002, "RMS to truth {} mm", f.to_truth);
+    assert!(
+        f.to_truth <= 1.2 * f.rms + 0.002,
+        "RMS to truth {} mm",
+        f.to_truth
+    );
     // Issue 9's flatness (a range, ≤ 0.1 mm) is not met by this capture with 1.5 grey levels
     // of noise (measured 0.19 mm); `flatness_knobs` shows the captures that meet it.
     if f.range > ISSUE9_FLATNESS_MM {
-        eprintln!("note: flatness range {:.3} mm > issue 9's {ISSUE9_FLATNESS_MM} mm", f.range);
+        eprintln!(
+            "note: flatness range {:.3} mm > issue 9's {ISSUE9_FLATNESS_MM} mm",
+            f.range
+        );
     }
 }
 
@@ -222,38 +259,41 @@ fn rendered_plane_systematic_error_is_small() {
         "plane, noise-free: flatness RMS {:.4} mm, range {:.4} mm",
         f.rms, f.range
     );
-    assert!(f.rms <= TARGET_MM / 2.0, "systematic flatness RMS {} mm", f.rms);
+    assert!(
+        f.rms <= TARGET_MM / 2.0,
+        "systematic flatness RMS {} mm",
+        f.rms
+    );
 }
 
 #[test]
 #[cfg_attr(debug_assertions, ignore = "slow in debug builds; run with --release")]
 fn rendered_sphere_radius_and_form() {
-    let s = scan(Scene::sphere(), Knobs::default());
-    let fit = fit_sphere(&s.points).unwrap();
-    let form = vdi_range(
-        s.points
-            .iter()
-            .map(|p| (p - fit.centre).norm() - fit.radius)
-            .collect(),
-    );
-    let size = 2.0 * (fit.radius - 50.0);
+    let f = sphere_figures(Knobs::default());
     eprintln!(
         "sphere: {} points, radius {:.4} mm (truth 50), residual RMS {:.4} mm, form (range, \
-         0.3 % excluded) {:.4} mm, size (diameter error) {:.4} mm, RMS to truth {:.4} mm",
-        fit.count,
-        fit.radius,
-        fit.rms,
-        form,
-        size,
-        rms_to_truth(&s)
+         0.3 % excluded) {:.4} mm, size (diameter error) {:.4} mm",
+        f.count, f.radius, f.rms, f.form, f.size
     );
-    assert!(fit.count > 20_000);
-    assert!(
-        (fit.radius - 50.0).abs() <= TARGET_MM,
-        "radius {}",
-        fit.radius
+    assert!(f.count > 20_000);
+    assert!((f.radius - 50.0).abs() <= TARGET_MM, "radius {}", f.radius);
+    assert!(f.size.abs() <= ISSUE9_FORM_SIZE_MM, "size {}", f.size);
+}
+
+#[test]
+#[cfg_attr(debug_assertions, ignore = "slow in debug builds; run with --release")]
+fn rendered_plane_meets_the_target_with_finer_fringes() {
+    // The same sensor noise, fringes of 15 px (128 periods) instead of 30: the column noise
+    // halves (σ = λ σ_Φ / 2π). Measured 0.0154 mm; the issue's 0.02 mm is asserted.
+    let f = plane_figures(Knobs {
+        periods: 128.0,
+        ..Knobs::default()
+    });
+    eprintln!(
+        "plane, 128 periods: flatness RMS {:.4} mm, range {:.4} mm",
+        f.rms, f.range
     );
-    assert!(size.abs() <= ISSUE9_FORM_SIZE_MM, "size {size}");
+    assert!(f.rms <= TARGET_MM, "flatness RMS {} mm", f.rms);
 }
 
 /// How the plane's flatness scales with the capture's knobs (prints a table).
@@ -316,13 +356,17 @@ fn flatness_knobs() {
             },
         ),
     ];
-    println!("| capture | flatness RMS (mm) | range 99.7 % (mm) | RMS to truth (mm) |");
-    println!("|---|---|---|---|");
+    println!(
+        "| capture | flatness RMS | flatness range 99.7 % | plane RMS to truth | sphere residual \
+         RMS | sphere form 99.7 % | sphere size |"
+    );
+    println!("|---|---|---|---|---|---|---|");
     for (name, knobs) in rows {
         let f = plane_figures(knobs);
+        let g = sphere_figures(knobs);
         println!(
-            "| {name} | {:.4} | {:.4} | {:.4} |",
-            f.rms, f.range, f.to_truth
+            "| {name} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {:+.4} |",
+            f.rms, f.range, f.to_truth, g.rms, g.form, g.size
         );
     }
 }
