@@ -90,6 +90,25 @@ pub enum RigError {
     #[cfg(all(feature = "dynamixel", unix))]
     #[error(transparent)]
     Dynamixel(#[from] crate::DynamixelError),
+    /// A step of a capture session failed: names the view (and the frame) at fault.
+    #[error("capture session: view {view}{}: {source}", frame.map(|f| format!(", frame {f}")).unwrap_or_default())]
+    Session {
+        /// Index of the view in the session's plan.
+        view: usize,
+        /// Index of the frame in the view's pattern sequence, when the failure concerns one.
+        frame: Option<usize>,
+        /// What went wrong.
+        #[source]
+        source: Box<RigError>,
+    },
+    /// A session folder already holds a session with another plan.
+    #[error("{}: {reason}", path.display())]
+    SessionMismatch {
+        /// The existing `session.json`.
+        path: PathBuf,
+        /// What differs.
+        reason: String,
+    },
     /// A JSON file could not be written or parsed.
     #[error("{}: {source}", path.display())]
     Json {

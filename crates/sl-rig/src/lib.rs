@@ -21,6 +21,9 @@
 //!   coordinate of every camera pixel, masks and poses, the rig's exact calibration
 //!   ([`RigConfig::calibration`]), and calibration captures ([`capture_board`],
 //!   [`capture_board_on_table`], [`simulate_calibration`]);
+//! - **capture sessions** ([`CaptureSession`]): a turntable scan through the device traits,
+//!   written view by view and atomically so that an interrupted scan resumes, with the
+//!   display latency measured by flashing ([`measure_latency`]);
 //! - **files**: capture sets in `sl-codec`'s format with their truth ([`simulate_scan`],
 //!   [`write_view_truth`]). `docs/virtual-rig.md` describes scenes, parameters and files.
 //! - the **turntable hardware** (feature `dynamixel`, on by default): `DynamixelTurntable`
@@ -82,6 +85,7 @@ mod error;
 mod files;
 mod geometry;
 mod image;
+mod latency;
 mod pixel_format;
 #[cfg(feature = "window")]
 mod projector_window;
@@ -89,6 +93,7 @@ mod raycast;
 mod render;
 mod scene;
 mod sensor;
+mod session;
 mod simulate;
 mod truth;
 #[cfg(feature = "v4l")]
@@ -116,6 +121,7 @@ pub use error::RigError;
 pub use files::{TRUTH_DIR, VIEW_JSON, pose_matrix, write_capture_set, write_view_truth};
 pub use geometry::{CameraRays, ViewGeometry};
 pub use image::{GreyImage, Pixels};
+pub use latency::{BufferedCamera, Latency, LatencyConfig, MIN_FLASH_CONTRAST, measure_latency};
 pub use pixel_format::{FrameLayout, PixelFormat, convert_frame};
 #[cfg(feature = "window")]
 pub use projector_window::{
@@ -129,6 +135,11 @@ pub use scene::{
     SceneObject, Shape, Texture, upright_facing_camera,
 };
 pub use sensor::{BitDepth, CameraEffects, Defocus, GlobalIllumination, NoiseKey, SensorConfig};
+pub use session::{
+    CaptureSession, DEFAULT_DISPLAY_LATENCY, SESSION_FILE, SESSION_FORMAT, SESSION_VERSION,
+    SessionConfig, SessionDevices, SessionPlan, SessionSummary, ViewOutcome, ViewState,
+    read_session_plan, view_dir_name,
+};
 pub use simulate::{
     CalibrationSession, SimulatedCapture, projector_images, simulate_calibration, simulate_scan,
     turntable_angles,

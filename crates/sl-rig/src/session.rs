@@ -1,0 +1,561 @@
+//! Capture sessions: a turntable scan written once against the device traits, saved view by
+//! view so that an interrupted scan resumes where it stopped.
+//!
+//! For each turntable angle of the plan: rotate, then for each pattern show it, wait for the
+//! display latency, flush the frames the camera buffered before the change, and capture. Each
+//! view goes into `SESSION/view_NNN/` as a capture set in `sl-codec`'s format: every file is
+//! written under a temporary name and renamed into place, and the view's `manifest.json` is
+//! written last — its presence marks the view complete. `SESSION/session.json` holds the plan.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use serde::{Deserialize, Serialize};
+use sl_codec::{BitDepth as PatternDepth, MANIFEST_FILE, Manifest};
+
+use crate::{Camera, GreyImage, Projector, RigError, Turntable};
+
+/// Name of the plan file at the root of a session folder.
+pub const SESSION_FILE: &str = "session.json";
+/// Value of the `format` key of [`SESSION_FILE`].
+pub const SESSION_FORMAT: &str = "sl-session";
+/// Version of the [`SESSION_FILE`] schema this crate writes and reads.
+pub const SESSION_VERSION: u32 = 1;
+/// Prefix of the temporary names files are written under before being renamed into place;
+/// [`CaptureSession::run`] deletes leftovers with this prefix when it redoes a view.
+const PARTIAL_PREFIX: &str = ".partial-";
+
+/// Folder name of view `index` inside a session folder (`view_000`, `view_001`, …).
+pub fn view_dir_name(index: usize) -> String {
+    format!("view_{index:03}")
+}
+
+/// What the devices of a session are, as free text for the record (`session.json`).
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct SessionDevices {
+    /// The camera, e.g. `virtual 1280x720` or `/dev/video0`.
+    pub camera: String,
+    /// The projector, e.g. `virtual 1920x1080` or `monitor 1`.
+    pub projector: String,
+    /// The turntable, e.g. `virtual` or `/dev/ttyUSB0 id 1`.
+    pub turntable: String,
+}
+
+/// The plan of a capture session: where the turntable goes and what the projector shows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionPlan {
+    /// Turntable motor angles (degrees), one view each, in capture order.
+    pub angles_deg: Vec<f64>,
+    /// The pattern sequence (and the frame file names) every view captures.
+    pub manifest: Manifest,
+    /// The devices, for the record.
+    pub devices: SessionDevices,
+    /// The calibration file the session is meant to be reconstructed with, for the record.
+    pub calibration: Option<PathBuf>,
+}
+
+/// How a session synchronises the projector and the camera, and whether it may overwrite.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SessionConfig {
+    /// Time to wait after showing a pattern before capturing: the projector's display latency
+    /// (input lag plus the frame being scanned out). Default [`DEFAULT_DISPLAY_LATENCY`].
+    pub display_latency: Duration,
+    /// Frames captured and dropped after each pattern change: the frames the camera driver
+    /// buffered before the change ([`crate::measure_latency`] measures it). Default 0 (the
+    /// virtual camera buffers nothing).
+    pub flush_frames: usize,
+    /// Recapture views that are already complete, and accept a `session.json` with another
+    /// plan (which is then replaced). Default `false`: a finished view is never overwritten.
+    pub overwrite: bool,
+}
+
+/// Default display latency: a 60 Hz projector shows a new image within two or three refreshes
+/// (17–50 ms) once the compositor has it; 100 ms leaves a margin for a slow compositor or a
+/// projector's image processing. Measure it with [`crate::measure_latency`] to go faster.
+pub const DEFAULT_DISPLAY_LATENCY: Duration = Duration::from_millis(100);
+
+impl Default for SessionConfig {
+    fn default() -> Self {
+        Self {
+            display_latency: DEFAULT_DISPLAY_LATENCY,
+            flush_frames: 0,
+            overwrite: false,
+        }
+    }
+}
+
+/// State of one view's folder on disk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum ViewState {
+    /// No folder yet.
+    Missing,
+    /// A folder without a valid manifest, or with frames missing: an interrupted capture,
+    /// redone from scratch on the next run.
+    Partial,
+    /// The manifest of the plan and every frame it names are there.
+    Complete,
+}
+
+/// What happened to one view during [`CaptureSession::run`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ViewOutcome {
+    /// Index of the view in the plan.
+    pub index: usize,
+    /// Its folder.
+    pub dir: PathBuf,
+    /// Motor angle asked for (degrees).
+    pub motor_angle_deg: f64,
+    /// Angle the turntable reported after moving (`None` when the view was skipped).
+    pub reached_deg: Option<f64>,
+    /// `true` when captured in this run, `false` when an existing complete view was kept.
+    pub captured: bool,
+    /// Frames written (0 when skipped).
+    pub frames: usize,
+    /// Wall time spent on the view (ms): rotation, capture and writing.
+    pub ms: f64,
+}
+
+/// What a whole [`CaptureSession::run`] did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SessionSummary {
+    /// One outcome per view of the plan, in order.
+    pub views: Vec<ViewOutcome>,
+    /// Views captured in this run.
+    pub captured: usize,
+    /// Complete views kept from an earlier run.
+    pub skipped: usize,
+}
+
+/// `session.json` on disk.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SessionFile {
+    format: String,
+    version: u32,
+    angles_deg: Vec<f64>,
+    patterns: serde_json::Value,
+    devices: SessionDevices,
+    calibration: Option<String>,
+    views: Vec<String>,
+}
+
+/// A capture session in a folder: the plan, the synchronisation settings, and the views on
+/// disk.
+///
+/// ```
+/// use sl_rig::{CaptureSession, RigConfig, Scene, SessionConfig, SessionPlan, VirtualRig};
+/// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+/// # let mut config = RigConfig::default();
+/// # config.camera.size = sl_camera::ImageSize::new(64, 36);
+/// # config.camera.intrinsics = sl_camera::Intrinsics::new(72.0, 72.0, 31.5, 17.5);
+/// # config.projector.size = sl_camera::ImageSize::new(64, 36);
+/// # config.projector.intrinsics = sl_camera::Intrinsics::new(72.0, 72.0, 31.5, 17.5);
+/// let rig = VirtualRig::new(config, Scene::sphere())?;
+/// let (mut camera, mut projector, mut table) = rig.devices();
+/// // Gray code columns of the 64x36 projector, two views.
+/// use sl_codec::{Axis, BitDepth, GrayCodeSpec, Pattern, PatternSequence, ProjectorSize};
+/// let p = ProjectorSize::new(64, 36);
+/// let sequence = PatternSequence::new(p)
+///     .with(Pattern::Gray(GrayCodeSpec::per_pixel(Axis::Column, p, true)));
+/// let manifest = sequence.manifest(BitDepth::Eight);
+/// let plan = SessionPlan {
+///     angles_deg: vec![0.0, 180.0],
+///     manifest,
+///     devices: Default::default(),
+///     calibration: None,
+/// };
+/// let dir = tempfile::tempdir()?;
+/// let config = SessionConfig { display_latency: std::time::Duration::ZERO, ..Default::default() };
+/// let session = CaptureSession::open(dir.path(), plan, config)?;
+/// let summary = session.run(&mut camera, &mut projector, &mut table, |_| {})?;
+/// assert_eq!(summary.captured, 2);
+/// // Running again captures nothing: both views are complete.
+/// let again = session.run(&mut camera, &mut projector, &mut table, |_| {})?;
+/// assert_eq!((again.captured, again.skipped), (0, 2));
+/// # Ok(())
+/// # }
+/// ```
+#[derive(Debug, Clone)]
+pub struct CaptureSession {
+    dir: PathBuf,
+    plan: SessionPlan,
+    config: SessionConfig,
+}
+
+impl CaptureSession {
+    /// Opens (or starts) the session in `dir`: creates the folder and writes `session.json`,
+    /// or checks that an existing `session.json` holds the same plan (angles and patterns).
+    ///
+    /// # Errors
+    /// [`RigError::SessionMismatch`] when `dir` holds a session with another plan and
+    /// `config.overwrite` is off; [`RigError::InvalidParameter`] for an empty plan or a
+    /// non-finite angle; [`RigError::Io`] / [`RigError::Json`] naming the file.
+    pub fn open(dir: &Path, plan: SessionPlan, config: SessionConfig) -> Result<Self, RigError> {
+        if plan.angles_deg.is_empty() {
+            return Err(RigError::param(
+                "angles",
+                "a session needs at least one view",
+            ));
+        }
+        if let Some((k, a)) = plan
+            .angles_deg
+            .iter()
+            .enumerate()
+            .find(|(_, a)| !a.is_finite())
+        {
+            return Err(RigError::param(
+                format!("angles[{k}]"),
+                format!("{a} is not finite"),
+            ));
+        }
+        if plan.manifest.frame_count() == 0 {
+            return Err(RigError::param("patterns", "the manifest names no frame"));
+        }
+        std::fs::create_dir_all(dir).map_err(|e| RigError::io(dir, e))?;
+        let session = Self {
+            dir: dir.to_path_buf(),
+            plan,
+            config,
+        };
+        let file = session.file();
+        let path = dir.join(SESSION_FILE);
+        if path.exists() && !config.overwrite {
+            let existing = read_session_file(&path)?;
+            if let Some(reason) = plan_difference(&existing, &file) {
+                return Err(RigError::SessionMismatch { path, reason });
+            }
+        }
+        let text = serde_json::to_string_pretty(&file).map_err(|source| RigError::Json {
+            path: path.clone(),
+            source,
+        })?;
+        write_atomically(&path, |tmp| {
+            std::fs::write(tmp, format!("{text}\n")).map_err(|e| RigError::io(tmp, e))
+        })?;
+        Ok(session)
+    }
+
+    /// The session folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The plan.
+    pub fn plan(&self) -> &SessionPlan {
+        &self.plan
+    }
+
+    /// The synchronisation settings.
+    pub fn config(&self) -> &SessionConfig {
+        &self.config
+    }
+
+    /// Folder of view `index`.
+    pub fn view_dir(&self, index: usize) -> PathBuf {
+        self.dir.join(view_dir_name(index))
+    }
+
+    /// Folders of every view of the plan, in order.
+    pub fn view_dirs(&self) -> Vec<PathBuf> {
+        (0..self.plan.angles_deg.len())
+            .map(|k| self.view_dir(k))
+            .collect()
+    }
+
+    /// State of view `index` on disk.
+    pub fn view_state(&self, index: usize) -> ViewState {
+        let dir = self.view_dir(index);
+        if !dir.is_dir() {
+            return ViewState::Missing;
+        }
+        let Ok(manifest) = Manifest::load(&dir.join(MANIFEST_FILE)) else {
+            return ViewState::Partial;
+        };
+        let frames_match = manifest.blocks.len() == self.plan.manifest.blocks.len()
+            && manifest
+                .blocks
+                .iter()
+                .zip(&self.plan.manifest.blocks)
+                .all(|(a, b)| a.pattern == b.pattern && a.frames == b.frames);
+        let all_there = frame_names(&self.plan.manifest)
+            .iter()
+            .all(|name| dir.join(name).is_file());
+        if frames_match && all_there {
+            ViewState::Complete
+        } else {
+            ViewState::Partial
+        }
+    }
+
+    /// State of every view of the plan.
+    pub fn view_states(&self) -> Vec<ViewState> {
+        (0..self.plan.angles_deg.len())
+            .map(|k| self.view_state(k))
+            .collect()
+    }
+
+    /// Runs the session: captures every view that is not complete (every view with
+    /// `overwrite`), calling `on_view` after each view, captured or kept.
+    ///
+    /// # Errors
+    /// [`RigError::Session`] naming the view (and the frame) at fault, around the device's or
+    /// the file system's error; [`RigError::ImageSize`] when the projector's size differs from
+    /// the patterns'. Views completed before the failure stay complete.
+    pub fn run<C, P, T>(
+        &self,
+        camera: &mut C,
+        projector: &mut P,
+        turntable: &mut T,
+        mut on_view: impl FnMut(&ViewOutcome),
+    ) -> Result<SessionSummary, RigError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+        T: Turntable + ?Sized,
+    {
+        let patterns = pattern_images(&self.plan.manifest, projector.image_size())?;
+        let names = frame_names(&self.plan.manifest);
+        let mut views = Vec::with_capacity(self.plan.angles_deg.len());
+        for (index, &angle) in self.plan.angles_deg.iter().enumerate() {
+            let t = Instant::now();
+            let dir = self.view_dir(index);
+            let outcome = if !self.config.overwrite && self.view_state(index) == ViewState::Complete
+            {
+                ViewOutcome {
+                    index,
+                    dir,
+                    motor_angle_deg: angle,
+                    reached_deg: None,
+                    captured: false,
+                    frames: 0,
+                    ms: ms(t),
+                }
+            } else {
+                let at = |frame: Option<usize>| {
+                    move |source: RigError| RigError::Session {
+                        view: index,
+                        frame,
+                        source: Box::new(source),
+                    }
+                };
+                prepare_view_dir(&dir).map_err(at(None))?;
+                let reached = turntable.rotate_to(angle).map_err(at(None))?;
+                for (k, (pattern, name)) in patterns.iter().zip(&names).enumerate() {
+                    let frame = self
+                        .capture_one(camera, projector, pattern)
+                        .map_err(at(Some(k)))?;
+                    let path = dir.join(name);
+                    write_atomically(&path, |tmp| frame.save_png(tmp)).map_err(at(Some(k)))?;
+                }
+                self.write_view_manifest(&dir, index, angle, reached)
+                    .map_err(at(None))?;
+                ViewOutcome {
+                    index,
+                    dir,
+                    motor_angle_deg: angle,
+                    reached_deg: Some(reached),
+                    captured: true,
+                    frames: names.len(),
+                    ms: ms(t),
+                }
+            };
+            on_view(&outcome);
+            views.push(outcome);
+        }
+        let captured = views.iter().filter(|v| v.captured).count();
+        Ok(SessionSummary {
+            skipped: views.len() - captured,
+            captured,
+            views,
+        })
+    }
+
+    /// Show → wait for the display latency → flush → capture.
+    fn capture_one<C, P>(
+        &self,
+        camera: &mut C,
+        projector: &mut P,
+        pattern: &GreyImage,
+    ) -> Result<GreyImage, RigError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+    {
+        projector.show(pattern)?;
+        if !self.config.display_latency.is_zero() {
+            std::thread::sleep(self.config.display_latency);
+        }
+        for _ in 0..self.config.flush_frames {
+            camera.capture()?;
+        }
+        let frame = camera.capture()?;
+        let expected = camera.frame_size();
+        if (frame.width, frame.height) != expected {
+            return Err(RigError::ImageSize {
+                what: "camera frame".to_owned(),
+                expected_width: expected.0,
+                expected_height: expected.1,
+                width: frame.width,
+                height: frame.height,
+            });
+        }
+        Ok(frame)
+    }
+
+    fn write_view_manifest(
+        &self,
+        dir: &Path,
+        index: usize,
+        angle: f64,
+        reached: f64,
+    ) -> Result<(), RigError> {
+        let mut m = self.plan.manifest.clone();
+        m.frames_dir = None;
+        m.description = Some(format!(
+            "capture session view {index}: turntable motor at {angle} degrees (reported {reached} degrees)"
+        ));
+        write_atomically(&dir.join(MANIFEST_FILE), |tmp| Ok(m.save(tmp)?))
+    }
+
+    fn file(&self) -> SessionFile {
+        SessionFile {
+            format: SESSION_FORMAT.to_owned(),
+            version: SESSION_VERSION,
+            angles_deg: self.plan.angles_deg.clone(),
+            patterns: self.plan.manifest.to_json(),
+            devices: self.plan.devices.clone(),
+            calibration: self
+                .plan
+                .calibration
+                .as_ref()
+                .map(|p| p.display().to_string()),
+            views: (0..self.plan.angles_deg.len()).map(view_dir_name).collect(),
+        }
+    }
+}
+
+/// Reads the plan of an existing session folder (its `session.json`).
+///
+/// # Errors
+/// [`RigError::Io`], [`RigError::Json`] or [`RigError::InvalidParameter`] naming the file and
+/// the key at fault.
+pub fn read_session_plan(dir: &Path) -> Result<SessionPlan, RigError> {
+    let path = dir.join(SESSION_FILE);
+    let file = read_session_file(&path)?;
+    let text = file.patterns.to_string();
+    let manifest = Manifest::from_json_str(&text, &path)?;
+    Ok(SessionPlan {
+        angles_deg: file.angles_deg,
+        manifest,
+        devices: file.devices,
+        calibration: file.calibration.map(PathBuf::from),
+    })
+}
+
+fn read_session_file(path: &Path) -> Result<SessionFile, RigError> {
+    let text = std::fs::read_to_string(path).map_err(|e| RigError::io(path, e))?;
+    let file: SessionFile = serde_json::from_str(&text).map_err(|source| RigError::Json {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if file.format != SESSION_FORMAT || file.version != SESSION_VERSION {
+        return Err(RigError::param(
+            format!("{}: format/version", path.display()),
+            format!(
+                "expected \"{SESSION_FORMAT}\" version {SESSION_VERSION}, got \"{}\" version {}",
+                file.format, file.version
+            ),
+        ));
+    }
+    Ok(file)
+}
+
+/// What differs between two plans (angles and patterns; devices and calibration are only a
+/// record), or `None`.
+fn plan_difference(existing: &SessionFile, new: &SessionFile) -> Option<String> {
+    if existing.angles_deg != new.angles_deg {
+        return Some(format!(
+            "holds a session of {} views at {:?} degrees, not the {} views asked for; choose another folder or allow overwriting",
+            existing.angles_deg.len(),
+            existing.angles_deg,
+            new.angles_deg.len()
+        ));
+    }
+    if existing.patterns != new.patterns {
+        return Some(
+            "holds a session with other patterns; choose another folder or allow overwriting"
+                .to_owned(),
+        );
+    }
+    None
+}
+
+/// The file names of every frame of `manifest`, in projection order.
+fn frame_names(manifest: &Manifest) -> Vec<String> {
+    manifest
+        .blocks
+        .iter()
+        .flat_map(|b| b.frames.iter().cloned())
+        .collect()
+}
+
+/// The projector images of `manifest`'s sequence, checked against the projector's size.
+fn pattern_images(manifest: &Manifest, projector: (u32, u32)) -> Result<Vec<GreyImage>, RigError> {
+    let sequence = manifest.sequence();
+    let size = (sequence.projector.width, sequence.projector.height);
+    if size != projector {
+        return Err(RigError::ImageSize {
+            what: "patterns of the session plan (projector size)".to_owned(),
+            expected_width: projector.0,
+            expected_height: projector.1,
+            width: size.0,
+            height: size.1,
+        });
+    }
+    let sixteen = manifest.bit_depth == PatternDepth::Sixteen;
+    (0..sequence.frame_count())
+        .map(|k| GreyImage::from_sequence(&sequence, k, sixteen))
+        .collect()
+}
+
+/// Makes `dir` ready for a fresh capture: removes its manifest first (so that the view reads as
+/// incomplete until the new one is written), then leftovers of an interrupted write.
+fn prepare_view_dir(dir: &Path) -> Result<(), RigError> {
+    std::fs::create_dir_all(dir).map_err(|e| RigError::io(dir, e))?;
+    let manifest = dir.join(MANIFEST_FILE);
+    if manifest.exists() {
+        std::fs::remove_file(&manifest).map_err(|e| RigError::io(&manifest, e))?;
+    }
+    let entries = std::fs::read_dir(dir).map_err(|e| RigError::io(dir, e))?;
+    for entry in entries {
+        let entry = entry.map_err(|e| RigError::io(dir, e))?;
+        if entry
+            .file_name()
+            .to_string_lossy()
+            .starts_with(PARTIAL_PREFIX)
+        {
+            let p = entry.path();
+            std::fs::remove_file(&p).map_err(|e| RigError::io(&p, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes `path` through `write` into a temporary name in the same folder, then renames it
+/// into place (a rename within one folder is atomic on POSIX file systems).
+fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), RigError>,
+) -> Result<(), RigError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!("{PARTIAL_PREFIX}{name}"));
+    write(&tmp)?;
+    std::fs::rename(&tmp, path).map_err(|e| RigError::io(path, e))
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}

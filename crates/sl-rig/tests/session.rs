@@ -1,0 +1,288 @@
+//! Capture sessions on the virtual rig: interruption and resume, refusal to overwrite, and the
+//! latency measurement against a camera with a known frame queue.
+
+#![allow(clippy::unwrap_used)] // test helpers outside #[test] functions
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Duration;
+
+use sl_camera::{ImageSize, Intrinsics};
+use sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
+use sl_rig::{
+    BufferedCamera, Camera, CaptureSession, GreyImage, LatencyConfig, RigConfig, RigError, Scene,
+    SessionConfig, SessionPlan, ViewState, VirtualRig, measure_latency,
+};
+
+/// The default rig at a quarter of its resolution (camera 320x180, projector 480x270), without
+/// noise: with noise the virtual camera numbers its views in the order it casts them (a real
+/// camera's noise never repeats either), so only a noise-free rig makes each frame a pure
+/// function of (turntable angle, pattern) — which is what byte-identity between an
+/// interrupted-and-resumed session and an uninterrupted one has to test.
+fn small_rig() -> VirtualRig {
+    let mut c = RigConfig::default();
+    for m in [&mut c.camera, &mut c.projector] {
+        let k = m.intrinsics;
+        m.intrinsics = Intrinsics::new(
+            k.fx / 4.0,
+            k.fy / 4.0,
+            (k.cx + 0.5) / 4.0 - 0.5,
+            (k.cy + 0.5) / 4.0 - 0.5,
+        );
+        m.size = ImageSize::new(m.size.width / 4, m.size.height / 4);
+    }
+    c.render.supersampling = 1;
+    c.render.effects.sensor.photon_noise = false;
+    c.render.effects.sensor.read_noise_electrons = 0.0;
+    VirtualRig::new(c, Scene::dumbbell()).unwrap()
+}
+
+fn plan(rig: &VirtualRig, views: usize) -> SessionPlan {
+    let s = rig.config().projector.size;
+    let p = ProjectorSize::new(s.width, s.height);
+    let sequence = PatternSequence::new(p).with(Pattern::Hybrid(HybridSpec::complementary(
+        Axis::Column,
+        p,
+        4,
+        12.0,
+    )));
+    SessionPlan {
+        angles_deg: (0..views)
+            .map(|k| 360.0 * k as f64 / views as f64)
+            .collect(),
+        manifest: sequence.manifest(BitDepth::Eight),
+        devices: Default::default(),
+        calibration: None,
+    }
+}
+
+fn quick(overwrite: bool, flush_frames: usize) -> SessionConfig {
+    SessionConfig {
+        display_latency: Duration::ZERO,
+        flush_frames,
+        overwrite,
+    }
+}
+
+/// Every file under `dir`, relative path → bytes.
+fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                let rel = p.strip_prefix(dir).unwrap().display().to_string();
+                out.insert(rel, std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// A camera that fails at its `fail_at`-th capture (counting from 0), like a cable pulled
+/// mid-scan.
+struct FailingCamera<C> {
+    inner: C,
+    captures: usize,
+    fail_at: usize,
+}
+
+impl<C: Camera> Camera for FailingCamera<C> {
+    fn frame_size(&self) -> (u32, u32) {
+        self.inner.frame_size()
+    }
+    fn capture(&mut self) -> Result<GreyImage, RigError> {
+        if self.captures == self.fail_at {
+            return Err(RigError::Device {
+                device: "camera".into(),
+                reason: "unplugged".into(),
+            });
+        }
+        self.captures += 1;
+        self.inner.capture()
+    }
+}
+
+#[test]
+fn an_interrupted_session_resumes_into_the_same_files() {
+    let rig = small_rig();
+    let views = 4;
+    let plan = plan(&rig, views);
+    let frames = plan.manifest.frame_count();
+    // The driver queues 2 frames; the session flushes them after each change.
+    let depth = 2;
+
+    let reference = tempfile::tempdir().unwrap();
+    let (cam, mut proj, mut table) = rig.devices();
+    let mut cam = BufferedCamera::new(cam, depth);
+    let session =
+        CaptureSession::open(reference.path(), plan.clone(), quick(false, depth)).unwrap();
+    let summary = session
+        .run(&mut cam, &mut proj, &mut table, |_| {})
+        .unwrap();
+    assert_eq!((summary.captured, summary.skipped), (views, 0));
+
+    // Interrupted: the camera dies during view 2, at its frame 5 (each frame costs
+    // 1 + depth captures, plus the queue's first fill).
+    let resumed = tempfile::tempdir().unwrap();
+    let fail_view = 2;
+    let fail_frame = 5;
+    let fail_at = depth + (fail_view * frames + fail_frame) * (depth + 1);
+    let (cam, mut proj, mut table) = rig.devices();
+    let mut failing = BufferedCamera::new(
+        FailingCamera {
+            inner: cam,
+            captures: 0,
+            fail_at,
+        },
+        depth,
+    );
+    let session = CaptureSession::open(resumed.path(), plan.clone(), quick(false, depth)).unwrap();
+    let err = session
+        .run(&mut failing, &mut proj, &mut table, |_| {})
+        .unwrap_err();
+    let msg = err.to_string();
+    assert!(msg.contains("view 2, frame 5"), "{msg}");
+    assert!(msg.contains("unplugged"), "{msg}");
+    assert_eq!(
+        session.view_states(),
+        vec![
+            ViewState::Complete,
+            ViewState::Complete,
+            ViewState::Partial,
+            ViewState::Missing
+        ]
+    );
+
+    // Resume in a new process: fresh devices, the session reopened from its folder.
+    let (cam, mut proj, mut table) = rig.devices();
+    let mut cam = BufferedCamera::new(cam, depth);
+    let session = CaptureSession::open(resumed.path(), plan, quick(false, depth)).unwrap();
+    let mut seen = Vec::new();
+    let summary = session
+        .run(&mut cam, &mut proj, &mut table, |v| seen.push(v.captured))
+        .unwrap();
+    assert_eq!(seen, vec![false, false, true, true]);
+    assert_eq!((summary.captured, summary.skipped), (2, 2));
+
+    let a = tree(reference.path());
+    let b = tree(resumed.path());
+    assert_eq!(a.len(), 1 + views * (frames + 1), "{:?}", a.keys());
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (name, bytes) in &a {
+        assert!(&b[name] == bytes, "{name} differs after resuming");
+    }
+}
+
+#[test]
+fn flushing_too_few_frames_captures_stale_patterns() {
+    // The test above can fail: without flushing, a 2-deep queue returns the frame of the
+    // pattern shown two changes earlier, and the files differ from a synchronised capture.
+    let rig = small_rig();
+    let plan = plan(&rig, 1);
+    let run = |flush: usize| {
+        let dir = tempfile::tempdir().unwrap();
+        let (cam, mut proj, mut table) = rig.devices();
+        let mut cam = BufferedCamera::new(cam, 2);
+        let s = CaptureSession::open(dir.path(), plan.clone(), quick(false, flush)).unwrap();
+        s.run(&mut cam, &mut proj, &mut table, |_| {}).unwrap();
+        std::fs::read(dir.path().join("view_000").join("003.png")).unwrap()
+    };
+    assert_ne!(run(0), run(2));
+}
+
+#[test]
+fn a_finished_session_is_not_overwritten_unless_asked() {
+    let rig = small_rig();
+    let dir = tempfile::tempdir().unwrap();
+    let (mut cam, mut proj, mut table) = rig.devices();
+    let first = plan(&rig, 2);
+    let session = CaptureSession::open(dir.path(), first.clone(), quick(false, 0)).unwrap();
+    session
+        .run(&mut cam, &mut proj, &mut table, |_| {})
+        .unwrap();
+    let before = tree(dir.path());
+
+    // Another plan in the same folder is refused, naming session.json, and nothing changes.
+    let other = plan(&rig, 3);
+    let err = CaptureSession::open(dir.path(), other.clone(), quick(false, 0)).unwrap_err();
+    assert!(matches!(err, RigError::SessionMismatch { .. }), "{err}");
+    assert!(err.to_string().contains("session.json"), "{err}");
+    assert_eq!(tree(dir.path()), before);
+
+    // The same plan again keeps every view.
+    let again = CaptureSession::open(dir.path(), first.clone(), quick(false, 0)).unwrap();
+    let s = again.run(&mut cam, &mut proj, &mut table, |_| {}).unwrap();
+    assert_eq!((s.captured, s.skipped), (0, 2));
+    assert_eq!(tree(dir.path()), before);
+
+    // Asked to overwrite: the new plan replaces the old and every view is captured anew.
+    let forced = CaptureSession::open(dir.path(), other, quick(true, 0)).unwrap();
+    let s = forced.run(&mut cam, &mut proj, &mut table, |_| {}).unwrap();
+    assert_eq!((s.captured, s.skipped), (3, 0));
+    assert_eq!(forced.view_states(), vec![ViewState::Complete; 3]);
+    // View 1 is now at 120 degrees instead of 180: its frames changed.
+    let after = tree(dir.path());
+    assert_ne!(after["view_001/000.png"], before["view_001/000.png"]);
+}
+
+#[test]
+fn a_projector_of_another_size_is_refused_before_anything_moves() {
+    let rig = small_rig();
+    let mut p = plan(&rig, 1);
+    let q = ProjectorSize::new(64, 32);
+    p.manifest = PatternSequence::new(q)
+        .with(Pattern::Hybrid(HybridSpec::complementary(
+            Axis::Column,
+            q,
+            4,
+            4.0,
+        )))
+        .manifest(BitDepth::Eight);
+    let dir = tempfile::tempdir().unwrap();
+    let (mut cam, mut proj, mut table) = rig.devices();
+    let s = CaptureSession::open(dir.path(), p, quick(false, 0)).unwrap();
+    let err = s.run(&mut cam, &mut proj, &mut table, |_| {}).unwrap_err();
+    assert!(err.to_string().contains("projector size"), "{err}");
+    assert_eq!(s.view_states(), vec![ViewState::Missing]);
+}
+
+#[test]
+fn measured_latency_equals_the_configured_queue_depth() {
+    let rig = small_rig();
+    for depth in [0, 1, 3, 7] {
+        let (cam, mut proj, _) = rig.devices();
+        let mut cam = BufferedCamera::new(cam, depth);
+        let latency = measure_latency(&mut cam, &mut proj, &LatencyConfig::default()).unwrap();
+        assert_eq!(latency.frames, depth, "{latency:?}");
+        // Every one of the six transitions shows the same latency.
+        assert_eq!(latency.transitions, vec![depth; 6]);
+        assert!(
+            latency.white_level > latency.black_level + 0.005,
+            "{latency:?}"
+        );
+    }
+    // A queue longer than the window cannot be measured: a clear error, not a wrong number.
+    let (cam, mut proj, _) = rig.devices();
+    let mut cam = BufferedCamera::new(cam, 20);
+    let err = measure_latency(&mut cam, &mut proj, &LatencyConfig::default()).unwrap_err();
+    assert!(err.to_string().contains("window_frames"), "{err}");
+}
+
+#[test]
+fn a_camera_that_sees_no_flash_is_reported() {
+    // The only object is behind the camera: nothing the projector lights comes back.
+    let behind = sl_rig::SceneObject::in_camera(
+        "behind",
+        sl_rig::Shape::Sphere { radius: 10.0 },
+        sl_rig::Texture::Uniform(0.5),
+        nalgebra::Isometry3::translation(0.0, 0.0, -1000.0),
+    );
+    let rig = small_rig().with_scene(Scene::new().with(behind)).unwrap();
+    let (mut cam, mut proj, _) = rig.devices();
+    let err = measure_latency(&mut cam, &mut proj, &LatencyConfig::default()).unwrap_err();
+    assert!(err.to_string().contains("point the camera"), "{err}");
+}
