@@ -11,6 +11,7 @@
 mod calibrate;
 mod common;
 mod decode;
+mod devices;
 mod info;
 mod merge;
 mod patterns;
@@ -32,6 +33,8 @@ struct Cli {
 enum Command {
     /// Summarise a point cloud (PLY) or a calibration file (JSON, OpenCV YAML/XML).
     Info(info::Args),
+    /// List the V4L2 cameras, monitors and serial ports a rig can use, and the features not built.
+    Devices(devices::Args),
     /// Calibrate the camera or the turntable axis from checkerboard pictures: calibration.json,
     /// report.json and pictures.
     Calibrate(calibrate::Args),
@@ -53,6 +56,7 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(args) => info::run(&args),
+        Command::Devices(args) => devices::run(&args),
         Command::Calibrate(args) => calibrate::run(&args),
         Command::Patterns(args) => patterns::run(&args),
         Command::Decode(args) => decode::run(&args),

@@ -105,11 +105,14 @@ fn with_event_loop<R>(f: impl FnOnce(&mut EventLoop<Request>) -> R) -> Result<R,
             // need the main thread.
             #[cfg(target_os = "linux")]
             winit::platform::x11::EventLoopBuilderExtX11::with_any_thread(&mut builder, true);
-            let event_loop = builder.build().map_err(|e| {
-                display_err(format!(
-                    "cannot open the display ({e}); is DISPLAY or WAYLAND_DISPLAY set? \
-                     The display can be used from one thread per process only"
-                ))
+            let event_loop = builder.build().map_err(|e| match e {
+                winit::error::EventLoopError::RecreationAttempt => display_err(
+                    "another thread of this process already holds the display's event loop \
+                     (winit allows one per process): call from that thread",
+                ),
+                e => display_err(format!(
+                    "cannot open the display ({e}); is DISPLAY or WAYLAND_DISPLAY set?"
+                )),
             })?;
             *slot = Some(event_loop);
         }
