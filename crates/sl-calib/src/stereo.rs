@@ -7,17 +7,14 @@ use nalgebra::{DMatrix, DVector, Matrix6, Point2, Point3, SMatrix, Vector2, Vect
 use sl_camera::{CameraModel, ImageSize, RvecTvec, rotation_jacobian};
 
 use crate::CalibError;
-use crate::zhang::{FULL, Layout, Normal, camera_from_full, solve_step, unscaled_covariance};
+use crate::zhang::{
+    FULL, Layout, Normal, SchurProblem, camera_from_full, levenberg_marquardt, step_poses,
+    unscaled_covariance,
+};
 use crate::{ParameterStdDev, ZhangConfig};
 
 /// Full shared vector: camera (13), projector (13), `T_proj_cam` (rvec, tvec).
 const SHARED: usize = 2 * FULL + 6;
-
-/// Damping at the start of Levenberg–Marquardt, relative to the diagonal (as `zhang.rs`).
-const INITIAL_DAMPING: f64 = 1e-3;
-
-/// Damping beyond which LM gives up: the steps are then vanishingly small.
-const MAX_DAMPING: f64 = 1e12;
 
 /// One board view: the board points, their camera pixels and (where mapped) projector pixels.
 pub(crate) struct StereoView<'a> {
@@ -66,6 +63,7 @@ struct State {
     projector: SMatrix<f64, FULL, 1>,
     extrinsics: RvecTvec,
     poses: Vec<RvecTvec>,
+    models: Models,
 }
 
 struct Models {
@@ -98,18 +96,27 @@ struct Problem<'a> {
 }
 
 impl Problem<'_> {
-    fn models(&self, s: &State) -> Option<Models> {
+    fn models(
+        &self,
+        camera: &SMatrix<f64, FULL, 1>,
+        projector: &SMatrix<f64, FULL, 1>,
+    ) -> Option<Models> {
         Some(Models {
-            camera: camera_from_full(&s.camera, self.camera_layout.model, self.camera_size)?,
+            camera: camera_from_full(camera, self.camera_layout.model, self.camera_size)?,
             projector: camera_from_full(
-                &s.projector,
+                projector,
                 self.projector_layout.model,
                 self.projector_size,
             )?,
         })
     }
+}
 
-    fn cost(&self, m: &Models, s: &State) -> Option<f64> {
+impl SchurProblem for Problem<'_> {
+    type State = State;
+
+    fn cost(&self, s: &State) -> Option<f64> {
+        let m = &s.models;
         let mut sum = 0.0;
         for (v, pose) in self.views.iter().zip(&s.poses) {
             for ((x, qc), qp) in v.object.iter().zip(v.camera).zip(v.projector) {
@@ -124,7 +131,8 @@ impl Problem<'_> {
         Some(sum)
     }
 
-    fn normal(&self, m: &Models, s: &State) -> Option<Normal> {
+    fn normal(&self, s: &State) -> Option<Normal> {
+        let m = &s.models;
         let ng = self.t.ncols();
         let tt = self.t.transpose();
         let mut out = Normal {
@@ -194,7 +202,7 @@ impl Problem<'_> {
         Some(out)
     }
 
-    fn apply(&self, s: &State, dc: &DVector<f64>, dp: &[Vector6<f64>]) -> State {
+    fn step(&self, s: &State, dc: &DVector<f64>, dp: &[Vector6<f64>]) -> Option<State> {
         let full = &self.t * dc;
         let mut camera = s.camera;
         let mut projector = s.projector;
@@ -207,23 +215,13 @@ impl Problem<'_> {
             s.extrinsics.rvec + Vector3::new(full[e], full[e + 1], full[e + 2]),
             s.extrinsics.tvec + Vector3::new(full[e + 3], full[e + 4], full[e + 5]),
         );
-        let poses = s
-            .poses
-            .iter()
-            .zip(dp)
-            .map(|(p, d)| {
-                RvecTvec::new(
-                    p.rvec + Vector3::new(d[0], d[1], d[2]),
-                    p.tvec + Vector3::new(d[3], d[4], d[5]),
-                )
-            })
-            .collect();
-        State {
+        Some(State {
+            models: self.models(&camera, &projector)?,
             camera,
             projector,
             extrinsics,
-            poses,
-        }
+            poses: step_poses(&s.poses, dp),
+        })
     }
 }
 
@@ -255,44 +253,21 @@ pub(crate) fn refine_stereo(
             "the joint camera–projector estimate does not project every corner: check that camera and projector see the board from its printed side in every view".to_owned(),
         )
     };
-    let mut state = State {
-        camera: full_vector(&start.camera),
-        projector: full_vector(&start.projector),
+    let camera = full_vector(&start.camera);
+    let projector = full_vector(&start.projector);
+    let state = State {
+        models: problem
+            .models(&camera, &projector)
+            .ok_or_else(not_projecting)?,
+        camera,
+        projector,
         extrinsics: start.extrinsics,
         poses: start.poses.clone(),
     };
-    let mut models = problem.models(&state).ok_or_else(not_projecting)?;
-    let mut normal = problem.normal(&models, &state).ok_or_else(not_projecting)?;
-    let mut mu = INITIAL_DAMPING;
-    let mut iterations = 0;
-    while iterations < opts.max_iterations {
-        iterations += 1;
-        let mut improved = false;
-        while mu < MAX_DAMPING {
-            let Some((dc, dp)) = solve_step(&normal, mu) else {
-                mu *= 10.0;
-                continue;
-            };
-            let trial = problem.apply(&state, &dc, &dp);
-            let trial_models = problem.models(&trial);
-            let cost = trial_models.as_ref().and_then(|m| problem.cost(m, &trial));
-            match (trial_models, cost) {
-                (Some(m), Some(c)) if c <= normal.cost => {
-                    let rel = (normal.cost - c) / normal.cost.max(f64::MIN_POSITIVE);
-                    state = trial;
-                    models = m;
-                    normal = problem.normal(&models, &state).ok_or_else(not_projecting)?;
-                    mu = (mu / 10.0).max(1e-12);
-                    improved = rel > opts.tolerance;
-                    break;
-                }
-                _ => mu *= 10.0,
-            }
-        }
-        if !improved {
-            break;
-        }
-    }
+    let min = levenberg_marquardt(&problem, state, opts.max_iterations, opts.tolerance)
+        .ok_or_else(not_projecting)?;
+    let (state, normal, iterations) = (min.state, min.normal, min.iterations);
+    let models = &state.models;
     // Residuals at the solution.
     let mut camera_residuals = Vec::with_capacity(views.len());
     let mut projector_residuals = Vec::with_capacity(views.len());

@@ -671,7 +671,12 @@ fn apply(
     for i in 0..FULL {
         c[i] += full[i];
     }
-    let new_poses = poses
+    (c, step_poses(poses, dp))
+}
+
+/// Every pose moved by its step: `(Δrvec, Δtvec)`.
+pub(crate) fn step_poses(poses: &[RvecTvec], dp: &[Vector6<f64>]) -> Vec<RvecTvec> {
+    poses
         .iter()
         .zip(dp)
         .map(|(p, d)| {
@@ -680,8 +685,7 @@ fn apply(
                 p.tvec + Vector3::new(d[3], d[4], d[5]),
             )
         })
-        .collect();
-    (c, new_poses)
+        .collect()
 }
 
 fn refine(
@@ -691,47 +695,28 @@ fn refine(
     init: Estimate,
 ) -> Result<CameraCalibration, CalibError> {
     let layout = Layout::new(config);
-    let mut camera = init.camera;
-    let mut poses = init.poses;
+    let camera = init.camera;
+    let poses = init.poses;
     let not_projecting = || {
         CalibError::Degenerate(
             "the initial estimate does not project every corner: check the board size and corner order of every view".to_owned(),
         )
     };
-    let mut cam = camera_from_full(&camera, layout.model, size).ok_or_else(not_projecting)?;
-    let mut normal = build_normal(&cam, views, &poses, &layout).ok_or_else(not_projecting)?;
-    let mut mu = INITIAL_DAMPING;
-    let mut iterations = 0;
-    while iterations < config.max_iterations {
-        iterations += 1;
-        let mut improved = false;
-        while mu < MAX_DAMPING {
-            let Some((dc, dp)) = solve_step(&normal, mu) else {
-                mu *= 10.0;
-                continue;
-            };
-            let (c_new, p_new) = apply(&camera, &poses, &layout, &dc, &dp);
-            let trial = camera_from_full(&c_new, layout.model, size);
-            let new_cost = trial.as_ref().and_then(|t| total_cost(t, views, &p_new));
-            match (trial, new_cost) {
-                (Some(t), Some(c)) if c <= normal.cost => {
-                    let rel = (normal.cost - c) / normal.cost.max(f64::MIN_POSITIVE);
-                    camera = c_new;
-                    poses = p_new;
-                    cam = t;
-                    normal =
-                        build_normal(&cam, views, &poses, &layout).ok_or_else(not_projecting)?;
-                    mu = (mu / 10.0).max(1e-12);
-                    improved = rel > config.tolerance;
-                    break;
-                }
-                _ => mu *= 10.0,
-            }
-        }
-        if !improved {
-            break;
-        }
-    }
+    let cam = camera_from_full(&camera, layout.model, size).ok_or_else(not_projecting)?;
+    let problem = ZhangProblem {
+        views,
+        layout: &layout,
+        size,
+    };
+    let min = levenberg_marquardt(
+        &problem,
+        ZhangState { camera, cam, poses },
+        config.max_iterations,
+        config.tolerance,
+    )
+    .ok_or_else(not_projecting)?;
+    let (normal, iterations) = (min.normal, min.iterations);
+    let ZhangState { cam, poses, .. } = min.state;
     // Residuals and statistics at the solution.
     let mut residuals = Vec::with_capacity(views.len());
     let mut view_rms = Vec::with_capacity(views.len());
@@ -764,6 +749,105 @@ fn refine(
         std_dev,
         iterations,
     })
+}
+
+/// A least-squares problem whose normal equations split into shared parameters and one 6-DoF
+/// pose per view ([`Normal`]), minimised by [`levenberg_marquardt`].
+pub(crate) trait SchurProblem {
+    /// The parameters (and the models derived from them).
+    type State;
+    /// Normal equations at `s`; `None` when a point does not project.
+    fn normal(&self, s: &Self::State) -> Option<Normal>;
+    /// Sum of squared residuals at `s`; `None` when a point does not project.
+    fn cost(&self, s: &Self::State) -> Option<f64>;
+    /// `s` moved by the shared step `dc` and the pose steps `dp`; `None` when the result is
+    /// outside the models' valid range.
+    fn step(&self, s: &Self::State, dc: &DVector<f64>, dp: &[Vector6<f64>]) -> Option<Self::State>;
+}
+
+/// The result of [`levenberg_marquardt`].
+pub(crate) struct Minimum<S> {
+    pub(crate) state: S,
+    /// Normal equations at `state`.
+    pub(crate) normal: Normal,
+    pub(crate) iterations: usize,
+}
+
+/// Levenberg–Marquardt (Marquardt's diagonal damping), each step solved by the Schur
+/// complement over the poses; stops when an accepted step lowers the cost by less than
+/// `tolerance` (relative) or no damping gives a decrease. `None` when the start does not
+/// project.
+pub(crate) fn levenberg_marquardt<P: SchurProblem>(
+    problem: &P,
+    start: P::State,
+    max_iterations: usize,
+    tolerance: f64,
+) -> Option<Minimum<P::State>> {
+    let mut state = start;
+    let mut normal = problem.normal(&state)?;
+    let mut mu = INITIAL_DAMPING;
+    let mut iterations = 0;
+    while iterations < max_iterations {
+        iterations += 1;
+        let mut improved = false;
+        while mu < MAX_DAMPING {
+            let Some((dc, dp)) = solve_step(&normal, mu) else {
+                mu *= 10.0;
+                continue;
+            };
+            let trial = problem.step(&state, &dc, &dp);
+            let cost = trial.as_ref().and_then(|t| problem.cost(t));
+            match (trial, cost) {
+                (Some(t), Some(c)) if c <= normal.cost => {
+                    let rel = (normal.cost - c) / normal.cost.max(f64::MIN_POSITIVE);
+                    normal = problem.normal(&t)?;
+                    state = t;
+                    mu = (mu / 10.0).max(1e-12);
+                    improved = rel > tolerance;
+                    break;
+                }
+                _ => mu *= 10.0,
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    Some(Minimum {
+        state,
+        normal,
+        iterations,
+    })
+}
+
+struct ZhangState {
+    camera: SMatrix<f64, FULL, 1>,
+    cam: CameraModel,
+    poses: Vec<RvecTvec>,
+}
+
+struct ZhangProblem<'a> {
+    views: &'a [CalibrationView],
+    layout: &'a Layout,
+    size: ImageSize,
+}
+
+impl SchurProblem for ZhangProblem<'_> {
+    type State = ZhangState;
+
+    fn normal(&self, s: &ZhangState) -> Option<Normal> {
+        build_normal(&s.cam, self.views, &s.poses, self.layout)
+    }
+
+    fn cost(&self, s: &ZhangState) -> Option<f64> {
+        total_cost(&s.cam, self.views, &s.poses)
+    }
+
+    fn step(&self, s: &ZhangState, dc: &DVector<f64>, dp: &[Vector6<f64>]) -> Option<ZhangState> {
+        let (camera, poses) = apply(&s.camera, &s.poses, self.layout, dc, dp);
+        let cam = camera_from_full(&camera, self.layout.model, self.size)?;
+        Some(ZhangState { camera, cam, poses })
+    }
 }
 
 /// `σ² (JᵀJ)⁻¹` with `σ² = cost / (2N − parameters)`, as OpenCV: the camera block is the
