@@ -199,21 +199,23 @@ impl ViewGeometry {
             });
         }
         if light.projector_blur_px > 0.0 {
-            let out: Vec<f32> = match &image.pixels {
+            let (w, h) = (image.width as usize, image.height as usize);
+            let sigma = light.projector_blur_px;
+            let field = match &image.pixels {
                 Pixels::U8(p) => {
                     let lut = output_lut(light, u8::MAX.into());
-                    p.iter()
-                        .map(|&v| lut.get(usize::from(v)).copied().unwrap_or(0.0))
-                        .collect()
+                    LightField::new(p, w, h, sigma, |v| {
+                        lut.get(usize::from(v)).copied().unwrap_or(0.0)
+                    })
                 }
                 Pixels::U16(p) => {
                     let lut = output_lut(light, u16::MAX.into());
-                    p.iter()
-                        .map(|&v| lut.get(usize::from(v)).copied().unwrap_or(0.0))
-                        .collect()
+                    LightField::new(p, w, h, sigma, |v| {
+                        lut.get(usize::from(v)).copied().unwrap_or(0.0)
+                    })
                 }
             };
-            return Ok(self.render_light(&out, light));
+            return Ok(self.render_light(&field, light));
         }
         Ok(match &image.pixels {
             Pixels::U8(p) => {
@@ -259,7 +261,14 @@ impl ViewGeometry {
                 .into_par_iter()
                 .map(|i| light.projector_output(pattern((i % pw) as f64, (i / pw) as f64)) as f32)
                 .collect();
-            return self.render_light(&out, light);
+            let field = LightField::new(
+                &out,
+                pw,
+                self.projector_height as usize,
+                light.projector_blur_px,
+                |v| v,
+            );
+            return self.render_light(&field, light);
         }
         let per_pixel = (self.supersampling * self.supersampling) as usize;
         let ambient = light.ambient as f32;
@@ -295,17 +304,9 @@ impl ViewGeometry {
         out
     }
 
-    /// The direct image when projector pixel `i` emits `out[i]` (units of full white, row-major
-    /// `projector_width × projector_height`), seen through the lens blur: the light reaching
-    /// each sub-sample is read from the blurred light field at its continuous projector
-    /// coordinate.
-    fn render_light(&self, out: &[f32], light: &Illumination) -> Vec<f32> {
-        let field = LightField::new(
-            out,
-            self.projector_width as usize,
-            self.projector_height as usize,
-            light.projector_blur_px,
-        );
+    /// The direct image under the projector's light `field` (units of full white, after the
+    /// lens): the light reaching each sub-sample is read at its continuous projector coordinate.
+    fn render_light(&self, field: &LightField, light: &Illumination) -> Vec<f32> {
         let per_pixel = (self.supersampling * self.supersampling) as usize;
         let ambient = light.ambient as f32;
         let inv = 1.0 / per_pixel as f32;
@@ -394,26 +395,33 @@ struct LightField {
 }
 
 impl LightField {
-    /// The field of a `width × height` projector whose pixel `i` emits `out[i]`, blurred by a
-    /// Gaussian of standard deviation `sigma` (> 0) pixels.
-    fn new(out: &[f32], width: usize, height: usize, sigma: f64) -> Self {
+    /// The field of a `width × height` projector whose pixel `i` holds `pixels[i]` and emits
+    /// `emit(pixels[i])`, blurred by a Gaussian of standard deviation `sigma` (> 0) pixels.
+    /// Whether the image varies along one axis only is decided on the raw pixels, so that a
+    /// stripe pattern converts one line, not the whole image.
+    fn new<T, E>(pixels: &[T], width: usize, height: usize, sigma: f64, emit: E) -> Self
+    where
+        T: PartialEq + Copy + Sync,
+        E: Fn(T) -> f32 + Sync,
+    {
         let width = width.max(1);
-        let first_row = out.get(..width).unwrap_or(&[]);
+        let first_row = pixels.get(..width).unwrap_or(&[]);
         let u = FIELD_SAMPLES_PER_PIXEL;
-        if out.chunks_exact(width).all(|r| r == first_row) {
+        if pixels.chunks_exact(width).all(|r| r == first_row) {
+            let row: Vec<f32> = first_row.iter().map(|&v| emit(v)).collect();
             return Self {
-                data: upsample(first_row, sigma),
-                width: first_row.len() * u,
+                data: upsample(&row, sigma),
+                width: row.len() * u,
                 height: 1,
                 scale_x: u as f32,
                 scale_y: 1.0,
             };
         }
-        if out
+        if pixels
             .chunks_exact(width)
             .all(|r| r.iter().all(|&v| r.first() == Some(&v)))
         {
-            let column: Vec<f32> = out.iter().step_by(width).copied().collect();
+            let column: Vec<f32> = pixels.iter().step_by(width).map(|&v| emit(v)).collect();
             return Self {
                 data: upsample(&column, sigma),
                 width: 1,
@@ -426,8 +434,9 @@ impl LightField {
         let kernel: Vec<f32> = (-r..=r)
             .map(|m| pixel_spread(m as f64, sigma) as f32)
             .collect();
+        let out: Vec<f32> = pixels.par_iter().map(|&v| emit(v)).collect();
         Self {
-            data: blur::separable(out, width, height, &kernel),
+            data: blur::separable(&out, width, height, &kernel),
             width,
             height,
             scale_x: 1.0,
@@ -438,6 +447,13 @@ impl LightField {
     /// The light at projector coordinate `(x, y)`, bilinearly interpolated (clamped to the
     /// edge samples outside the grid).
     fn at(&self, x: f32, y: f32) -> f32 {
+        if self.height == 1 {
+            let gx = ((x + 0.5) * self.scale_x - 0.5).clamp(0.0, (self.width - 1) as f32);
+            let x0 = gx as usize;
+            let a = self.data.get(x0).copied().unwrap_or(0.0);
+            let b = self.data.get(x0 + 1).copied().unwrap_or(a);
+            return a + (gx - x0 as f32) * (b - a);
+        }
         let gx = ((x + 0.5) * self.scale_x - 0.5).clamp(0.0, (self.width - 1) as f32);
         let gy = ((y + 0.5) * self.scale_y - 0.5).clamp(0.0, (self.height - 1) as f32);
         let (x0, y0) = (gx as usize, gy as usize);
@@ -542,7 +558,7 @@ mod tests {
             .map(|i| (0.5 + 0.5 * (std::f64::consts::TAU * i as f64 / lambda).cos()) as f32)
             .collect();
         let out: Vec<f32> = (0..4).flat_map(|_| row.iter().copied()).collect();
-        let field = LightField::new(&out, width, 4, sigma);
+        let field = LightField::new(&out, width, 4, sigma, |v| v);
         assert_eq!(
             (field.height, field.width),
             (1, width * FIELD_SAMPLES_PER_PIXEL)
@@ -582,7 +598,7 @@ mod tests {
         let mut out = vec![0.0f32; w * h];
         out[7 * w + 10] = 1.0;
         let sigma = 0.7;
-        let field = LightField::new(&out, w, h, sigma);
+        let field = LightField::new(&out, w, h, sigma, |v| v);
         assert_eq!((field.width, field.height), (w, h));
         for dy in -3i32..=3 {
             for dx in -3i32..=3 {
