@@ -727,7 +727,7 @@ impl Servo {
                 }
                 0
             }
-            (a, _) if a < ct::RAM_START && torque_on => status_error::ACCESS,
+            // Read-only registers, and the entries this emulator does not model.
             _ => status_error::ACCESS,
         }
     }
