@@ -208,6 +208,9 @@ pub struct ServoStatus {
 /// [`DynamixelError::Hardware`] naming the bits. [`reboot`](Self::reboot) clears it and
 /// keeps the angle continuous (a reboot resets the servo's turn count).
 ///
+/// Dropping it closes (and unlocks) the port; the servo keeps holding its position with the
+/// torque on — call [`set_torque(false)`](Self::set_torque) first to free the platter.
+///
 /// ```
 /// use sl_rig::{DynamixelConfig, DynamixelTurntable, EmulatorConfig, Mx64Emulator, Turntable};
 /// # fn main() -> Result<(), sl_rig::RigError> {
