@@ -215,15 +215,7 @@ impl Projector for ProjectorWindow {
     /// server (softbuffer's present). The projector shows it after the display's latency,
     /// which this call does not wait for.
     fn show(&mut self, image: &GreyImage) -> Result<(), RigError> {
-        if (image.width, image.height) != self.size {
-            return Err(RigError::ImageSize {
-                what: "projector image".to_owned(),
-                expected_width: self.size.0,
-                expected_height: self.size.1,
-                width: image.width,
-                height: image.height,
-            });
-        }
+        check_size(image, self.size)?;
         let (tx, rx) = mpsc::channel();
         self.proxy
             .send_event(Request::Show(image.clone(), tx))
@@ -378,6 +370,20 @@ impl<T: Send + 'static> App<T> {
     }
 }
 
+/// Refuses an image of another size than the window's: patterns are never scaled.
+fn check_size(image: &GreyImage, (width, height): (u32, u32)) -> Result<(), RigError> {
+    if (image.width, image.height) == (width, height) {
+        return Ok(());
+    }
+    Err(RigError::ImageSize {
+        what: "projector image".to_owned(),
+        expected_width: width,
+        expected_height: height,
+        width: image.width,
+        height: image.height,
+    })
+}
+
 /// softbuffer's `0RGB` word for a grey value (16-bit images keep their high byte: the
 /// display takes 8 bits).
 fn grey_words(image: &GreyImage) -> Vec<u32> {
@@ -432,19 +438,10 @@ impl<T: Send + 'static> ApplicationHandler<Request> for App<T> {
             Request::Show(image, answer) => {
                 let result = match &self.failure {
                     Some(reason) => Err(display_err(reason.to_string())),
-                    None if (image.width, image.height) != self.shown_size => {
-                        Err(RigError::ImageSize {
-                            what: "projector image".to_owned(),
-                            expected_width: self.shown_size.0,
-                            expected_height: self.shown_size.1,
-                            width: image.width,
-                            height: image.height,
-                        })
-                    }
-                    None => {
+                    None => check_size(&image, self.shown_size).and_then(|()| {
                         self.shown = grey_words(&image);
                         self.present()
-                    }
+                    }),
                 };
                 // The worker may have given up waiting; nothing to do then.
                 let _ = answer.send(result);

@@ -441,18 +441,24 @@ impl V4lCamera {
     /// [`RigError::Device`] when the camera has no such control (the message lists those it
     /// has) or refuses the value; [`RigError::InvalidParameter`] when `value` is out of range.
     pub fn set_control(&mut self, key: &str, value: i64) -> Result<(), RigError> {
-        let controls = self.controls()?;
+        let info = self.find_control(key)?;
+        self.write_control(&info, value)
+    }
+
+    /// The control named `key`, or an error listing the controls the camera has.
+    fn find_control(&self, key: &str) -> Result<V4lControlInfo, RigError> {
+        let mut controls = self.controls()?;
         let parsed = ControlKey::parse(key);
-        let Some(info) = controls.iter().find(|c| parsed.matches(c.id, &c.name)) else {
-            return Err(dev_err(
+        match controls.iter().position(|c| parsed.matches(c.id, &c.name)) {
+            Some(i) => Ok(controls.swap_remove(i)),
+            None => Err(dev_err(
                 &self.config.path,
                 format!(
                     "no control `{key}`; the camera has: {}",
                     control_names(&controls)
                 ),
-            ));
-        };
-        self.write_control(info, value)
+            )),
+        }
     }
 
     /// The value of the control named `key`.
@@ -460,17 +466,7 @@ impl V4lCamera {
     /// # Errors
     /// [`RigError::Device`] when the camera has no such control or cannot read it.
     pub fn control(&self, key: &str) -> Result<i64, RigError> {
-        let controls = self.controls()?;
-        let parsed = ControlKey::parse(key);
-        let Some(info) = controls.iter().find(|c| parsed.matches(c.id, &c.name)) else {
-            return Err(dev_err(
-                &self.config.path,
-                format!(
-                    "no control `{key}`; the camera has: {}",
-                    control_names(&controls)
-                ),
-            ));
-        };
+        let info = self.find_control(key)?;
         let control = self.device.control(info.id).map_err(|e| {
             dev_err(
                 &self.config.path,
