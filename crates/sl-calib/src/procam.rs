@@ -4,6 +4,7 @@
 
 use image::GrayImage;
 use nalgebra::{Isometry3, Matrix3, Point2, Vector2, Vector3};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use sl_camera::{Calibration, ImageSize, RmsErrors, RvecTvec, isometry_from_rt};
 use sl_codec::CorrespondenceMap;
@@ -195,8 +196,19 @@ fn validate(views: &[ProcamView], cfg: &ProcamConfig) -> Result<(), CalibError> 
             ),
         ));
     }
+    let first = views.first().map(|v| v.lit.dimensions());
     for v in views {
         let (w, h) = (v.lit.width() as usize, v.lit.height() as usize);
+        if let Some((fw, fh)) = first
+            && v.lit.dimensions() != (fw, fh)
+        {
+            return Err(CalibError::Frame {
+                frame: v.name.clone(),
+                reason: format!(
+                    "the lit image is {w}x{h} but the first view's is {fw}x{fh}: one camera, one image size"
+                ),
+            });
+        }
         if v.map.width != w || v.map.height != h {
             return Err(CalibError::Frame {
                 frame: v.name.clone(),
@@ -231,7 +243,8 @@ fn too_few_views(used: usize, skipped: &[SkippedView], what: &str) -> CalibError
 /// why) or boards that do not determine the intrinsics (all parallel), saying what to capture
 /// instead; [`CalibError::BoardNotFound`] naming the view when `skip_unusable_views` is off;
 /// [`CalibError::SparseCorner`] when `homography.skip_sparse` is off; [`CalibError::Frame`]
-/// when a view's map and image sizes differ; [`CalibError::InvalidParameter`] for bad options.
+/// when a view's map and image sizes differ or views differ in size;
+/// [`CalibError::InvalidParameter`] for bad options.
 ///
 /// See `tests/procam.rs` for a run on the virtual rig's renders.
 pub fn calibrate_procam(
@@ -241,16 +254,23 @@ pub fn calibrate_procam(
     validate(views, cfg)?;
     let mut skipped_views = Vec::new();
     let mut found = Vec::new();
-    for v in views {
-        match detect_checkerboard(&v.lit, cfg.board, &cfg.detector, &v.name) {
-            Ok(b) => {
-                let p = projector_corners(&b, &v.map, &cfg.homography, &v.name)?;
-                found.push(Found {
-                    name: v.name.clone(),
-                    camera: b,
-                    projector: p,
-                });
-            }
+    // Views are independent: detect and map them in parallel, then keep the input order.
+    let detected: Vec<_> = views
+        .par_iter()
+        .map(|v| {
+            detect_checkerboard(&v.lit, cfg.board, &cfg.detector, &v.name).map(|b| {
+                let p = projector_corners(&b, &v.map, &cfg.homography, &v.name);
+                (b, p)
+            })
+        })
+        .collect();
+    for (v, d) in views.iter().zip(detected) {
+        match d {
+            Ok((camera, projector)) => found.push(Found {
+                name: v.name.clone(),
+                camera,
+                projector: projector?,
+            }),
             Err(e) if cfg.skip_unusable_views => skipped_views.push(SkippedView {
                 name: v.name.clone(),
                 reason: e.to_string(),
@@ -639,6 +659,38 @@ mod tests {
                 "T_proj_cam tvec",
             );
         }
+    }
+
+    #[test]
+    fn malformed_views_are_named() {
+        let view = |name: &str, w: u32, mw: usize| ProcamView {
+            name: name.to_owned(),
+            lit: GrayImage::new(w, 10),
+            map: CorrespondenceMap::new(mw, 10),
+        };
+        let err = calibrate_procam(
+            &[view("a", 20, 20), view("b", 30, 30), view("c", 20, 20)],
+            &config(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("b:") && err.contains("30x10"), "{err}");
+        let err = calibrate_procam(&[view("a", 20, 20), view("b", 20, 21)], &config())
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("b:") && err.contains("21x10"), "{err}");
+        // Blank images: no board anywhere, every view named with the detector's reason.
+        let err = calibrate_procam(
+            &[view("a", 20, 20), view("b", 20, 20), view("c", 20, 20)],
+            &config(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("0 usable view(s)"), "{err}");
+        assert!(
+            err.contains("a left out") && err.contains("c left out"),
+            "{err}"
+        );
     }
 
     #[test]
