@@ -1,6 +1,6 @@
-//! `slscan calibrate camera|turntable|all`: calibration from checkerboard pictures, writing
-//! `calibration.json` (and OpenCV YAML on request), `report.json` and pictures: the detected
-//! corners on every image, the per-view RMS bars and the residual vector plot.
+//! `slscan calibrate camera|projector|turntable|all`: calibration from checkerboard pictures,
+//! writing `calibration.json` (and OpenCV YAML on request), `report.json` and pictures: the
+//! detected corners on every image, the per-view RMS bars and the residual vector plot.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -8,11 +8,13 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use serde_json::json;
 use sl_calib::sl_camera::{Calibration, ImageSize};
+use sl_calib::sl_codec::{CaptureSet, DecodeConfig, decode};
 use sl_calib::{
     BoardCorners, BoardSize, CalibError, CalibrationView, CameraCalibration, DetectorConfig,
-    PictureConfig, TurntableCalibration, TurntableConfig, TurntableView, ZhangConfig,
-    calibrate_camera, calibrate_turntable, detect_checkerboard, draw_corners, error_bars,
-    load_grey, residual_plot, save_png,
+    PictureConfig, ProcamCalibration, ProcamConfig, ProcamView, ResidualPlot, TurntableCalibration,
+    TurntableConfig, TurntableView, ZhangConfig, calibrate_camera, calibrate_procam,
+    calibrate_turntable, detect_checkerboard, draw_corners, error_bars, load_grey, residual_plot,
+    save_png,
 };
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
@@ -40,10 +42,15 @@ pub(crate) enum What {
     /// images, folders of capture folders holding `white.png`, or an `slscan simulate`
     /// calibration session (its `board/` poses).
     Camera(CameraArgs),
+    /// The projector and the camera together (Moreno & Taubin): one capture folder per board
+    /// pose, each with `white.png` and the decoded pattern sequence's `manifest.json` and
+    /// frames (as `slscan simulate --scene board` writes them).
+    Projector(ProjectorArgs),
     /// The turntable axis from a board standing on the platter at several motor angles, added
     /// to an existing calibration.
     Turntable(TurntableArgs),
-    /// Camera then turntable axis on an `slscan simulate --scene board` session.
+    /// Camera and projector, then the turntable axis, on an `slscan simulate --scene board`
+    /// session (camera alone when the pose folders hold no pattern captures).
     All(AllArgs),
 }
 
@@ -81,6 +88,19 @@ pub(crate) struct CameraArgs {
     /// Estimate the 8-coefficient rational distortion model.
     #[arg(long)]
     pub(crate) rational: bool,
+}
+
+/// Arguments of `slscan calibrate projector`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct ProjectorArgs {
+    /// Session folder: its `board/` subfolder, or the folder itself, holds one capture folder
+    /// per board pose.
+    pub(crate) session: PathBuf,
+    /// Projector size, `WIDTHxHEIGHT`.
+    #[arg(long, default_value = "1920x1080")]
+    pub(crate) projector: String,
+    #[command(flatten)]
+    pub(crate) common: BoardArgs,
 }
 
 /// Arguments of `slscan calibrate turntable`.
@@ -133,6 +153,20 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        What::Projector(a) => {
+            let folders = pose_folders(&a.session)?;
+            let projector_size = parse_size(&a.projector)?;
+            let (_, cal) = procam(&folders, &a.common, projector_size, "calibrate projector")?;
+            println!(
+                "camera RMS {:.4} px, projector RMS {:.4} px, stereo RMS {:.4} px over {} views; {}",
+                cal.rms_camera,
+                cal.rms_projector,
+                cal.rms_stereo,
+                cal.views.len(),
+                a.common.out.join("calibration.json").display()
+            );
+            Ok(())
+        }
         What::Turntable(a) => {
             let calib = Calibration::load(&a.calib)
                 .with_context(|| format!("cannot read the calibration {}", a.calib.display()))?;
@@ -152,24 +186,47 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 "{}: no board/ folder: expected an `slscan simulate --scene board` session",
                 a.session.display()
             );
-            let images = camera_images(std::slice::from_ref(&board_dir))?;
-            let cam_out = BoardArgs {
-                out: a.common.out.join("camera"),
+            let sub = |name: &str| BoardArgs {
+                out: a.common.out.join(name),
                 board: a.common.board.clone(),
                 square: a.common.square,
                 yaml: a.common.yaml,
             };
-            let (calib, cam) = camera(
-                &images,
-                &cam_out,
-                &ZhangConfig::default(),
-                "calibrate all: camera",
-            )?;
-            println!(
-                "camera: RMS {:.4} px over {} views",
-                cam.rms,
-                cam.view_rms.len()
-            );
+            let folders = pose_folders(&a.session)?;
+            let with_patterns = folders
+                .iter()
+                .all(|f| f.join(sl_calib::sl_codec::MANIFEST_FILE).is_file());
+            let calib = if with_patterns {
+                let size = rig_projector_size(&a.session)?;
+                let (calib, cal) = procam(
+                    &folders,
+                    &sub("projector"),
+                    size,
+                    "calibrate all: projector",
+                )?;
+                println!(
+                    "camera RMS {:.4} px, projector RMS {:.4} px, stereo RMS {:.4} px over {} views",
+                    cal.rms_camera,
+                    cal.rms_projector,
+                    cal.rms_stereo,
+                    cal.views.len()
+                );
+                calib
+            } else {
+                let images = camera_images(std::slice::from_ref(&board_dir))?;
+                let (calib, cam) = camera(
+                    &images,
+                    &sub("camera"),
+                    &ZhangConfig::default(),
+                    "calibrate all: camera",
+                )?;
+                println!(
+                    "camera: RMS {:.4} px over {} views",
+                    cam.rms,
+                    cam.view_rms.len()
+                );
+                calib
+            };
             let views = turntable_views(&a.session, None)?;
             let fit = turntable(
                 calib,
@@ -220,6 +277,62 @@ fn parse_board(text: &str) -> anyhow::Result<BoardSize> {
         "--board {text}: at least 2x2 inner corners"
     );
     Ok(BoardSize::new(cols, rows))
+}
+
+fn parse_size(text: &str) -> anyhow::Result<ImageSize> {
+    let (w, h) = text
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--projector {text}: expected WIDTHxHEIGHT, e.g. 1920x1080"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .with_context(|| format!("--projector {text}: `{w}` is not a width"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .with_context(|| format!("--projector {text}: `{h}` is not a height"))?;
+    anyhow::ensure!(w > 0 && h > 0, "--projector {text}: empty image");
+    Ok(ImageSize::new(w, h))
+}
+
+/// The projector size of a simulated session, from its `rig.json` (1920x1080 without one).
+fn rig_projector_size(session: &Path) -> anyhow::Result<ImageSize> {
+    let path = session.join("rig.json");
+    if !path.is_file() {
+        return Ok(ImageSize::new(1920, 1080));
+    }
+    let text =
+        fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    let size = value
+        .pointer("/projector/size")
+        .cloned()
+        .with_context(|| format!("{}: no projector.size", path.display()))?;
+    serde_json::from_value(size).with_context(|| format!("{}: bad projector.size", path.display()))
+}
+
+/// The capture folders (one per board pose) of a session.
+fn pose_folders(session: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let sub = session.join("board");
+    let dir = if sub.is_dir() {
+        sub
+    } else {
+        session.to_path_buf()
+    };
+    anyhow::ensure!(dir.is_dir(), "{}: no such folder", dir.display());
+    let folders: Vec<PathBuf> = sorted_entries(&dir)?
+        .into_iter()
+        .filter(|p| p.join(WHITE_IMAGE).is_file())
+        .collect();
+    anyhow::ensure!(
+        !folders.is_empty(),
+        "{}: no board poses: expected one capture folder per pose holding {WHITE_IMAGE} and \
+         the pattern sequence's {}",
+        dir.display(),
+        sl_calib::sl_codec::MANIFEST_FILE
+    );
+    Ok(folders)
 }
 
 fn is_image(path: &Path) -> bool {
@@ -377,7 +490,7 @@ fn write_calibration(calib: &Calibration, common: &BoardArgs) -> anyhow::Result<
     Ok(())
 }
 
-/// The three kinds of pictures for a set of views; returns the residual magnification.
+/// The three kinds of pictures for a set of views; returns the residual plot's scale.
 fn pictures(
     dir: &Path,
     detected: &[Detected],
@@ -385,7 +498,7 @@ fn pictures(
     rms: f64,
     residuals: &[Vec<nalgebra::Vector2<f64>>],
     size: ImageSize,
-) -> anyhow::Result<f64> {
+) -> anyhow::Result<serde_json::Value> {
     let pics = ensure_out_dir(&dir.join("pictures"))?;
     let cfg = PictureConfig::default();
     for (k, d) in detected.iter().enumerate() {
@@ -401,7 +514,11 @@ fn pictures(
     let corners: Vec<_> = detected.iter().map(|d| d.corners.corners.clone()).collect();
     let plot = residual_plot(size.width, size.height, &corners, residuals, &cfg);
     save_png(&plot.image, pics.join("residuals.png"))?;
-    Ok(plot.magnification)
+    Ok(plot_scale(&plot))
+}
+
+fn plot_scale(plot: &ResidualPlot) -> serde_json::Value {
+    json!({ "magnification": plot.magnification, "scale_arrow_px": plot.scale_arrow_px })
 }
 
 /// Camera calibration of `images`, with its files in `common.out`.
@@ -470,7 +587,7 @@ fn camera(
     report.figure("views_used", views.len());
     report.figure("skipped", skipped);
     report.figure("iterations", cal.iterations);
-    report.figure("residual_magnification", magnification);
+    report.figure("residual_plot", magnification);
     report.figure("image_size", json!([image_size.width, image_size.height]));
     report.write(&out)?;
     Ok((calib, cal))
@@ -630,7 +747,141 @@ fn turntable(
     report.figure("views_used", tviews.len());
     report.figure("skipped", skipped);
     report.figure("iterations", fit.iterations);
-    report.figure("residual_magnification", magnification);
+    report.figure("residual_plot", magnification);
     report.write(&out)?;
     Ok(fit)
+}
+
+/// Projector–camera calibration of the capture folders, with its files in `common.out`.
+fn procam(
+    folders: &[PathBuf],
+    common: &BoardArgs,
+    projector_size: ImageSize,
+    command: &str,
+) -> anyhow::Result<(Calibration, ProcamCalibration)> {
+    let mut report = Report::new(command);
+    let out = ensure_out_dir(&common.out)?;
+    let size = parse_board(&common.board)?;
+    let bar = progress(folders.len() as u64, "decoding");
+    let views = report.stage("read and decode", || -> anyhow::Result<Vec<ProcamView>> {
+        let mut views = Vec::with_capacity(folders.len());
+        for folder in folders {
+            bar.inc(1);
+            let manifest = folder.join(sl_calib::sl_codec::MANIFEST_FILE);
+            let set = CaptureSet::load(&manifest)
+                .with_context(|| format!("cannot read the capture set {}", manifest.display()))?;
+            let map = decode(&set, &DecodeConfig::default())
+                .with_context(|| format!("cannot decode {}", manifest.display()))?;
+            let lit = load_grey(folder.join(WHITE_IMAGE))?;
+            views.push(ProcamView {
+                name: short_name(&folder.join(WHITE_IMAGE)),
+                lit,
+                map,
+            });
+        }
+        Ok(views)
+    })?;
+    bar.finish_and_clear();
+    let cfg = ProcamConfig::new(size, common.square, projector_size);
+    let cal = report
+        .stage("calibrate", || calibrate_procam(&views, &cfg))
+        .with_context(|| format!("projector calibration from {} board poses", views.len()))?;
+    let magnification = report.stage("pictures", || -> anyhow::Result<serde_json::Value> {
+        let pics = ensure_out_dir(&out.join("pictures"))?;
+        let pc = PictureConfig::default();
+        let mut camera_corners = Vec::new();
+        let mut projector_points = Vec::new();
+        for (k, v) in cal.views.iter().enumerate() {
+            if let Some(view) = views.iter().find(|w| w.name == v.name) {
+                let corners = BoardCorners {
+                    size,
+                    corners: v.camera_corners.clone(),
+                };
+                save_png(
+                    &draw_corners(&view.lit, &corners),
+                    pics.join(picture_name(k, &v.name)),
+                )?;
+            }
+            camera_corners.push(v.camera_corners.clone());
+            projector_points.push(v.projector_corners.points().into_iter().flatten().collect());
+        }
+        let camera_rms: Vec<f64> = cal.views.iter().map(|v| v.camera_rms).collect();
+        let projector_rms: Vec<f64> = cal.views.iter().map(|v| v.projector_rms).collect();
+        save_png(
+            &error_bars(&camera_rms, cal.camera.rms, &pc).image,
+            pics.join("error_bars_camera.png"),
+        )?;
+        save_png(
+            &error_bars(&projector_rms, cal.projector.rms, &pc).image,
+            pics.join("error_bars_projector.png"),
+        )?;
+        let cs = cal.camera.camera.size;
+        let plot = residual_plot(
+            cs.width,
+            cs.height,
+            &camera_corners,
+            &cal.camera.residuals,
+            &pc,
+        );
+        save_png(&plot.image, pics.join("residuals_camera.png"))?;
+        let ps = cal.projector.camera.size;
+        let pplot = residual_plot(
+            ps.width,
+            ps.height,
+            &projector_points,
+            &cal.projector.residuals,
+            &pc,
+        );
+        save_png(&pplot.image, pics.join("residuals_projector.png"))?;
+        Ok(json!({ "camera": plot_scale(&plot), "projector": plot_scale(&pplot) }))
+    })?;
+    let mut calib = cal.to_calibration();
+    calib.metadata.notes = format!(
+        "slscan calibrate projector: {} poses of a {}x{} board of {} mm squares",
+        cal.views.len(),
+        size.cols,
+        size.rows,
+        common.square
+    );
+    report.stage("write", || write_calibration(&calib, common))?;
+    let intr = |c: &CameraCalibration| {
+        let i = &c.camera.intrinsics;
+        json!({ "fx": i.fx, "fy": i.fy, "cx": i.cx, "cy": i.cy, "skew": i.skew,
+                "distortion": c.camera.distortion.to_opencv_vec(),
+                "std_dev": { "intrinsics": c.std_dev.intrinsics, "distortion": c.std_dev.distortion } })
+    };
+    report.figure("rms_camera_px", cal.rms_camera);
+    report.figure("rms_projector_px", cal.rms_projector);
+    report.figure("rms_stereo_px", cal.rms_stereo);
+    report.figure("camera", intr(&cal.camera));
+    report.figure("projector", intr(&cal.projector));
+    let t = cal.t_cam_proj.translation.vector;
+    report.figure(
+        "T_cam_proj",
+        json!({
+            "translation_mm": [t.x, t.y, t.z],
+            "rotation_deg": cal.t_cam_proj.rotation.angle().to_degrees(),
+            "T_proj_cam_std_dev": cal.t_proj_cam_std_dev,
+        }),
+    );
+    report.figure(
+        "views",
+        cal.views
+            .iter()
+            .map(|v| {
+                json!({
+                    "name": v.name,
+                    "camera_rms": v.camera_rms,
+                    "projector_rms": v.projector_rms,
+                    "projector_corners": v.projector_corners.mapped_count(),
+                    "in_projector_calibration": v.in_projector_calibration,
+                })
+            })
+            .collect::<Vec<_>>(),
+    );
+    report.figure("skipped", serde_json::to_value(&cal.skipped_views)?);
+    report.figure("iterations", cal.iterations);
+    report.figure("residual_plot", magnification);
+    report.write(&out)?;
+    Ok((calib, cal))
 }

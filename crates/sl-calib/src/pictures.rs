@@ -51,9 +51,14 @@ const MEAN_LINE: Rgb<u8> = Rgb([200, 0, 0]);
 /// 640×480 phone picture and on a 1280×720 render alike.
 const MARKER_FRACTION: f64 = 1.0 / 160.0;
 
-/// The longest residual arrow of an automatic magnification spans this fraction of the
-/// smaller image side: long enough to read directions, short enough not to cross the grid.
+/// With an automatic magnification, the residual at [`ARROW_PERCENTILE`] is drawn this
+/// fraction of the smaller image side long: long enough to read directions, short enough not
+/// to cross the neighbouring corners' arrows.
 const ARROW_FRACTION: f64 = 0.06;
+
+/// The percentile of the residual norms that sets the automatic magnification: the 95th
+/// ignores a few outliers, which then stand out as long arrows.
+const ARROW_PERCENTILE: f64 = 0.95;
 
 /// Options of the pictures.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,7 +68,8 @@ pub struct PictureConfig {
     /// Width of one bar (px); bars are separated by half a bar.
     pub bar_width: u32,
     /// Residual arrows are drawn this many times longer than the residual; `None` picks a
-    /// round value (1, 2 or 5 × 10ⁿ) that makes the longest arrow about 6 % of the image.
+    /// round value (1, 2 or 5 × 10ⁿ) that makes the 95th-percentile residual about 6 % of
+    /// the smaller image side.
     pub magnification: Option<f64>,
 }
 
@@ -99,6 +105,9 @@ pub struct ResidualPlot {
     pub image: RgbImage,
     /// Arrow length over residual length.
     pub magnification: f64,
+    /// The scale arrow in the bottom-left corner stands for a residual of this many pixels
+    /// (a round value drawn at most a fifth of the image width long).
+    pub scale_arrow_px: f64,
 }
 
 /// `(x, y)` of a point as the `f32` pair `imageproc` takes.
@@ -292,8 +301,8 @@ fn arrow(img: &mut RgbImage, a: &Point2<f64>, b: &Point2<f64>, colour: Rgb<u8>, 
 
 /// Every corner's residual (observed − predicted, px) as an arrow from the corner, magnified,
 /// over a white picture of the image area (`width × height`, the calibrated image's size)
-/// framed in grey; one colour per view (cycling through [`PALETTE`]). A scale arrow of one
-/// pixel of residual is drawn in the bottom-left corner. Views and residuals are matched by
+/// framed in grey; one colour per view (cycling through [`PALETTE`]). A scale arrow of
+/// [`ResidualPlot::scale_arrow_px`] pixels of residual is drawn in the bottom-left corner. Views and residuals are matched by
 /// index; extra entries of either are ignored.
 ///
 /// ```
@@ -316,16 +325,22 @@ pub fn residual_plot(
 ) -> ResidualPlot {
     let (w, h) = (width.max(1), height.max(1));
     let mut img = RgbImage::from_pixel(w, h, WHITE);
-    let longest = residuals
+    let mut norms: Vec<f64> = residuals
         .iter()
         .flatten()
         .map(|r| r.norm())
         .filter(|v| v.is_finite())
-        .fold(0.0, f64::max);
+        .collect();
+    norms.sort_by(f64::total_cmp);
+    // A high percentile, not the maximum: one outlier must not shrink every other arrow.
+    let typical_long = norms
+        .get(((norms.len().saturating_sub(1)) as f64 * ARROW_PERCENTILE) as usize)
+        .copied()
+        .unwrap_or(0.0);
     let target = ARROW_FRACTION * f64::from(w.min(h));
     let magnification = match config.magnification {
         Some(m) if m.is_finite() && m > 0.0 => m,
-        _ if longest > 0.0 => round_down_125(target / longest),
+        _ if typical_long > 0.0 => round_down_125(target / typical_long),
         _ => 1.0,
     };
     let head = f64::from(marker_radius(w, h)) * 1.5;
@@ -342,11 +357,13 @@ pub fn residual_plot(
     imageproc::drawing::draw_hollow_rect_mut(&mut img, frame, FRAME);
     let y = f64::from(h) - 3.0 * head;
     let a = Point2::new(3.0 * head, y);
-    let b = Point2::new(3.0 * head + magnification, y);
+    let scale_arrow_px = round_down_125(f64::from(w) / 5.0 / magnification);
+    let b = Point2::new(3.0 * head + magnification * scale_arrow_px, y);
     arrow(&mut img, &a, &b, FRAME, head);
     ResidualPlot {
         image: img,
         magnification,
+        scale_arrow_px,
     }
 }
 

@@ -115,9 +115,13 @@ fn residual_arrows_point_along_the_residuals() {
     // Where no residual points the plot is white.
     assert_eq!(*plot.image.get_pixel(70, 100), Rgb([255, 255, 255]));
     assert_eq!(*plot.image.get_pixel(300, 130), Rgb([255, 255, 255]));
-    // Automatic magnification: the longest arrow (1 px) to about 6 % of 400 px = 24 → 20.
+    // Automatic magnification: the 95th-percentile residual (index 1 of the sorted norms
+    // 0.5, 0.71, 1: 0.71 px) to about 6 % of 400 px = 24 px: 34, rounded down to 20.
     let auto = residual_plot(400, 400, &corners, &residuals, &PictureConfig::default());
     assert_eq!(auto.magnification, 20.0);
+    // The scale arrow: a round residual at most a fifth of the width (80 px / 20 = 4 px).
+    assert_eq!(auto.scale_arrow_px, 2.0);
+    assert_eq!(plot.scale_arrow_px, 1.0);
 }
 
 #[test]
@@ -130,4 +134,31 @@ fn pictures_are_written_as_png() {
     assert_eq!(back, chart.image);
     let err = save_png(&chart.image, dir.path().join("missing/dir/bars.png")).unwrap_err();
     assert!(err.to_string().contains("missing/dir/bars.png"), "{err}");
+}
+
+#[test]
+fn corners_of_a_real_chessboard_picture() {
+    let Ok(dir) = std::env::var("SL_DATA") else {
+        eprintln!("SL_DATA not set: skipping the real chessboard picture");
+        return;
+    };
+    let path = std::path::Path::new(&dir).join("chessboard/left01.jpg");
+    let img = sl_calib::load_grey(&path).unwrap();
+    let found = sl_calib::detect_checkerboard(
+        &img,
+        BoardSize::new(9, 6),
+        &sl_calib::DetectorConfig::default(),
+        "left01.jpg",
+    )
+    .unwrap();
+    let pic = draw_corners(&img, &found);
+    let first = found.corners[0];
+    assert_eq!(
+        *pic.get_pixel(first.x.round() as u32, first.y.round() as u32),
+        FIRST_CORNER
+    );
+    // 54 corners, each circled in its row's colour: count pixels of the palette's first
+    // colour; row 0 has 9 rings of at least 8 pixels each.
+    let row0 = pic.pixels().filter(|p| **p == PALETTE[0]).count();
+    assert!(row0 >= 9 * 8, "{row0} pixels of row 0's colour");
 }

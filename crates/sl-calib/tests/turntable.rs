@@ -23,11 +23,8 @@ fn foot(axis: &TurntableAxis) -> Point3<f64> {
 }
 
 fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
-    a.normalize()
-        .dot(&b.normalize())
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees()
+    // atan2 of |a×b| and a·b: full precision for tiny angles (acos loses half the digits).
+    a.cross(b).norm().atan2(a.dot(b)).to_degrees()
 }
 
 fn synthetic_views(
