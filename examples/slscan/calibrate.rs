@@ -144,11 +144,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 ..ZhangConfig::default()
             };
             let images = camera_images(&a.inputs)?;
-            let (calib, _) = camera(&images, &a.common, &zhang, "calibrate camera")?;
+            let (calib, cal) = camera(&images, &a.common, &zhang, "calibrate camera")?;
             println!(
-                "camera calibrated: RMS {:.4} px over {} views; {}",
+                "camera calibrated: RMS {:.4} px over {} views ({} without a board skipped); {}",
                 calib.rms.camera.unwrap_or(f64::NAN),
-                images.len(),
+                cal.view_rms.len(),
+                images.len() - cal.view_rms.len(),
                 a.common.out.join("calibration.json").display()
             );
             Ok(())
