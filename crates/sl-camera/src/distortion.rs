@@ -453,11 +453,7 @@ impl Distortion {
     /// neighbouring pixel) first, falling back to the radial start if that fails. The answer
     /// passes the same convergence and validity checks, so it is the same point (to a few
     /// ulps); a guess within ~1e-6 of it saves the radial start and most Newton steps.
-    pub fn undistort_from(
-        &self,
-        pd: &Point2<f64>,
-        guess: &Point2<f64>,
-    ) -> Option<Point2<f64>> {
+    pub fn undistort_from(&self, pd: &Point2<f64>, guess: &Point2<f64>) -> Option<Point2<f64>> {
         if self.model == DistortionModel::None {
             return self.undistort(pd);
         }

@@ -20,7 +20,7 @@
 
 use nalgebra::{Point3, Vector3};
 use sl_camera::RayTable;
-use sl_codec::{Axis, CorrespondenceMap};
+use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
 
 use crate::linear::linear_lanes;
 use crate::midpoint::midpoint_lanes;
@@ -48,26 +48,14 @@ pub(crate) struct PointLanes {
     pub(crate) ok: [bool; LANES],
 }
 
-/// What the pass produces for one pixel.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct PixelOut {
-    pub(crate) point: Point3<f64>,
-    pub(crate) reprojection: f32,
-    pub(crate) status: PointStatus,
-}
+/// The point of a pixel without one.
+const NO_POINT: Point3<f64> = Point3::new(f64::NAN, f64::NAN, f64::NAN);
 
-const EMPTY: PixelOut = PixelOut {
-    point: Point3::new(f64::NAN, f64::NAN, f64::NAN),
-    reprojection: f32::NAN,
-    status: PointStatus::NotDecoded,
-};
-
-/// The results of one block of pixels.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct BlockOut {
-    pub(crate) points: [Point3<f64>; BLOCK],
-    pub(crate) reprojection: [f32; BLOCK],
-    pub(crate) status: [PointStatus; BLOCK],
+/// The output slices of one block of pixels (equal lengths, at most [`BLOCK`]).
+pub(crate) struct BlockOut<'o> {
+    pub(crate) points: &'o mut [Point3<f64>],
+    pub(crate) reprojection: &'o mut [f32],
+    pub(crate) status: &'o mut [PointStatus],
 }
 
 /// Depths of the same lanes in the two previous lane groups (NaN where none), the warm start
@@ -126,11 +114,14 @@ struct Gathered {
 }
 
 impl Pass<'_> {
-    /// The results of the block of pixels starting at `start` (entries past the end of the
-    /// map are `NotDecoded`).
+    /// Computes the block of pixels starting at `start` into `out` (every entry written).
     #[inline]
-    pub(crate) fn block(&self, start: usize) -> BlockOut {
-        self.arch.dispatch(BlockJob { pass: self, start })
+    pub(crate) fn block(&self, start: usize, out: BlockOut<'_>) {
+        self.arch.dispatch(BlockJob {
+            pass: self,
+            start,
+            out,
+        });
     }
 
     /// Whether the reprojection filter is on (the error is then needed for every point).
@@ -139,6 +130,8 @@ impl Pass<'_> {
         self.options.max_reprojection_px.is_finite()
     }
 
+    /// The lane inputs of the group starting at pixel `base`: a branch-free loop over
+    /// fixed-size arrays for a full group (the common case), a checked one at the map's end.
     #[inline(always)]
     fn gather(&self, base: usize) -> Gathered {
         let mut g = Gathered {
@@ -152,9 +145,51 @@ impl Pass<'_> {
         };
         let (xs, ys) = (self.rays.xs(), self.rays.ys());
         let m = self.map;
-        let o = self.options;
         let w = self.width.max(1);
-        let (mut x, mut y) = (base % w, base / w);
+        let (x0, y0) = (base % w, base / w);
+        let range = base..base + LANES;
+        let full = (
+            xs.get(range.clone())
+                .and_then(|s| <&[f64; LANES]>::try_from(s).ok()),
+            ys.get(range.clone())
+                .and_then(|s| <&[f64; LANES]>::try_from(s).ok()),
+            m.col
+                .get(range.clone())
+                .and_then(|s| <&[f32; LANES]>::try_from(s).ok()),
+            m.row
+                .get(range.clone())
+                .and_then(|s| <&[f32; LANES]>::try_from(s).ok()),
+            m.quality
+                .get(range.clone())
+                .and_then(|s| <&[f32; LANES]>::try_from(s).ok()),
+            m.invalid
+                .get(range)
+                .and_then(|s| <&[InvalidReason; LANES]>::try_from(s).ok()),
+        );
+        if let (Some(xs), Some(ys), Some(col), Some(row), Some(q), Some(inv)) = full
+            && w >= LANES
+        {
+            // Pixel coordinates in f64 arithmetic (integer to f64 conversions of 64-bit
+            // values are not vector instructions before AVX-512).
+            let (x0, y0, wf) = (x0 as f64, y0 as f64, w as f64);
+            for l in 0..LANES {
+                let xl = x0 + l as f64;
+                let wrap = xl >= wf;
+                let u = if wrap { xl - wf } else { xl };
+                let v = if wrap { y0 + 1.0 } else { y0 };
+                let pre = self.status_before(xs[l], col[l], row[l], q[l], inv[l]);
+                let keep = pre == PointStatus::Valid;
+                g.pre[l] = pre;
+                g.rx[l] = if keep { xs[l] } else { f64::NAN };
+                g.ry[l] = if keep { ys[l] } else { f64::NAN };
+                g.c[l] = f64::from(col[l]);
+                g.r[l] = f64::from(row[l]);
+                g.u[l] = u;
+                g.v[l] = v;
+            }
+            return g;
+        }
+        let (mut x, mut y) = (x0, y0);
         for l in 0..LANES {
             let i = base + l;
             let (u, v) = (x as f64, y as f64);
@@ -162,7 +197,7 @@ impl Pass<'_> {
             if x == w {
                 (x, y) = (0, y + 1);
             }
-            let (Some(&rx), Some(&ry), Some(&c), Some(&r), Some(&q), Some(inv)) = (
+            let (Some(&rx), Some(&ry), Some(&c), Some(&r), Some(&q), Some(&inv)) = (
                 xs.get(i),
                 ys.get(i),
                 m.col.get(i),
@@ -172,28 +207,34 @@ impl Pass<'_> {
             ) else {
                 continue;
             };
-            let (c, r) = (f64::from(c), f64::from(r));
-            let decoded = inv.is_valid()
-                && match o.method {
-                    Method::RayPlane { axis: Axis::Column } => c.is_finite(),
-                    Method::RayPlane { axis: Axis::Row } => r.is_finite(),
-                    _ => c.is_finite() && r.is_finite(),
-                };
-            g.pre[l] = if !decoded {
-                PointStatus::NotDecoded
-            } else if !(q >= o.min_quality) {
-                PointStatus::LowQuality
-            } else if !rx.is_finite() {
-                PointStatus::NoSolution
-            } else {
-                PointStatus::Valid
-            };
+            g.pre[l] = self.status_before(rx, c, r, q, inv);
             if g.pre[l] == PointStatus::Valid {
-                (g.rx[l], g.ry[l], g.c[l], g.r[l]) = (rx, ry, c, r);
+                (g.rx[l], g.ry[l]) = (rx, ry);
+                (g.c[l], g.r[l]) = (f64::from(c), f64::from(r));
                 (g.u[l], g.v[l]) = (u, v);
             }
         }
         g
+    }
+
+    /// A pixel's status before solving: `Valid` if it is to be solved.
+    #[inline(always)]
+    fn status_before(&self, rx: f64, c: f32, r: f32, q: f32, inv: InvalidReason) -> PointStatus {
+        let o = self.options;
+        let coordinates = match o.method {
+            Method::RayPlane { axis: Axis::Column } => c.is_finite(),
+            Method::RayPlane { axis: Axis::Row } => r.is_finite(),
+            _ => c.is_finite() && r.is_finite(),
+        };
+        if !(inv.is_valid() && coordinates) {
+            PointStatus::NotDecoded
+        } else if !(q >= o.min_quality) {
+            PointStatus::LowQuality
+        } else if !rx.is_finite() {
+            PointStatus::NoSolution
+        } else {
+            PointStatus::Valid
+        }
     }
 
     /// Ray–plane on the lanes, the general solver for lanes that need it.
@@ -206,8 +247,11 @@ impl Pass<'_> {
     ) -> (PointLanes, [f64; LANES]) {
         let target = if axis == Axis::Column { &g.c } else { &g.r };
         let observed = if axis == Axis::Column { &g.r } else { &g.c };
-        let SurfaceLanes { mut t, mut other, ok } =
-            ray_surface_lanes(self.stereo, axis, &g.rx, &g.ry, target, &warm.guess());
+        let SurfaceLanes {
+            mut t,
+            mut other,
+            ok,
+        } = ray_surface_lanes(self.stereo, axis, &g.rx, &g.ry, target, &warm.guess());
         let mut out = PointLanes::default();
         for l in 0..LANES {
             out.ok[l] = ok[l];
@@ -231,7 +275,11 @@ impl Pass<'_> {
             // surface (that residual below 1e-9 px): only the other coordinate, when
             // decoded, can disagree.
             let d = other[l] - observed[l];
-            error[l] = if d.is_finite() { (0.5 * d * d).sqrt() } else { 0.0 };
+            error[l] = if d.is_finite() {
+                (0.5 * d * d).sqrt()
+            } else {
+                0.0
+            };
         }
         (out, error)
     }
@@ -292,15 +340,12 @@ impl Pass<'_> {
                 (g.u[l], g.v[l]),
                 (g.c[l], g.r[l]),
                 self.options.optimal_iterations,
-            )
-            .and_then(|q| {
-                let e = self.stereo.reprojection(&q, g.u[l], g.v[l], g.c[l], g.r[l])?;
-                Some((q, e))
-            });
+            );
             match refined {
-                Some((q, e)) => {
+                Some(refined) => {
+                    let q = refined.p;
                     (p.x[l], p.y[l], p.z[l]) = (q.x, q.y, q.z);
-                    error[l] = e;
+                    error[l] = refined.reprojection;
                 }
                 None => p.ok[l] = false,
             }
@@ -310,11 +355,21 @@ impl Pass<'_> {
 
     /// One lane group: solve, then the filters.
     #[inline(always)]
-    fn group(&self, base: usize, out: &mut [PixelOut], warm: &mut WarmStart) {
+    fn group(&self, base: usize, out: BlockOut<'_>, warm: &mut WarmStart) {
         let g = self.gather(base);
+        let BlockOut {
+            points,
+            reprojection,
+            status,
+        } = out;
+        let lanes = points
+            .iter_mut()
+            .zip(reprojection.iter_mut())
+            .zip(status.iter_mut())
+            .enumerate();
         if g.pre.iter().all(|s| *s != PointStatus::Valid) {
-            for (o, pre) in out.iter_mut().zip(g.pre) {
-                *o = PixelOut { status: pre, ..EMPTY };
+            for (l, ((p, e), s)) in lanes {
+                (*p, *e, *s) = (NO_POINT, f32::NAN, g.pre[l % LANES]);
             }
             warm.push(&[f64::NAN; LANES], &[false; LANES]);
             return;
@@ -334,38 +389,32 @@ impl Pass<'_> {
             }
             Method::Optimal => self.optimal(&g, warm),
         };
+        // The filters, as selects per lane, written straight into the output.
         let o = self.options;
-        for (l, slot) in out.iter_mut().enumerate().take(LANES) {
-            let pre = g.pre.get(l).copied().unwrap_or_default();
-            if pre != PointStatus::Valid {
-                *slot = PixelOut { status: pre, ..EMPTY };
-                continue;
-            }
-            let ok = p.ok.get(l).copied().unwrap_or(false);
-            if !ok {
-                *slot = PixelOut {
-                    status: PointStatus::NoSolution,
-                    ..EMPTY
-                };
-                continue;
-            }
-            let (x, y, z) = (p.x[l % LANES], p.y[l % LANES], p.z[l % LANES]);
-            let e = error.get(l).copied().unwrap_or(f64::NAN);
-            let status = if !(z >= o.min_depth_mm && z <= o.max_depth_mm) {
+        for (l, ((p_out, e_out), s_out)) in lanes {
+            let l = l % LANES;
+            let (pre, ok, z, e) = (g.pre[l], p.ok[l], p.z[l], error[l]);
+            let st = if pre != PointStatus::Valid {
+                pre
+            } else if !ok {
+                PointStatus::NoSolution
+            } else if !(z >= o.min_depth_mm && z <= o.max_depth_mm) {
                 PointStatus::OutOfDepthRange
             } else if with_error && !(e <= o.max_reprojection_px) {
                 PointStatus::Reprojection
             } else {
                 PointStatus::Valid
             };
-            *slot = PixelOut {
-                point: if status == PointStatus::Valid {
-                    Point3::new(x, y, z)
-                } else {
-                    EMPTY.point
-                },
-                reprojection: e as f32,
-                status,
+            *s_out = st;
+            *e_out = if pre == PointStatus::Valid && ok {
+                e as f32
+            } else {
+                f32::NAN
+            };
+            *p_out = if st == PointStatus::Valid {
+                Point3::new(p.x[l], p.y[l], z)
+            } else {
+                NO_POINT
             };
         }
     }
@@ -373,43 +422,37 @@ impl Pass<'_> {
 
 /// One block as a `pulp` operation: `with_simd` is inlined (with everything it calls, all
 /// `#[inline(always)]`) into a function compiled for the detected instruction set.
-struct BlockJob<'p, 'a> {
+struct BlockJob<'p, 'a, 'o> {
     pass: &'p Pass<'a>,
     start: usize,
+    out: BlockOut<'o>,
 }
 
-impl pulp::WithSimd for BlockJob<'_, '_> {
-    type Output = BlockOut;
+impl pulp::WithSimd for BlockJob<'_, '_, '_> {
+    type Output = ();
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
-        let n = self.pass.map.col.len();
-        let end = (self.start + BLOCK).min(n);
-        let mut group = [EMPTY; LANES];
-        let mut out = BlockOut {
-            points: [EMPTY.point; BLOCK],
-            reprojection: [f32::NAN; BLOCK],
-            status: [PointStatus::NotDecoded; BLOCK],
-        };
         let mut warm = WarmStart {
             t1: [f64::NAN; LANES],
             t2: [f64::NAN; LANES],
         };
-        let chunks = out
-            .points
-            .chunks_exact_mut(LANES)
-            .zip(out.reprojection.chunks_exact_mut(LANES))
-            .zip(out.status.chunks_exact_mut(LANES));
-        for (k, ((p, e), st)) in chunks.enumerate() {
-            let base = self.start + k * LANES;
-            if base >= end {
-                break;
-            }
-            self.pass.group(base, &mut group, &mut warm);
-            for (o, ((p, e), st)) in group.iter().zip(p.iter_mut().zip(e).zip(st)) {
-                (*p, *e, *st) = (o.point, o.reprojection, o.status);
-            }
+        let BlockOut {
+            points,
+            reprojection,
+            status,
+        } = self.out;
+        let chunks = points
+            .chunks_mut(LANES)
+            .zip(reprojection.chunks_mut(LANES))
+            .zip(status.chunks_mut(LANES));
+        for (k, ((points, reprojection), status)) in chunks.enumerate() {
+            let out = BlockOut {
+                points,
+                reprojection,
+                status,
+            };
+            self.pass.group(self.start + k * LANES, out, &mut warm);
         }
-        out
     }
 }

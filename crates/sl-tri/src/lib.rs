@@ -112,7 +112,6 @@ pub use options::{
 pub use triangulation::{PointStatus, TriCounts, Triangulation};
 pub use triangulator::Triangulator;
 
-
 /// Re-exports of the types of the lower crates in this crate's API, so that one import does.
 pub use sl_camera::{Calibration, CameraModel};
 pub use sl_cloud::PointCloud;

@@ -69,3 +69,59 @@ pub(crate) fn linear_lanes(
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Isometry3, Matrix4x3, Translation3, UnitQuaternion, Vector3, Vector4};
+    use rand::{Rng, SeedableRng};
+    use sl_camera::{CameraModel, Distortion, ImageSize, Intrinsics};
+
+    /// The closed form equals an independent least-squares solution of the same 4×3 system
+    /// (nalgebra's SVD), for noisy (inconsistent) inputs. The normal equations square the
+    /// condition number (~1e3 here), so agreement to 1e-8 relative is what f64 allows.
+    #[test]
+    fn closed_form_equals_svd_least_squares() {
+        let model = CameraModel::new(
+            Intrinsics::new(1000.0, 1000.0, 640.0, 360.0),
+            Distortion::none(),
+            ImageSize::new(1280, 720),
+        )
+        .unwrap();
+        let pose = Isometry3::from_parts(
+            Translation3::new(150.0, 10.0, 5.0),
+            UnitQuaternion::from_euler_angles(0.01, -0.3, 0.02),
+        );
+        let s = Stereo::new(&model, &model, &pose);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(6);
+        let (mut rx, mut ry, mut xp, mut yp) =
+            ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        for l in 0..LANES {
+            rx[l] = rng.random_range(-0.5..0.5);
+            ry[l] = rng.random_range(-0.3..0.3);
+            xp[l] = rng.random_range(-0.5..0.5);
+            yp[l] = rng.random_range(-0.3..0.3);
+        }
+        let out = linear_lanes(&s, &rx, &ry, &xp, &yp);
+        let r = pose.inverse().rotation.to_rotation_matrix().into_inner();
+        let t = pose.inverse().translation.vector;
+        for l in 0..LANES {
+            let a3 = r.row(0) - r.row(2) * xp[l];
+            let a4 = r.row(1) - r.row(2) * yp[l];
+            let a = Matrix4x3::from_rows(&[
+                Vector3::new(1.0, 0.0, -rx[l]).transpose(),
+                Vector3::new(0.0, 1.0, -ry[l]).transpose(),
+                a3,
+                a4,
+            ]);
+            let b = Vector4::new(0.0, 0.0, -(t.x - xp[l] * t.z), -(t.y - yp[l] * t.z));
+            let reference = a.svd(true, true).solve(&b, 1e-15).unwrap();
+            assert!(out.ok[l]);
+            let got = Vector3::new(out.x[l], out.y[l], out.z[l]);
+            assert!(
+                (got - reference).norm() <= 1e-8 * reference.norm(),
+                "lane {l}: {got:?} vs {reference:?}"
+            );
+        }
+    }
+}

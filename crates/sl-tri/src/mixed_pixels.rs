@@ -7,10 +7,16 @@ use rayon::prelude::*;
 
 use crate::PointStatus;
 
+/// Rows per parallel task: ~16 k pixels at 1280 columns, enough to amortise a task.
+const ROWS_PER_TASK: usize = 16;
+
 /// Marks as [`PointStatus::MixedPixel`] every valid point whose depth differs from a valid
 /// 4-neighbour's by more than `max_jump` times its own depth. Reads the depths as they were
 /// before the pass (a point is never judged against an already removed neighbour), then
 /// clears the removed points to NaN.
+///
+/// Row bands in parallel, hand-written over three row slices (above, current, below) so that
+/// no per-pixel index arithmetic or bounds check is left in the loop.
 pub(crate) fn filter_mixed_pixels(
     points: &mut [Point3<f64>],
     status: &mut [PointStatus],
@@ -20,27 +26,58 @@ pub(crate) fn filter_mixed_pixels(
     if width == 0 || !max_jump.is_finite() {
         return;
     }
-    let height = points.len() / width;
     let depths: &[Point3<f64>] = points;
-    let z = |k: usize| depths.get(k).map(|p| p.z).filter(|z| z.is_finite());
-    let mixed: Vec<bool> = (0..points.len())
-        .into_par_iter()
-        .map(|i| {
-            let Some(zc) = z(i) else { return false };
-            let (x, y) = (i % width, i / width);
-            let limit = max_jump * zc;
-            let far = |k: usize| z(k).is_some_and(|zn| (zn - zc).abs() > limit);
-            (x > 0 && far(i - 1))
-                || (x + 1 < width && far(i + 1))
-                || (y > 0 && far(i - width))
-                || (y + 1 < height && far(i + width))
-        })
-        .collect();
+    let rows: Vec<&[Point3<f64>]> = depths.chunks(width).collect();
+    let mut mixed = vec![false; depths.len()];
+    mixed
+        .par_chunks_mut(width * ROWS_PER_TASK)
+        .enumerate()
+        .for_each(|(band, flags)| {
+            for (k, row_flags) in flags.chunks_mut(width).enumerate() {
+                let y = band * ROWS_PER_TASK + k;
+                let here = rows.get(y).copied().unwrap_or(&[]);
+                let above = y.checked_sub(1).and_then(|a| rows.get(a)).copied();
+                let below = rows.get(y + 1).copied();
+                mark_row(here, above, below, max_jump, row_flags);
+            }
+        });
     let nan = Point3::new(f64::NAN, f64::NAN, f64::NAN);
-    for ((p, s), m) in points.iter_mut().zip(status.iter_mut()).zip(mixed) {
-        if m {
-            *p = nan;
-            *s = PointStatus::MixedPixel;
+    points
+        .par_chunks_mut(width * ROWS_PER_TASK)
+        .zip(status.par_chunks_mut(width * ROWS_PER_TASK))
+        .zip(mixed.par_chunks(width * ROWS_PER_TASK))
+        .for_each(|((p, s), m)| {
+            for ((p, s), &m) in p.iter_mut().zip(s.iter_mut()).zip(m) {
+                if m {
+                    *p = nan;
+                    *s = PointStatus::MixedPixel;
+                }
+            }
+        });
+}
+
+/// Flags of one row given its neighbours (NaN depths are no points and judge nothing).
+#[inline]
+fn mark_row(
+    here: &[Point3<f64>],
+    above: Option<&[Point3<f64>]>,
+    below: Option<&[Point3<f64>]>,
+    max_jump: f64,
+    flags: &mut [bool],
+) {
+    let far = |zc: f64, limit: f64, n: Option<&Point3<f64>>| {
+        // NaN neighbours compare false: no point, no judgement.
+        n.is_some_and(|n| (n.z - zc).abs() > limit)
+    };
+    for (x, (p, flag)) in here.iter().zip(flags.iter_mut()).enumerate() {
+        let zc = p.z;
+        if !zc.is_finite() {
+            continue;
         }
+        let limit = max_jump * zc;
+        *flag = far(zc, limit, x.checked_sub(1).and_then(|l| here.get(l)))
+            || far(zc, limit, here.get(x + 1))
+            || far(zc, limit, above.and_then(|a| a.get(x)))
+            || far(zc, limit, below.and_then(|b| b.get(x)));
     }
 }

@@ -84,7 +84,14 @@ fn coordinates(column: bool, pj: &PixelJacobian, dx: f64, dy: f64) -> [f64; 4] {
 /// One Newton step at depth `t` along `q(t) = a t + b`: the new depth, the step, and the other
 /// coordinate at the new depth (to first order, which is exact to the order of the error).
 #[inline(always)]
-fn newton_step(s: &Stereo, column: bool, a: [f64; 3], b: [f64; 3], t: f64, target: f64) -> [f64; 3] {
+fn newton_step(
+    s: &Stereo,
+    column: bool,
+    a: [f64; 3],
+    b: [f64; 3],
+    t: f64,
+    target: f64,
+) -> [f64; 3] {
     let q = [a[0] * t + b[0], a[1] * t + b[1], a[2] * t + b[2]];
     let iz = 1.0 / q[2];
     let (x, y) = (q[0] * iz, q[1] * iz);
@@ -129,7 +136,11 @@ pub(crate) fn ray_surface_lanes(
         let n = pinhole_plane(s, column, target[l]);
         let plane = -(n[0] * b[0] + n[1] * b[1] + n[2] * b[2])
             / (n[0] * a[l][0] + n[1] * a[l][1] + n[2] * a[l][2]);
-        t[l] = if guess[l].is_finite() { guess[l] } else { plane };
+        t[l] = if guess[l].is_finite() {
+            guess[l]
+        } else {
+            plane
+        };
     }
     let mut step = [f64::INFINITY; LANES];
     let mut other = [f64::NAN; LANES];
@@ -168,8 +179,8 @@ pub(crate) fn ray_surface_depth(
     let a = crate::stereo::mul(&s.r_pc, [rx, ry, 1.0]);
     let b = s.t_pc;
     let n = pinhole_plane(s, column, target);
-    let mut t = -(n[0] * b[0] + n[1] * b[1] + n[2] * b[2])
-        / (n[0] * a[0] + n[1] * a[1] + n[2] * a[2]);
+    let mut t =
+        -(n[0] * b[0] + n[1] * b[1] + n[2] * b[2]) / (n[0] * a[0] + n[1] * a[1] + n[2] * a[2]);
     if !t.is_finite() {
         return None;
     }
@@ -187,4 +198,77 @@ pub(crate) fn ray_surface_depth(
         }
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
+    use rand::{Rng, SeedableRng};
+    use sl_camera::{CameraModel, Distortion, ImageSize, Intrinsics};
+
+    /// The branch-free lanes give the general solver's depth (both converge to the same
+    /// root: 1e-8 mm is ~1e4 ulps of 450 mm, far above their rounding and far below any
+    /// wrong root) from any start: none (pinhole plane), a good guess, or a bad one (the
+    /// wrong side of a 60 mm jump); lanes that cannot settle say so rather than answer.
+    #[test]
+    fn lanes_agree_with_the_general_solver() {
+        let cam = CameraModel::new(
+            Intrinsics::new(1400.0, 1400.0, 640.0, 360.0),
+            Distortion::from_opencv(&[-0.1, 0.15, 0.0005, -0.0004, 0.0]).unwrap(),
+            ImageSize::new(1280, 720),
+        )
+        .unwrap();
+        let proj = CameraModel::new(
+            Intrinsics::new(2000.0, 2000.0, 960.0, 1050.0),
+            Distortion::from_opencv(&[0.06, -0.08, 0.001, 0.0, 0.0]).unwrap(),
+            ImageSize::new(1920, 1080),
+        )
+        .unwrap();
+        let pose = Isometry3::from_parts(
+            Translation3::new(180.0, 0.0, 20.0),
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -0.35),
+        );
+        let s = Stereo::new(&cam, &proj, &pose);
+        let t_proj_cam = pose.inverse();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let mut settled = 0;
+        let mut per = [0; 3];
+        for _ in 0..200 {
+            let (mut rx, mut ry, mut target, mut depth) =
+                ([0.0; LANES], [0.0; LANES], [f64::NAN; LANES], [0.0; LANES]);
+            for l in 0..LANES {
+                let px = Point2::new(rng.random_range(0.0..1280.0), rng.random_range(0.0..720.0));
+                let ray = cam.unproject(&px).unwrap();
+                depth[l] = rng.random_range(300.0..700.0);
+                (rx[l], ry[l]) = (ray.x, ray.y);
+                if let Some(pp) = proj.project(&(t_proj_cam * Point3::from(ray * depth[l]))) {
+                    target[l] = pp.x;
+                }
+            }
+            let good: [f64; LANES] = std::array::from_fn(|l| depth[l] + 0.02);
+            let bad: [f64; LANES] = std::array::from_fn(|l| depth[l] + 60.0);
+            for (k, guess) in [[f64::NAN; LANES], good, bad].into_iter().enumerate() {
+                let out = ray_surface_lanes(&s, Axis::Column, &rx, &ry, &target, &guess);
+                per[k] += out.ok.iter().filter(|o| **o).count();
+                for l in 0..LANES {
+                    let general = ray_surface_depth(&s, rx[l], ry[l], target[l], Axis::Column);
+                    if out.ok[l] {
+                        settled += 1;
+                        let g = general.expect("the general solver finds what the lanes found");
+                        assert!((out.t[l] - g.t).abs() < 1e-8, "{} vs {}", out.t[l], g.t);
+                        assert!((out.t[l] - depth[l]).abs() < 1e-6);
+                        assert!((out.other[l] - g.other).abs() < 1e-6);
+                    }
+                }
+            }
+        }
+        // Nearly every lane settles without the general solver.
+        // From the pinhole plane (3 steps) and from a good guess (2 steps) nearly every lane
+        // settles; from a guess 60 mm off (errors 60 → 8 → 0.14 mm) three steps are not
+        // enough, and those lanes are left to the general solver.
+        let n = 200 * LANES;
+        assert!(per[0] >= n * 99 / 100 && per[1] >= n * 99 / 100, "{per:?}");
+        assert!(settled >= per[0] + per[1]);
+    }
 }

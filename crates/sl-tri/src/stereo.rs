@@ -3,7 +3,7 @@
 
 use std::sync::OnceLock;
 
-use nalgebra::{Isometry3, Point2, Vector3};
+use nalgebra::{Isometry3, Point2};
 use sl_camera::{CameraModel, RayTable};
 
 /// Camera + projector, precomputed once per calibration.
@@ -69,7 +69,11 @@ impl Stereo {
     #[inline(always)]
     pub(crate) fn to_proj(&self, p: [f64; 3]) -> [f64; 3] {
         let q = mul(&self.r_pc, p);
-        [q[0] + self.t_pc[0], q[1] + self.t_pc[1], q[2] + self.t_pc[2]]
+        [
+            q[0] + self.t_pc[0],
+            q[1] + self.t_pc[1],
+            q[2] + self.t_pc[2],
+        ]
     }
 
     /// Undistorted normalised projector coordinates of the decoded projector point `(c, r)`:
@@ -113,41 +117,5 @@ impl Stereo {
         self.proj
             .unproject(&Point2::new(c, r))
             .map_or([f64::NAN; 2], |n| [n.x, n.y])
-    }
-
-    /// Reprojection error of a camera-frame point: the root mean square of the image
-    /// distances in the camera (to the pixel centre `(u, v)`) and in the projector (to the
-    /// decoded `(c, r)`; a NaN coordinate is left out), over the two images, in pixels.
-    /// `None` if the point does not project.
-    #[inline]
-    pub(crate) fn reprojection(
-        &self,
-        p: &Vector3<f64>,
-        u: f64,
-        v: f64,
-        c: f64,
-        r: f64,
-    ) -> Option<f64> {
-        if !(p.z > 0.0) {
-            return None;
-        }
-        let pc = self.cam.project_normalised(p.x / p.z, p.y / p.z);
-        let q = self.to_proj([p.x, p.y, p.z]);
-        if !(q[2] > 0.0) {
-            return None;
-        }
-        let (qx, qy) = (q[0] / q[2], q[1] / q[2]);
-        if !self.proj.in_valid_region(qx, qy) {
-            return None;
-        }
-        let pp = self.proj.project_normalised(qx, qy);
-        let mut e2 = (pc.x - u).powi(2) + (pc.y - v).powi(2);
-        if c.is_finite() {
-            e2 += (pp.x - c).powi(2);
-        }
-        if r.is_finite() {
-            e2 += (pp.y - r).powi(2);
-        }
-        Some((e2 / 2.0).sqrt())
     }
 }

@@ -155,6 +155,21 @@ pub struct Triangulation {
 }
 
 impl Triangulation {
+    /// An empty result (no pixels), to be filled by
+    /// [`crate::Triangulator::triangulate_into`].
+    pub fn empty() -> Self {
+        Self {
+            width: 0,
+            height: 0,
+            points: Vec::new(),
+            reprojection_px: Vec::new(),
+            status: Vec::new(),
+            cloud: PointCloud::default(),
+            cloud_pixels: Vec::new(),
+            counts: TriCounts::default(),
+        }
+    }
+
     /// The depth map (camera `z`, mm) as `f32`, NaN where there is no point.
     pub fn depth_map(&self) -> Vec<f32> {
         self.points.iter().map(|p| p.z as f32).collect()

@@ -6,7 +6,7 @@ use sl_camera::{Calibration, CameraModel, RayTable};
 use sl_cloud::PointCloud;
 use sl_codec::CorrespondenceMap;
 
-use crate::grid_normals::normal_at;
+use crate::grid_normals::cloud_normals;
 use crate::kernel::{BLOCK, BlockOut, Pass};
 use crate::mixed_pixels::filter_mixed_pixels;
 use crate::stereo::Stereo;
@@ -114,6 +114,43 @@ impl Triangulator {
         texture: Option<Texture<'_>>,
         options: &TriOptions,
     ) -> Result<Triangulation, TriError> {
+        let mut out = Triangulation::empty();
+        self.triangulate_into(map, texture, options, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Triangulator::triangulate_textured`] into an existing [`Triangulation`], reusing the
+    /// memory of its vectors: for a stream of maps (the views of a scan) this saves the
+    /// allocation and the first touch of ~60 MB per 1280×720 map, which on a virtual machine
+    /// costs as much as the triangulation itself (page faults; see `docs/triangulation.md`).
+    /// `out` is entirely overwritten; on error it is left in an unspecified but valid state.
+    ///
+    /// ```
+    /// # use nalgebra::{Isometry3, Translation3};
+    /// # use sl_camera::{CameraModel, Distortion, ImageSize, Intrinsics};
+    /// # use sl_codec::CorrespondenceMap;
+    /// # use sl_tri::{TriOptions, Triangulation, Triangulator};
+    /// # let k = Intrinsics::new(80.0, 80.0, 31.5, 23.5);
+    /// # let cam = CameraModel::new(k, Distortion::none(), ImageSize::new(64, 48))?;
+    /// # let pose = Isometry3::from_parts(Translation3::new(100.0, 0.0, 0.0), Default::default());
+    /// let tri = Triangulator::from_models(&cam, &cam, &pose)?;
+    /// let mut result = tri.triangulate(&CorrespondenceMap::new(64, 48), &TriOptions::default())?;
+    /// for _view in 0..3 {
+    ///     let map = CorrespondenceMap::new(64, 48); // the next decoded view
+    ///     tri.triangulate_into(&map, None, &TriOptions::default(), &mut result)?;
+    /// }
+    /// # Ok::<(), sl_tri::TriError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Triangulator::triangulate_textured`].
+    pub fn triangulate_into(
+        &self,
+        map: &CorrespondenceMap,
+        texture: Option<Texture<'_>>,
+        options: &TriOptions,
+        out: &mut Triangulation,
+    ) -> Result<(), TriError> {
         options.validate()?;
         let size = self.camera.size;
         let (width, height) = (size.width as usize, size.height as usize);
@@ -148,10 +185,7 @@ impl Triangulator {
             });
         }
 
-        let proj_rays = options
-            .method
-            .needs_both()
-            .then(|| self.stereo.proj_rays());
+        let proj_rays = options.method.needs_both().then(|| self.stereo.proj_rays());
         let pass = Pass {
             stereo: &self.stereo,
             rays: &self.camera_rays,
@@ -161,82 +195,111 @@ impl Triangulator {
             width,
             arch: pulp::Arch::new(),
         };
-        // The per-pixel pass, block by block, collected straight into the three organised
-        // vectors by an indexed parallel iterator (each worker writes its own range, nothing
-        // is initialised twice), then flattened without a copy.
-        type Blocks = (
-            Vec<[Point3<f64>; BLOCK]>,
-            (Vec<[f32; BLOCK]>, Vec<[PointStatus; BLOCK]>),
-        );
-        let (points, (reprojection, status)): Blocks = (0..n.div_ceil(BLOCK))
-            .into_par_iter()
+        // The per-pixel pass, block by block in parallel, straight into the organised
+        // vectors (sized, and filled in parallel, only when their length changes: the pass
+        // overwrites every entry).
+        let nan = Point3::new(f64::NAN, f64::NAN, f64::NAN);
+        resize(&mut out.points, n, nan);
+        resize(&mut out.reprojection_px, n, f32::NAN);
+        resize(&mut out.status, n, PointStatus::NotDecoded);
+        out.points
+            .par_chunks_mut(BLOCK)
+            .zip(out.reprojection_px.par_chunks_mut(BLOCK))
+            .zip(out.status.par_chunks_mut(BLOCK))
+            .enumerate()
             .with_min_len(MIN_BLOCKS_PER_TASK)
-            .map(|b| {
-                let BlockOut {
+            .for_each(|(b, ((points, reprojection), status))| {
+                let block = BlockOut {
                     points,
                     reprojection,
                     status,
-                } = pass.block(b * BLOCK);
-                (points, (reprojection, status))
-            })
-            .unzip();
-        let mut points = points.into_flattened();
-        let mut reprojection = reprojection.into_flattened();
-        let mut status = status.into_flattened();
-        points.truncate(n);
-        reprojection.truncate(n);
-        status.truncate(n);
-        filter_mixed_pixels(&mut points, &mut status, width, options.max_depth_jump);
-        let counts = TriCounts::from_status(&status);
-        let cloud_pixels = valid_pixels(&status, width, counts.valid);
+                };
+                pass.block(b * BLOCK, block);
+            });
+        let points = &mut out.points;
+        let status = &mut out.status;
+        filter_mixed_pixels(points, status, width, options.max_depth_jump);
+        let counts = TriCounts::from_status(status);
+        let band_rows = MIN_PIXELS_PER_TASK.div_ceil(width.max(1)).max(1);
+        let band_counts = valid_pixels(
+            status,
+            width,
+            band_rows,
+            counts.valid,
+            &mut out.cloud_pixels,
+        );
 
-        // The cloud: gathers of the organised vectors at the valid pixels, in parallel.
-        let nan = Point3::new(f64::NAN, f64::NAN, f64::NAN);
-        let positions: Vec<Point3<f64>> = cloud_pixels
-            .par_iter()
-            .map(|&i| points.get(i as usize).copied().unwrap_or(nan))
-            .collect();
-        let quality: Vec<f32> = cloud_pixels
-            .par_iter()
-            .map(|&i| map.quality.get(i as usize).copied().unwrap_or(f32::NAN))
-            .collect();
-        let colors = texture.map(|t| {
+        // The cloud: gathers of the organised vectors at the valid pixels, in parallel, into
+        // the previous cloud's vectors.
+        let (mut positions, old_normals, old_colors, old_quality) =
+            std::mem::take(&mut out.cloud).into_parts();
+        let cloud_pixels = &out.cloud_pixels;
+        let points = &out.points;
+        positions.clear();
+        positions.par_extend(
             cloud_pixels
                 .par_iter()
-                .map(|&i| t.color(i as usize))
-                .collect::<Vec<_>>()
+                .map(|&i| points.get(i as usize).copied().unwrap_or(nan)),
+        );
+        let mut quality = old_quality.unwrap_or_default();
+        quality.clear();
+        quality.par_extend(
+            cloud_pixels
+                .par_iter()
+                .map(|&i| map.quality.get(i as usize).copied().unwrap_or(f32::NAN)),
+        );
+        let colors = texture.map(|t| {
+            let mut colors = old_colors.unwrap_or_default();
+            colors.clear();
+            colors.par_extend(cloud_pixels.par_iter().map(|&i| t.color(i as usize)));
+            colors
         });
         let normals = options.normals.then(|| {
-            cloud_pixels
-                .par_iter()
-                .map(|&i| normal_at(&points, width, i as usize).unwrap_or_else(Vector3::zeros))
-                .collect::<Vec<_>>()
+            let mut normals = old_normals.unwrap_or_default();
+            resize(&mut normals, counts.valid, Vector3::zeros());
+            cloud_normals(points, width, band_rows, &band_counts, &mut normals);
+            normals
         });
-        let cloud = PointCloud::from_parts(positions, normals, colors, Some(quality))?;
-        Ok(Triangulation {
-            width,
-            height,
-            points,
-            reprojection_px: reprojection,
-            status,
-            cloud,
-            cloud_pixels,
-            counts,
-        })
+        out.cloud = PointCloud::from_parts(positions, normals, colors, Some(quality))?;
+        out.width = width;
+        out.height = height;
+        out.counts = counts;
+        Ok(())
     }
 }
 
-/// Indices of the valid pixels, in order: counts per band of rows, prefix sums, then every
-/// band fills its own slice of the output in parallel.
-fn valid_pixels(status: &[PointStatus], width: usize, valid: usize) -> Vec<u32> {
-    let chunk = MIN_PIXELS_PER_TASK.div_ceil(width.max(1)).max(1) * width.max(1);
+/// Gives `v` the length `n`; when the length changes, refilled with `fill` in parallel (so
+/// the first touch of fresh pages is shared by the cores).
+fn resize<T: Copy + Send + Sync>(v: &mut Vec<T>, n: usize, fill: T) {
+    if v.len() != n {
+        v.clear();
+        v.par_extend(rayon::iter::repeat_n(fill, n));
+    }
+}
+
+/// Indices of the valid pixels, in order, into `out`: counts per band of `band_rows` rows
+/// (returned), prefix sums, then every band fills its own slice of the output in parallel.
+fn valid_pixels(
+    status: &[PointStatus],
+    width: usize,
+    band_rows: usize,
+    valid: usize,
+    out: &mut Vec<u32>,
+) -> Vec<usize> {
+    let chunk = band_rows * width.max(1);
     let counts: Vec<usize> = status
         .par_chunks(chunk)
         .map(|band| band.iter().filter(|s| **s == PointStatus::Valid).count())
         .collect();
-    let mut out = vec![0u32; valid];
+    if out.capacity() >= valid {
+        out.clear();
+        out.resize(valid, 0);
+    } else {
+        // Fresh zeroed memory: no page is written before its band fills it.
+        *out = vec![0u32; valid];
+    }
     let mut slices = Vec::with_capacity(counts.len());
-    let mut rest: &mut [u32] = &mut out;
+    let mut rest: &mut [u32] = out;
     for &c in &counts {
         let (head, tail) = rest.split_at_mut(c.min(rest.len()));
         slices.push(head);
@@ -257,5 +320,5 @@ fn valid_pixels(status: &[PointStatus], width: usize, valid: usize) -> Vec<u32> 
                 *o = i;
             }
         });
-    out
+    counts
 }

@@ -297,3 +297,78 @@ fn optimal_minimises_reprojection_error() {
         assert!(optimal.rms_reprojection_px() < other.rms_reprojection_px());
     }
 }
+
+/// `triangulate_into` a result of another method, size of cloud and options gives exactly
+/// what a fresh `triangulate` gives (every vector is overwritten, nothing stale is left).
+#[test]
+fn triangulate_into_reuses_without_leftovers() {
+    let tri = triangulator();
+    let (wall, _) = map_of(|_, _| 450.0);
+    let (step, _) = map_of(|x, _| if x < W / 2 { 400.0 } else { 520.0 });
+    let texture = vec![77u8; W * H];
+    let mut reused = tri
+        .triangulate_textured(
+            &wall,
+            Some(Texture::Grey8(&texture)),
+            &TriOptions::default(),
+        )
+        .unwrap();
+    for method in [
+        Method::default(),
+        Method::Linear,
+        Method::Midpoint,
+        Method::Optimal,
+    ] {
+        let options = TriOptions {
+            normals: method == Method::Linear,
+            min_depth_mm: 430.0,
+            ..TriOptions::with_method(method)
+        };
+        let fresh = tri.triangulate(&step, &options).unwrap();
+        tri.triangulate_into(&step, None, &options, &mut reused)
+            .unwrap();
+        assert_eq!(reused.status, fresh.status, "{}", method.name());
+        assert_eq!(reused.counts, fresh.counts);
+        assert_eq!(reused.cloud_pixels, fresh.cloud_pixels);
+        assert_eq!(reused.cloud, fresh.cloud);
+        let same = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
+        for (a, b) in reused.points.iter().zip(&fresh.points) {
+            assert!(same(a.z, b.z) && same(a.x, b.x) && same(a.y, b.y));
+        }
+        for (a, b) in reused.reprojection_px.iter().zip(&fresh.reprojection_px) {
+            assert!(same(f64::from(*a), f64::from(*b)));
+        }
+        // The near half (400 mm) is below min_depth: filtered, not stale.
+        assert!(fresh.counts.out_of_depth_range > 0);
+        assert!(reused.cloud.colors().is_none());
+    }
+}
+
+/// A surface that changes depth quickly and jumps (a slanted, rippled wall with steps
+/// every 37 columns): the warm starts of the ray–plane solver extrapolate across the
+/// jumps wrongly, and those lanes must still end at the exact point (by more steps or the
+/// general solver). Truth from sl-camera's models; the only error left is the f32 storage
+/// of the decoded coordinates (~6e-5 px ≈ 1e-4 mm here), so 2e-3 mm is a safe bound while a
+/// wrong root or an unconverged Newton iteration is off by ≥ 0.01 mm.
+#[test]
+fn warm_starts_never_change_the_answer() {
+    let depth = |x: usize, y: usize| {
+        let (xf, yf) = (x as f64, y as f64);
+        400.0 + 0.8 * xf + 15.0 * (0.3 * yf).sin() + 40.0 * ((x / 37) % 2) as f64
+    };
+    let (map, truth) = map_of(depth);
+    let tri = triangulator();
+    for method in [Method::default(), Method::Optimal] {
+        let options = TriOptions {
+            max_depth_jump: f64::INFINITY,
+            ..TriOptions::with_method(method)
+        };
+        let r = tri.triangulate(&map, &options).unwrap();
+        let lit = truth.iter().filter(|p| p.z.is_finite()).count();
+        assert_eq!(r.counts.valid, lit, "{}", method.name());
+        for (p, &i) in r.cloud.positions().iter().zip(&r.cloud_pixels) {
+            let e = (p - truth[i as usize]).norm();
+            assert!(e < 2e-3, "{} pixel {i}: {e} mm", method.name());
+        }
+    }
+}
