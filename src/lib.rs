@@ -13,9 +13,14 @@
 //! | [`icp`] | `sl-icp` | ICP and turntable merging |
 //! | [`rig`] | `sl-rig` | device traits and the virtual rig |
 //!
+//! [`pipeline`] holds the end-to-end scan on the virtual rig (calibrate, capture, decode,
+//! triangulate, merge, measure) that `slscan scan` and `tests/scan_pipeline.rs` run.
+//!
 //! The command line `slscan` (in `examples/slscan`) composes them; run
 //! `cargo run --release --example slscan -- --help`.
 #![deny(missing_docs)]
+
+pub mod pipeline;
 
 pub use sl_calib as calib;
 pub use sl_camera as camera;

@@ -9,6 +9,7 @@
 //!   code 1 (2 for a malformed command line, as clap does).
 
 mod calibrate;
+mod capture;
 mod common;
 mod decode;
 mod devices;
@@ -17,6 +18,7 @@ mod merge;
 mod patterns;
 mod reconstruct;
 mod register;
+mod scan;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -50,6 +52,12 @@ enum Command {
     Register(register::Args),
     /// Register and merge the views of a turntable scan: merged cloud, poses, preview, report.
     Merge(merge::Args),
+    /// Run one capture session (virtual rig by default, or real devices); resumes when
+    /// interrupted.
+    Capture(capture::Args),
+    /// The whole scan on the virtual rig: calibrate, capture, decode, triangulate, merge,
+    /// accuracy report, previews and index.html.
+    Scan(scan::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -64,6 +72,8 @@ fn main() -> std::process::ExitCode {
         Command::Reconstruct(args) => reconstruct::run(&args),
         Command::Register(args) => register::run(&args),
         Command::Merge(args) => merge::run(&args),
+        Command::Capture(args) => capture::run(&args),
+        Command::Scan(args) => scan::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

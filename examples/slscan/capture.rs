@@ -1,0 +1,306 @@
+//! `slscan capture --out DIR`: one capture session (`sl_rig::CaptureSession`), on the virtual
+//! rig by default or on real devices with `--camera /dev/videoN --projector-monitor N
+//! --turntable /dev/ttyUSB0 --servo-id 1`. An interrupted session resumes when run again with
+//! the same options; `--overwrite` recaptures finished views.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context;
+use sl_codec::{BitDepth, MANIFEST_FILE, Manifest, ProjectorSize};
+use sl_rig::{
+    Camera, CaptureSession, LatencyConfig, Projector, Scene, SessionConfig, SessionDevices,
+    SessionPlan, Turntable, VirtualRig, measure_latency, turntable_angles,
+};
+use structured_light::pipeline::{scaled_rig_config, scan_patterns};
+
+use crate::common::{Report, ensure_out_dir, progress};
+
+/// The hardware options shared by `capture` and `scan`.
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct HardwareArgs {
+    /// V4L2 camera device, e.g. /dev/video0 (needs `--features v4l`).
+    #[arg(long)]
+    pub(crate) camera: Option<PathBuf>,
+    /// Monitor index of the projector, as `slscan devices` lists them (needs `--features window`).
+    #[arg(long)]
+    pub(crate) projector_monitor: Option<usize>,
+    /// Serial port of the Dynamixel turntable, e.g. /dev/ttyUSB0.
+    #[arg(long)]
+    pub(crate) turntable: Option<PathBuf>,
+    /// Dynamixel servo id.
+    #[arg(long, default_value_t = 1)]
+    pub(crate) servo_id: u8,
+}
+
+impl HardwareArgs {
+    fn any(&self) -> bool {
+        self.camera.is_some() || self.projector_monitor.is_some() || self.turntable.is_some()
+    }
+}
+
+/// `slscan scan` runs on the virtual rig only for now: hardware options get a clear answer.
+pub(crate) fn require_no_hardware(hw: &HardwareArgs, command: &str) -> anyhow::Result<()> {
+    if hw.any() {
+        anyhow::bail!(
+            "`slscan {command}` with hardware options is not wired yet: capture with `slscan capture --camera … --projector-monitor … --turntable …`, then `slscan reconstruct` each view and `slscan merge` them (docs/user-guide.md)"
+        );
+    }
+    Ok(())
+}
+
+/// Arguments of `slscan capture`.
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct Args {
+    /// Session folder (created; an existing session with the same plan is resumed).
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    /// Turntable views over a full turn.
+    #[arg(long, default_value_t = 36)]
+    pub(crate) views: usize,
+    /// Folder with the patterns' `manifest.json` (default: hybrid code on the columns, 15 px
+    /// periods).
+    #[arg(long)]
+    pub(crate) patterns: Option<PathBuf>,
+    /// Virtual scene: sphere, dumbbell, plane, box or cylinder.
+    #[arg(long, default_value = "dumbbell")]
+    pub(crate) scene: String,
+    /// Divide the virtual rig's resolution by this.
+    #[arg(long, default_value_t = 1)]
+    pub(crate) downscale: u32,
+    /// Wait after showing a pattern (ms); default 100 on hardware, 0 on the virtual rig.
+    #[arg(long)]
+    pub(crate) latency_ms: Option<u64>,
+    /// Measure the display-to-camera latency first (flashes) and flush that many frames.
+    #[arg(long)]
+    pub(crate) measure_latency: bool,
+    /// Calibration file to record in session.json.
+    #[arg(long)]
+    pub(crate) calib: Option<PathBuf>,
+    /// Recapture views that are already complete.
+    #[arg(long)]
+    pub(crate) overwrite: bool,
+    #[command(flatten)]
+    pub(crate) hardware: HardwareArgs,
+}
+
+fn manifest(args: &Args, projector: (u32, u32)) -> anyhow::Result<Manifest> {
+    match &args.patterns {
+        Some(dir) => Ok(Manifest::load(&dir.join(MANIFEST_FILE))?),
+        None => Ok(
+            scan_patterns(ProjectorSize::new(projector.0, projector.1), 15.0)
+                .manifest(BitDepth::Eight),
+        ),
+    }
+}
+
+/// Runs one session on any devices, with progress and report.
+fn run_session<C, P, T>(
+    args: &Args,
+    devices: SessionDevices,
+    camera: &mut C,
+    projector: &mut P,
+    turntable: &mut T,
+    default_latency: Duration,
+) -> anyhow::Result<()>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+    T: Turntable + ?Sized,
+{
+    let mut report = Report::new("capture");
+    let out = ensure_out_dir(&args.out)?;
+    anyhow::ensure!(args.views >= 1, "--views must be at least 1");
+    let mut config = SessionConfig {
+        display_latency: args
+            .latency_ms
+            .map_or(default_latency, Duration::from_millis),
+        flush_frames: 0,
+        overwrite: args.overwrite,
+    };
+    if args.measure_latency {
+        let latency = report.stage("measure latency", || {
+            measure_latency(camera, projector, &LatencyConfig::default())
+        })?;
+        println!(
+            "latency: {} frame(s) to flush, {:.1} ms from show to a frame that shows it",
+            latency.frames, latency.ms
+        );
+        config.flush_frames = latency.frames;
+        report.figure("latency", serde_json::to_value(&latency)?);
+    }
+    let plan = SessionPlan {
+        angles_deg: turntable_angles(args.views),
+        manifest: manifest(args, projector.image_size())?,
+        devices,
+        calibration: args.calib.clone(),
+    };
+    let session = CaptureSession::open(&out, plan, config)?;
+    let bar = progress(args.views as u64, "capture");
+    let summary = report.stage("capture", || {
+        session.run(camera, projector, turntable, |_| bar.inc(1))
+    })?;
+    bar.finish_and_clear();
+    report.figure("views", args.views);
+    report.figure("captured", summary.captured);
+    report.figure("kept_from_earlier_run", summary.skipped);
+    report.figure("views_detail", serde_json::to_value(&summary.views)?);
+    let path = report.write(&out)?;
+    println!(
+        "{}: {} views captured, {} kept from an earlier run (report: {})",
+        out.display(),
+        summary.captured,
+        summary.skipped,
+        path.display()
+    );
+    Ok(())
+}
+
+fn scene(name: &str) -> anyhow::Result<Scene> {
+    Ok(match name {
+        "sphere" => Scene::sphere(),
+        "dumbbell" => Scene::dumbbell(),
+        "plane" => Scene::plane(),
+        "box" => Scene::cuboid(),
+        "cylinder" => Scene::cylinder(),
+        other => {
+            anyhow::bail!("--scene {other}: expected sphere, dumbbell, plane, box or cylinder")
+        }
+    })
+}
+
+/// Runs `slscan capture`.
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    if args.hardware.any() {
+        return run_hardware(args);
+    }
+    anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
+    let rig = VirtualRig::new(scaled_rig_config(args.downscale), scene(&args.scene)?)
+        .context("cannot build the virtual rig")?;
+    let c = rig.config().camera.size;
+    let p = rig.config().projector.size;
+    let devices = SessionDevices {
+        camera: format!("virtual camera {}x{}", c.width, c.height),
+        projector: format!("virtual projector {}x{}", p.width, p.height),
+        turntable: format!("virtual turntable, scene {}", args.scene),
+    };
+    let (mut camera, mut projector, mut table) = rig.devices();
+    // The rig's exact calibration beside the session, for `slscan reconstruct`.
+    rig.config()
+        .calibration()
+        .save(ensure_out_dir(&args.out)?.join("calibration_true.json"))?;
+    run_session(
+        args,
+        devices,
+        &mut camera,
+        &mut projector,
+        &mut table,
+        Duration::ZERO,
+    )
+}
+
+fn missing(option: &str, feature: &str) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{option} needs the `{feature}` feature: rebuild with `cargo run --release --features {feature} --example slscan -- capture …`"
+    )
+}
+
+/// Real devices: all three must be given.
+fn run_hardware(args: &Args) -> anyhow::Result<()> {
+    let hw = &args.hardware;
+    let (Some(camera), Some(monitor), Some(port)) =
+        (&hw.camera, hw.projector_monitor, &hw.turntable)
+    else {
+        anyhow::bail!(
+            "a capture on hardware needs --camera, --projector-monitor and --turntable together"
+        );
+    };
+    if !cfg!(feature = "v4l") {
+        return Err(missing("--camera", "v4l"));
+    }
+    if !cfg!(feature = "window") {
+        return Err(missing("--projector-monitor", "window"));
+    }
+    hardware::run(args, camera.clone(), monitor, port.clone())
+}
+
+#[cfg(all(feature = "v4l", feature = "window", unix))]
+mod hardware {
+    use std::path::PathBuf;
+
+    use sl_rig::{
+        DynamixelConfig, DynamixelTurntable, ProjectorWindowConfig, SessionDevices, V4lCamera,
+        V4lCameraConfig, run_projector,
+    };
+
+    use super::{Args, DEFAULT_HARDWARE_LATENCY, run_session};
+
+    pub(super) fn run(
+        args: &Args,
+        camera_path: PathBuf,
+        monitor: usize,
+        port: PathBuf,
+    ) -> anyhow::Result<()> {
+        let mut camera = V4lCamera::open(V4lCameraConfig {
+            path: camera_path.clone(),
+            ..V4lCameraConfig::default()
+        })?;
+        let mut table = DynamixelTurntable::open(
+            &port,
+            DynamixelConfig {
+                id: args.hardware.servo_id,
+                ..DynamixelConfig::default()
+            },
+        )?;
+        let devices = SessionDevices {
+            camera: camera_path.display().to_string(),
+            projector: format!("monitor {monitor}"),
+            turntable: format!("{} id {}", port.display(), args.hardware.servo_id),
+        };
+        // The window lives on the main thread's event loop; the session runs in the worker.
+        let args = args.clone();
+        run_projector(
+            ProjectorWindowConfig {
+                monitor,
+                ..ProjectorWindowConfig::default()
+            },
+            move |mut projector| {
+                run_session(
+                    &args,
+                    devices,
+                    &mut camera,
+                    &mut projector,
+                    &mut table,
+                    DEFAULT_HARDWARE_LATENCY,
+                )
+                .map_err(|e| sl_rig::RigError::Device {
+                    device: "capture session".to_owned(),
+                    reason: format!("{e:#}"),
+                })
+            },
+        )?;
+        Ok(())
+    }
+}
+
+#[cfg(not(all(feature = "v4l", feature = "window", unix)))]
+mod hardware {
+    use std::path::PathBuf;
+
+    use super::Args;
+
+    pub(super) fn run(
+        _args: &Args,
+        _camera: PathBuf,
+        _monitor: usize,
+        _port: PathBuf,
+    ) -> anyhow::Result<()> {
+        anyhow::bail!(
+            "capture on hardware needs `--features v4l,window` on Linux: `cargo run --release --features v4l,window --example slscan -- capture …`"
+        )
+    }
+}
+
+/// Display latency on hardware when not given: `sl_rig::DEFAULT_DISPLAY_LATENCY`.
+#[allow(dead_code)] // used only with the hardware features
+const DEFAULT_HARDWARE_LATENCY: Duration = sl_rig::DEFAULT_DISPLAY_LATENCY;
