@@ -1,6 +1,9 @@
 //! Calibration of a structured-light rig: checkerboard detection with sub-pixel saddle-point
 //! refinement and a board-fixed corner order, and Zhang's camera calibration refined by
-//! Levenberg–Marquardt with analytic Jacobians.
+//! Levenberg–Marquardt with analytic Jacobians. Projector–camera calibration
+//! ([`calibrate_procam`], Moreno & Taubin): corners mapped into the projector by local
+//! homographies of the decoded patterns ([`projector_corners`]), then both devices and
+//! `T_cam_proj` refined jointly.
 //!
 //! ```
 //! use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
