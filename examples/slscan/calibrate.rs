@@ -261,18 +261,18 @@ fn print_axis(fit: &TurntableCalibration, out: &Path) {
     );
 }
 
+/// `AxB` of two positive integers (`--board 9x6`, `--projector 1920x1080`).
+fn parse_pair(text: &str, flag: &str, example: &str) -> anyhow::Result<(u32, u32)> {
+    let bad = || format!("{flag} {text}: expected two positive integers as in {example}");
+    let (a, b) = text.split_once(['x', 'X']).with_context(bad)?;
+    let a: u32 = a.trim().parse().with_context(bad)?;
+    let b: u32 = b.trim().parse().with_context(bad)?;
+    anyhow::ensure!(a > 0 && b > 0, "{}", bad());
+    Ok((a, b))
+}
+
 fn parse_board(text: &str) -> anyhow::Result<BoardSize> {
-    let (c, r) = text
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--board {text}: expected COLSxROWS, e.g. 9x6"))?;
-    let cols: u32 = c
-        .trim()
-        .parse()
-        .with_context(|| format!("--board {text}: `{c}` is not a number of corners"))?;
-    let rows: u32 = r
-        .trim()
-        .parse()
-        .with_context(|| format!("--board {text}: `{r}` is not a number of corners"))?;
+    let (cols, rows) = parse_pair(text, "--board", "9x6")?;
     anyhow::ensure!(
         cols >= 2 && rows >= 2,
         "--board {text}: at least 2x2 inner corners"
@@ -281,18 +281,7 @@ fn parse_board(text: &str) -> anyhow::Result<BoardSize> {
 }
 
 fn parse_size(text: &str) -> anyhow::Result<ImageSize> {
-    let (w, h) = text
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--projector {text}: expected WIDTHxHEIGHT, e.g. 1920x1080"))?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .with_context(|| format!("--projector {text}: `{w}` is not a width"))?;
-    let h: u32 = h
-        .trim()
-        .parse()
-        .with_context(|| format!("--projector {text}: `{h}` is not a height"))?;
-    anyhow::ensure!(w > 0 && h > 0, "--projector {text}: empty image");
+    let (w, h) = parse_pair(text, "--projector", "1920x1080")?;
     Ok(ImageSize::new(w, h))
 }
 
