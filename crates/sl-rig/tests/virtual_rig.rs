@@ -553,14 +553,6 @@ fn moire_diagnostics() {
         ),
         ("hard_noisy8", Box::new(hard), false),
         ("blur_quiet8", Box::new(quiet), false),
-        (
-            "blur_quiet16",
-            Box::new(move |c| {
-                quiet(c);
-                c.render.effects.sensor.bit_depth = sl_rig::BitDepth::Sixteen;
-            }),
-            false,
-        ),
         ("blur_noisy8", Box::new(|_| {}), false),
     ];
     let only = std::env::var("SL_MOIRE_ONLY").unwrap_or_default();
@@ -591,7 +583,15 @@ fn moire_diagnostics() {
             let images = projector_images(&rig, &manifest).unwrap();
             view.capture_all(&images).unwrap()
         };
-        let capture = CaptureSet::from_frames(manifest, to_frames(frames)).unwrap();
+        let frames = frames
+            .into_iter()
+            .map(|img| match img.pixels {
+                Pixels::U8(v) => sl_codec::Frame::new(img.width as usize, img.height as usize, v),
+                Pixels::U16(_) => panic!("the variants render 8-bit frames"),
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap();
+        let capture = CaptureSet::from_frames(manifest, sl_codec::Frames::U8(frames)).unwrap();
         let map = decode(&capture, &DecodeConfig::default()).unwrap();
         let t = &view.truth;
         let mut csv = String::from("x,y,truth_col,decoded_col\n");
@@ -612,34 +612,5 @@ fn moire_diagnostics() {
             "{name}: {n} pixels, column error RMS {:.4} px",
             (sq / n as f64).sqrt()
         );
-    }
-}
-
-/// The rig's frames as sl-codec frames (8- or 16-bit).
-fn to_frames(images: Vec<sl_rig::GreyImage>) -> sl_codec::Frames {
-    use sl_codec::{Frame, Frames};
-    let (w, h) = images
-        .first()
-        .map_or((0, 0), |i| (i.width as usize, i.height as usize));
-    if matches!(images.first().map(|i| &i.pixels), Some(Pixels::U16(_))) {
-        Frames::U16(
-            images
-                .into_iter()
-                .map(|img| match img.pixels {
-                    Pixels::U16(v) => Frame::new(w, h, v).unwrap(),
-                    Pixels::U8(_) => panic!("mixed bit depths"),
-                })
-                .collect(),
-        )
-    } else {
-        Frames::U8(
-            images
-                .into_iter()
-                .map(|img| match img.pixels {
-                    Pixels::U8(v) => Frame::new(w, h, v).unwrap(),
-                    Pixels::U16(_) => panic!("mixed bit depths"),
-                })
-                .collect(),
-        )
     }
 }
