@@ -3,7 +3,10 @@
 //! Levenberg–Marquardt with analytic Jacobians. Projector–camera calibration
 //! ([`calibrate_procam`], Moreno & Taubin): corners mapped into the projector by local
 //! homographies of the decoded patterns ([`projector_corners`]), then both devices and
-//! `T_cam_proj` refined jointly.
+//! `T_cam_proj` refined jointly. The turntable axis ([`calibrate_turntable`]): a closed form
+//! from the relative board poses at several motor angles, refined over every corner's
+//! reprojection. Pictures of a calibration ([`draw_corners`], [`error_bars`],
+//! [`residual_plot`]) for reports such as `slscan calibrate`'s.
 //!
 //! ```
 //! use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
