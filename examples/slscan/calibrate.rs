@@ -415,9 +415,11 @@ struct Detected {
     corners: BoardCorners,
 }
 
-/// Loads and detects every image; images without a board are skipped with the reason.
+/// Loads and detects every image; images without a board are skipped with the reason (and
+/// the motor angle, for turntable views).
 fn detect_all(
     paths: &[PathBuf],
+    angles: Option<&[f64]>,
     size: BoardSize,
     report: &mut Report,
 ) -> anyhow::Result<(Vec<Detected>, Vec<serde_json::Value>, ImageSize)> {
@@ -449,6 +451,13 @@ fn detect_all(
                     corners,
                 }),
                 Err(e @ CalibError::BoardNotFound { .. }) => {
+                    let e = match angles.and_then(|a| a.get(index)) {
+                        Some(&motor_angle_deg) => CalibError::BoardNotFoundAtAngle {
+                            motor_angle_deg,
+                            source: Box::new(e),
+                        },
+                        None => e,
+                    };
                     eprintln!("slscan: skipping {e}");
                     skipped.push(
                         json!({ "image": path.display().to_string(), "reason": e.to_string() }),
@@ -521,7 +530,7 @@ fn camera(
     let mut report = Report::new(command);
     let out = ensure_out_dir(&common.out)?;
     let size = parse_board(&common.board)?;
-    let (detected, skipped, image_size) = detect_all(images, size, &mut report)?;
+    let (detected, skipped, image_size) = detect_all(images, None, size, &mut report)?;
     let views: Vec<CalibrationView> = detected
         .iter()
         .map(|d| CalibrationView::from_corners(&d.corners, common.square))
@@ -649,7 +658,8 @@ fn turntable(
     let out = ensure_out_dir(&common.out)?;
     let size = parse_board(&common.board)?;
     let paths: Vec<PathBuf> = views.iter().map(|v| v.0.clone()).collect();
-    let (detected, skipped, image_size) = detect_all(&paths, size, &mut report)?;
+    let angles: Vec<f64> = views.iter().map(|v| v.1).collect();
+    let (detected, skipped, image_size) = detect_all(&paths, Some(&angles), size, &mut report)?;
     anyhow::ensure!(
         image_size == calib.camera.size,
         "{}: {}x{} pixels, but the calibration's camera has {}x{}",
