@@ -95,7 +95,39 @@ struct Problem<'a> {
     t: DMatrix<f64>,
 }
 
-impl Problem<'_> {
+impl<'a> Problem<'a> {
+    fn new(views: &'a [StereoView<'a>], start: &StereoStart, opts: &StereoOptions<'_>) -> Self {
+        let camera_layout = Layout::new(opts.camera);
+        let projector_layout = Layout::new(opts.projector);
+        let (nc, np) = (camera_layout.t.ncols(), projector_layout.t.ncols());
+        let mut t = DMatrix::zeros(SHARED, nc + np + 6);
+        t.view_mut((0, 0), (FULL, nc)).copy_from(&camera_layout.t);
+        t.view_mut((FULL, nc), (FULL, np))
+            .copy_from(&projector_layout.t);
+        t.view_mut((2 * FULL, nc + np), (6, 6))
+            .copy_from(&DMatrix::<f64>::identity(6, 6));
+        Self {
+            views,
+            camera_size: start.camera.size,
+            projector_size: start.projector.size,
+            camera_layout,
+            projector_layout,
+            t,
+        }
+    }
+
+    fn start(&self, start: &StereoStart) -> Option<State> {
+        let camera = full_vector(&start.camera);
+        let projector = full_vector(&start.projector);
+        Some(State {
+            models: self.models(&camera, &projector)?,
+            camera,
+            projector,
+            extrinsics: start.extrinsics,
+            poses: start.poses.clone(),
+        })
+    }
+
     fn models(
         &self,
         camera: &SMatrix<f64, FULL, 1>,
@@ -231,39 +263,13 @@ pub(crate) fn refine_stereo(
     start: &StereoStart,
     opts: &StereoOptions<'_>,
 ) -> Result<StereoSolution, CalibError> {
-    let camera_layout = Layout::new(opts.camera);
-    let projector_layout = Layout::new(opts.projector);
-    let (nc, np) = (camera_layout.t.ncols(), projector_layout.t.ncols());
-    let mut t = DMatrix::zeros(SHARED, nc + np + 6);
-    t.view_mut((0, 0), (FULL, nc)).copy_from(&camera_layout.t);
-    t.view_mut((FULL, nc), (FULL, np))
-        .copy_from(&projector_layout.t);
-    t.view_mut((2 * FULL, nc + np), (6, 6))
-        .copy_from(&DMatrix::<f64>::identity(6, 6));
-    let problem = Problem {
-        views,
-        camera_size: start.camera.size,
-        projector_size: start.projector.size,
-        camera_layout,
-        projector_layout,
-        t,
-    };
+    let problem = Problem::new(views, start, opts);
     let not_projecting = || {
         CalibError::Degenerate(
             "the joint camera–projector estimate does not project every corner: check that camera and projector see the board from its printed side in every view".to_owned(),
         )
     };
-    let camera = full_vector(&start.camera);
-    let projector = full_vector(&start.projector);
-    let state = State {
-        models: problem
-            .models(&camera, &projector)
-            .ok_or_else(not_projecting)?,
-        camera,
-        projector,
-        extrinsics: start.extrinsics,
-        poses: start.poses.clone(),
-    };
+    let state = problem.start(start).ok_or_else(not_projecting)?;
     let min = levenberg_marquardt(&problem, state, opts.max_iterations, opts.tolerance)
         .ok_or_else(not_projecting)?;
     let (state, normal, iterations) = (min.state, min.normal, min.iterations);
@@ -338,4 +344,146 @@ pub(crate) fn refine_stereo(
         extrinsics_std,
         iterations,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BoardSize;
+    use sl_camera::{Distortion, Intrinsics};
+
+    /// The normal equations' gradient `Jᵀr` is `−½ ∇cost`: checked against central
+    /// differences of the cost in every shared and pose parameter, which validates the
+    /// analytic Jacobians (including the chain through `T_proj_cam` and the board pose).
+    #[test]
+    fn gradient_matches_finite_differences() {
+        let camera = CameraModel::new(
+            Intrinsics::new(1440.0, 1442.0, 641.0, 358.0),
+            Distortion::from_opencv(&[-0.08, 0.12, 0.0004, -0.0003, 0.01]).unwrap(),
+            ImageSize::new(1280, 720),
+        )
+        .unwrap();
+        let projector = CameraModel::new(
+            Intrinsics::new(2200.0, 2195.0, 955.0, 545.0),
+            Distortion::from_opencv(&[0.04, -0.05, 0.001, 0.0005, 0.0]).unwrap(),
+            ImageSize::new(1920, 1080),
+        )
+        .unwrap();
+        let object = BoardSize::new(4, 3).object_points(20.0);
+        let extrinsics = RvecTvec::new(
+            Vector3::new(0.02, -0.42, 0.01),
+            Vector3::new(-180.0, 2.0, 90.0),
+        );
+        let poses = vec![
+            RvecTvec::new(
+                Vector3::new(0.3, -0.2, 0.1),
+                Vector3::new(-40.0, -30.0, 450.0),
+            ),
+            RvecTvec::new(
+                Vector3::new(-0.25, 0.15, -0.2),
+                Vector3::new(-20.0, -10.0, 420.0),
+            ),
+        ];
+        // Observations off the model by a few pixels, so that the residuals are not zero.
+        let cam_obs: Vec<Vec<Point2<f64>>> = poses
+            .iter()
+            .map(|p| {
+                object
+                    .iter()
+                    .enumerate()
+                    .map(|(i, x)| {
+                        camera.project(&p.transform_point(x)).unwrap()
+                            + Vector2::new(0.7 * (i % 3) as f64, -0.4)
+                    })
+                    .collect()
+            })
+            .collect();
+        let proj_obs: Vec<Vec<Option<Point2<f64>>>> = poses
+            .iter()
+            .map(|p| {
+                object
+                    .iter()
+                    .enumerate()
+                    .map(|(i, x)| {
+                        (i != 4).then(|| {
+                            projector
+                                .project(&extrinsics.transform_point(&p.transform_point(x)))
+                                .unwrap()
+                                + Vector2::new(-0.5, 0.3 * (i % 4) as f64)
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        let views: Vec<StereoView<'_>> = cam_obs
+            .iter()
+            .zip(&proj_obs)
+            .map(|(c, p)| StereoView {
+                object: &object,
+                camera: c,
+                projector: p,
+            })
+            .collect();
+        let start = StereoStart {
+            camera,
+            projector,
+            extrinsics,
+            poses,
+        };
+        let cfg = ZhangConfig::default();
+        let opts = StereoOptions {
+            camera: &cfg,
+            projector: &cfg,
+            max_iterations: 0,
+            tolerance: 0.0,
+        };
+        let problem = Problem::new(&views, &start, &opts);
+        let state = problem.start(&start).unwrap();
+        let normal = problem.normal(&state).unwrap();
+        let ng = problem.t.ncols();
+        let cost_at = |dc: &DVector<f64>, dp: &[Vector6<f64>]| {
+            problem
+                .cost(&problem.step(&state, dc, dp).unwrap())
+                .unwrap()
+        };
+        let zero_p = vec![Vector6::zeros(); 2];
+        for i in 0..ng {
+            // Steps scaled to each parameter's size (focal lengths ~1e3, coefficients ~1e-2).
+            let h = 1e-6 * full_param_scale(&problem.t, i);
+            let mut dc = DVector::zeros(ng);
+            dc[i] = h;
+            let plus = cost_at(&dc, &zero_p);
+            dc[i] = -h;
+            let minus = cost_at(&dc, &zero_p);
+            let fd = -(plus - minus) / (4.0 * h);
+            let an = normal.g_c[i];
+            assert!(
+                (fd - an).abs() <= 1e-4 * an.abs().max(1.0),
+                "shared {i}: fd {fd} vs analytic {an}"
+            );
+        }
+        for v in 0..2 {
+            for i in 0..6 {
+                let h = 1e-6;
+                let mut dp = zero_p.clone();
+                dp[v][i] = h;
+                let plus = cost_at(&DVector::zeros(ng), &dp);
+                dp[v][i] = -h;
+                let minus = cost_at(&DVector::zeros(ng), &dp);
+                let fd = -(plus - minus) / (4.0 * h);
+                let an = normal.g_p[v][i];
+                assert!(
+                    (fd - an).abs() <= 1e-4 * an.abs().max(1.0),
+                    "view {v} pose {i}: fd {fd} vs analytic {an}"
+                );
+            }
+        }
+    }
+
+    /// 1 for translations and distortion, the value's order of magnitude for intrinsics.
+    fn full_param_scale(t: &DMatrix<f64>, free: usize) -> f64 {
+        // Intrinsics fx fy cx cy of camera (rows 0..4) and projector (FULL..FULL+4): ~1e3.
+        let intr = (0..4).chain(FULL..FULL + 4).any(|r| t[(r, free)] != 0.0);
+        if intr { 1e3 } else { 1.0 }
+    }
 }
