@@ -65,7 +65,8 @@
 //! - Pixel `(0, 0)` is the centre of the top-left pixel; an image spans
 //!   `[-0.5, w - 0.5) × [-0.5, h - 0.5)`, for the camera and the projector alike. A projector
 //!   pixel `(i, j)` lights the square `[i - 0.5, i + 0.5) × [j - 0.5, j + 0.5)` of projector
-//!   coordinates (a real projector shows square pixels).
+//!   coordinates (a real projector shows square pixels), blurred by the projection lens
+//!   (`Illumination::projector_blur_px`, a Gaussian of 0.5 px by default).
 //! - `table` frame: origin on the turntable axis at the table top, `z` up along the axis;
 //!   positive angles turn right-handedly about `z`. `board` frame: origin at the first inner
 //!   corner, `x` along the first row, `y` along the columns, `z` into the board.
