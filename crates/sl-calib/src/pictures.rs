@@ -115,6 +115,11 @@ fn xy(p: &Point2<f64>) -> (f32, f32) {
     (p.x as f32, p.y as f32)
 }
 
+/// Whether a point lies within `margin` px of a `w × h` image (finite and drawable).
+fn near_image(p: &Point2<f64>, w: u32, h: u32, margin: f64) -> bool {
+    p.x >= -margin && p.y >= -margin && p.x <= f64::from(w) + margin && p.y <= f64::from(h) + margin
+}
+
 /// Nearest pixel of a point, saturating far outside any image.
 fn ixy(p: &Point2<f64>) -> (i32, i32) {
     (p.x.round() as i32, p.y.round() as i32)
@@ -149,20 +154,30 @@ pub fn draw_corners(image: &GrayImage, corners: &BoardCorners) -> RgbImage {
     let r = marker_radius(image.width(), image.height());
     let cols = (corners.size.cols as usize).max(1);
     let colour = |k: usize| PALETTE[(k / cols) % PALETTE.len()];
+    let (w, h) = (image.width(), image.height());
     for (k, pair) in corners.corners.windows(2).enumerate() {
-        if let [a, b] = pair {
-            draw_line_segment_mut(&mut out, xy(a), xy(b), colour(k + 1));
+        if let [a, b] = pair
+            && let Some((t0, t1)) = clip(a, b, f64::from(w), f64::from(h))
+        {
+            let d = b - a;
+            draw_line_segment_mut(
+                &mut out,
+                xy(&(a + d * t0)),
+                xy(&(a + d * t1)),
+                colour(k + 1),
+            );
         }
     }
-    for (k, p) in corners.corners.iter().enumerate() {
+    let near = |p: &Point2<f64>| near_image(p, w, h, f64::from(r + 2));
+    for (k, p) in corners.corners.iter().enumerate().filter(|(_, p)| near(p)) {
         draw_hollow_circle_mut(&mut out, ixy(p), r, colour(k));
         draw_hollow_circle_mut(&mut out, ixy(p), r + 1, colour(k));
     }
-    if let Some(last) = corners.corners.last() {
+    if let Some(last) = corners.corners.last().filter(|p| near(p)) {
         let k = corners.corners.len() - 1;
         draw_filled_circle_mut(&mut out, ixy(last), r, colour(k));
     }
-    if let Some(first) = corners.corners.first() {
+    if let Some(first) = corners.corners.first().filter(|p| near(p)) {
         draw_filled_circle_mut(&mut out, ixy(first), r + 1, FIRST_CORNER);
     }
     out
@@ -274,21 +289,56 @@ pub fn error_bars(view_rms: &[f64], overall_rms: f64, config: &PictureConfig) ->
     }
 }
 
-/// An arrow from `a` to `b` with a small filled head.
-fn arrow(img: &mut RgbImage, a: &Point2<f64>, b: &Point2<f64>, colour: Rgb<u8>, head: f64) {
-    let ia = ixy(a);
-    let ib = ixy(b);
-    draw_antialiased_line_segment_mut(img, ia, ib, colour, interpolate);
+/// The part of the segment `a → b` inside `[-1, w] × [-1, h]` (Liang–Barsky), as the
+/// parameters `(t0, t1)` of its ends; `None` if it misses the box or is not finite. Drawing
+/// only that part keeps the time bounded whatever the residuals.
+fn clip(a: &Point2<f64>, b: &Point2<f64>, w: f64, h: f64) -> Option<(f64, f64)> {
     let d = b - a;
-    let len = d.norm();
-    if len < 2.0 * head || !len.is_finite() {
+    if !(d.x.is_finite() && d.y.is_finite() && a.x.is_finite() && a.y.is_finite()) {
+        return None;
+    }
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [
+        (-d.x, a.x + 1.0),
+        (d.x, w - a.x),
+        (-d.y, a.y + 1.0),
+        (d.y, h - a.y),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else {
+            let r = q / p;
+            if p < 0.0 {
+                t0 = t0.max(r);
+            } else {
+                t1 = t1.min(r);
+            }
+        }
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// An arrow from `a` to `b` with a small filled head (the part inside the image).
+fn arrow(img: &mut RgbImage, a: &Point2<f64>, b: &Point2<f64>, colour: Rgb<u8>, head: f64) {
+    let (w, h) = (f64::from(img.width()), f64::from(img.height()));
+    let Some((t0, t1)) = clip(a, b, w, h) else {
         return;
+    };
+    let d = b - a;
+    let (ca, cb) = (a + d * t0, a + d * t1);
+    draw_antialiased_line_segment_mut(img, ixy(&ca), ixy(&cb), colour, interpolate);
+    let len = d.norm();
+    if t1 < 1.0 || len < 2.0 * head {
+        return; // the tip is outside the image, or the arrow too short for a head
     }
     let u = d / len;
     let n = Vector2::new(-u.y, u.x);
     let base = b - u * head;
     let p1 = base + n * (head * 0.5);
     let p2 = base - n * (head * 0.5);
+    let ib = ixy(b);
     let poly = [
         Point::new(ib.0, ib.1),
         Point::new(p1.x.round() as i32, p1.y.round() as i32),
@@ -302,8 +352,9 @@ fn arrow(img: &mut RgbImage, a: &Point2<f64>, b: &Point2<f64>, colour: Rgb<u8>, 
 /// Every corner's residual (observed − predicted, px) as an arrow from the corner, magnified,
 /// over a white picture of the image area (`width × height`, the calibrated image's size)
 /// framed in grey; one colour per view (cycling through [`PALETTE`]). A scale arrow of
-/// [`ResidualPlot::scale_arrow_px`] pixels of residual is drawn in the bottom-left corner. Views and residuals are matched by
-/// index; extra entries of either are ignored.
+/// [`ResidualPlot::scale_arrow_px`] pixels of residual is drawn in the bottom-left corner.
+/// Views and residuals are matched by index; extra entries of either are ignored; arrows
+/// are clipped to the image and non-finite ones left out.
 ///
 /// ```
 /// use sl_calib::{PictureConfig, residual_plot};
@@ -348,7 +399,9 @@ pub fn residual_plot(
         let colour = PALETTE[k % PALETTE.len()];
         for (p, r) in view.iter().zip(res) {
             let tip = p + r * magnification;
-            draw_filled_circle_mut(&mut img, ixy(p), 1, colour);
+            if near_image(p, w, h, 2.0) {
+                draw_filled_circle_mut(&mut img, ixy(p), 1, colour);
+            }
             arrow(&mut img, p, &tip, colour, head);
         }
     }

@@ -125,6 +125,42 @@ fn residual_arrows_point_along_the_residuals() {
 }
 
 #[test]
+fn absurd_residuals_are_clipped_not_fatal() {
+    let corners = vec![vec![
+        Point2::new(100.0, 100.0),
+        Point2::new(200.0, 100.0),
+        Point2::new(1e12, -1e12),
+    ]];
+    let residuals = vec![vec![
+        Vector2::new(1e9, 0.0),
+        Vector2::new(f64::NAN, 1.0),
+        Vector2::new(1.0, 1.0),
+    ]];
+    let cfg = PictureConfig {
+        magnification: Some(1e6),
+        ..PictureConfig::default()
+    };
+    let plot = residual_plot(400, 300, &corners, &residuals, &cfg);
+    // The first arrow runs to the right edge, clipped; nothing else is drawn on row 200.
+    assert_eq!(*plot.image.get_pixel(390, 100), PALETTE[0]);
+    assert_eq!(*plot.image.get_pixel(250, 200), Rgb([255, 255, 255]));
+    // Corners far outside the image (a broken detection) are drawn as far as they show.
+    let img = GrayImage::from_pixel(100, 80, Luma([128]));
+    let wild = BoardCorners {
+        size: BoardSize::new(2, 2),
+        corners: vec![
+            Point2::new(20.0, 20.0),
+            Point2::new(1e12, 20.0),
+            Point2::new(f64::NAN, 0.0),
+            Point2::new(-1e15, 1e15),
+        ],
+    };
+    let pic = draw_corners(&img, &wild);
+    assert_eq!(*pic.get_pixel(20, 20), FIRST_CORNER);
+    assert_eq!(*pic.get_pixel(60, 20), PALETTE[0]); // the clipped segment 0 → 1
+}
+
+#[test]
 fn pictures_are_written_as_png() {
     let dir = tempfile::tempdir().unwrap();
     let chart = error_bars(&[0.1, 0.2], 0.15, &PictureConfig::default());
