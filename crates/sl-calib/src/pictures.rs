@@ -60,12 +60,21 @@ const ARROW_FRACTION: f64 = 0.06;
 /// ignores a few outliers, which then stand out as long arrows.
 const ARROW_PERCENTILE: f64 = 0.95;
 
+/// Widest bar drawn (px): wider is no more legible and keeps the picture's size in `u32`.
+const MAX_BAR_WIDTH: u32 = 256;
+
+/// Tallest plot area drawn (px), for the same reasons.
+const MAX_CHART_HEIGHT: u32 = 4096;
+
+/// Most bars drawn (views beyond are left out): 4096 views of 256 px stay within `u32`.
+const MAX_BARS: u32 = 4096;
+
 /// Options of the pictures.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PictureConfig {
-    /// Height of the bar chart's plot area (px).
+    /// Height of the bar chart's plot area (px; clamped to 10–4096).
     pub bar_chart_height: u32,
-    /// Width of one bar (px); bars are separated by half a bar.
+    /// Width of one bar (px, clamped to 1–256); bars are separated by half a bar.
     pub bar_width: u32,
     /// Residual arrows are drawn this many times longer than the residual; `None` picks a
     /// round value (1, 2 or 5 × 10ⁿ) that makes the 95th-percentile residual about 6 % of
@@ -209,11 +218,13 @@ fn round_down_125(x: f64) -> f64 {
 /// assert_eq!(chart.bar_centres.len(), 3);
 /// ```
 pub fn error_bars(view_rms: &[f64], overall_rms: f64, config: &PictureConfig) -> BarChart {
-    let bar_w = config.bar_width.max(1);
+    let bar_w = config.bar_width.clamp(1, MAX_BAR_WIDTH);
     let gap = (bar_w / 2).max(1);
     let margin = 2 * bar_w;
-    let plot_h = config.bar_chart_height.max(10);
-    let n = view_rms.len() as u32;
+    let plot_h = config.bar_chart_height.clamp(10, MAX_CHART_HEIGHT);
+    let n = u32::try_from(view_rms.len())
+        .unwrap_or(u32::MAX)
+        .min(MAX_BARS);
     let width = 2 * margin + n * bar_w + n.saturating_sub(1) * gap;
     let height = plot_h + 2 * margin;
     let mut img = RgbImage::from_pixel(width, height, WHITE);
@@ -243,7 +254,7 @@ pub fn error_bars(view_rms: &[f64], overall_rms: f64, config: &PictureConfig) ->
     sorted.sort_by(f64::total_cmp);
     let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
     let mut bar_centres = Vec::with_capacity(view_rms.len());
-    for (k, &v) in view_rms.iter().enumerate() {
+    for (k, &v) in view_rms.iter().enumerate().take(n as usize) {
         let x = margin + k as u32 * (bar_w + gap);
         bar_centres.push(x + bar_w / 2);
         let h = (clean(v) * px_per_unit).round() as u32;

@@ -90,6 +90,15 @@ fn bar_heights_are_proportional_to_the_rms() {
     assert_eq!(bar_height(&chart.image, chart.bar_centres[0]), 0);
     assert_eq!(bar_height(&chart.image, chart.bar_centres[1]), 0);
     assert!(bar_height(&chart.image, chart.bar_centres[2]) > 200);
+    // Absurd sizes are clamped instead of overflowing.
+    let huge = PictureConfig {
+        bar_width: u32::MAX,
+        bar_chart_height: u32::MAX,
+        ..PictureConfig::default()
+    };
+    let chart = error_bars(&[0.1, 0.2], 0.15, &huge);
+    // 2 bars of 256 px with margins of 2 bars; 4096 px of plot with the same margins.
+    assert_eq!((chart.image.width(), chart.image.height()), (1664, 5120));
 }
 
 #[test]
