@@ -91,6 +91,10 @@ pub struct VirtualScanConfig {
     pub period_px: f64,
     /// Recapture views already captured in the session folder.
     pub overwrite: bool,
+    /// Average overlapping views in the merge (`sl_icp::MergeConfig::average_overlaps`).
+    /// Default `true`: on the default scan it halves the probing form error (0.47 → 0.22 mm
+    /// over all points) for ~1 s more.
+    pub average_overlaps: bool,
 }
 
 impl Default for VirtualScanConfig {
@@ -103,6 +107,7 @@ impl Default for VirtualScanConfig {
             seed: 0,
             period_px: 15.0,
             overwrite: false,
+            average_overlaps: true,
         }
     }
 }
@@ -708,7 +713,11 @@ pub fn scan_virtual(
         .turntable
         .ok_or_else(|| stage_err("merge", "the calibration has no turntable axis"))?;
     let initial = turntable_poses(&axis, &angles)?;
-    let merged = merge_views(&clouds, &initial, &MergeConfig::default())?.cloud;
+    let merge = MergeConfig {
+        average_overlaps: cfg.average_overlaps,
+        ..MergeConfig::default()
+    };
+    let merged = merge_views(&clouds, &initial, &merge)?.cloud;
     drop(clouds);
     let merged_path = out.join("merged.ply");
     write_ply(&merged_path, &merged, PlyFormat::default())?;

@@ -34,6 +34,10 @@ pub(crate) struct Args {
     /// Recapture views that an earlier run of the same scan already captured.
     #[arg(long)]
     pub(crate) overwrite: bool,
+    /// Do not average overlapping views in the merge (moving least squares along the
+    /// normals, on by default).
+    #[arg(long)]
+    pub(crate) no_average: bool,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
 }
@@ -50,6 +54,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         resolution_divisor: args.downscale,
         seed: args.seed,
         overwrite: args.overwrite,
+        average_overlaps: !args.no_average,
         ..VirtualScanConfig::default()
     };
     let bars = MultiProgress::new();
