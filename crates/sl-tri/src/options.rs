@@ -81,6 +81,9 @@ pub struct TriOptions {
     /// Points whose reprojection error (px, RMS over camera and projector, see
     /// [`crate::Triangulation::reprojection_px`]) exceeds this are dropped. With
     /// [`Method::RayPlane`] only the other coordinate, when decoded, can disagree.
+    /// `f64::INFINITY` disables the filter; [`Method::Linear`] and [`Method::Midpoint`] then
+    /// skip computing the error (it costs two distorted projections per pixel) and leave
+    /// [`crate::Triangulation::reprojection_px`] NaN.
     pub max_reprojection_px: f64,
     /// Mixed-pixel filter: a point whose depth differs from a valid 4-neighbour by more than
     /// this fraction of its depth is dropped. `f64::INFINITY` disables the filter.

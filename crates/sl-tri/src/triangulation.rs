@@ -141,7 +141,8 @@ pub struct Triangulation {
     /// Reprojection error of every triangulated pixel (px): the RMS over the camera and the
     /// projector of the image distance between the projected point and the observation
     /// (the pixel centre; the decoded coordinates, NaN ones left out). NaN where no point
-    /// was triangulated; set also for points later dropped by a filter.
+    /// was triangulated; set also for points later dropped by a filter. Linear and midpoint
+    /// compute it only when the reprojection filter is on (NaN otherwise).
     pub reprojection_px: Vec<f32>,
     /// What happened to every pixel.
     pub status: Vec<PointStatus>,
