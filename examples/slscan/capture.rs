@@ -34,19 +34,10 @@ pub(crate) struct HardwareArgs {
 }
 
 impl HardwareArgs {
-    fn any(&self) -> bool {
+    /// Whether any device is given.
+    pub(crate) fn any(&self) -> bool {
         self.camera.is_some() || self.projector_monitor.is_some() || self.turntable.is_some()
     }
-}
-
-/// `slscan scan` runs on the virtual rig only for now: hardware options get a clear answer.
-pub(crate) fn require_no_hardware(hw: &HardwareArgs, command: &str) -> anyhow::Result<()> {
-    if hw.any() {
-        anyhow::bail!(
-            "`slscan {command}` with hardware options is not wired yet: capture with `slscan capture --camera … --projector-monitor … --turntable …`, then `slscan reconstruct` each view and `slscan merge` them (docs/user-guide.md)"
-        );
-    }
-    Ok(())
 }
 
 /// Arguments of `slscan capture`.

@@ -19,6 +19,7 @@ mod patterns;
 mod reconstruct;
 mod register;
 mod scan;
+mod scan_hardware;
 mod simulate;
 
 use clap::{Parser, Subcommand};

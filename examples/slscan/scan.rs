@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use indicatif::{MultiProgress, ProgressBar};
 use structured_light::pipeline::{VirtualScanConfig, scan_virtual, write_summary_html};
 
-use crate::capture::{HardwareArgs, require_no_hardware};
+use crate::capture::HardwareArgs;
 use crate::common::{Report, ensure_out_dir, progress};
 
 /// Arguments of `slscan scan`.
@@ -40,11 +40,15 @@ pub(crate) struct Args {
     pub(crate) no_average: bool,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
+    #[command(flatten)]
+    pub(crate) rig: crate::scan_hardware::ScanHardwareArgs,
 }
 
 /// Runs `slscan scan`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
-    require_no_hardware(&args.hardware, "scan")?;
+    if crate::scan_hardware::wanted(args)? {
+        return crate::scan_hardware::run(args);
+    }
     let mut report = Report::new("scan");
     let out = ensure_out_dir(&args.out)?;
     anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
