@@ -71,12 +71,6 @@ fn run(c: &mut Criterion) -> Result<(), TriError> {
     group.bench_function("precompute (Triangulator::new)", |b| {
         b.iter(|| Triangulator::new(black_box(&calibration)))
     });
-    if let Some(projector) = calibration.projector {
-        group.bench_function(
-            "projector ray table (first linear/midpoint/optimal use)",
-            |b| b.iter(|| black_box(&projector).ray_table()),
-        );
-    }
     // The memory reference: a parallel copy of 160 MB (read 80 + write 80), about what a
     // ray–plane triangulation streams (inputs 27 MB, organised outputs 27 MB written and
     // read back, the cloud 30 MB, with the read-for-ownership of every written line).

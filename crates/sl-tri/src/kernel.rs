@@ -27,6 +27,7 @@ use crate::midpoint::midpoint_lanes;
 use crate::optimal::refine;
 use crate::ray_plane::{SurfaceLanes, ray_surface_depth, ray_surface_lanes};
 use crate::stereo::Stereo;
+use crate::undistort::{UndistortWarm, undistort_lanes};
 use crate::{Method, PointStatus, TriOptions};
 
 /// Pixels per lane group: 8 `f64`s are two AVX2 registers (or one AVX-512), enough
@@ -63,6 +64,8 @@ pub(crate) struct BlockOut<'o> {
 struct WarmStart {
     t1: [f64; LANES],
     t2: [f64; LANES],
+    /// The previous group's undistorted projector points (linear, midpoint).
+    proj: UndistortWarm,
 }
 
 impl WarmStart {
@@ -93,8 +96,6 @@ impl WarmStart {
 pub(crate) struct Pass<'a> {
     pub(crate) stereo: &'a Stereo,
     pub(crate) rays: &'a RayTable,
-    /// The projector's ray table, for the methods that use both coordinates.
-    pub(crate) proj_rays: Option<&'a RayTable>,
     pub(crate) map: &'a CorrespondenceMap,
     pub(crate) options: &'a TriOptions,
     pub(crate) width: usize,
@@ -308,19 +309,17 @@ impl Pass<'_> {
         error
     }
 
-    /// Undistorted projector points of the lanes to solve.
+    /// Undistorted projector points of the lanes to solve (NaN for the others).
     #[inline(always)]
-    fn projector_points(&self, g: &Gathered) -> ([f64; LANES], [f64; LANES]) {
-        let mut xp = [f64::NAN; LANES];
-        let mut yp = [f64::NAN; LANES];
-        if let Some(table) = self.proj_rays {
-            for l in 0..LANES {
-                if g.pre[l] == PointStatus::Valid {
-                    [xp[l], yp[l]] = self.stereo.proj_normalised(table, g.c[l], g.r[l]);
-                }
-            }
+    fn projector_points(&self, g: &Gathered, warm: &mut WarmStart) -> ([f64; LANES], [f64; LANES]) {
+        let mut c = [f64::NAN; LANES];
+        let mut r = [f64::NAN; LANES];
+        for l in 0..LANES {
+            let solve = g.pre[l] == PointStatus::Valid;
+            c[l] = if solve { g.c[l] } else { f64::NAN };
+            r[l] = if solve { g.r[l] } else { f64::NAN };
         }
-        (xp, yp)
+        undistort_lanes(&self.stereo.proj, &c, &r, &mut warm.proj)
     }
 
     /// Optimal: ray–plane start on the column, Gauss–Newton per lane.
@@ -378,7 +377,7 @@ impl Pass<'_> {
         let (p, error) = match self.options.method {
             Method::RayPlane { axis } => self.surface(&g, axis, warm),
             Method::Linear | Method::Midpoint => {
-                let (xp, yp) = self.projector_points(&g);
+                let (xp, yp) = self.projector_points(&g, warm);
                 let mut p = if self.options.method == Method::Linear {
                     linear_lanes(self.stereo, &g.rx, &g.ry, &xp, &yp)
                 } else {
@@ -436,6 +435,7 @@ impl pulp::WithSimd for BlockJob<'_, '_, '_> {
         let mut warm = WarmStart {
             t1: [f64::NAN; LANES],
             t2: [f64::NAN; LANES],
+            proj: UndistortWarm::default(),
         };
         let BlockOut {
             points,

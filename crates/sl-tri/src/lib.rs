@@ -5,7 +5,9 @@
 //! [`CorrespondenceMap`] into points in millimetres, as accurately as the data allows:
 //!
 //! - [`Triangulator`] is built once per calibration: the undistorted ray of every camera
-//!   pixel, the projector's ray table and the pose both ways are precomputed.
+//!   pixel and the pose both ways are precomputed (decoded projector points are undistorted
+//!   per pixel, by a vectorised Newton iteration, only by the methods that need both
+//!   coordinates).
 //! - Four methods ([`Method`]): **ray–plane** with one decoded coordinate, intersecting the
 //!   camera ray with the projector's *exact* column (or row) surface — curved by the
 //!   projector's distortion — by Newton's method on the distorted projection; **linear**
@@ -101,6 +103,7 @@ mod ray_plane;
 mod stereo;
 mod triangulation;
 mod triangulator;
+mod undistort;
 
 pub use depth::{DEPTH_PNG_SCALE_MM, depth_to_u16, write_depth_png16, write_depth_tiff};
 pub use error::TriError;

@@ -26,13 +26,16 @@ use crate::stereo::Stereo;
 /// quadratically, in 3 steps for projector lenses, so 12 leaves room for strong ones.
 const MAX_SURFACE_ITERATIONS: usize = 12;
 
-/// Newton steps of the branch-free solver from a warm start. From the extrapolated depths of
-/// the previous lane groups (error e0 ≲ 0.03 mm on smooth surfaces) the errors are about
-/// κ·e0² with κ = |u''/2u'| ≈ 1/depth: 0.03 mm → 2e-6 mm, so the second step is below
-/// [`SURFACE_STEP_TOLERANCE_MM`] and accepted. From the pinhole plane (error of a few mm:
-/// 4.5 mm → 0.05 mm → 5e-6 mm) a third step is needed, which the group then takes; lanes
-/// still not converged go to the general solver.
-const WARM_SURFACE_STEPS: usize = 2;
+/// Most Newton steps of the branch-free solver. The group stops as soon as every lane's last
+/// step is below [`SURFACE_STEP_TOLERANCE_MM`] (the same test as the general solver's, so a
+/// lane accepted after one step is as converged as one accepted after three). From the
+/// extrapolated depths of the previous lane groups the error e0 is ~0 on a surface whose
+/// depth is linear along the row (a wall facing the camera: one step) and ≲ 0.03 mm on
+/// smooth curved surfaces, where the errors go as κ·e0² with κ = |u''/2u'| ≈ 1/depth:
+/// 0.03 mm → 2e-6 mm (two steps). From the pinhole plane (error of a few mm: 4.5 mm →
+/// 0.05 mm → 5e-6 mm) three steps are needed; lanes still not converged go to the general
+/// solver.
+const MAX_LANE_SURFACE_STEPS: usize = 3;
 
 /// Depth step (mm) below which Newton has converged. The error left after a step `s` is
 /// about κ·s² with κ = |u''/2u'|: for the pinhole part of the projection u(t) is a Möbius
@@ -112,9 +115,11 @@ fn in_front_and_valid(s: &Stereo, a: [f64; 3], b: [f64; 3], t: f64) -> bool {
     t > 0.0 && q[2] > 0.0 && s.proj.in_valid_region(q[0] * iz, q[1] * iz)
 }
 
-/// The surface solve on [`LANES`] camera rays `(rx, ry, 1)` at once, branch-free: the
-/// pinhole-plane start and [`FIXED_SURFACE_STEPS`] Newton steps; a lane is `ok` if its last
-/// step is below the tolerance and the point is valid. NaN inputs give lanes that are not ok.
+/// The surface solve on [`LANES`] camera rays `(rx, ry, 1)` at once, branch-free inside a
+/// step: the start (`guess` where finite, else the pinhole plane), then Newton steps on all
+/// lanes until every lane has settled, at most [`MAX_LANE_SURFACE_STEPS`]; a lane is `ok` if
+/// its last step is below the tolerance and the point is valid. NaN inputs give lanes that
+/// are not ok (and do not hold the group's other lanes back).
 #[inline(always)]
 pub(crate) fn ray_surface_lanes(
     s: &Stereo,
@@ -130,30 +135,30 @@ pub(crate) fn ray_surface_lanes(
     // compiler vectorises (a lane-major loop around the Newton loop would be an outer loop,
     // which it does not vectorise, and a latency-bound chain of divisions per pixel).
     let mut a = [[0.0; 3]; LANES];
-    let mut t = [0.0; LANES];
+    let mut t = *guess;
     for l in 0..LANES {
         a[l] = crate::stereo::mul(&s.r_pc, [rx[l], ry[l], 1.0]);
-        let n = pinhole_plane(s, column, target[l]);
-        let plane = -(n[0] * b[0] + n[1] * b[1] + n[2] * b[2])
-            / (n[0] * a[l][0] + n[1] * a[l][1] + n[2] * a[l][2]);
-        t[l] = if guess[l].is_finite() {
-            guess[l]
-        } else {
-            plane
-        };
+    }
+    // The pinhole-plane start only where there is no guess (the start of a block, or after
+    // a hole): a warm row skips its division.
+    if t.iter().any(|t| !t.is_finite()) {
+        for l in 0..LANES {
+            let n = pinhole_plane(s, column, target[l]);
+            let plane = -(n[0] * b[0] + n[1] * b[1] + n[2] * b[2])
+                / (n[0] * a[l][0] + n[1] * a[l][1] + n[2] * a[l][2]);
+            t[l] = if t[l].is_finite() { t[l] } else { plane };
+        }
     }
     let mut step = [f64::INFINITY; LANES];
     let mut other = [f64::NAN; LANES];
-    for _ in 0..WARM_SURFACE_STEPS {
+    for _ in 0..MAX_LANE_SURFACE_STEPS {
         for l in 0..LANES {
             [t[l], step[l], other[l]] = newton_step(s, column, a[l], b, t[l], target[l]);
         }
-    }
-    // Lanes that started cold (pinhole plane) need one more step; the group takes it only
-    // if one of its lanes has not converged.
-    if step.iter().any(|s| !(s.abs() < SURFACE_STEP_TOLERANCE_MM)) {
-        for l in 0..LANES {
-            [t[l], step[l], other[l]] = newton_step(s, column, a[l], b, t[l], target[l]);
+        // Settled: below the tolerance, or NaN (a lane without input, or one that failed and
+        // goes to the general solver: another step would not help it).
+        if step.iter().all(|s| !(s.abs() >= SURFACE_STEP_TOLERANCE_MM)) {
+            break;
         }
     }
     let mut ok = [false; LANES];

@@ -23,10 +23,10 @@ const MIN_PIXELS_PER_TASK: usize = MIN_BLOCKS_PER_TASK * BLOCK;
 /// Turns correspondence maps into points for one calibration.
 ///
 /// Building it computes what every map needs: the undistorted ray of every camera pixel
-/// ([`RayTable`], structure of arrays), the pose both ways and the lens models. The
-/// projector's ray table, which only the methods using both decoded coordinates need, is
-/// built on their first use. [`Triangulator::triangulate`] then runs in parallel (rayon)
-/// without allocating per pixel.
+/// ([`RayTable`], structure of arrays), the pose both ways and the lens models. The methods
+/// that use both decoded coordinates undistort the projector points per pixel (vectorised
+/// Newton steps from the neighbouring pixels' answers), so no projector table is built.
+/// [`Triangulator::triangulate`] then runs in parallel (rayon) without allocating per pixel.
 #[derive(Clone, Debug)]
 pub struct Triangulator {
     camera: CameraModel,
@@ -185,11 +185,9 @@ impl Triangulator {
             });
         }
 
-        let proj_rays = options.method.needs_both().then(|| self.stereo.proj_rays());
         let pass = Pass {
             stereo: &self.stereo,
             rays: &self.camera_rays,
-            proj_rays,
             map,
             options,
             width,
