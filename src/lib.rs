@@ -12,6 +12,7 @@
 //! | [`tri`] | `sl-tri` | triangulation into metric clouds |
 //! | [`icp`] | `sl-icp` | ICP and turntable merging |
 //! | [`rig`] | `sl-rig` | device traits and the virtual rig |
+//! | [`metrology`] | `sl-metrology` | VDI/VDE 2634 part 2 figures against a truth description |
 //!
 //! [`pipeline`] holds the end-to-end scan on the virtual rig (calibrate, capture, decode,
 //! triangulate, merge, measure) that `slscan scan` and `tests/scan_pipeline.rs` run.
@@ -21,11 +22,13 @@
 #![deny(missing_docs)]
 
 pub mod pipeline;
+pub mod session_scan;
 
 pub use sl_calib as calib;
 pub use sl_camera as camera;
 pub use sl_cloud as cloud;
 pub use sl_codec as codec;
 pub use sl_icp as icp;
+pub use sl_metrology as metrology;
 pub use sl_rig as rig;
 pub use sl_tri as tri;

@@ -1,0 +1,251 @@
+//! `structured_light::session_scan` on a session the virtual rig captured through the device
+//! traits (`VirtualRig::devices` + `CaptureSession`), as `slscan scan` captures one on the real
+//! rig. The rig's turntable has a gear scale of 0.5 platter degrees per motor degree, so the
+//! motor angles must come from the calibrated scale for the platter to turn a full turn, and
+//! the merge must map them back through it. The merged cloud is compared with the scene's own
+//! geometry (two spheres of radius 25 mm), never with an earlier output.
+
+use std::path::Path;
+use std::time::Duration;
+
+use nalgebra::Point3;
+use sl_codec::{BitDepth, ProjectorSize};
+use sl_rig::{
+    CaptureSession, Mount, Scene, SessionConfig, SessionDevices, SessionPlan, Shape, VirtualRig,
+};
+use structured_light::pipeline::{PipelineError, scaled_rig_config, scan_patterns};
+use structured_light::session_scan::{
+    SessionScanConfig, full_turn_motor_angles, load_scan_calibration, reconstruct_session,
+    write_session_scan,
+};
+
+/// Views of the test session: 45° apart, enough overlap for the pairwise ICP.
+const VIEWS: usize = 8;
+/// Platter degrees per motor degree of the test rig (a 2:1 gear).
+const GEAR_SCALE: f64 = 0.5;
+
+/// The true spheres in the camera frame of view 0 (motor angle `motor_deg`).
+fn true_spheres(rig: &VirtualRig, motor_deg: f64) -> Vec<(Point3<f64>, f64)> {
+    let t_cam_table = rig.config().t_cam_table_at(motor_deg);
+    rig.scene()
+        .objects
+        .iter()
+        .filter_map(|o| match o.shape {
+            Shape::Sphere { radius } if matches!(o.mount, Mount::Turntable) => Some((
+                Point3::from((t_cam_table * o.pose).translation.vector),
+                radius,
+            )),
+            _ => None,
+        })
+        .collect()
+}
+
+#[allow(clippy::unwrap_used)] // a test helper: its failure is the test's
+fn first_png(dir: &Path) -> std::path::PathBuf {
+    let mut pngs: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .collect();
+    pngs.sort();
+    pngs.swap_remove(0)
+}
+
+#[test]
+fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut config = scaled_rig_config(2);
+    config.angle_scale = GEAR_SCALE;
+    config.angle_offset_deg = 7.0;
+    let rig = VirtualRig::new(config, Scene::dumbbell()).unwrap();
+
+    // The calibration file a real scan is given: here the rig's exact calibration (the
+    // reconstruction is under test, not the calibration), with its turntable axis, offset and
+    // scale.
+    let calib_path = tmp.path().join("calibration.json");
+    let truth = rig.config().calibration();
+    assert_eq!(truth.turntable.map(|a| a.angle_scale), Some(GEAR_SCALE));
+    truth.save(&calib_path).unwrap();
+    let calibration = load_scan_calibration(&calib_path).unwrap();
+
+    // Motor angles for a full platter turn: 90° motor steps at a 0.5 scale are 45° platter
+    // steps.
+    let angles = full_turn_motor_angles(calibration.turntable.as_ref(), VIEWS).unwrap();
+    assert_eq!(angles.len(), VIEWS);
+    for (k, a) in angles.iter().enumerate() {
+        assert!((a - 90.0 * k as f64).abs() < 1e-9, "{angles:?}");
+    }
+
+    let p = rig.config().projector.size;
+    let plan = SessionPlan {
+        angles_deg: angles.clone(),
+        manifest: scan_patterns(ProjectorSize::new(p.width, p.height), 15.0)
+            .manifest(BitDepth::Eight),
+        devices: SessionDevices {
+            camera: "virtual".to_owned(),
+            projector: "virtual".to_owned(),
+            turntable: "virtual, 2:1 gear".to_owned(),
+        },
+        calibration: Some(calib_path.clone()),
+    };
+    let session_dir = tmp.path().join("session");
+    let session = CaptureSession::open(
+        &session_dir,
+        plan,
+        SessionConfig {
+            display_latency: Duration::ZERO,
+            flush_frames: 0,
+            overwrite: false,
+        },
+    )
+    .unwrap();
+    let (mut camera, mut projector, mut table) = rig.devices();
+    session
+        .run(&mut camera, &mut projector, &mut table, |_| {})
+        .unwrap();
+
+    // The calibrated poses alone: with the exact calibration they are exact, and ICP on a
+    // dumbbell seen every 45° has a free rotation about the bar (it moves views by degrees
+    // here), so the refinement is left to the dense scans it is made for.
+    let config = SessionScanConfig {
+        icp_refinement: false,
+        ..SessionScanConfig::default()
+    };
+    let mut stages = Vec::new();
+    let scan = reconstruct_session(&session_dir, &calibration, &config, |p| {
+        if stages.last() != Some(&p.stage.to_owned()) {
+            stages.push(p.stage.to_owned());
+        }
+    })
+    .unwrap();
+    assert_eq!(stages, ["reconstruct", "merge"]);
+    assert_eq!(scan.motor_angles_deg, angles);
+    for (k, a) in scan.platter_angles_deg.iter().enumerate() {
+        assert!((a - (7.0 + 45.0 * k as f64)).abs() < 1e-9, "{k}: {a}");
+    }
+    assert_eq!(scan.view_points.len(), VIEWS);
+    assert!(scan.view_points.iter().all(|&n| n > 1000), "{scan:?}");
+
+    // Every merged point against the nearest true sphere. The views were captured through
+    // the motor, 2:1 geared: had the merge ignored the scale, the views 45° apart would be
+    // placed 90° apart and the spheres 60 mm off the axis would smear over tens of mm.
+    let spheres = true_spheres(&rig, angles[0]);
+    assert_eq!(spheres.len(), 2);
+    let (mut sq, mut n, mut outliers) = (0.0, 0usize, 0usize);
+    let mut per_sphere = [0usize; 2];
+    for q in scan.merged.positions() {
+        let (i, d) = spheres
+            .iter()
+            .enumerate()
+            .map(|(i, (c, r))| (i, (q - c).norm() - r))
+            .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .unwrap();
+        // 2 mm: 20 times the accuracy asserted below, only mis-decoded or mis-merged points.
+        if d.abs() > 2.0 {
+            outliers += 1;
+        } else {
+            sq += d * d;
+            n += 1;
+            per_sphere[i] += 1;
+        }
+    }
+    let rms = (sq / n as f64).sqrt();
+    // The true calibration at half resolution: a single view measures 0.04 mm RMS to the
+    // true spheres here; 0.1 mm leaves room for the merge's averaging and still fails on a
+    // view misplaced by a tenth of a degree (60 mm off the axis × 0.1° = 0.1 mm).
+    assert!(rms < 0.1, "RMS to the true spheres {rms} mm");
+    assert!(outliers * 100 < scan.merged.len(), "{outliers} outliers");
+    assert!(per_sphere.iter().all(|&c| c > 5000), "{per_sphere:?}");
+
+    // The files.
+    let out = tmp.path().join("out");
+    let files = write_session_scan(&out, &scan).unwrap();
+    let back = sl_cloud::read_ply(&out.join(&files.merged)).unwrap();
+    assert_eq!(back.len(), scan.merged.len());
+    assert_eq!(files.previews.len(), 4);
+    for f in &files.previews {
+        let bytes = std::fs::read(out.join(f)).unwrap();
+        assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "{f}");
+    }
+
+    // A corrupt frame: the error names the view and its folder.
+    let view3 = session_dir.join("view_003");
+    std::fs::write(first_png(&view3), b"not a png").unwrap();
+    let err = reconstruct_session(&session_dir, &calibration, &config, |_| {}).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains("view 3") && text.contains(&view3.display().to_string()),
+        "{text}"
+    );
+
+    // A view never captured (an interrupted session): named, with what to do.
+    std::fs::remove_dir_all(&view3).unwrap();
+    let err = reconstruct_session(&session_dir, &calibration, &config, |_| {}).unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("view 3") && text.contains("resume"), "{text}");
+}
+
+#[test]
+fn a_calibration_without_turntable_axis_is_refused_by_name() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut calibration = scaled_rig_config(4).calibration();
+    calibration.turntable = None;
+    let path = tmp.path().join("no_axis.json");
+    calibration.save(&path).unwrap();
+    let err = load_scan_calibration(&path).unwrap_err();
+    assert!(matches!(err, PipelineError::Stage { .. }), "{err:?}");
+    let text = err.to_string();
+    assert!(
+        text.contains(&path.display().to_string()) && text.contains("slscan calibrate turntable"),
+        "{text}"
+    );
+
+    // reconstruct_session refuses it too, naming the calibration the session recorded,
+    // before reading any view (this session has none).
+    let session = tmp.path().join("session");
+    let p = scaled_rig_config(4).projector.size;
+    CaptureSession::open(
+        &session,
+        SessionPlan {
+            angles_deg: vec![0.0, 180.0],
+            manifest: scan_patterns(ProjectorSize::new(p.width, p.height), 15.0)
+                .manifest(BitDepth::Eight),
+            devices: SessionDevices {
+                camera: "none".to_owned(),
+                projector: "none".to_owned(),
+                turntable: "none".to_owned(),
+            },
+            calibration: Some(path.clone()),
+        },
+        SessionConfig::default(),
+    )
+    .unwrap();
+    let err = reconstruct_session(
+        &session,
+        &calibration,
+        &SessionScanConfig::default(),
+        |_| {},
+    )
+    .unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains("no turntable axis") && text.contains(&path.display().to_string()),
+        "{text}"
+    );
+
+    // A missing calibration file is named.
+    let missing = tmp.path().join("missing.json");
+    let err = load_scan_calibration(&missing).unwrap_err();
+    assert!(err.to_string().contains("missing.json"), "{err}");
+}
+
+#[test]
+fn motor_angles_refuse_a_zero_scale() {
+    let mut axis = scaled_rig_config(4).turntable_axis();
+    axis.angle_scale = 0.0;
+    assert!(full_turn_motor_angles(Some(&axis), 4).is_err());
+    assert_eq!(
+        full_turn_motor_angles(None, 4).unwrap(),
+        vec![0.0, 90.0, 180.0, 270.0]
+    );
+}
