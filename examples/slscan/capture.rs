@@ -7,12 +7,14 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
+use sl_camera::Calibration;
 use sl_codec::{BitDepth, MANIFEST_FILE, Manifest, ProjectorSize};
 use sl_rig::{
     Camera, CaptureSession, LatencyConfig, Projector, Scene, SessionConfig, SessionDevices,
-    SessionPlan, Turntable, VirtualRig, measure_latency, turntable_angles,
+    SessionPlan, Turntable, VirtualRig, measure_latency,
 };
 use structured_light::pipeline::{scaled_rig_config, scan_patterns};
+use structured_light::session_scan::full_turn_motor_angles;
 
 use crate::common::{Report, ensure_out_dir, progress};
 
@@ -75,6 +77,21 @@ pub(crate) struct Args {
     pub(crate) hardware: HardwareArgs,
 }
 
+/// Motor angles of the session: a full turn of the *platter* in `--views` equal steps, through
+/// the calibrated angle scale of `--calib` when it holds a turntable axis (a geared table turns
+/// the platter `angle_scale` degrees per motor degree).
+fn motor_angles(args: &Args) -> anyhow::Result<Vec<f64>> {
+    let axis = match &args.calib {
+        Some(path) => {
+            Calibration::load(path)
+                .with_context(|| format!("cannot read the calibration {}", path.display()))?
+                .turntable
+        }
+        None => None,
+    };
+    Ok(full_turn_motor_angles(axis.as_ref(), args.views)?)
+}
+
 fn manifest(args: &Args, projector: (u32, u32)) -> anyhow::Result<Manifest> {
     match &args.patterns {
         Some(dir) => Ok(Manifest::load(&dir.join(MANIFEST_FILE))?),
@@ -121,7 +138,7 @@ where
         report.figure("latency", serde_json::to_value(&latency)?);
     }
     let plan = SessionPlan {
-        angles_deg: turntable_angles(args.views),
+        angles_deg: motor_angles(args)?,
         manifest: manifest(args, projector.image_size())?,
         devices,
         calibration: args.calib.clone(),
@@ -196,8 +213,8 @@ fn missing(option: &str, feature: &str) -> anyhow::Error {
     )
 }
 
-/// Real devices: all three must be given.
-fn run_hardware(args: &Args) -> anyhow::Result<()> {
+/// Real devices: all three must be given. Used by `slscan scan` on hardware too.
+pub(crate) fn run_hardware(args: &Args) -> anyhow::Result<()> {
     let hw = &args.hardware;
     let (Some(camera), Some(monitor), Some(port)) =
         (&hw.camera, hw.projector_monitor, &hw.turntable)
@@ -206,6 +223,12 @@ fn run_hardware(args: &Args) -> anyhow::Result<()> {
             "a capture on hardware needs --camera, --projector-monitor and --turntable together"
         );
     };
+    // Checked before anything is opened or written, and whatever features are built.
+    anyhow::ensure!(
+        port.exists(),
+        "--turntable {}: no such serial port (`slscan devices` lists the ports; check the cable and the udev rule of docs/hardware-turntable.md)",
+        port.display()
+    );
     if !cfg!(feature = "v4l") {
         return Err(missing("--camera", "v4l"));
     }

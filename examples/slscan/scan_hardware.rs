@@ -1,7 +1,26 @@
-//! `slscan scan` on the real rig: `--camera … --projector-monitor … --turntable … --calib
-//! FILE`.
+//! `slscan scan` on the real rig: `--camera /dev/videoN --projector-monitor N --turntable
+//! /dev/ttyUSB0 --calib calibration.json --out DIR`. Captures the turntable session on the
+//! devices with the code of `slscan capture` (into `DIR/session/`, resumed when interrupted),
+//! then reconstructs every view and merges them with the turntable poses of the calibrated axis
+//! (`structured_light::session_scan`), and writes `merged.ply`, previews and `report.json`.
+//! A real object has no known truth here: check the result with `slscan report` against a
+//! known sphere or plane.
 
-use std::path::PathBuf;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use indicatif::{MultiProgress, ProgressBar};
+use sl_icp::MergeConfig;
+use structured_light::session_scan::{
+    SessionScanConfig, load_scan_calibration, reconstruct_session, write_session_scan,
+};
+
+use crate::capture;
+use crate::common::{Report, ensure_out_dir, progress};
+use crate::scan::Args;
+
+/// Session folder inside the output folder.
+const SESSION_DIR: &str = "session";
 
 /// The options of `slscan scan` that only a scan on hardware uses.
 #[derive(Debug, Clone, clap::Args)]
@@ -20,24 +39,241 @@ pub(crate) struct ScanHardwareArgs {
     /// Measure the display-to-camera latency first (hardware only).
     #[arg(long)]
     pub(crate) measure_latency: bool,
+    /// Place the views with the calibrated turntable poses alone, without refining them by
+    /// ICP (hardware only): for a good calibration and views too far apart or too symmetric
+    /// for ICP.
+    #[arg(long)]
+    pub(crate) no_refine: bool,
 }
 
 /// Whether `slscan scan` runs on hardware; an error when options of a hardware scan are given
 /// without the devices.
-pub(crate) fn wanted(args: &crate::scan::Args) -> anyhow::Result<bool> {
+pub(crate) fn wanted(args: &Args) -> anyhow::Result<bool> {
     if args.hardware.any() {
         return Ok(true);
     }
     let r = &args.rig;
-    if r.calib.is_some() || r.patterns.is_some() || r.latency_ms.is_some() || r.measure_latency {
+    if r.calib.is_some()
+        || r.patterns.is_some()
+        || r.latency_ms.is_some()
+        || r.measure_latency
+        || r.no_refine
+    {
         anyhow::bail!(
-            "--calib, --patterns, --latency-ms and --measure-latency are for a scan on hardware (with --camera, --projector-monitor and --turntable); the virtual scan calibrates itself"
+            "--calib, --patterns, --latency-ms, --measure-latency and --no-refine are for a scan on hardware (with --camera, --projector-monitor and --turntable); the virtual scan calibrates itself"
         );
     }
     Ok(false)
 }
 
 /// Runs `slscan scan` on the devices.
-pub(crate) fn run(_args: &crate::scan::Args) -> anyhow::Result<()> {
-    anyhow::bail!("`slscan scan` on hardware: not wired yet")
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    let Some(calib_path) = &args.rig.calib else {
+        anyhow::bail!(
+            "a scan on hardware needs --calib FILE: a calibration.json with camera, projector and turntable axis, as `slscan calibrate all` (or `slscan calibrate projector` then `slscan calibrate turntable`) writes it"
+        );
+    };
+    anyhow::ensure!(
+        args.downscale == 1,
+        "--downscale is for the virtual rig; a camera's resolution is its own"
+    );
+    anyhow::ensure!(
+        args.views >= 2,
+        "--views {}: a turntable scan needs at least 2 views",
+        args.views
+    );
+    // Everything the reconstruction needs is checked before a device moves.
+    let calibration = load_scan_calibration(calib_path)?;
+
+    let mut report = Report::new("scan");
+    let session_dir = args.out.join(SESSION_DIR);
+    let capture_args = capture::Args {
+        out: session_dir.clone(),
+        views: args.views,
+        patterns: args.rig.patterns.clone(),
+        scene: String::new(),
+        downscale: 1,
+        latency_ms: args.rig.latency_ms,
+        measure_latency: args.rig.measure_latency,
+        calib: Some(calib_path.clone()),
+        overwrite: args.overwrite,
+        hardware: args.hardware.clone(),
+    };
+    report.stage("capture", || capture::run_hardware(&capture_args))?;
+    reconstruct(args, calib_path, &calibration, &session_dir, report)
+}
+
+/// Reconstructs and merges the captured session, writes the files and the report.
+fn reconstruct(
+    args: &Args,
+    calib_path: &Path,
+    calibration: &sl_camera::Calibration,
+    session_dir: &Path,
+    mut report: Report,
+) -> anyhow::Result<()> {
+    let out = ensure_out_dir(&args.out)?;
+    let config = SessionScanConfig {
+        merge: MergeConfig {
+            average_overlaps: !args.no_average,
+            ..MergeConfig::default()
+        },
+        icp_refinement: !args.rig.no_refine,
+    };
+    let bars = MultiProgress::new();
+    let mut by_stage: HashMap<String, ProgressBar> = HashMap::new();
+    let scan = reconstruct_session(session_dir, calibration, &config, |p| {
+        let bar = by_stage
+            .entry(p.stage.to_owned())
+            .or_insert_with(|| bars.add(progress(p.total as u64, p.stage)));
+        bar.set_position(p.done as u64);
+        if p.done == p.total {
+            bar.finish();
+        }
+    })?;
+    for bar in by_stage.values() {
+        bar.finish_and_clear();
+    }
+    let files = report.stage("write", || write_session_scan(&out, &scan))?;
+    for s in &scan.stages {
+        report.stages.push(crate::common::Stage {
+            name: s.name.clone(),
+            ms: s.ms,
+        });
+    }
+    report.figure("rig", "hardware");
+    report.figure("calibration", calib_path.display().to_string());
+    report.figure("views", scan.view_points.len());
+    report.figure("motor_angles_deg", scan.motor_angles_deg.clone());
+    report.figure("platter_angles_deg", scan.platter_angles_deg.clone());
+    report.figure("view_points", scan.view_points.clone());
+    report.figure("merged_points", scan.merged.len());
+    report.figure("icp_refinement", config.icp_refinement);
+    report.figure(
+        "accuracy",
+        "no truth for a real object: run `slscan report merged.ply --truth …` on a scan of a known sphere or plane",
+    );
+    report.figure("files", serde_json::to_value(&files)?);
+    report.figure("session", SESSION_DIR);
+    report.write(&out)?;
+    println!(
+        "{}: {} points merged from {} views (calibration {})",
+        out.join(&files.merged).display(),
+        scan.merged.len(),
+        scan.view_points.len(),
+        calib_path.display()
+    );
+    for s in &report.stages {
+        println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use clap::Parser;
+    use structured_light::pipeline::scaled_rig_config;
+
+    use crate::{Cli, Command};
+
+    fn scan(args: &[&str]) -> anyhow::Result<()> {
+        let mut argv = vec!["slscan", "scan"];
+        argv.extend_from_slice(args);
+        match Cli::try_parse_from(argv)?.command {
+            Command::Scan(a) => crate::scan::run(&a),
+            other => anyhow::bail!("parsed as {other:?}"),
+        }
+    }
+
+    fn text(err: &anyhow::Error) -> String {
+        format!("{err:#}")
+    }
+
+    fn files_in(dir: &Path) -> Vec<(std::path::PathBuf, Vec<u8>)> {
+        let mut all = Vec::new();
+        let mut stack = vec![dir.to_path_buf()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
+                let p = e.path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else {
+                    let bytes = std::fs::read(&p).unwrap_or_default();
+                    all.push((p, bytes));
+                }
+            }
+        }
+        all.sort();
+        all
+    }
+
+    #[test]
+    fn a_missing_port_is_named_and_an_earlier_scan_is_kept() {
+        let tmp = tempfile::tempdir().unwrap();
+        let calib = tmp.path().join("calibration.json");
+        scaled_rig_config(4).calibration().save(&calib).unwrap();
+        // An earlier, interrupted scan in the output folder.
+        let out = tmp.path().join("scan");
+        std::fs::create_dir_all(out.join("session/view_000")).unwrap();
+        std::fs::write(out.join("session/session.json"), "{\"earlier\": true}").unwrap();
+        std::fs::write(out.join("session/view_000/frame.png"), b"earlier frame").unwrap();
+        let before = files_in(&out);
+        let err = scan(&[
+            "--out",
+            out.to_str().unwrap(),
+            "--camera",
+            "/dev/video0",
+            "--projector-monitor",
+            "0",
+            "--turntable",
+            "/dev/does-not-exist",
+            "--calib",
+            calib.to_str().unwrap(),
+        ])
+        .unwrap_err();
+        assert!(text(&err).contains("/dev/does-not-exist"), "{err:#}");
+        assert_eq!(files_in(&out), before, "the earlier scan was touched");
+    }
+
+    #[test]
+    fn a_calibration_without_axis_is_named_with_the_command_that_adds_it() {
+        let tmp = tempfile::tempdir().unwrap();
+        let calib = tmp.path().join("no_axis.json");
+        let mut c = scaled_rig_config(4).calibration();
+        c.turntable = None;
+        c.save(&calib).unwrap();
+        let out = tmp.path().join("scan");
+        let err = scan(&[
+            "--out",
+            out.to_str().unwrap(),
+            "--camera",
+            "/dev/video0",
+            "--projector-monitor",
+            "0",
+            "--turntable",
+            "/dev/ttyUSB0",
+            "--calib",
+            calib.to_str().unwrap(),
+        ])
+        .unwrap_err();
+        let t = text(&err);
+        assert!(
+            t.contains("no_axis.json") && t.contains("slscan calibrate turntable"),
+            "{t}"
+        );
+        assert!(!out.exists(), "nothing is written before the checks");
+    }
+
+    #[test]
+    fn hardware_options_without_devices_or_calibration_are_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("scan");
+        let o = out.to_str().unwrap();
+        let err = scan(&["--out", o, "--calib", "c.json"]).unwrap_err();
+        assert!(text(&err).contains("--calib"), "{err:#}");
+        let err = scan(&["--out", o, "--turntable", "/dev/ttyUSB0"]).unwrap_err();
+        assert!(text(&err).contains("--calib FILE"), "{err:#}");
+        assert!(!out.exists());
+    }
 }
