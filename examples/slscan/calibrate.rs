@@ -473,6 +473,28 @@ fn detect_all(
     Ok((found, skipped, ImageSize::new(w, h)))
 }
 
+/// Images skipped for want of a board, for an error message: `: a.png, b.png, c.png, …`
+/// (the first [`SKIPPED_NAMED`]), or nothing.
+fn skipped_names(skipped: &[serde_json::Value]) -> String {
+    let names: Vec<&str> = skipped
+        .iter()
+        .filter_map(|s| s["image"].as_str())
+        .take(SKIPPED_NAMED)
+        .collect();
+    if names.is_empty() {
+        return String::new();
+    }
+    let more = if skipped.len() > SKIPPED_NAMED {
+        ", …"
+    } else {
+        ""
+    };
+    format!(": {}{more}", names.join(", "))
+}
+
+/// Skipped images named in an error message: enough to find the folder, short enough to read.
+const SKIPPED_NAMED: usize = 3;
+
 /// Writes `calibration.json` (and `.yml`) atomically.
 fn write_calibration(calib: &Calibration, common: &BoardArgs) -> anyhow::Result<()> {
     let out = &common.out;
@@ -539,9 +561,10 @@ fn camera(
         .stage("calibrate", || calibrate_camera(&views, image_size, zhang))
         .with_context(|| {
             format!(
-                "camera calibration from {} views with a board ({} skipped)",
+                "camera calibration from {} views with a board ({} skipped{})",
                 views.len(),
-                skipped.len()
+                skipped.len(),
+                skipped_names(&skipped)
             )
         })?;
     let magnification = report.stage("pictures", || {
@@ -690,9 +713,10 @@ fn turntable(
         })
         .with_context(|| {
             format!(
-                "turntable axis from {} views with a board ({} skipped)",
+                "turntable axis from {} views with a board ({} skipped{})",
                 tviews.len(),
-                skipped.len()
+                skipped.len(),
+                skipped_names(&skipped)
             )
         })?;
     let magnification = report.stage("pictures", || {
@@ -884,4 +908,244 @@ fn procam(
     report.figure("residual_plot", magnification);
     report.write(&out)?;
     Ok((calib, cal))
+}
+
+#[cfg(test)]
+mod tests {
+    //! `slscan calibrate` itself, on a session the virtual rig renders at a quarter of its
+    //! resolution (320x180 camera, 480x270 projector): the files it promises, and figures
+    //! compared with the rig's own parameters (the truth), never with an earlier output.
+
+    use std::path::Path;
+
+    use clap::Parser;
+    use sl_calib::CalibError;
+    use sl_calib::sl_camera::Calibration;
+    use sl_calib::sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
+    use sl_rig::{CalibrationSession, Scene, VirtualRig, simulate_calibration};
+    use structured_light::pipeline::scaled_rig_config;
+
+    use crate::{Cli, Command};
+
+    /// Quarter resolution: a 20 mm square still spans ~15 camera pixels at 450 mm.
+    const DOWNSCALE: u32 = 4;
+
+    fn slscan(args: &[&str]) -> anyhow::Result<()> {
+        let mut argv = vec!["slscan"];
+        argv.extend_from_slice(args);
+        match Cli::try_parse_from(argv)?.command {
+            Command::Calibrate(a) => crate::calibrate::run(&a),
+            other => anyhow::bail!("parsed as {other:?}"),
+        }
+    }
+
+    /// Renders a calibration session (`board/` poses with both projector axes coded,
+    /// `turntable/` views) and its `rig.json`, as `slscan simulate --scene board` does.
+    fn simulate(dir: &Path, poses: usize) -> VirtualRig {
+        let mut config = scaled_rig_config(DOWNSCALE);
+        config.render.supersampling = 4;
+        config.angle_scale = 1.02;
+        config.angle_offset_deg = 3.0;
+        let rig = VirtualRig::new(config, Scene::plane()).unwrap();
+        let p = rig.config().projector.size;
+        let p = ProjectorSize::new(p.width, p.height);
+        let code = |axis, extent: u32| {
+            Pattern::Hybrid(HybridSpec::complementary(
+                axis,
+                p,
+                4,
+                f64::from(extent) / 30.0,
+            ))
+        };
+        let manifest = PatternSequence::new(p)
+            .with(code(Axis::Column, p.width))
+            .with(code(Axis::Row, p.height))
+            .manifest(BitDepth::Eight);
+        let mut session = CalibrationSession::default();
+        session.poses.count = poses;
+        simulate_calibration(&rig, &session, &manifest, dir, |_| {}).unwrap();
+        std::fs::write(
+            dir.join("rig.json"),
+            serde_json::to_string(rig.config()).unwrap(),
+        )
+        .unwrap();
+        rig
+    }
+
+    fn is_png(path: &Path) -> bool {
+        sl_calib::load_grey(path).is_ok()
+    }
+
+    /// The whole of `calibrate all` on 10 board poses and 7 table views (~9 s in debug on the
+    /// loaded 2-core machine).
+    #[test]
+    fn calibrate_all_writes_a_calibration_near_the_truth_and_its_pictures() {
+        let tmp = tempfile::tempdir().unwrap();
+        let session = tmp.path().join("session");
+        let rig = simulate(&session, 10);
+        let out = tmp.path().join("calib");
+        slscan(&[
+            "calibrate",
+            "all",
+            session.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap();
+
+        let c = Calibration::load(out.join("calibration.json")).unwrap();
+        let truth = rig.config();
+        // Quarter resolution quadruples the corner noise in mm; the sl-calib targets at full
+        // resolution are 0.1 % on fx and 0.05° on the axis.
+        let fx = c.camera.intrinsics.fx;
+        assert!(
+            (fx / truth.camera.intrinsics.fx - 1.0).abs() < 0.005,
+            "{fx}"
+        );
+        let proj = c.projector.unwrap();
+        let pfx = proj.intrinsics.fx;
+        assert!(
+            (pfx / truth.projector.intrinsics.fx - 1.0).abs() < 0.01,
+            "{pfx}"
+        );
+        let t = c.t_cam_proj.unwrap().translation.vector - truth.t_cam_proj.translation.vector;
+        assert!(t.norm() < 2.0, "baseline off by {t:?} mm");
+        let axis = c.turntable.unwrap();
+        let d_true = truth.turntable_axis().direction;
+        let angle = axis
+            .direction
+            .dot(&d_true)
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees();
+        assert!(angle < 0.2, "axis direction {angle} deg off");
+        assert!((axis.angle_scale - 1.02).abs() < 0.005, "{axis:?}");
+
+        // report.json of the turntable step, and of the projector step under projector/.
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        let rms = report["figures"]["rms_px"].as_f64().unwrap();
+        assert!(rms > 0.0 && rms < 0.5, "{report}");
+        assert_eq!(report["figures"]["views_used"].as_u64(), Some(7));
+        let procam: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("projector/report.json")).unwrap(),
+        )
+        .unwrap();
+        for key in ["rms_camera_px", "rms_projector_px", "rms_stereo_px"] {
+            let v = procam["figures"][key].as_f64().unwrap();
+            assert!(v > 0.0 && v < 0.5, "{key} = {v}");
+        }
+
+        // The pictures exist and decode.
+        let mut pngs = 0;
+        for dir in [out.clone(), out.join("projector")] {
+            for e in walk(&dir) {
+                if e.extension().is_some_and(|x| x == "png") {
+                    assert!(is_png(&e), "{} does not decode", e.display());
+                    pngs += 1;
+                }
+            }
+        }
+        // Corners on each of the 10 poses and 7 table views, plus error bars and residuals.
+        assert!(pngs >= 17 + 4, "{pngs} pictures");
+    }
+
+    fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
+        let mut all = Vec::new();
+        let mut stack = vec![dir.to_path_buf()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
+                let p = e.path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else {
+                    all.push(p);
+                }
+            }
+        }
+        all
+    }
+
+    /// The light part, on in debug: `calibrate camera` on the white images of a few rendered
+    /// poses, against the rig's focal length.
+    #[test]
+    fn calibrate_camera_on_rendered_boards_finds_the_focal_length() {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut config = scaled_rig_config(DOWNSCALE);
+        config.render.supersampling = 4;
+        let rig = VirtualRig::new(config, Scene::plane()).unwrap();
+        let board = sl_rig::Checkerboard::default();
+        let poses = sl_rig::random_board_poses(
+            rig.config(),
+            &board,
+            &sl_rig::BoardPoseConfig {
+                count: 6,
+                ..sl_rig::BoardPoseConfig::default()
+            },
+        )
+        .unwrap();
+        let images = tmp.path().join("images");
+        std::fs::create_dir_all(&images).unwrap();
+        for (k, pose) in poses.iter().enumerate() {
+            let cap = sl_rig::capture_board(&rig, &board, pose, None, k as u64).unwrap();
+            cap.white
+                .save_png(&images.join(format!("board_{k}.png")))
+                .unwrap();
+        }
+        let out = tmp.path().join("out");
+        slscan(&[
+            "calibrate",
+            "camera",
+            images.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap();
+        let c = Calibration::load(out.join("calibration.json")).unwrap();
+        let fx = c.camera.intrinsics.fx;
+        // Six poses at quarter resolution: 1 % (the full-resolution target is 0.1 %).
+        assert!(
+            (fx / rig.config().camera.intrinsics.fx - 1.0).abs() < 0.01,
+            "fx {fx} vs {}",
+            rig.config().camera.intrinsics.fx
+        );
+        let pictures: Vec<_> = walk(&out)
+            .into_iter()
+            .filter(|p| p.extension().is_some_and(|x| x == "png"))
+            .collect();
+        assert!(pictures.len() >= 6 + 2, "{pictures:?}");
+        assert!(pictures.iter().all(|p| is_png(p)));
+    }
+
+    /// A folder whose images hold no board: a typed calibration error that names the folder's
+    /// images, and no calibration file.
+    #[test]
+    fn a_folder_without_boards_is_a_named_error() {
+        let tmp = tempfile::tempdir().unwrap();
+        let images = tmp.path().join("blank");
+        std::fs::create_dir_all(&images).unwrap();
+        for k in 0..3 {
+            let img =
+                sl_calib::image::GrayImage::from_pixel(160, 120, sl_calib::image::Luma([128]));
+            img.save(images.join(format!("blank_{k}.png"))).unwrap();
+        }
+        let out = tmp.path().join("out");
+        let err = slscan(&[
+            "calibrate",
+            "camera",
+            images.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap_err();
+        assert!(
+            err.chain()
+                .any(|e| e.downcast_ref::<CalibError>().is_some()),
+            "{err:#}"
+        );
+        let text = format!("{err:#}");
+        assert!(text.contains("blank_0.png"), "{text}");
+        assert!(!out.join("calibration.json").exists());
+    }
 }
