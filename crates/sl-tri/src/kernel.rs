@@ -40,6 +40,17 @@ pub(crate) const LANES: usize = 8;
 /// (128 · 29 bytes).
 pub(crate) const BLOCK: usize = 128;
 
+/// The method of a lane loop, as a const generic parameter ([`Method`] with its axis).
+const RAY_PLANE_COLUMN: u8 = 0;
+/// Ray–plane on the projector rows.
+const RAY_PLANE_ROW: u8 = 1;
+/// [`Method::Linear`].
+const LINEAR: u8 = 2;
+/// [`Method::Midpoint`].
+const MIDPOINT: u8 = 3;
+/// [`Method::Optimal`].
+const OPTIMAL: u8 = 4;
+
 /// Points of a lane group (camera frame, mm) and whether each lane has one.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct PointLanes {
@@ -286,24 +297,29 @@ impl Pass<'_> {
     }
 
     /// Projector validity of the lanes' points and, when asked, their reprojection errors.
+    /// (Non-short-circuit `&` on the lane booleans and the test of `with_error` outside the
+    /// lane loops keep the loops free of branches, so that they are vectorised.)
     #[inline(always)]
     fn project(&self, g: &Gathered, p: &mut PointLanes, with_error: bool) -> [f64; LANES] {
         let s = self.stereo;
         let mut error = [f64::NAN; LANES];
+        let mut qx = [0.0; LANES];
+        let mut qy = [0.0; LANES];
         for l in 0..LANES {
             let q = s.to_proj([p.x[l], p.y[l], p.z[l]]);
             let iq = 1.0 / q[2];
-            let (qx, qy) = (q[0] * iq, q[1] * iq);
-            p.ok[l] = p.ok[l] && p.z[l] > 0.0 && q[2] > 0.0 && s.proj.in_valid_region(qx, qy);
-            if with_error {
+            (qx[l], qy[l]) = (q[0] * iq, q[1] * iq);
+            p.ok[l] =
+                p.ok[l] & (p.z[l] > 0.0) & (q[2] > 0.0) & s.proj.in_valid_region(qx[l], qy[l]);
+        }
+        if with_error {
+            for l in 0..LANES {
                 let iz = 1.0 / p.z[l];
                 let pc = s.cam.project_normalised(p.x[l] * iz, p.y[l] * iz);
-                let pp = s.proj.project_normalised(qx, qy);
-                let e2 = (pc.x - g.u[l]).powi(2)
-                    + (pc.y - g.v[l]).powi(2)
-                    + (pp.x - g.c[l]).powi(2)
-                    + (pp.y - g.r[l]).powi(2);
-                error[l] = (0.5 * e2).sqrt();
+                let pp = s.proj.project_normalised(qx[l], qy[l]);
+                let (du, dv) = (pc.x - g.u[l], pc.y - g.v[l]);
+                let (dc, dr) = (pp.x - g.c[l], pp.y - g.r[l]);
+                error[l] = (0.5 * (du * du + dv * dv + dc * dc + dr * dr)).sqrt();
             }
         }
         error
@@ -354,7 +370,7 @@ impl Pass<'_> {
 
     /// One lane group: solve, then the filters.
     #[inline(always)]
-    fn group(&self, base: usize, out: BlockOut<'_>, warm: &mut WarmStart) {
+    fn group<const M: u8>(&self, base: usize, out: BlockOut<'_>, warm: &mut WarmStart) {
         let g = self.gather(base);
         let BlockOut {
             points,
@@ -374,11 +390,12 @@ impl Pass<'_> {
             return;
         }
         let with_error = self.error_needed();
-        let (p, error) = match self.options.method {
-            Method::RayPlane { axis } => self.surface(&g, axis, warm),
-            Method::Linear | Method::Midpoint => {
+        let (p, error) = match M {
+            RAY_PLANE_COLUMN => self.surface(&g, Axis::Column, warm),
+            RAY_PLANE_ROW => self.surface(&g, Axis::Row, warm),
+            LINEAR | MIDPOINT => {
                 let (xp, yp) = self.projector_points(&g, warm);
-                let mut p = if self.options.method == Method::Linear {
+                let mut p = if M == LINEAR {
                     linear_lanes(self.stereo, &g.rx, &g.ry, &xp, &yp)
                 } else {
                     midpoint_lanes(self.stereo, &g.rx, &g.ry, &xp, &yp)
@@ -386,7 +403,7 @@ impl Pass<'_> {
                 let e = self.project(&g, &mut p, with_error);
                 (p, e)
             }
-            Method::Optimal => self.optimal(&g, warm),
+            _ => self.optimal(&g, warm),
         };
         // The filters, as selects per lane, written straight into the output.
         let o = self.options;
@@ -437,22 +454,42 @@ impl pulp::WithSimd for BlockJob<'_, '_, '_> {
             t2: [f64::NAN; LANES],
             proj: UndistortWarm::default(),
         };
-        let BlockOut {
+        let (pass, start, out) = (self.pass, self.start, self.out);
+        // One loop per method, each compiled with only its method's code (the method is a
+        // constant of the loop: no dispatch per lane group, and the register allocation of
+        // one method is not burdened by the others').
+        match self.pass.options.method {
+            Method::RayPlane { axis: Axis::Column } => {
+                run::<RAY_PLANE_COLUMN>(pass, start, out, &mut warm);
+            }
+            Method::RayPlane { axis: Axis::Row } => {
+                run::<RAY_PLANE_ROW>(pass, start, out, &mut warm);
+            }
+            Method::Linear => run::<LINEAR>(pass, start, out, &mut warm),
+            Method::Midpoint => run::<MIDPOINT>(pass, start, out, &mut warm),
+            Method::Optimal => run::<OPTIMAL>(pass, start, out, &mut warm),
+        }
+    }
+}
+
+/// The lane groups of the block starting at pixel `start`, with method `M`.
+#[inline(always)]
+fn run<const M: u8>(pass: &Pass<'_>, start: usize, out: BlockOut<'_>, warm: &mut WarmStart) {
+    let BlockOut {
+        points,
+        reprojection,
+        status,
+    } = out;
+    let chunks = points
+        .chunks_mut(LANES)
+        .zip(reprojection.chunks_mut(LANES))
+        .zip(status.chunks_mut(LANES));
+    for (k, ((points, reprojection), status)) in chunks.enumerate() {
+        let out = BlockOut {
             points,
             reprojection,
             status,
-        } = self.out;
-        let chunks = points
-            .chunks_mut(LANES)
-            .zip(reprojection.chunks_mut(LANES))
-            .zip(status.chunks_mut(LANES));
-        for (k, ((points, reprojection), status)) in chunks.enumerate() {
-            let out = BlockOut {
-                points,
-                reprojection,
-                status,
-            };
-            self.pass.group(self.start + k * LANES, out, &mut warm);
-        }
+        };
+        pass.group::<M>(start + k * LANES, out, warm);
     }
 }

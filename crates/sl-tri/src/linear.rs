@@ -65,7 +65,7 @@ pub(crate) fn linear_lanes(
         out.x[l] = p[0];
         out.y[l] = p[1];
         out.z[l] = p[2];
-        out.ok[l] = det != 0.0 && p[0].is_finite() && p[1].is_finite() && p[2].is_finite();
+        out.ok[l] = (det != 0.0) & p[0].is_finite() & p[1].is_finite() & p[2].is_finite();
     }
     out
 }

@@ -35,7 +35,7 @@ pub(crate) fn midpoint_lanes(
         out.x[l] = (d1[0] * t1 + c[0] + d2[0] * t2) * 0.5;
         out.y[l] = (d1[1] * t1 + c[1] + d2[1] * t2) * 0.5;
         out.z[l] = (d1[2] * t1 + c[2] + d2[2] * t2) * 0.5;
-        out.ok[l] = t1 > 0.0 && t2 > 0.0 && t1.is_finite() && t2.is_finite();
+        out.ok[l] = (t1 > 0.0) & (t2 > 0.0) & t1.is_finite() & t2.is_finite();
     }
     out
 }

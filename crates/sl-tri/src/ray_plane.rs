@@ -112,7 +112,7 @@ fn newton_step(
 fn in_front_and_valid(s: &Stereo, a: [f64; 3], b: [f64; 3], t: f64) -> bool {
     let q = [a[0] * t + b[0], a[1] * t + b[1], a[2] * t + b[2]];
     let iz = 1.0 / q[2];
-    t > 0.0 && q[2] > 0.0 && s.proj.in_valid_region(q[0] * iz, q[1] * iz)
+    (t > 0.0) & (q[2] > 0.0) & s.proj.in_valid_region(q[0] * iz, q[1] * iz)
 }
 
 /// The surface solve on [`LANES`] camera rays `(rx, ry, 1)` at once, branch-free inside a
@@ -163,7 +163,7 @@ pub(crate) fn ray_surface_lanes(
     }
     let mut ok = [false; LANES];
     for l in 0..LANES {
-        ok[l] = step[l].abs() < SURFACE_STEP_TOLERANCE_MM && in_front_and_valid(s, a[l], b, t[l]);
+        ok[l] = (step[l].abs() < SURFACE_STEP_TOLERANCE_MM) & in_front_and_valid(s, a[l], b, t[l]);
     }
     SurfaceLanes { t, other, ok }
 }

@@ -85,7 +85,7 @@ pub(crate) fn undistort_lanes(
         xd[l] = (c[l] - k.cx - k.skew * yd[l]) * ifx;
         let gx = warm.x[l] + (xd[l] - warm.xd[l]);
         let gy = warm.y[l] + (yd[l] - warm.yd[l]);
-        let warm_ok = gx.is_finite() && gy.is_finite();
+        let warm_ok = gx.is_finite() & gy.is_finite();
         x[l] = if warm_ok { gx } else { xd[l] };
         y[l] = if warm_ok { gy } else { yd[l] };
     }
@@ -113,8 +113,8 @@ pub(crate) fn undistort_lanes(
         let [fx, fy] = d.distort_xy(x[l], y[l]);
         let (rx, ry) = (fx - xd[l], fy - yd[l]);
         let scale = (xd[l] * xd[l] + yd[l] * yd[l]).max(1.0);
-        ok[l] = rx * rx + ry * ry <= RESIDUAL_TOLERANCE * RESIDUAL_TOLERANCE * scale
-            && lens.in_valid_region(x[l], y[l]);
+        ok[l] = (rx * rx + ry * ry <= RESIDUAL_TOLERANCE * RESIDUAL_TOLERANCE * scale)
+            & lens.in_valid_region(x[l], y[l]);
     }
     for l in 0..LANES {
         if !ok[l] && c[l].is_finite() && r[l].is_finite() {
