@@ -116,7 +116,7 @@ fn in_front_and_valid(s: &Stereo, a: [f64; 3], b: [f64; 3], t: f64) -> bool {
 }
 
 /// The surface solve on [`LANES`] camera rays `(rx, ry, 1)` at once, branch-free inside a
-/// step: the start (`guess` where finite, else the pinhole plane), then Newton steps on all
+/// step: the start (`guess` where it is not NaN, else the pinhole plane), then Newton steps on all
 /// lanes until every lane has settled, at most [`MAX_LANE_SURFACE_STEPS`]; a lane is `ok` if
 /// its last step is below the tolerance and the point is valid. NaN inputs give lanes that
 /// are not ok (and do not hold the group's other lanes back).
@@ -139,14 +139,17 @@ pub(crate) fn ray_surface_lanes(
     for l in 0..LANES {
         a[l] = crate::stereo::mul(&s.r_pc, [rx[l], ry[l], 1.0]);
     }
-    // The pinhole-plane start only where there is no guess (the start of a block, or after
-    // a hole): a warm row skips its division.
-    if t.iter().any(|t| !t.is_finite()) {
+    // The pinhole-plane start only where there is no guess (NaN: the start of a block, or
+    // after a hole): a warm row skips its division. (Guesses are finite or NaN; the test is
+    // `is_nan` because valgrind, which the instruction counts of docs/triangulation.md come
+    // from, mis-evaluated the vectorised `is_finite` select here: lanes 2–7 of a cold group
+    // became NaN under valgrind only, never natively.)
+    if t.iter().any(|t| t.is_nan()) {
         for l in 0..LANES {
             let n = pinhole_plane(s, column, target[l]);
             let plane = -(n[0] * b[0] + n[1] * b[1] + n[2] * b[2])
                 / (n[0] * a[l][0] + n[1] * a[l][1] + n[2] * a[l][2]);
-            t[l] = if t[l].is_finite() { t[l] } else { plane };
+            t[l] = if t[l].is_nan() { plane } else { t[l] };
         }
     }
     let mut step = [f64::INFINITY; LANES];
