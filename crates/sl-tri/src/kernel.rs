@@ -142,10 +142,11 @@ impl Pass<'_> {
         self.options.max_reprojection_px.is_finite()
     }
 
-    /// The lane inputs of the group starting at pixel `base`: a branch-free loop over
-    /// fixed-size arrays for a full group (the common case), a checked one at the map's end.
+    /// The lane inputs of the group starting at pixel `base` (column `x0`, row `y0`): a
+    /// branch-free loop over fixed-size arrays for a full group (the common case), a checked
+    /// one at the map's end.
     #[inline(always)]
-    fn gather(&self, base: usize) -> Gathered {
+    fn gather(&self, base: usize, (x0, y0): (usize, usize)) -> Gathered {
         let mut g = Gathered {
             rx: [f64::NAN; LANES],
             ry: [f64::NAN; LANES],
@@ -158,7 +159,6 @@ impl Pass<'_> {
         let (xs, ys) = (self.rays.xs(), self.rays.ys());
         let m = self.map;
         let w = self.width.max(1);
-        let (x0, y0) = (base % w, base / w);
         let range = base..base + LANES;
         let full = (
             xs.get(range.clone())
@@ -370,8 +370,14 @@ impl Pass<'_> {
 
     /// One lane group: solve, then the filters.
     #[inline(always)]
-    fn group<const M: u8>(&self, base: usize, out: BlockOut<'_>, warm: &mut WarmStart) {
-        let g = self.gather(base);
+    fn group<const M: u8>(
+        &self,
+        base: usize,
+        xy: (usize, usize),
+        out: BlockOut<'_>,
+        warm: &mut WarmStart,
+    ) {
+        let g = self.gather(base, xy);
         let BlockOut {
             points,
             reprojection,
@@ -484,12 +490,20 @@ fn run<const M: u8>(pass: &Pass<'_>, start: usize, out: BlockOut<'_>, warm: &mut
         .chunks_mut(LANES)
         .zip(reprojection.chunks_mut(LANES))
         .zip(status.chunks_mut(LANES));
+    // Pixel coordinates of each group's first pixel, kept up to date rather than divided
+    // out per group (an integer division costs tens of cycles).
+    let w = pass.width.max(1);
+    let (mut x, mut y) = (start % w, start / w);
     for (k, ((points, reprojection), status)) in chunks.enumerate() {
         let out = BlockOut {
             points,
             reprojection,
             status,
         };
-        pass.group::<M>(start + k * LANES, out, warm);
+        pass.group::<M>(start + k * LANES, (x, y), out, warm);
+        x += LANES;
+        while x >= w {
+            (x, y) = (x - w, y + 1);
+        }
     }
 }
