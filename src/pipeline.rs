@@ -1,12 +1,14 @@
 //! The end-to-end scan on the virtual rig, as one library call: calibrate from simulated
 //! board captures, capture a turntable session of a known object, decode, triangulate, merge,
-//! and measure the result against the truth. `slscan scan` is a thin wrapper around
-//! [`scan_virtual`]; `tests/scan_pipeline.rs` runs it small.
+//! and measure the result against the truth with `sl-metrology` (the dumbbell for the probing
+//! and sphere-spacing errors, then one capture of a tilted flat plate for the flatness).
+//! `slscan scan` is a thin wrapper around [`scan_virtual`]; `tests/scan_pipeline.rs` runs it
+//! small.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use nalgebra::Point3;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 use sl_calib::{
     BoardSize, ProcamConfig, ProcamView, TurntableConfig, TurntableView, calibrate_procam,
@@ -18,13 +20,18 @@ use sl_codec::{
     Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, MANIFEST_FILE, Pattern,
     PatternSequence, ProjectorSize, decode, write_png_rgb8,
 };
-use sl_icp::{MergeConfig, merge_views, turntable_poses};
-use sl_rig::{
-    BoardPoseConfig, CaptureSession, Checkerboard, DUMBBELL_CENTRE_DISTANCE_MM, GreyImage, Mount,
-    Pixels, RigConfig, Scene, SessionConfig, SessionDevices, SessionPlan, Shape, VirtualRig,
-    capture_board, capture_board_on_table, random_board_poses, turntable_angles,
+use sl_icp::{MergeConfig, merge_aligned, merge_views, turntable_poses};
+use sl_metrology::{
+    DEFAULT_HEAT_MAP_RANGE_MM, Feature, PlaneNominal, PlaneSpec, Report, SpherePairSpec,
+    SphereSpec, Truth, evaluate, heat_map,
 };
-use sl_tri::{TriOptions, Triangulator, fit_sphere};
+use sl_rig::{
+    BoardPoseConfig, CaptureSession, Checkerboard, DEFAULT_ALBEDO, DEFAULT_WORKING_DISTANCE_MM,
+    GreyImage, Mount, Pixels, RigConfig, Scene, SceneObject, SessionConfig, SessionDevices,
+    SessionPlan, Shape, Texture, VirtualRig, capture_board, capture_board_on_table,
+    random_board_poses, turntable_angles,
+};
+use sl_tri::{TriOptions, Triangulator};
 
 /// Everything that can stop the pipeline: the error of the crate that failed, or a file.
 #[derive(Debug, thiserror::Error)]
@@ -39,9 +46,12 @@ pub enum PipelineError {
     /// Patterns, decoding or image files.
     #[error(transparent)]
     Codec(#[from] sl_codec::CodecError),
-    /// Triangulation or a sphere fit.
+    /// Triangulation.
     #[error(transparent)]
     Tri(#[from] sl_tri::TriError),
+    /// Measuring the result against the truth.
+    #[error("report: {0}")]
+    Metrology(#[from] sl_metrology::MetrologyError),
     /// Registration and merging.
     #[error("merge: {0}")]
     Icp(#[from] sl_icp::IcpError),
@@ -95,6 +105,20 @@ pub struct VirtualScanConfig {
     /// Default `true`: on the default scan it halves the probing form error (0.47 → 0.22 mm
     /// over all points) for ~1 s more.
     pub average_overlaps: bool,
+    /// After the turntable session, capture a tilted flat plate ([`plate_scene`]) through the
+    /// same calibration, decoding and triangulation, and measure its flatness. Default `true`.
+    pub flatness_plate: bool,
+    /// Points whose surface normal is more than this far (degrees) from the direction to the
+    /// camera or to the projector are dropped from each view before the merge: seen or lit at
+    /// a grazing angle, their decoded coordinate is smeared over a long stretch of surface
+    /// (and the grid normal itself is unreliable there). `90` keeps every point.
+    pub max_view_angle_deg: f64,
+    /// Diagnostic: triangulate with the rig's true calibration instead of the estimated one
+    /// (the calibration stage then renders nothing). Default `false`.
+    pub true_calibration: bool,
+    /// Diagnostic: merge with the rig's true turntable poses instead of registering the views
+    /// (`sl_icp::merge_aligned`). Default `false`.
+    pub true_poses: bool,
 }
 
 impl Default for VirtualScanConfig {
@@ -108,6 +132,10 @@ impl Default for VirtualScanConfig {
             period_px: 15.0,
             overwrite: false,
             average_overlaps: true,
+            flatness_plate: true,
+            max_view_angle_deg: 90.0,
+            true_calibration: false,
+            true_poses: false,
         }
     }
 }
@@ -115,7 +143,8 @@ impl Default for VirtualScanConfig {
 /// Progress of [`scan_virtual`]: `done` of `total` steps of `stage`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ScanProgress<'a> {
-    /// The stage: `calibrate`, `capture`, `reconstruct`, `merge`, `report`.
+    /// The stage: `calibrate`, `capture`, `reconstruct`, `merge`, `plate` (when
+    /// [`VirtualScanConfig::flatness_plate`]), `report`.
     pub stage: &'a str,
     /// Steps done.
     pub done: usize,
@@ -159,61 +188,18 @@ pub struct CalibrationSummary {
     pub axis_position_error_mm: f64,
 }
 
-/// The fit of one sphere of the dumbbell (VDI/VDE 2634 part 2 style figures).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct SphereFigures {
-    /// Object name.
-    pub name: String,
-    /// Points used.
-    pub points: usize,
-    /// Fitted radius (mm).
-    pub radius_mm: f64,
-    /// Probing error size: fitted diameter minus the true diameter (mm).
-    pub probing_size_mm: f64,
-    /// Probing error form: range of the radial distances to the fitted sphere (mm), all
-    /// points.
-    pub probing_form_mm: f64,
-    /// The same range after leaving out the [`VDI_TRIM_FRACTION`] of points farthest from the
-    /// fitted sphere, as VDI/VDE 2634 part 2 allows.
-    pub probing_form_trimmed_mm: f64,
-    /// RMS of the radial residuals to the fitted sphere (mm).
-    pub fit_rms_mm: f64,
-}
+/// Half-width of the selection region of every feature of the scene's truth (mm): points
+/// within 2 mm of a true surface — 40 times the 0.05 mm probing target — are measured, so
+/// only mis-decoded or mis-merged points are left out.
+pub const SELECT_MM: f64 = 2.0;
 
-/// Accuracy of the merged cloud against the known object.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Accuracy {
-    /// How the figures were computed.
-    pub method: String,
-    /// One entry per sphere.
-    pub spheres: Vec<SphereFigures>,
-    /// Sphere-spacing error: fitted centre distance minus the true distance (mm).
-    pub sphere_spacing_mm: f64,
-    /// RMS distance of the merged points to the true surface, in the camera frame of view 0
-    /// as the estimated calibration puts them (mm): includes the calibration's error of the
-    /// frame (a millimetre-scale shift moves every point alike).
-    pub rms_to_truth_mm: f64,
-    /// RMS distance to the true surface after the rigid motion that brings the fitted sphere
-    /// centres onto the true ones (mm): the shape error alone, as a metrology comparison
-    /// after best-fit alignment reports it.
-    pub rms_to_truth_aligned_mm: f64,
-    /// Largest distance of a merged point to the true surface (mm).
-    pub max_to_truth_mm: f64,
-    /// Merged points farther than [`OUTLIER_MM`] from every true sphere (left out above).
-    pub outliers: usize,
-}
+/// The flat plate of the flatness measurement: 160 × 100 mm.
+pub const PLATE_SIZE_MM: (f64, f64) = (160.0, 100.0);
 
-/// Points farther than this from the true surface are reported as outliers, not measured:
-/// 2 mm is 40 times the accuracy target, so only mis-decoded or mis-merged points land there.
-pub const OUTLIER_MM: f64 = 2.0;
-
-/// Fraction of the points farthest from a fitted sphere that VDI/VDE 2634 part 2 lets a
-/// probing-form measurement leave out (0.3 %).
-pub const VDI_TRIM_FRACTION: f64 = 0.003;
-
-/// Range of the error heat map (mm): blue at −this, red at +this; the probing target
-/// is 0.05 mm, so the map saturates at twice it.
-pub const HEAT_MAP_RANGE_MM: f32 = 0.1;
+/// Tilt of the plate about the camera's vertical and horizontal axes (degrees): VDI/VDE 2634
+/// part 2 measures flatness in several oblique positions; one such position, at the working
+/// distance, is measured here.
+pub const PLATE_TILT_DEG: (f64, f64) = (25.0, 15.0);
 
 /// Files written by [`scan_virtual`], relative to the output folder.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -228,6 +214,15 @@ pub struct ScanFiles {
     pub previews: Vec<String>,
     /// The cloud coloured by its distance to the true surface.
     pub heat_map: String,
+    /// The truth of the turntable scene, in the frame of the merged cloud: `slscan report
+    /// merged.ply --truth truth.json` reproduces [`ScanResult::accuracy`].
+    pub truth: String,
+    /// The plate's cloud, its truth and heat map (when [`VirtualScanConfig::flatness_plate`]).
+    pub plate: Option<String>,
+    /// See `plate`.
+    pub plate_truth: Option<String>,
+    /// See `plate`.
+    pub plate_heat_map: Option<String>,
 }
 
 /// Everything [`scan_virtual`] produced.
@@ -243,8 +238,15 @@ pub struct ScanResult {
     pub views_captured: usize,
     /// The merged cloud (mm, camera frame of view 0).
     pub merged: PointCloud,
-    /// Accuracy against the truth.
-    pub accuracy: Accuracy,
+    /// The truth of the turntable scene (camera frame of view 0, as the rig places it).
+    pub truth: Truth,
+    /// The merged cloud measured against `truth` (probing and sphere-spacing errors).
+    pub accuracy: Report,
+    /// The first view alone (before merging) measured against `truth`: the noise and the
+    /// grazing points of one view, without registration or averaging.
+    pub first_view: Report,
+    /// The plate's cloud measured against its truth (flatness), when captured.
+    pub flatness: Option<Report>,
     /// Wall time per stage, in order.
     pub stages: Vec<StageTime>,
     /// The files written.
@@ -458,136 +460,155 @@ pub fn reconstruct_view(
         .cloud)
 }
 
-/// The spheres of the scene in the camera frame at motor angle `motor_deg`: `(name, centre,
-/// radius)`.
-fn true_spheres(rig: &VirtualRig, motor_deg: f64) -> Vec<(String, Point3<f64>, f64)> {
-    let t_cam_table = rig.config().t_cam_table_at(motor_deg);
-    rig.scene()
-        .objects
-        .iter()
-        .filter_map(|o| match o.shape {
-            Shape::Sphere { radius } => {
-                let pose = match o.mount {
-                    Mount::Turntable => t_cam_table * o.pose,
-                    Mount::Camera => o.pose,
-                };
-                Some((
-                    o.name.clone(),
-                    Point3::from(pose.translation.vector),
-                    radius,
-                ))
-            }
-            _ => None,
-        })
-        .collect()
+/// The rig's exact calibration, as [`calibrate_virtual`] would return it (diagnostic runs).
+fn true_calibration(rig: &VirtualRig) -> (Calibration, CalibrationSummary) {
+    let summary = CalibrationSummary {
+        sources: vec!["the rig's true calibration (diagnostic run, nothing estimated)".to_owned()],
+        poses_used: 0,
+        rms_camera_px: 0.0,
+        rms_projector_px: 0.0,
+        rms_stereo_px: 0.0,
+        rms_turntable_px: 0.0,
+        camera_fx_error_percent: 0.0,
+        projector_fx_error_percent: 0.0,
+        baseline_error_mm: 0.0,
+        axis_direction_error_deg: 0.0,
+        axis_position_error_mm: 0.0,
+    };
+    (rig.config().calibration(), summary)
 }
 
-/// Measures `cloud` against the scene's true spheres (seen at `motor_deg`): per sphere the
-/// probing errors of size and form, the sphere-spacing error of the first two, and the signed
-/// distance of every point to the nearest true surface (NaN for outliers), for the heat map.
-pub fn measure_spheres(
-    cloud: &PointCloud,
-    spheres: &[(String, Point3<f64>, f64)],
-    true_spacing_mm: f64,
-) -> Result<(Accuracy, Vec<f32>), PipelineError> {
-    let mut members: Vec<Vec<Point3<f64>>> = vec![Vec::new(); spheres.len()];
-    let mut signed = Vec::with_capacity(cloud.len());
-    let (mut sq, mut n, mut max, mut outliers) = (0.0, 0usize, 0.0f64, 0usize);
-    for p in cloud.positions() {
-        let nearest = spheres
-            .iter()
-            .enumerate()
-            .map(|(i, (_, c, r))| (i, (p - c).norm() - r))
-            .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
-        match nearest {
-            Some((i, d)) if d.abs() <= OUTLIER_MM => {
-                if let Some(m) = members.get_mut(i) {
-                    m.push(*p);
-                }
-                sq += d * d;
-                n += 1;
-                max = max.max(d.abs());
-                signed.push(d as f32);
-            }
-            _ => {
-                outliers += 1;
-                signed.push(f32::NAN);
-            }
-        }
-    }
-    if n == 0 {
+/// Drops the points of one view (camera frame) whose normal is more than `max_angle_deg` from
+/// the direction to the camera (the origin) or to the projector centre. Points without a
+/// normal (zero vector) are kept; `max_angle_deg >= 90` keeps everything.
+pub fn drop_grazing(
+    cloud: PointCloud,
+    projector_centre: &nalgebra::Point3<f64>,
+    max_angle_deg: f64,
+) -> Result<PointCloud, PipelineError> {
+    if max_angle_deg.is_nan() || max_angle_deg <= 0.0 {
         return Err(stage_err(
-            "report",
-            "no merged point lies within 2 mm of the true spheres",
+            "reconstruct",
+            format!("max_view_angle_deg {max_angle_deg} must be positive"),
         ));
     }
-    let mut figures = Vec::new();
-    let mut centres = Vec::new();
-    for ((name, _, r), pts) in spheres.iter().zip(&members) {
-        let fit = fit_sphere(pts)?;
-        let mut radial: Vec<f64> = pts
-            .iter()
-            .map(|p| (p - fit.centre).norm() - fit.radius)
-            .collect();
-        let range = |r: &[f64]| {
-            r.iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &d| {
-                    (lo.min(d), hi.max(d))
-                })
-        };
-        let (lo, hi) = range(&radial);
-        radial.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
-        let keep = radial.len() - (radial.len() as f64 * VDI_TRIM_FRACTION).floor() as usize;
-        let (tlo, thi) = range(radial.get(..keep).unwrap_or(&radial));
-        figures.push(SphereFigures {
-            name: name.clone(),
-            points: pts.len(),
-            radius_mm: fit.radius,
-            probing_size_mm: 2.0 * (fit.radius - r),
-            probing_form_mm: hi - lo,
-            probing_form_trimmed_mm: thi - tlo,
-            fit_rms_mm: fit.rms,
-        });
-        centres.push(fit.centre);
+    if max_angle_deg >= 90.0 {
+        return Ok(cloud);
     }
-    let spacing = match centres.as_slice() {
-        [a, b, ..] => (a - b).norm() - true_spacing_mm,
-        _ => f64::NAN,
+    let Some(normals) = cloud.normals() else {
+        return Ok(cloud);
     };
-    let aligned = match (centres.as_slice(), spheres) {
-        ([f0, f1, ..], [(_, t0, _), (_, t1, _), ..]) => {
-            let rot = nalgebra::Rotation3::rotation_between(&(f1 - f0), &(t1 - t0))
-                .unwrap_or_else(nalgebra::Rotation3::identity);
-            let fm = nalgebra::center(f0, f1);
-            let tm = nalgebra::center(t0, t1);
-            let (mut sq, mut n) = (0.0, 0usize);
-            for p in cloud.positions() {
-                let q = tm + rot * (p - fm);
-                let d = spheres
-                    .iter()
-                    .map(|(_, c, r)| (q - c).norm() - r)
-                    .fold(f64::INFINITY, |m, d| if d.abs() < m.abs() { d } else { m });
-                if d.abs() <= OUTLIER_MM {
-                    sq += d * d;
-                    n += 1;
-                }
-            }
-            (sq / n.max(1) as f64).sqrt()
+    let min_cos = max_angle_deg.to_radians().cos();
+    let seen = |p: &nalgebra::Point3<f64>, n: &Vector3<f64>, from: &nalgebra::Point3<f64>| {
+        let to = from - p;
+        let len = to.norm();
+        len > 0.0 && n.dot(&to).abs() >= min_cos * len
+    };
+    let origin = nalgebra::Point3::origin();
+    let keep: Vec<usize> = cloud
+        .positions()
+        .iter()
+        .zip(normals)
+        .enumerate()
+        .filter(|(_, (p, n))| {
+            n.norm_squared() == 0.0 || (seen(p, n, &origin) && seen(p, n, projector_centre))
+        })
+        .map(|(i, _)| i)
+        .collect();
+    Ok(cloud.select(&keep)?)
+}
+
+/// The truth of the rig's scene seen at motor angle `motor_deg`, in the camera frame: every
+/// sphere with its true centre and radius, and — for the first two spheres — their true centre
+/// distance (the dumbbell's sphere spacing). Selection regions of [`SELECT_MM`].
+pub fn scene_truth(rig: &VirtualRig, motor_deg: f64) -> Truth {
+    let t_cam_table = rig.config().t_cam_table_at(motor_deg);
+    let mut truth = Truth::new(format!(
+        "virtual rig scene at motor angle {motor_deg} degrees, camera frame (mm)"
+    ));
+    let mut centres = Vec::new();
+    for o in &rig.scene().objects {
+        if let Shape::Sphere { radius } = o.shape {
+            let pose = match o.mount {
+                Mount::Turntable => t_cam_table * o.pose,
+                Mount::Camera => o.pose,
+            };
+            let centre = nalgebra::Point3::from(pose.translation.vector);
+            centres.push((o.name.clone(), centre));
+            truth = truth.with(Feature::Sphere(SphereSpec {
+                name: o.name.clone(),
+                radius_mm: radius,
+                centre_mm: Some(centre),
+                select_mm: SELECT_MM,
+            }));
         }
-        _ => f64::NAN,
-    };
-    Ok((
-        Accuracy {
-            method: "points within 2 mm of a true sphere are assigned to it; least-squares sphere fit per sphere (sl_tri::fit_sphere); probing size = fitted minus true diameter, form = range of radial residuals, spacing = fitted centre distance minus the true one (VDI/VDE 2634 part 2 style; form over all points and with the 0.3 % farthest left out)".to_owned(),
-            spheres: figures,
-            sphere_spacing_mm: spacing,
-            rms_to_truth_mm: (sq / n as f64).sqrt(),
-            rms_to_truth_aligned_mm: aligned,
-            max_to_truth_mm: max,
-            outliers,
-        },
-        signed,
+    }
+    if let [(n0, c0), (n1, c1), ..] = centres.as_slice() {
+        truth = truth.with(Feature::SpherePair(SpherePairSpec {
+            name: format!("{n0}-{n1}"),
+            spheres: [n0.clone(), n1.clone()],
+            centre_distance_mm: (c0 - c1).norm(),
+        }));
+    }
+    truth
+}
+
+/// `T_cam_plate` of the flatness plate: centred on the optical axis at the working distance,
+/// turned [`PLATE_TILT_DEG`] about the camera's y and x axes.
+pub fn plate_pose() -> Isometry3<f64> {
+    let (yaw, pitch) = PLATE_TILT_DEG;
+    Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, DEFAULT_WORKING_DISTANCE_MM),
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), yaw.to_radians())
+            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), pitch.to_radians()),
+    )
+}
+
+/// The flatness scene: the plate of [`PLATE_SIZE_MM`] at [`plate_pose`], fixed in the camera
+/// frame (the turntable does not move it).
+pub fn plate_scene() -> Scene {
+    let (w, h) = PLATE_SIZE_MM;
+    Scene::new().with(SceneObject::in_camera(
+        "plate",
+        Shape::rectangle(w, h),
+        Texture::Uniform(DEFAULT_ALBEDO),
+        plate_pose(),
     ))
+}
+
+/// The truth of [`plate_scene`]: its plane, in the camera frame.
+pub fn plate_truth() -> Truth {
+    let pose = plate_pose();
+    let normal = pose.rotation * Vector3::z();
+    Truth::new("flat plate of the virtual rig, camera frame (mm)").with(Feature::Plane(PlaneSpec {
+        name: "plate".to_owned(),
+        nominal: Some(PlaneNominal {
+            normal,
+            offset_mm: normal.dot(&pose.translation.vector),
+        }),
+        select_mm: SELECT_MM,
+    }))
+}
+
+/// Writes the heat map of `report` over `cloud` to `path`.
+pub fn write_heat_map(
+    path: &Path,
+    cloud: &PointCloud,
+    report: &Report,
+) -> Result<(), PipelineError> {
+    let view = PreviewConfig {
+        azimuth_deg: 0.0,
+        elevation_deg: 20.0,
+        ..PreviewConfig::default()
+    };
+    let img = heat_map(
+        cloud,
+        &report.signed_distances_mm,
+        DEFAULT_HEAT_MAP_RANGE_MM,
+        &view,
+    )?;
+    write_png_rgb8(path, img.width as usize, img.height as usize, &img.rgb)?;
+    Ok(())
 }
 
 fn write_preview(
@@ -638,7 +659,11 @@ pub fn scan_virtual(
 
     // 1. Calibrate.
     let t = Instant::now();
-    let (calibration, calibration_summary) = calibrate_virtual(&rig, cfg, &mut progress)?;
+    let (calibration, calibration_summary) = if cfg.true_calibration {
+        true_calibration(&rig)
+    } else {
+        calibrate_virtual(&rig, cfg, &mut progress)?
+    };
     let calib_path = out.join("calibration.json");
     calibration.save(&calib_path)?;
     timed("calibrate", t);
@@ -683,9 +708,17 @@ pub fn scan_virtual(
     // 3. Decode and triangulate every view.
     let t = Instant::now();
     let triangulator = Triangulator::new(&calibration)?;
+    let projector_centre = calibration
+        .t_cam_proj
+        .map(|t| nalgebra::Point3::from(t.translation.vector))
+        .ok_or_else(|| stage_err("reconstruct", "the calibration has no projector pose"))?;
     let mut clouds = Vec::with_capacity(cfg.views);
     for (k, dir) in session.view_dirs().iter().enumerate() {
-        let cloud = reconstruct_view(dir, &triangulator)?;
+        let cloud = drop_grazing(
+            reconstruct_view(dir, &triangulator)?,
+            &projector_centre,
+            cfg.max_view_angle_deg,
+        )?;
         if cloud.is_empty() {
             return Err(stage_err(
                 "reconstruct",
@@ -717,7 +750,19 @@ pub fn scan_virtual(
         average_overlaps: cfg.average_overlaps,
         ..MergeConfig::default()
     };
-    let merged = merge_views(&clouds, &initial, &merge)?.cloud;
+    let first_view = clouds.first().cloned().unwrap_or_default();
+    let merged = if cfg.true_poses {
+        let t_cam_table0 = rig
+            .config()
+            .t_cam_table_at(angles.first().copied().unwrap_or(0.0));
+        let poses: Vec<Isometry3<f64>> = angles
+            .iter()
+            .map(|&a| t_cam_table0 * rig.config().t_cam_table_at(a).inverse())
+            .collect();
+        merge_aligned(&clouds, &poses, &merge)?
+    } else {
+        merge_views(&clouds, &initial, &merge)?.cloud
+    };
     drop(clouds);
     let merged_path = out.join("merged.ply");
     write_ply(&merged_path, &merged, PlyFormat::default())?;
@@ -728,10 +773,67 @@ pub fn scan_virtual(
     });
     timed("merge", t);
 
-    // 5. Accuracy and pictures.
+    // 5. The flatness plate: one more capture, through the same calibration, decoding and
+    // triangulation as the turntable views.
+    let plate = if cfg.flatness_plate {
+        let t = Instant::now();
+        progress(ScanProgress {
+            stage: "plate",
+            done: 0,
+            total: 1,
+        });
+        let plate_rig = rig.with_scene(plate_scene())?;
+        let plan = SessionPlan {
+            angles_deg: vec![0.0],
+            manifest: scan_patterns(projector, cfg.period_px).manifest(BitDepth::Eight),
+            devices: SessionDevices {
+                camera: format!("virtual camera {}x{}", csize.width, csize.height),
+                projector: format!("virtual projector {}x{}", psize.width, psize.height),
+                turntable: "none: a flat plate fixed in front of the camera".to_owned(),
+            },
+            calibration: Some(calib_path.clone()),
+        };
+        let plate_session = CaptureSession::open(
+            &out.join("plate_session"),
+            plan,
+            SessionConfig {
+                display_latency: Duration::ZERO,
+                flush_frames: 0,
+                overwrite: cfg.overwrite,
+            },
+        )?;
+        let (mut camera, mut proj, mut table) = plate_rig.devices();
+        plate_session.run(&mut camera, &mut proj, &mut table, |_| {})?;
+        let dir = plate_session
+            .view_dirs()
+            .into_iter()
+            .next()
+            .ok_or_else(|| stage_err("plate", "the plate session has no view"))?;
+        let cloud = reconstruct_view(&dir, &triangulator)?;
+        write_ply(&out.join("plate.ply"), &cloud, PlyFormat::default())?;
+        plate_truth().save(&out.join("plate_truth.json"))?;
+        progress(ScanProgress {
+            stage: "plate",
+            done: 1,
+            total: 1,
+        });
+        timed("plate", t);
+        Some(cloud)
+    } else {
+        None
+    };
+
+    // 6. Accuracy (sl-metrology, from the truth files a user can re-run `slscan report` on)
+    // and pictures.
     let t = Instant::now();
-    let spheres = true_spheres(&rig, angles.first().copied().unwrap_or(0.0));
-    let (accuracy, signed) = measure_spheres(&merged, &spheres, DUMBBELL_CENTRE_DISTANCE_MM)?;
+    let truth = scene_truth(&rig, angles.first().copied().unwrap_or(0.0));
+    truth.save(&out.join("truth.json"))?;
+    let accuracy = evaluate(&merged, &truth)?;
+    let first_view = evaluate(&first_view, &truth)?;
+    let flatness = match &plate {
+        Some(cloud) => Some(evaluate(cloud, &plate_truth())?),
+        None => None,
+    };
     let mut previews = Vec::new();
     for (k, &(az, el)) in PREVIEWS.iter().enumerate() {
         let name = format!("preview_{k}.png");
@@ -744,17 +846,15 @@ pub fn scan_virtual(
         });
     }
     let heat_map = "error_map.png".to_owned();
-    write_preview(
-        &out.join(&heat_map),
-        &merged,
-        PreviewColoring::Scalar {
-            values: &signed,
-            min: -HEAT_MAP_RANGE_MM,
-            max: HEAT_MAP_RANGE_MM,
-        },
-        0.0,
-        20.0,
-    )?;
+    write_heat_map(&out.join(&heat_map), &merged, &accuracy)?;
+    let plate_heat_map = match (&plate, &flatness) {
+        (Some(cloud), Some(report)) => {
+            let name = "plate_error_map.png".to_owned();
+            write_heat_map(&out.join(&name), cloud, report)?;
+            Some(name)
+        }
+        _ => None,
+    };
     timed("report", t);
 
     Ok(ScanResult {
@@ -763,7 +863,10 @@ pub fn scan_virtual(
         view_points,
         views_captured: summary.captured,
         merged,
+        truth,
         accuracy,
+        first_view,
+        flatness,
         stages,
         files: ScanFiles {
             calibration: "calibration.json".to_owned(),
@@ -771,6 +874,10 @@ pub fn scan_virtual(
             merged: "merged.ply".to_owned(),
             previews,
             heat_map,
+            truth: "truth.json".to_owned(),
+            plate: plate.as_ref().map(|_| "plate.ply".to_owned()),
+            plate_truth: plate.as_ref().map(|_| "plate_truth.json".to_owned()),
+            plate_heat_map,
         },
     })
 }
@@ -791,6 +898,29 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Pi
             s.probing_form_trimmed_mm
         ));
     }
+    let spacing: String = a
+        .sphere_pairs
+        .iter()
+        .map(|p| {
+            format!(
+                "Sphere-spacing error ({}) {:+.4} mm. ",
+                p.name, p.sphere_spacing_mm
+            )
+        })
+        .collect();
+    let flatness: String = match (&result.flatness, &result.files.plate_heat_map) {
+        (Some(f), Some(heat)) => f
+            .planes
+            .iter()
+            .map(|p| {
+                format!(
+                    "<h2>Flatness (tilted plate)</h2>\n<p>{} points; flatness {:.4} mm, {:.4} mm with 0.3 % left out; RMS to the fitted plane {:.4} mm. Cloud <a href=\"plate.ply\">plate.ply</a>, truth <a href=\"plate_truth.json\">plate_truth.json</a>.</p>\n<p><a href=\"{heat}\"><img src=\"{heat}\" width=\"480\"></a></p>\n",
+                    p.points, p.flatness_mm, p.flatness_trimmed_mm, p.fit_rms_mm
+                )
+            })
+            .collect(),
+        _ => String::new(),
+    };
     let stages: String = result
         .stages
         .iter()
@@ -811,11 +941,12 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Pi
 <p>{views} views, {points} merged points: <a href="{merged}">{merged}</a>; calibration <a href="{calib}">{calib}</a>; figures <a href="report.json">report.json</a>; frames in <a href="{session}/">{session}/</a>.</p>
 {imgs}
 <h2>Accuracy against the truth</h2>
-<p>RMS distance to the true surface {rms:.4} mm in the estimated camera frame, {rmsa:.4} mm after aligning the fitted sphere centres on the true ones (largest {max:.3} mm, {outliers} outliers beyond 2 mm). Sphere-spacing error {sd:+.4} mm.</p>
+<p>Measured by sl-metrology against <a href="{truth}">{truth}</a> (<code>slscan report {merged} --truth {truth}</code> gives the same figures). RMS distance to the true surface {rms:.4} mm in the estimated camera frame (largest {max:.3} mm; {outliers} points farther than 2 mm from every sphere are left out). {spacing}</p>
 <table><tr><th>sphere</th><th>points</th><th>radius (mm)</th><th>probing size (mm)</th><th>probing form (mm)</th><th>form, 0.3 % trimmed (mm)</th></tr>
 {rows}</table>
+<p>Probing form: range of the radial residuals of the least-squares sphere over all its points, and with the 0.3 % farthest left out as VDI/VDE 2634 part 2 allows.</p>
 <p><a href="{heat}"><img src="{heat}" width="480"></a><br>Signed distance to the true surface, blue −{range} mm to red +{range} mm.</p>
-<h2>Calibration (estimated from simulated board captures)</h2>
+{flatness}<h2>Calibration (estimated from simulated board captures)</h2>
 <p>RMS camera {rc:.3} px, projector {rp:.3} px, stereo {rs:.3} px, turntable {rt:.3} px; camera fx error {fxc:+.4} %, projector fx error {fxp:+.4} %, baseline error {base:.3} mm; axis direction error {ad:.4}°, position error {ap:.3} mm.</p>
 <h2>Stages</h2>
 <table>{stages}</table>
@@ -826,13 +957,12 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Pi
         merged = result.files.merged,
         calib = result.files.calibration,
         session = result.files.session,
-        rms = a.rms_to_truth_mm,
-        rmsa = a.rms_to_truth_aligned_mm,
-        max = a.max_to_truth_mm,
-        outliers = a.outliers,
-        sd = a.sphere_spacing_mm,
+        truth = result.files.truth,
+        rms = a.rms_to_reference_mm,
+        max = a.max_to_reference_mm,
+        outliers = a.points - a.assigned_points,
         heat = result.files.heat_map,
-        range = HEAT_MAP_RANGE_MM,
+        range = DEFAULT_HEAT_MAP_RANGE_MM,
         rc = c.rms_camera_px,
         rp = c.rms_projector_px,
         rs = c.rms_stereo_px,

@@ -18,6 +18,7 @@ mod merge;
 mod patterns;
 mod reconstruct;
 mod register;
+mod report;
 mod scan;
 mod scan_hardware;
 mod simulate;
@@ -59,6 +60,9 @@ enum Command {
     /// The whole scan on the virtual rig: calibrate, capture, decode, triangulate, merge,
     /// accuracy report, previews and index.html.
     Scan(scan::Args),
+    /// Measure a cloud against a truth file (VDI/VDE 2634 part 2: probing form and size,
+    /// sphere spacing, flatness): report.json and an error heat map.
+    Report(report::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -75,6 +79,7 @@ fn main() -> std::process::ExitCode {
         Command::Merge(args) => merge::run(&args),
         Command::Capture(args) => capture::run(&args),
         Command::Scan(args) => scan::run(&args),
+        Command::Report(args) => report::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

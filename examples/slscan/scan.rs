@@ -1,8 +1,9 @@
 //! `slscan scan --out DIR`: the whole scan in one command. Without hardware options it runs on
 //! the virtual rig (`structured_light::pipeline::scan_virtual`): calibrates from simulated
 //! board captures, captures a turntable session of a dumbbell, decodes, triangulates, merges,
-//! measures the result against the truth, and writes the merged PLY, previews, an error heat
-//! map, `report.json` and `index.html`.
+//! measures the result against the truth (sl-metrology; `truth.json` beside `merged.ply`, so
+//! `slscan report` reproduces the figures), captures a tilted flat plate for the flatness,
+//! and writes the merged PLY, previews, error heat maps, `report.json` and `index.html`.
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -38,6 +39,19 @@ pub(crate) struct Args {
     /// normals, on by default).
     #[arg(long)]
     pub(crate) no_average: bool,
+    /// Drop points whose surface normal is more than this many degrees from the direction to
+    /// the camera or the projector (90 keeps every point).
+    #[arg(long, default_value_t = VirtualScanConfig::default().max_view_angle_deg)]
+    pub(crate) max_view_angle: f64,
+    /// Diagnostic: triangulate with the virtual rig's true calibration (nothing estimated).
+    #[arg(long)]
+    pub(crate) true_calibration: bool,
+    /// Diagnostic: merge with the virtual rig's true turntable poses (no registration).
+    #[arg(long)]
+    pub(crate) true_poses: bool,
+    /// Do not capture the flat plate (no flatness figure).
+    #[arg(long)]
+    pub(crate) no_plate: bool,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
     #[command(flatten)]
@@ -59,6 +73,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         seed: args.seed,
         overwrite: args.overwrite,
         average_overlaps: !args.no_average,
+        max_view_angle_deg: args.max_view_angle,
+        true_calibration: args.true_calibration,
+        true_poses: args.true_poses,
+        flatness_plate: !args.no_plate,
         ..VirtualScanConfig::default()
     };
     let bars = MultiProgress::new();
@@ -75,18 +93,19 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     for bar in by_stage.values() {
         bar.finish_and_clear();
     }
-    let a = &result.accuracy;
     let c = &result.calibration_summary;
     report.figure(
         "scene",
-        "dumbbell: two spheres r = 25 mm, centres 120 mm apart",
+        "dumbbell: two spheres r = 25 mm, centres 120 mm apart; then a tilted 160 x 100 mm plate",
     );
     report.figure("views", args.views);
     report.figure("views_captured_this_run", result.views_captured);
     report.figure("view_points", result.view_points.clone());
     report.figure("merged_points", result.merged.len());
     report.figure("calibration", serde_json::to_value(c)?);
-    report.figure("accuracy", serde_json::to_value(a)?);
+    report.figure("accuracy", serde_json::to_value(&result.accuracy)?);
+    report.figure("flatness", serde_json::to_value(&result.flatness)?);
+    report.figure("first_view", serde_json::to_value(&result.first_view)?);
     report.figure("files", serde_json::to_value(&result.files)?);
     for s in &result.stages {
         report.stages.push(crate::common::Stage {
@@ -111,16 +130,20 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         result.merged.len(),
         args.views
     );
-    for s in &a.spheres {
+    for line in result.accuracy.summary() {
+        println!("  {line}");
+    }
+    for s in &result.first_view.spheres {
         println!(
-            "  {}: probing size {:+.4} mm, form {:.4} mm ({:.4} mm with 0.3 % trimmed; {} points)",
-            s.name, s.probing_size_mm, s.probing_form_mm, s.probing_form_trimmed_mm, s.points
+            "  first view alone: {} form {:.4} mm ({:.4} mm trimmed), fit RMS {:.4} mm, {} points",
+            s.name, s.probing_form_mm, s.probing_form_trimmed_mm, s.fit_rms_mm, s.points
         );
     }
-    println!(
-        "  sphere spacing {:+.4} mm; RMS to the true surface {:.4} mm ({:.4} mm after aligning the sphere centres)",
-        a.sphere_spacing_mm, a.rms_to_truth_mm, a.rms_to_truth_aligned_mm
-    );
+    if let Some(f) = &result.flatness {
+        for line in f.summary() {
+            println!("  {line}");
+        }
+    }
     for s in &result.stages {
         println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
     }

@@ -128,8 +128,9 @@ pub struct PlaneReport {
     pub rms_to_reference_mm: f64,
 }
 
-/// Everything [`evaluate`] measured.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Everything [`evaluate`] measured. Its `Debug` form leaves out the per-point distances
+/// (it gives their count), so that a failing assertion stays readable.
+#[derive(Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {
     /// Points of the cloud (finite or not).
     pub points: usize,
@@ -153,6 +154,66 @@ pub struct Report {
     /// not written to JSON.
     #[serde(skip)]
     pub signed_distances_mm: Vec<f32>,
+}
+
+impl std::fmt::Debug for Report {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Report")
+            .field("points", &self.points)
+            .field("assigned_points", &self.assigned_points)
+            .field("spheres", &self.spheres)
+            .field("sphere_pairs", &self.sphere_pairs)
+            .field("planes", &self.planes)
+            .field("rms_to_reference_mm", &self.rms_to_reference_mm)
+            .field("max_to_reference_mm", &self.max_to_reference_mm)
+            .field("trim_fraction", &self.trim_fraction)
+            .field(
+                "signed_distances_mm",
+                &format_args!("[{} values]", self.signed_distances_mm.len()),
+            )
+            .finish()
+    }
+}
+
+impl Report {
+    /// The figures as lines of text, one per feature, for a terminal.
+    pub fn summary(&self) -> Vec<String> {
+        let mut lines = Vec::new();
+        for s in &self.spheres {
+            lines.push(format!(
+                "sphere {}: probing size {:+.4} mm, form {:.4} mm ({:.4} mm with {} of {} points left out); radius {:.4} mm",
+                s.name,
+                s.probing_size_mm,
+                s.probing_form_mm,
+                s.probing_form_trimmed_mm,
+                s.trimmed_points,
+                s.points,
+                s.radius_mm
+            ));
+        }
+        for p in &self.sphere_pairs {
+            lines.push(format!(
+                "pair {}: sphere spacing {:+.4} mm (centres {:.4} mm apart, nominal {:.4} mm)",
+                p.name, p.sphere_spacing_mm, p.centre_distance_mm, p.nominal_distance_mm
+            ));
+        }
+        for p in &self.planes {
+            lines.push(format!(
+                "plane {}: flatness {:.4} mm ({:.4} mm with {} of {} points left out); fit RMS {:.4} mm",
+                p.name,
+                p.flatness_mm,
+                p.flatness_trimmed_mm,
+                p.trimmed_points,
+                p.points,
+                p.fit_rms_mm
+            ));
+        }
+        lines.push(format!(
+            "{} of {} points measured; RMS to the reference surfaces {:.4} mm, largest {:.4} mm",
+            self.assigned_points, self.points, self.rms_to_reference_mm, self.max_to_reference_mm
+        ));
+        lines
+    }
 }
 
 /// A reference surface: where signed distances are measured from.

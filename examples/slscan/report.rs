@@ -1,0 +1,75 @@
+//! `slscan report CLOUD.ply --truth TRUTH.json --out DIR`: measure a scanned cloud against
+//! what the scanned artefacts are known to be (sl-metrology, VDI/VDE 2634 part 2): probing
+//! errors of form and size, sphere spacing, flatness. Writes `report.json` and an error heat
+//! map (`error_map.png`); `docs/metrology.md` describes the truth file.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use sl_cloud::{PreviewConfig, read_ply};
+use sl_codec::write_png_rgb8;
+use sl_metrology::{EvaluateConfig, Truth, evaluate_with, heat_map};
+
+use crate::common::{Report, ensure_out_dir};
+
+/// Arguments of `slscan report`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// The scanned cloud (PLY, millimetres, in the frame of the truth's nominal positions).
+    pub(crate) cloud: PathBuf,
+    /// The truth description (JSON; see docs/metrology.md).
+    #[arg(long)]
+    pub(crate) truth: PathBuf,
+    /// Output folder (`report.json`, `error_map.png`).
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    /// Heat-map range (mm): blue at −range, red at +range.
+    #[arg(long, default_value_t = sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM)]
+    pub(crate) range: f32,
+    /// Fraction of points farthest from a fitted feature left out of the `_trimmed` figures.
+    #[arg(long, default_value_t = sl_metrology::VDI_TRIM_FRACTION)]
+    pub(crate) trim: f64,
+    /// Heat-map viewpoint: azimuth about the vertical axis (degrees).
+    #[arg(long, default_value_t = 0.0)]
+    pub(crate) azimuth: f64,
+    /// Heat-map viewpoint: elevation (degrees).
+    #[arg(long, default_value_t = 20.0)]
+    pub(crate) elevation: f64,
+}
+
+/// Runs `slscan report`.
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    let mut report = Report::new("report");
+    let out = ensure_out_dir(&args.out)?;
+    let cloud = report
+        .stage("read", || read_ply(&args.cloud))
+        .with_context(|| format!("cannot read {}", args.cloud.display()))?;
+    let truth = Truth::load(&args.truth)?;
+    let cfg = EvaluateConfig {
+        trim_fraction: args.trim,
+        ..EvaluateConfig::default()
+    };
+    let figures = report.stage("evaluate", || evaluate_with(&cloud, &truth, &cfg))?;
+    let view = PreviewConfig {
+        azimuth_deg: args.azimuth,
+        elevation_deg: args.elevation,
+        ..PreviewConfig::default()
+    };
+    let png = out.join("error_map.png");
+    report.stage("heat map", || -> anyhow::Result<()> {
+        let img = heat_map(&cloud, &figures.signed_distances_mm, args.range, &view)?;
+        write_png_rgb8(&png, img.width as usize, img.height as usize, &img.rgb)?;
+        Ok(())
+    })?;
+    report.figure("cloud", args.cloud.display().to_string());
+    report.figure("truth", serde_json::to_value(&truth)?);
+    report.figure("metrology", serde_json::to_value(&figures)?);
+    report.figure("heat_map", "error_map.png");
+    report.figure("heat_map_range_mm", f64::from(args.range));
+    let path = report.write(&out)?;
+    for line in figures.summary() {
+        println!("{line}");
+    }
+    println!("report: {}; heat map: {}", path.display(), png.display());
+    Ok(())
+}
