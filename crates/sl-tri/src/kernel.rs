@@ -114,6 +114,7 @@ pub(crate) struct Pass<'a> {
 }
 
 /// Lane inputs of one group.
+#[derive(Clone, Copy, Debug)]
 struct Gathered {
     rx: [f64; LANES],
     ry: [f64; LANES],
@@ -123,6 +124,19 @@ struct Gathered {
     v: [f64; LANES],
     /// Status before solving: `Valid` for a pixel to solve, else its final status.
     pre: [PointStatus; LANES],
+}
+
+impl Gathered {
+    /// Nothing to solve: every lane `NotDecoded`.
+    const EMPTY: Self = Self {
+        rx: [f64::NAN; LANES],
+        ry: [f64::NAN; LANES],
+        c: [f64::NAN; LANES],
+        r: [f64::NAN; LANES],
+        u: [0.0; LANES],
+        v: [0.0; LANES],
+        pre: [PointStatus::NotDecoded; LANES],
+    };
 }
 
 impl Pass<'_> {
@@ -142,20 +156,12 @@ impl Pass<'_> {
         self.options.max_reprojection_px.is_finite()
     }
 
-    /// The lane inputs of the group starting at pixel `base` (column `x0`, row `y0`): a
-    /// branch-free loop over fixed-size arrays for a full group (the common case), a checked
-    /// one at the map's end.
+    /// The lane inputs of the group starting at pixel `base` (column `x0`, row `y0`), into
+    /// `g` (every field written; in place, because returning the 392-byte struct cost a
+    /// `memcpy` call per group): a branch-free loop over fixed-size arrays for a full group
+    /// (the common case), a checked one at the map's end.
     #[inline(always)]
-    fn gather(&self, base: usize, (x0, y0): (usize, usize)) -> Gathered {
-        let mut g = Gathered {
-            rx: [f64::NAN; LANES],
-            ry: [f64::NAN; LANES],
-            c: [f64::NAN; LANES],
-            r: [f64::NAN; LANES],
-            u: [0.0; LANES],
-            v: [0.0; LANES],
-            pre: [PointStatus::NotDecoded; LANES],
-        };
+    fn gather(&self, base: usize, (x0, y0): (usize, usize), g: &mut Gathered) {
         let (xs, ys) = (self.rays.xs(), self.rays.ys());
         let m = self.map;
         let w = self.width.max(1);
@@ -199,8 +205,9 @@ impl Pass<'_> {
                 g.u[l] = u;
                 g.v[l] = v;
             }
-            return g;
+            return;
         }
+        *g = Gathered::EMPTY;
         let (mut x, mut y) = (x0, y0);
         for l in 0..LANES {
             let i = base + l;
@@ -226,7 +233,6 @@ impl Pass<'_> {
                 (g.u[l], g.v[l]) = (u, v);
             }
         }
-        g
     }
 
     /// A pixel's status before solving: `Valid` if it is to be solved.
@@ -374,10 +380,12 @@ impl Pass<'_> {
         &self,
         base: usize,
         xy: (usize, usize),
+        g: &mut Gathered,
         out: BlockOut<'_>,
         warm: &mut WarmStart,
     ) {
-        let g = self.gather(base, xy);
+        self.gather(base, xy, g);
+        let g = &*g;
         let BlockOut {
             points,
             reprojection,
@@ -397,19 +405,19 @@ impl Pass<'_> {
         }
         let with_error = self.error_needed();
         let (p, error) = match M {
-            RAY_PLANE_COLUMN => self.surface(&g, Axis::Column, warm),
-            RAY_PLANE_ROW => self.surface(&g, Axis::Row, warm),
+            RAY_PLANE_COLUMN => self.surface(g, Axis::Column, warm),
+            RAY_PLANE_ROW => self.surface(g, Axis::Row, warm),
             LINEAR | MIDPOINT => {
-                let (xp, yp) = self.projector_points(&g, warm);
+                let (xp, yp) = self.projector_points(g, warm);
                 let mut p = if M == LINEAR {
                     linear_lanes(self.stereo, &g.rx, &g.ry, &xp, &yp)
                 } else {
                     midpoint_lanes(self.stereo, &g.rx, &g.ry, &xp, &yp)
                 };
-                let e = self.project(&g, &mut p, with_error);
+                let e = self.project(g, &mut p, with_error);
                 (p, e)
             }
-            _ => self.optimal(&g, warm),
+            _ => self.optimal(g, warm),
         };
         // The filters, as selects per lane, written straight into the output.
         let o = self.options;
@@ -494,13 +502,14 @@ fn run<const M: u8>(pass: &Pass<'_>, start: usize, out: BlockOut<'_>, warm: &mut
     // out per group (an integer division costs tens of cycles).
     let w = pass.width.max(1);
     let (mut x, mut y) = (start % w, start / w);
+    let mut g = Gathered::EMPTY;
     for (k, ((points, reprojection), status)) in chunks.enumerate() {
         let out = BlockOut {
             points,
             reprojection,
             status,
         };
-        pass.group::<M>(start + k * LANES, (x, y), out, warm);
+        pass.group::<M>(start + k * LANES, (x, y), &mut g, out, warm);
         x += LANES;
         while x >= w {
             (x, y) = (x - w, y + 1);
