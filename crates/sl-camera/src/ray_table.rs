@@ -3,7 +3,7 @@
 use nalgebra::{Point2, Vector3};
 use rayon::prelude::*;
 
-use crate::{CameraModel, ImageSize};
+use crate::{CameraError, CameraModel, ImageSize};
 
 /// The undistorted normalised ray `(x, y, 1)` of every pixel centre of an image, row-major.
 ///
@@ -59,6 +59,30 @@ impl RayTable {
             x,
             y,
         }
+    }
+
+    /// A table from normalised points computed elsewhere (e.g. by a vectorised
+    /// undistortion): `x[i]`, `y[i]` is the undistorted normalised point of pixel `i`
+    /// (row-major, `i = y · width + x`), NaN where the model has no ray. The caller answers
+    /// for the values; [`RayTable::new`] is the reference they should equal.
+    ///
+    /// # Errors
+    /// [`CameraError::InvalidParameter`] if `x` or `y` does not have one entry per pixel.
+    pub fn from_parts(size: ImageSize, x: Vec<f64>, y: Vec<f64>) -> Result<Self, CameraError> {
+        let n = size.pixel_count();
+        if x.len() != n || y.len() != n {
+            return Err(CameraError::invalid(
+                "ray table",
+                format!(
+                    "{} x and {} y values for {n} pixels ({}x{})",
+                    x.len(),
+                    y.len(),
+                    size.width,
+                    size.height
+                ),
+            ));
+        }
+        Ok(Self { size, x, y })
     }
 
     /// Image size.
@@ -154,5 +178,18 @@ mod tests {
         }
         assert_eq!(t.valid_count(), 128 * 72);
         assert!(t.get(0, 72).is_none());
+    }
+
+    #[test]
+    fn from_parts_checks_the_lengths() {
+        let size = ImageSize::new(4, 2);
+        let mut x = vec![0.5; 8];
+        x[5] = f64::NAN;
+        let t = RayTable::from_parts(size, x, vec![0.25; 8]).unwrap();
+        assert_eq!(t.size(), size);
+        assert!(t.get(1, 1).is_none()); // NaN: no ray
+        assert_eq!(t.normalised(0, 1), Some(Point2::new(0.5, 0.25)));
+        let e = RayTable::from_parts(size, vec![0.0; 8], vec![0.0; 7]).unwrap_err();
+        assert!(e.to_string().contains("7 y values for 8 pixels"), "{e}");
     }
 }

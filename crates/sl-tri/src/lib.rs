@@ -89,6 +89,7 @@
 // the form the compiler vectorises.
 #![allow(clippy::needless_range_loop)]
 
+mod camera_rays;
 mod depth;
 mod error;
 mod fit;

@@ -6,6 +6,7 @@ use sl_camera::{Calibration, CameraModel, RayTable};
 use sl_cloud::PointCloud;
 use sl_codec::CorrespondenceMap;
 
+use crate::camera_rays::camera_ray_table;
 use crate::grid_normals::cloud_normals;
 use crate::kernel::{BLOCK, BlockOut, Pass};
 use crate::mixed_pixels::filter_mixed_pixels;
@@ -74,7 +75,7 @@ impl Triangulator {
         }
         Ok(Self {
             camera: *camera,
-            camera_rays: camera.ray_table(),
+            camera_rays: camera_ray_table(camera)?,
             stereo: Stereo::new(camera, projector, t_cam_proj),
         })
     }
