@@ -119,6 +119,10 @@ pub struct VirtualScanConfig {
     /// Diagnostic: merge with the rig's true turntable poses instead of registering the views
     /// (`sl_icp::merge_aligned`). Default `false`.
     pub true_poses: bool,
+    /// Neighbours of each merged point for its normal and, with `average_overlaps`, for the
+    /// moving-least-squares surface it is moved onto (`sl_icp::MergeConfig::
+    /// output_normal_neighbours`). Default 16.
+    pub smoothing_neighbours: usize,
 }
 
 impl Default for VirtualScanConfig {
@@ -136,6 +140,7 @@ impl Default for VirtualScanConfig {
             max_view_angle_deg: 90.0,
             true_calibration: false,
             true_poses: false,
+            smoothing_neighbours: 16,
         }
     }
 }
@@ -748,6 +753,7 @@ pub fn scan_virtual(
     let initial = turntable_poses(&axis, &angles)?;
     let merge = MergeConfig {
         average_overlaps: cfg.average_overlaps,
+        output_normal_neighbours: cfg.smoothing_neighbours,
         ..MergeConfig::default()
     };
     let first_view = clouds.first().cloned().unwrap_or_default();

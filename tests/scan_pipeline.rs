@@ -148,3 +148,41 @@ fn a_small_virtual_scan_measures_the_dumbbell() {
     assert_eq!(again.views_captured, 0);
     assert_eq!(again.view_points, result.view_points);
 }
+
+/// The grazing-angle filter keeps a point whose normal faces both the camera (the origin) and
+/// the projector within the limit, and drops one seen or lit more obliquely; points without a
+/// normal stay. Angles are constructed, not measured: a point on the optical axis with its
+/// normal tilted by a known angle about y, the projector on the x axis.
+#[test]
+fn grazing_points_are_dropped() {
+    use nalgebra::{Point3, Vector3};
+    use structured_light::pipeline::drop_grazing;
+    let p = Point3::new(0.0, 0.0, 400.0);
+    let tilted = |deg: f64| {
+        let a = f64::to_radians(deg);
+        // Rotated about y from -z (facing the camera) toward -x.
+        Vector3::new(-a.sin(), 0.0, -a.cos())
+    };
+    // The projector 100 mm to the right: seen from p at atan(100/400) = 14.0 deg, on the
+    // side the normal tilts away from, so its angle is the tilt + 14.0 deg.
+    let projector = Point3::new(100.0, 0.0, 0.0);
+    let cloud = sl_cloud::PointCloud::from_positions(vec![p; 4])
+        .with_normals(vec![
+            tilted(10.0),
+            tilted(50.0),
+            tilted(65.0),
+            Vector3::zeros(),
+        ])
+        .unwrap();
+    // Limit 70 deg: 10 (24 to the projector) and 50 (64) stay, 65 (79 to the projector) goes.
+    let kept = drop_grazing(cloud.clone(), &projector, 70.0).unwrap();
+    assert_eq!(kept.len(), 3);
+    assert_eq!(kept.normals().unwrap()[1], tilted(50.0));
+    assert_eq!(kept.normals().unwrap()[2], Vector3::zeros());
+    // 90 keeps everything; a limit of 0 or NaN is refused.
+    assert_eq!(
+        drop_grazing(cloud.clone(), &projector, 90.0).unwrap().len(),
+        4
+    );
+    assert!(drop_grazing(cloud, &projector, f64::NAN).is_err());
+}

@@ -49,6 +49,10 @@ pub(crate) struct Args {
     /// Diagnostic: merge with the virtual rig's true turntable poses (no registration).
     #[arg(long)]
     pub(crate) true_poses: bool,
+    /// Neighbours of each merged point for its normal and the moving-least-squares surface
+    /// the averaging moves it onto (more: smoother).
+    #[arg(long, default_value_t = VirtualScanConfig::default().smoothing_neighbours)]
+    pub(crate) smoothing_neighbours: usize,
     /// Do not capture the flat plate (no flatness figure).
     #[arg(long)]
     pub(crate) no_plate: bool,
@@ -77,6 +81,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         true_calibration: args.true_calibration,
         true_poses: args.true_poses,
         flatness_plate: !args.no_plate,
+        smoothing_neighbours: args.smoothing_neighbours,
         ..VirtualScanConfig::default()
     };
     let bars = MultiProgress::new();
