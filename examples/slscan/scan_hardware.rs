@@ -78,6 +78,14 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         "--downscale is for the virtual rig; a camera's resolution is its own"
     );
     anyhow::ensure!(
+        !args.true_calibration && !args.true_poses,
+        "--true-calibration and --true-poses are diagnostics of the virtual rig: a real rig has no truth"
+    );
+    anyhow::ensure!(
+        args.max_view_angle >= 90.0,
+        "--max-view-angle is not applied to a scan on hardware yet: leave it at 90"
+    );
+    anyhow::ensure!(
         args.views >= 2,
         "--views {}: a turntable scan needs at least 2 views",
         args.views
@@ -274,6 +282,17 @@ mod tests {
         assert!(text(&err).contains("--calib"), "{err:#}");
         let err = scan(&["--out", o, "--turntable", "/dev/ttyUSB0"]).unwrap_err();
         assert!(text(&err).contains("--calib FILE"), "{err:#}");
+        let err = scan(&[
+            "--out",
+            o,
+            "--turntable",
+            "/dev/ttyUSB0",
+            "--calib",
+            "c.json",
+            "--true-poses",
+        ])
+        .unwrap_err();
+        assert!(text(&err).contains("--true-poses"), "{err:#}");
         assert!(!out.exists());
     }
 }
