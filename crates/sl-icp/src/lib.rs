@@ -72,6 +72,7 @@ mod prepared;
 mod se3;
 mod trimming;
 mod turntable;
+mod turntable_model;
 
 pub use config::{Association, IcpConfig, Metric, RobustKernel, Trimming};
 pub use error::IcpError;
@@ -88,3 +89,4 @@ pub use prepared::{NormalSource, PinholeGrid, PrepareConfig, PreparedCloud};
 pub use sl_camera::TurntableAxis;
 pub use sl_cloud::{NormalConfig, NormalOrientation, PointCloud};
 pub use turntable::turntable_poses;
+pub use turntable_model::{PoseModel, TurntableFit, TurntablePrior};

@@ -7,9 +7,12 @@ use rayon::prelude::*;
 use sl_cloud::{KdIndex, MergePolicy, NormalConfig, PointCloud, VoxelGridConfig, voxel_downsample};
 
 use crate::normals::{local_planes, quadric_projection};
+use crate::pose_graph::unreachable;
+use crate::turntable_model::{Turntable, fit_turntable_gated};
 use crate::{
     IcpConfig, IcpError, Metric, NormalSource, PoseGraph, PoseGraphConfig, PoseGraphEdge,
-    PoseGraphSolution, PrepareConfig, PreparedCloud, Registration, optimize_pose_graph, register,
+    PoseGraphSolution, PoseModel, PrepareConfig, PreparedCloud, Registration, TurntableFit,
+    optimize_pose_graph, register,
 };
 
 /// Settings of [`align_views`], [`merge_aligned`] and [`merge_views`]. Lengths in mm.
@@ -38,8 +41,12 @@ pub struct MergeConfig {
     /// Pairs whose fitness is below this are left out of the pose graph (reported as unused).
     /// Default 0.3: neighbouring views 10° apart overlap by more than 80 %.
     pub min_fitness: f64,
-    /// The pose-graph optimisation.
+    /// The pose-graph optimisation (of [`PoseModel::Free`]).
     pub pose_graph: PoseGraphConfig,
+    /// How the registrations become poses. Default: the turntable model with the priors of a
+    /// calibrated turntable ([`TurntablePrior::default`]), falling back to the free pose
+    /// graph when the initial poses are not turntable poses.
+    pub pose_model: PoseModel,
     /// Voxel size of the merged cloud; `None` keeps every point. Default 0.5 mm: averages the
     /// 10 to 40 overlapping samples of a dense 36-view scan, about the scanner's resolution.
     pub output_voxel_size: Option<f64>,
@@ -76,6 +83,7 @@ impl Default for MergeConfig {
             loop_closure: true,
             min_fitness: 0.3,
             pose_graph: PoseGraphConfig::default(),
+            pose_model: PoseModel::default(),
             output_voxel_size: Some(0.5),
             output_normal_neighbours: 16,
             average_overlaps: false,
@@ -105,6 +113,9 @@ impl MergeConfig {
                 v,
                 "must be finite and > 0 (or None)",
             ));
+        }
+        if let PoseModel::Turntable(prior) = &self.pose_model {
+            prior.validate()?;
         }
         if self.neighbours == 0 {
             return Err(IcpError::invalid("neighbours", 0, "must be at least 1"));
@@ -157,8 +168,11 @@ pub struct ViewAlignment {
     pub poses: Vec<Isometry3<f64>>,
     /// Every pairwise registration tried, in order.
     pub pairs: Vec<PairRegistration>,
-    /// The pose-graph optimisation.
+    /// The optimisation: the pose graph's, or the turntable model's (its nodes are then
+    /// `poses`, its costs include the priors).
     pub pose_graph: PoseGraphSolution,
+    /// The fitted turntable model, when [`PoseModel::Turntable`] was used.
+    pub turntable: Option<TurntableFit>,
 }
 
 /// Result of [`merge_views`].
@@ -287,11 +301,57 @@ pub fn align_views(
         nodes: initial.to_vec(),
         edges,
     };
-    let pose_graph = optimize_pose_graph(&graph, &config.pose_graph)?;
+    let calibrated = match &config.pose_model {
+        PoseModel::Turntable(prior) => {
+            let centre = prepared
+                .first()
+                .map_or_else(Point3::origin, PreparedCloud::centroid);
+            Turntable::from_poses(initial, &centre).map(|t| (t, *prior))
+        }
+        PoseModel::Free => None,
+    };
+    let Some((calibrated, prior)) = calibrated else {
+        let pose_graph = optimize_pose_graph(&graph, &config.pose_graph)?;
+        return Ok(ViewAlignment {
+            poses: pose_graph.nodes.clone(),
+            pairs,
+            pose_graph,
+            turntable: None,
+        });
+    };
+    // Without an angle prior, a view no registration reaches has a free angle.
+    if prior.angle_sigma_deg.is_none()
+        && let Some(node) = unreachable(graph.nodes.len(), &graph.edges)
+    {
+        return Err(IcpError::PoseGraphDisconnected { node });
+    }
+    let fit = fit_turntable_gated(&calibrated, &graph.edges, &prior);
+    let poses = fit.solution.turntable.poses();
     Ok(ViewAlignment {
-        poses: pose_graph.nodes.clone(),
+        poses: poses.clone(),
         pairs,
-        pose_graph,
+        pose_graph: PoseGraphSolution {
+            nodes: poses,
+            initial_cost: fit.solution.initial_cost,
+            final_cost: fit.solution.final_cost,
+            iterations: fit.solution.iterations,
+            converged: fit.solution.converged,
+        },
+        turntable: Some(TurntableFit {
+            initial_axis: calibrated.axis(),
+            registered_axis: fit.registered.axis(),
+            axis: fit.solution.turntable.axis(),
+            axis_confirmed: fit.axis_confirmed,
+            angle_scale: fit.solution.angle_scale,
+            initial_angles_deg: calibrated.angles.iter().map(|a| a.to_degrees()).collect(),
+            angles_deg: fit
+                .solution
+                .turntable
+                .angles
+                .iter()
+                .map(|a| a.to_degrees())
+                .collect(),
+        }),
     })
 }
 

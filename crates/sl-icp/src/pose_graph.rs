@@ -202,7 +202,7 @@ pub fn optimize_pose_graph(
 }
 
 /// The first node not tied to node 0 by a path of edges, if any.
-fn unreachable(n: usize, edges: &[PoseGraphEdge]) -> Option<usize> {
+pub(crate) fn unreachable(n: usize, edges: &[PoseGraphEdge]) -> Option<usize> {
     let mut seen = vec![false; n];
     let mut stack = vec![0usize];
     if let Some(s) = seen.get_mut(0) {

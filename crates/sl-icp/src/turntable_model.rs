@@ -1,0 +1,768 @@
+//! The turntable model of a merge: every view is the first one turned about one axis, so the
+//! poses of `n` views have `4 + (n - 1)` degrees of freedom (the axis line and one angle per
+//! view) instead of `6 (n - 1)`. Fitting the pairwise registrations to that model, with the
+//! calibrated axis and the motor angles as priors, keeps what a calibrated turntable knows
+//! and lets the registrations correct what it gets wrong.
+
+use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{SMatrix, Vector6};
+
+use crate::IcpError;
+use crate::pose_graph::PoseGraphEdge;
+use crate::se3::to_vector;
+use sl_camera::TurntableAxis;
+
+/// Largest rotation (rad) between an initial pose and its turntable-model reconstruction for
+/// the poses to count as turntable poses: 1e-6 rad (0.2 arc second), far above the rounding
+/// of [`turntable_poses`](crate::turntable_poses) (1e-15) and far below any real pose error.
+const MODEL_ROTATION_TOLERANCE: f64 = 1e-6;
+
+/// Largest displacement (mm) of the views' points between an initial pose and its
+/// reconstruction for the poses to count as turntable poses: 1e-4 mm, a tenth of a micron.
+const MODEL_POSITION_TOLERANCE_MM: f64 = 1e-4;
+
+/// Central-difference step of the numeric Jacobians (rad and mm): residuals are smooth and
+/// O(1) in these units, so 1e-6 balances truncation (~h²) against rounding (~1e-16/h).
+const JACOBIAN_STEP: f64 = 1e-6;
+
+/// Initial Levenberg-Marquardt damping, relative to the diagonal of the normal matrix.
+const INITIAL_DAMPING: f64 = 1e-4;
+
+/// Damping beyond which no step can lower the cost any more: stop.
+const MAX_DAMPING: f64 = 1e12;
+
+/// Stop when an iteration lowers the cost by less than this fraction.
+const RELATIVE_TOLERANCE: f64 = 1e-12;
+
+/// Stop when no parameter moves by more than this (rad or mm): a nanometre.
+const STEP_TOLERANCE: f64 = 1e-9;
+
+/// Maximum Levenberg-Marquardt iterations (a 36-view ring takes 3 to 10).
+const MAX_ITERATIONS: usize = 100;
+
+/// What the calibration of the turntable is worth, as standard deviations: the priors of the
+/// turntable model (see [`PoseModel::Turntable`]). `None` drops a prior (the registrations
+/// alone decide that part).
+///
+/// The axis is not averaged with the registrations: the axis the registrations give is
+/// compared with the calibrated one, and the calibration is kept when they agree within 3
+/// standard deviations, replaced by the registered axis when they do not (see
+/// [`TurntableFit::axis_confirmed`]). The angles are fitted to the registrations and the
+/// angle prior together, with a free correction of the angle scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TurntablePrior {
+    /// Standard deviation of each view's platter angle about the one its motor reading gives
+    /// (after the fitted scale correction), degrees. Default 0.025°: the quantisation of a
+    /// 4096-step servo (the rig's MX-64, 0.088° per step, over √12).
+    pub angle_sigma_deg: Option<f64>,
+    /// Standard deviation of the calibrated axis direction, degrees. Default 0.05°: issue 5's
+    /// accuracy target of `sl-calib`'s axis fit (measured ~0.005° on the virtual rig).
+    pub axis_direction_sigma_deg: Option<f64>,
+    /// Standard deviation of the calibrated axis position, perpendicular to it, at the
+    /// object, mm. Default 0.1 mm: issue 5's target of the axis fit (measured ~0.03 mm).
+    pub axis_position_sigma_mm: Option<f64>,
+    /// Noise (mm) a registration's information matrix is divided by (squared). The
+    /// information of [`Registration`](crate::Registration) counts each correspondence as one
+    /// unit per mm², as Open3D's, so 10k correspondences claim a 0.01 mm translation; but
+    /// neighbouring views share systematic errors (decoder ripple, grazing faces,
+    /// resampling), and on the rendered virtual rig the pairwise registrations are off by
+    /// ~0.1 mm and ~0.02°. Default 10 mm, which brings the claimed precision to that level,
+    /// so that the angle prior and the registrations weigh what they are worth.
+    pub registration_sigma_mm: f64,
+}
+
+impl Default for TurntablePrior {
+    fn default() -> Self {
+        Self {
+            angle_sigma_deg: Some(0.025),
+            axis_direction_sigma_deg: Some(0.05),
+            axis_position_sigma_mm: Some(0.1),
+            registration_sigma_mm: 10.0,
+        }
+    }
+}
+
+impl TurntablePrior {
+    /// No priors: the axis and the angles from the registrations alone (the initial poses
+    /// only start the fit). For a turntable whose axis or angles are not calibrated.
+    pub fn none() -> Self {
+        Self {
+            angle_sigma_deg: None,
+            axis_direction_sigma_deg: None,
+            axis_position_sigma_mm: None,
+            ..Self::default()
+        }
+    }
+
+    pub(crate) fn validate(&self) -> Result<(), IcpError> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        for (name, v) in [
+            ("pose_model.angle_sigma_deg", self.angle_sigma_deg),
+            (
+                "pose_model.axis_direction_sigma_deg",
+                self.axis_direction_sigma_deg,
+            ),
+            (
+                "pose_model.axis_position_sigma_mm",
+                self.axis_position_sigma_mm,
+            ),
+            (
+                "pose_model.registration_sigma_mm",
+                Some(self.registration_sigma_mm),
+            ),
+        ] {
+            if let Some(v) = v
+                && !positive(v)
+            {
+                return Err(IcpError::invalid(name, v, "must be finite and > 0"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How [`align_views`](crate::align_views) turns the pairwise registrations into poses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PoseModel {
+    /// Each view has its own 6-degree-of-freedom pose, found by the pose graph
+    /// ([`optimize_pose_graph`](crate::optimize_pose_graph)): for views taken any way.
+    Free,
+    /// The views are one turntable's: the initial poses are read as an axis and one platter
+    /// angle per view (as [`turntable_poses`](crate::turntable_poses) makes them), and the
+    /// registrations refine the axis line and the angles, held near their calibrated values by
+    /// the priors. When the initial poses are not rotations about one axis, the merge falls
+    /// back to [`PoseModel::Free`] (and [`ViewAlignment::turntable`](crate::ViewAlignment)
+    /// is `None`).
+    Turntable(TurntablePrior),
+}
+
+impl Default for PoseModel {
+    fn default() -> Self {
+        Self::Turntable(TurntablePrior::default())
+    }
+}
+
+/// The turntable model fitted by [`align_views`](crate::align_views).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TurntableFit {
+    /// The axis read from the initial poses, in the world frame (angle offset 0, scale 1).
+    pub initial_axis: TurntableAxis,
+    /// The axis the registrations give, without the axis priors, in the world frame.
+    pub registered_axis: TurntableAxis,
+    /// Whether `registered_axis` agrees with `initial_axis` within 3 standard deviations of
+    /// the axis priors: the calibration is confirmed and kept (`axis == initial_axis`);
+    /// otherwise `axis == registered_axis`.
+    pub axis_confirmed: bool,
+    /// The axis of the final poses, in the world frame (angle offset 0, scale 1).
+    pub axis: TurntableAxis,
+    /// The fitted correction of the angle scale: the prior angles are `angle_scale` times the
+    /// initial ones (1 without an angle prior).
+    pub angle_scale: f64,
+    /// Platter angle of each view relative to view 0 read from the initial poses, degrees
+    /// (view 0 is 0; unwrapped in view order, so a full turn reads 0 to 350).
+    pub initial_angles_deg: Vec<f64>,
+    /// Fitted platter angle of each view relative to view 0, degrees.
+    pub angles_deg: Vec<f64>,
+}
+
+/// A turntable: `T_world_view_k = T_world_view0 · Rot(direction, point, -angle_k)`, with
+/// the axis in view 0's frame and `angle_0 = 0`.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Turntable {
+    pub(crate) t_world_view0: Isometry3<f64>,
+    pub(crate) direction: Unit<Vector3<f64>>,
+    pub(crate) point: Point3<f64>,
+    /// Platter angles (rad) relative to view 0; `angles[0] = 0`.
+    pub(crate) angles: Vec<f64>,
+}
+
+/// The rotation by `angle` (rad) about the line through `point` along `direction`.
+fn rotation_about(
+    direction: &Unit<Vector3<f64>>,
+    point: &Point3<f64>,
+    angle: f64,
+) -> Isometry3<f64> {
+    let r = UnitQuaternion::from_axis_angle(direction, angle);
+    Isometry3::from_parts(Translation3::from(point.coords - r * point.coords), r)
+}
+
+impl Turntable {
+    /// Reads the axis and the angles from poses `T_world_view`, or `None` when they are not
+    /// rotations of view 0 about one axis (or no view turns). `centre` (view 0's frame) is
+    /// where the axis point is placed along the axis: the object.
+    pub(crate) fn from_poses(poses: &[Isometry3<f64>], centre: &Point3<f64>) -> Option<Self> {
+        let first = *poses.first()?;
+        let rel: Vec<Isometry3<f64>> = poses.iter().map(|p| first.inverse() * p).collect();
+        // Direction: the rotation axes, sign-aligned, weighted by sin(angle).
+        let mut sum = Vector3::zeros();
+        for r in &rel {
+            if let Some((axis, angle)) = r.rotation.axis_angle() {
+                let w = angle.sin().abs().max(1e-3 * angle);
+                let a = if sum.dot(&axis) < 0.0 {
+                    -axis.into_inner()
+                } else {
+                    axis.into_inner()
+                };
+                sum += a * w;
+            }
+        }
+        let direction = Unit::try_new(sum, 1e-9)?;
+        // Point: least squares of (I - R) c = t over the views, plus c·d = centre·d.
+        let mut a = direction.into_inner() * direction.transpose();
+        let mut b = direction.into_inner() * direction.dot(&centre.coords);
+        for r in &rel {
+            let m = nalgebra::Matrix3::identity() - r.rotation.to_rotation_matrix().into_inner();
+            a += m.transpose() * m;
+            b += m.transpose() * r.translation.vector;
+        }
+        let point = Point3::from(a.lu().solve(&b)?);
+        // Angles: pose k turns by -angle_k about the direction.
+        // Unwrapped in view order (each within half a turn of the previous one), so that a
+        // full turn reads 0..360° and the angle-scale correction scales it as the motor did.
+        let mut angles: Vec<f64> = Vec::with_capacity(rel.len());
+        for r in &rel {
+            let a = -r.rotation.scaled_axis().dot(&direction);
+            let previous = angles.last().copied().unwrap_or(0.0);
+            let turns = ((previous - a) / std::f64::consts::TAU).round();
+            angles.push(a + turns * std::f64::consts::TAU);
+        }
+        let model = Self {
+            t_world_view0: first,
+            direction,
+            point,
+            angles,
+        };
+        // Every pose must be reproduced, else these are not turntable poses.
+        let fits = model.poses().iter().zip(poses).all(|(m, p)| {
+            let err = m.inverse() * p;
+            err.rotation.angle() <= MODEL_ROTATION_TOLERANCE
+                && (err * centre - centre).norm() <= MODEL_POSITION_TOLERANCE_MM
+        });
+        (fits
+            && model
+                .angles
+                .iter()
+                .any(|a| a.abs() > MODEL_ROTATION_TOLERANCE))
+        .then_some(model)
+    }
+
+    /// `T_world_view` of every view.
+    pub(crate) fn poses(&self) -> Vec<Isometry3<f64>> {
+        self.angles
+            .iter()
+            .map(|&a| self.t_world_view0 * rotation_about(&self.direction, &self.point, -a))
+            .collect()
+    }
+
+    /// The axis in the world frame.
+    pub(crate) fn axis(&self) -> TurntableAxis {
+        TurntableAxis {
+            direction: self.t_world_view0.rotation * self.direction.into_inner(),
+            point_mm: self.t_world_view0 * self.point,
+            angle_offset_deg: 0.0,
+            angle_scale: 1.0,
+        }
+    }
+}
+
+/// Index of `κ` in the parameters: the prior angles are scaled by `1 + κ`, which absorbs an
+/// error of the motor's angle scale (a 0.1 % scale error is 0.36° by the end of a turn).
+const SCALE: usize = 4;
+
+/// Index of the first angle (view 1's) in the parameters.
+const ANGLES: usize = 5;
+
+/// Parameters of the fit around a reference turntable: the axis tilt `(a1, a2)` (rad) and
+/// shift `(p1, p2)` (mm) along two unit vectors perpendicular to the reference direction, the
+/// angle-scale correction `κ`, then the angles of views 1.. (rad).
+struct Chart {
+    reference: Turntable,
+    e1: Vector3<f64>,
+    e2: Vector3<f64>,
+}
+
+impl Chart {
+    fn new(reference: Turntable) -> Self {
+        let d = reference.direction.into_inner();
+        let helper = if d.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let e1 = d.cross(&helper).normalize();
+        let e2 = d.cross(&e1);
+        Self { reference, e1, e2 }
+    }
+
+    fn axis(&self, x: &[f64; 4]) -> (Unit<Vector3<f64>>, Point3<f64>) {
+        let d = self.reference.direction.into_inner() + self.e1 * x[0] + self.e2 * x[1];
+        let p = self.reference.point + self.e1 * x[2] + self.e2 * x[3];
+        (Unit::new_normalize(d), p)
+    }
+
+    fn turntable(&self, x: &DVector<f64>) -> Turntable {
+        let head = [x[0], x[1], x[2], x[3]];
+        let (direction, point) = self.axis(&head);
+        let mut angles = vec![0.0];
+        angles.extend(x.iter().skip(ANGLES).copied());
+        Turntable {
+            t_world_view0: self.reference.t_world_view0,
+            direction,
+            point,
+            angles,
+        }
+    }
+
+    /// The parameters of `t` (same view count): its line where it crosses the reference
+    /// plane through the reference point, its direction scaled to a unit reference component.
+    fn parameters(&self, t: &Turntable) -> DVector<f64> {
+        let d0 = self.reference.direction.into_inner();
+        let d = t.direction.into_inner();
+        let along = d.dot(&d0);
+        let (d, p) = if along.abs() > 1e-9 {
+            let d = d / along;
+            let s = (self.reference.point - t.point).dot(&d0);
+            (d, t.point + d * s)
+        } else {
+            (d0, self.reference.point)
+        };
+        let dp = p - self.reference.point;
+        let head = [
+            d.dot(&self.e1),
+            d.dot(&self.e2),
+            dp.dot(&self.e1),
+            dp.dot(&self.e2),
+        ];
+        let n = self.reference.angles.len();
+        DVector::from_iterator(
+            ANGLES + n.saturating_sub(1),
+            head.into_iter()
+                .chain([0.0])
+                .chain(t.angles.iter().skip(1).copied()),
+        )
+    }
+}
+
+/// An edge residual for the axis `head` and the angles of its two views.
+fn edge_residual(
+    chart: &Chart,
+    head: &[f64; 4],
+    angle_from: f64,
+    angle_to: f64,
+    e: &PoseGraphEdge,
+) -> Vector6<f64> {
+    let (d, p) = chart.axis(head);
+    // T_from^-1 T_to = Rot(angle_from - angle_to): the world pose of view 0 cancels.
+    to_vector(&(rotation_about(&d, &p, angle_from - angle_to) * e.measurement.inverse()))
+}
+
+/// The residuals and weights of the fit, as normal equations.
+struct Problem<'a> {
+    chart: Chart,
+    edges: &'a [PoseGraphEdge],
+    /// Keep the axis where the chart's reference has it (fit the angles only).
+    hold_axis: bool,
+    prior: TurntablePrior,
+    prior_angles: Vec<f64>,
+}
+
+impl Problem<'_> {
+    fn angle(x: &DVector<f64>, view: usize) -> f64 {
+        if view == 0 {
+            0.0
+        } else {
+            x.get(ANGLES + view - 1).copied().unwrap_or(0.0)
+        }
+    }
+
+    fn edge_scale(&self) -> f64 {
+        1.0 / (self.prior.registration_sigma_mm * self.prior.registration_sigma_mm)
+    }
+
+    fn cost(&self, x: &DVector<f64>) -> f64 {
+        let head = [x[0], x[1], x[2], x[3]];
+        let s = self.edge_scale();
+        let edges: f64 = self
+            .edges
+            .iter()
+            .map(|e| {
+                let r = edge_residual(
+                    &self.chart,
+                    &head,
+                    Self::angle(x, e.from),
+                    Self::angle(x, e.to),
+                    e,
+                );
+                s * r.dot(&(e.information * r))
+            })
+            .sum();
+        edges + self.prior_cost(x)
+    }
+
+    fn prior_cost(&self, x: &DVector<f64>) -> f64 {
+        let mut c = 0.0;
+        if let Some(s) = self.prior.axis_direction_sigma_deg {
+            let s = s.to_radians();
+            c += (x[0] * x[0] + x[1] * x[1]) / (s * s);
+        }
+        if let Some(s) = self.prior.axis_position_sigma_mm {
+            c += (x[2] * x[2] + x[3] * x[3]) / (s * s);
+        }
+        if let Some(s) = self.prior.angle_sigma_deg {
+            let s = s.to_radians();
+            for (k, a0) in self.prior_angles.iter().enumerate().skip(1) {
+                let d = Self::angle(x, k) - (1.0 + x[SCALE]) * a0;
+                c += d * d / (s * s);
+            }
+        }
+        c
+    }
+
+    /// `H = Σ Jᵀ Λ J`, `g = Σ Jᵀ Λ r` (edges by central differences, priors exactly).
+    fn normal_equations(&self, x: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
+        let dim = x.len();
+        let mut h = DMatrix::zeros(dim, dim);
+        let mut g = DVector::zeros(dim);
+        let s = self.edge_scale();
+        let head = [x[0], x[1], x[2], x[3]];
+        for e in self.edges {
+            let (af, at) = (Self::angle(x, e.from), Self::angle(x, e.to));
+            let r = edge_residual(&self.chart, &head, af, at, e);
+            // Columns: the 4 axis parameters, then the angles of `from` and `to`.
+            let mut jac = SMatrix::<f64, 6, 6>::zeros();
+            for i in 0..6 {
+                let mut plus_minus = [Vector6::zeros(); 2];
+                for (slot, sign) in [1.0, -1.0].iter().enumerate() {
+                    let step = sign * JACOBIAN_STEP;
+                    let mut hd = head;
+                    let (mut f, mut t) = (af, at);
+                    match i {
+                        0..=3 => hd[i] += step,
+                        4 => f += step,
+                        _ => t += step,
+                    }
+                    plus_minus[slot] = edge_residual(&self.chart, &hd, f, t, e);
+                }
+                jac.column_mut(i)
+                    .copy_from(&((plus_minus[0] - plus_minus[1]) / (2.0 * JACOBIAN_STEP)));
+            }
+            let information = e.information * s;
+            let jt_l = jac.transpose() * information;
+            let hh = jt_l * jac;
+            let gg = jt_l * r;
+            // Global index of each local column (None: view 0's fixed angle).
+            let index = |i: usize| -> Option<usize> {
+                match i {
+                    0..=3 => Some(i),
+                    4 => (e.from != 0).then(|| ANGLES + e.from - 1),
+                    _ => (e.to != 0).then(|| ANGLES + e.to - 1),
+                }
+            };
+            for i in 0..6 {
+                let Some(gi) = index(i) else { continue };
+                g[gi] += gg[i];
+                for j in 0..6 {
+                    let Some(gj) = index(j) else { continue };
+                    h[(gi, gj)] += hh[(i, j)];
+                }
+            }
+        }
+        if let Some(sd) = self.prior.axis_direction_sigma_deg {
+            let w = 1.0 / sd.to_radians().powi(2);
+            for i in 0..2 {
+                h[(i, i)] += w;
+                g[i] += w * x[i];
+            }
+        }
+        if let Some(sp) = self.prior.axis_position_sigma_mm {
+            let w = 1.0 / (sp * sp);
+            for i in 2..4 {
+                h[(i, i)] += w;
+                g[i] += w * x[i];
+            }
+        }
+        // Angle k's prior residual is (angle_k - (1 + κ) a0_k) / σ: d/d angle_k = 1, d/dκ = -a0_k.
+        if let Some(sa) = self.prior.angle_sigma_deg {
+            let w = 1.0 / sa.to_radians().powi(2);
+            for (k, a0) in self.prior_angles.iter().enumerate().skip(1) {
+                let i = ANGLES + k - 1;
+                let r = x[i] - (1.0 + x[SCALE]) * a0;
+                h[(i, i)] += w;
+                h[(i, SCALE)] -= w * a0;
+                h[(SCALE, i)] -= w * a0;
+                h[(SCALE, SCALE)] += w * a0 * a0;
+                g[i] += w * r;
+                g[SCALE] -= w * a0 * r;
+            }
+        } else {
+            // κ only scales the prior: without it, hold κ at 0.
+            h[(SCALE, SCALE)] = 1.0;
+        }
+        if self.hold_axis {
+            for i in 0..4 {
+                for j in 0..x.len() {
+                    h[(i, j)] = 0.0;
+                    h[(j, i)] = 0.0;
+                }
+                h[(i, i)] = 1.0;
+                g[i] = 0.0;
+            }
+        }
+        (h, g)
+    }
+}
+
+/// Result of `fit_turntable`.
+pub(crate) struct ModelSolution {
+    pub(crate) turntable: Turntable,
+    /// `1 + κ`: the fitted correction of the motor's angle scale.
+    pub(crate) angle_scale: f64,
+    pub(crate) initial_cost: f64,
+    pub(crate) final_cost: f64,
+    pub(crate) iterations: usize,
+    pub(crate) converged: bool,
+}
+
+/// Fits a turntable to pairwise `edges` by Levenberg-Marquardt, starting from `start`, with
+/// the priors centred on `calibrated`; `hold_axis` keeps `calibrated`'s axis.
+fn fit_turntable(
+    calibrated: &Turntable,
+    start: &Turntable,
+    edges: &[PoseGraphEdge],
+    prior: &TurntablePrior,
+    hold_axis: bool,
+) -> ModelSolution {
+    let problem = Problem {
+        chart: Chart::new(calibrated.clone()),
+        edges,
+        hold_axis,
+        prior: *prior,
+        prior_angles: calibrated.angles.clone(),
+    };
+    let mut x = problem.chart.parameters(start);
+    let initial_cost = problem.cost(&x);
+    let mut current = initial_cost;
+    let mut lambda = INITIAL_DAMPING;
+    let mut iterations = 0;
+    let mut converged = false;
+    let dim = x.len();
+    for _ in 0..MAX_ITERATIONS {
+        let (h, g) = problem.normal_equations(&x);
+        let mut improved = false;
+        while lambda < MAX_DAMPING {
+            let mut damped = h.clone();
+            for i in 0..dim {
+                damped[(i, i)] += lambda * h[(i, i)].max(f64::MIN_POSITIVE);
+            }
+            let Some(chol) = damped.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let delta = -chol.solve(&g);
+            let candidate = &x + &delta;
+            let c = problem.cost(&candidate);
+            if c < current {
+                let decrease = (current - c) / current.max(f64::MIN_POSITIVE);
+                x = candidate;
+                current = c;
+                lambda = (lambda / 10.0).max(1e-12);
+                improved = true;
+                iterations += 1;
+                if decrease < RELATIVE_TOLERANCE || delta.amax() < STEP_TOLERANCE {
+                    converged = true;
+                }
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            converged = true;
+        }
+        if converged {
+            break;
+        }
+    }
+    ModelSolution {
+        turntable: problem.chart.turntable(&x),
+        angle_scale: 1.0 + x[SCALE],
+        initial_cost,
+        final_cost: current,
+        iterations,
+        converged,
+    }
+}
+
+/// Result of [`fit_turntable_gated`].
+pub(crate) struct GatedFit {
+    /// The axis and angles the registrations give, the axis priors left out.
+    pub(crate) registered: Turntable,
+    /// Whether `registered`'s axis agrees with the calibrated one within
+    /// [`AXIS_GATE`] standard deviations of the axis priors.
+    pub(crate) axis_confirmed: bool,
+    /// The answer: the calibrated axis with the fitted angles when confirmed, else the
+    /// registered fit.
+    pub(crate) solution: ModelSolution,
+}
+
+/// How many standard deviations of the axis priors the registered axis may differ from the
+/// calibrated one by and still confirm it: 3 (a 3-sigma test; the calibrated axis of the
+/// virtual rig is within 0.1 sigma of the registered one, an axis 0.5° / 1 mm off is 10
+/// sigma out).
+pub(crate) const AXIS_GATE: f64 = 3.0;
+
+/// The turntable fit of a merge. First the axis from the registrations alone (the angle
+/// prior kept); then, if that axis agrees with the calibrated one (tilt and shift at the
+/// object within [`AXIS_GATE`] of the axis priors' standard deviations), the calibration is
+/// confirmed and kept: the angles are refitted about the calibrated axis. Otherwise the
+/// calibration is wrong and the registered axis is the answer.
+///
+/// Why not a plain weighted fit: neighbouring views 10° apart measure the axis tilt through
+/// a rotation of 10°, so a pairwise rotation bias `b` tilts the fitted axis by about
+/// `b / 0.17`, and their translation biases (≈0.1 mm on the rendered rig's views) shift it;
+/// a calibrated axis (≈0.005° / 0.03 mm) is better than that, a poorly calibrated one much
+/// worse. A weighted mean of the two is worse than the better of the two in both cases.
+pub(crate) fn fit_turntable_gated(
+    calibrated: &Turntable,
+    edges: &[PoseGraphEdge],
+    prior: &TurntablePrior,
+) -> GatedFit {
+    let free_axis = TurntablePrior {
+        axis_direction_sigma_deg: None,
+        axis_position_sigma_mm: None,
+        ..*prior
+    };
+    let registered = fit_turntable(calibrated, calibrated, edges, &free_axis, false);
+    let confirmed = match (prior.axis_direction_sigma_deg, prior.axis_position_sigma_mm) {
+        (Some(sd), Some(sp)) => {
+            let (tilt_deg, shift_mm) = axis_difference(calibrated, &registered.turntable);
+            tilt_deg <= AXIS_GATE * sd && shift_mm <= AXIS_GATE * sp
+        }
+        _ => false,
+    };
+    let solution = if confirmed {
+        fit_turntable(calibrated, calibrated, edges, prior, true)
+    } else {
+        fit_turntable(calibrated, &registered.turntable, edges, &free_axis, false)
+    };
+    GatedFit {
+        registered: registered.turntable,
+        axis_confirmed: confirmed,
+        solution,
+    }
+}
+
+/// The angle between the two axes' directions (degrees) and the distance between the two
+/// lines at `a`'s point (mm), both in view 0's frame.
+fn axis_difference(a: &Turntable, b: &Turntable) -> (f64, f64) {
+    let tilt = a.direction.angle(&b.direction).to_degrees();
+    let tilt = tilt.min(180.0 - tilt);
+    // The point of line b nearest to a's point, then its distance to line a.
+    let d = b.direction.into_inner();
+    let q = b.point + d * (a.point - b.point).dot(&d);
+    let v = q - a.point;
+    let perp = v - a.direction.into_inner() * v.dot(&a.direction);
+    (tilt, perp.norm())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::turntable_poses;
+    use nalgebra::Matrix6;
+
+    fn true_axis() -> TurntableAxis {
+        TurntableAxis::new(
+            Vector3::new(0.05, -1.0, -0.35),
+            Point3::new(2.0, 50.0, 470.0),
+        )
+        .unwrap()
+    }
+
+    /// Exact edges of the true turntable between neighbours (and the loop closure), with the
+    /// information of 10k points spread over a 40 mm object around `centre`.
+    fn ring_edges(truth: &[Isometry3<f64>], centre: &Point3<f64>) -> Vec<PoseGraphEdge> {
+        let n = truth.len();
+        let mut information = Matrix6::zeros();
+        for i in 0..3 {
+            information[(i, i)] = 1e4 * (40.0f64 * 40.0 + centre.coords.norm_squared());
+            information[(i + 3, i + 3)] = 1e4;
+        }
+        (0..n)
+            .map(|k| {
+                let (a, b) = (k, (k + 1) % n);
+                PoseGraphEdge {
+                    from: a,
+                    to: b,
+                    measurement: truth[a].inverse() * truth[b],
+                    information,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn turntable_poses_are_read_back() {
+        let axis = true_axis();
+        let angles: Vec<f64> = (0..36).map(|i| 10.0 * i as f64).collect();
+        let poses = turntable_poses(&axis, &angles).unwrap();
+        let centre = Point3::new(0.0, 0.0, 470.0);
+        let t = Turntable::from_poses(&poses, &centre).unwrap();
+        // The same line (direction up to sign), the angles unwrapped to 0..350° (signed
+        // with the read direction).
+        assert!(t.direction.dot(&axis.direction).abs() > 1.0 - 1e-12);
+        let sign = t.direction.dot(&axis.direction).signum();
+        for (got, want) in t.angles.iter().zip(&angles) {
+            assert!(
+                (sign * got.to_degrees() - want).abs() < 1e-9,
+                "{got} {want}"
+            );
+        }
+        for (got, want) in t.poses().iter().zip(&poses) {
+            assert!((got.inverse() * want).rotation.angle() < 1e-12);
+            assert!((got * centre - want * centre).norm() < 1e-9);
+        }
+        // Not a turntable: one view moved along the axis by 0.01 mm, or no view turning.
+        let mut off = poses.clone();
+        off[5] = Isometry3::translation(0.0, 0.01, 0.0) * off[5];
+        assert!(Turntable::from_poses(&off, &centre).is_none());
+        assert!(Turntable::from_poses(&[Isometry3::identity(); 3], &centre).is_none());
+    }
+
+    #[test]
+    fn the_gate_keeps_a_good_calibration_and_replaces_a_bad_one() {
+        let axis = true_axis();
+        let angles: Vec<f64> = (0..36).map(|i| 10.0 * i as f64).collect();
+        let truth = turntable_poses(&axis, &angles).unwrap();
+        let centre = Point3::new(0.0, 0.0, 470.0);
+        let edges = ring_edges(&truth, &centre);
+        let prior = TurntablePrior::default();
+        let tilted = |deg: f64, mm: f64, scale: f64| {
+            let mut a = axis;
+            a.direction =
+                UnitQuaternion::from_scaled_axis(Vector3::z() * deg.to_radians()) * a.direction;
+            a.point_mm += Vector3::x() * mm;
+            a.angle_scale = scale;
+            let poses = turntable_poses(&a, &angles).unwrap();
+            Turntable::from_poses(&poses, &centre).unwrap()
+        };
+        // Within the gate (0.02° / 0.05 mm against 3 x 0.05° / 3 x 0.1 mm): kept as it is.
+        let good = tilted(0.02, 0.05, 1.0);
+        let fit = fit_turntable_gated(&good, &edges, &prior);
+        assert!(fit.axis_confirmed);
+        let (tilt, shift) = axis_difference(&good, &fit.solution.turntable);
+        assert!(tilt < 1e-9 && shift < 1e-9, "{tilt} {shift}");
+        // Off by 0.5° / 1 mm with a 0.1 % scale error: rejected, and the exact edges give
+        // back the true axis and angles.
+        let bad = tilted(0.5, 1.0, 1.001);
+        let fit = fit_turntable_gated(&bad, &edges, &prior);
+        assert!(!fit.axis_confirmed);
+        let exact = Turntable::from_poses(&truth, &centre).unwrap();
+        let (tilt, shift) = axis_difference(&exact, &fit.solution.turntable);
+        assert!(tilt < 1e-6 && shift < 1e-4, "{tilt}° {shift} mm");
+        assert!((fit.solution.angle_scale * 1.001 - 1.0).abs() < 1e-6);
+        for (got, want) in fit.solution.turntable.poses().iter().zip(&truth) {
+            assert!((got.inverse() * want).rotation.angle() < 1e-7);
+            assert!((got * centre - want * centre).norm() < 1e-4);
+        }
+    }
+}
