@@ -123,6 +123,14 @@ pub struct VirtualScanConfig {
     /// moving-least-squares surface it is moved onto (`sl_icp::MergeConfig::
     /// output_normal_neighbours`). Default 16.
     pub smoothing_neighbours: usize,
+    /// Points within this many pixels (4-connected steps) of a pixel without a valid point —
+    /// the silhouette of the object, the edge of a plate, the rim of a hole — are dropped from
+    /// each view: their camera pixel or the projector's blurred stripe straddles the edge, so
+    /// their depth mixes two surfaces, and the mixed-pixel filter cannot see it where the
+    /// other side is empty. Default 3: on the default scan it takes the probing form from
+    /// 0.22 to 0.15 mm (0.15 to 0.12 mm with 0.3 % left out) and the plate's flatness from
+    /// 0.41 to 0.22 mm, for 5 % of the points (`docs/user-guide.md`).
+    pub edge_erosion_px: usize,
 }
 
 impl Default for VirtualScanConfig {
@@ -141,6 +149,7 @@ impl Default for VirtualScanConfig {
             true_calibration: false,
             true_poses: false,
             smoothing_neighbours: 16,
+            edge_erosion_px: 3,
         }
     }
 }
@@ -457,12 +466,52 @@ pub fn reconstruct_view(
     dir: &Path,
     triangulator: &Triangulator,
 ) -> Result<PointCloud, PipelineError> {
+    reconstruct_view_eroded(dir, triangulator, 0)
+}
+
+/// [`reconstruct_view`], then drops the points within `edge_erosion_px` pixels of an invalid
+/// pixel (see [`VirtualScanConfig::edge_erosion_px`]).
+pub fn reconstruct_view_eroded(
+    dir: &Path,
+    triangulator: &Triangulator,
+    edge_erosion_px: usize,
+) -> Result<PointCloud, PipelineError> {
     let set = CaptureSet::load(&dir.join(MANIFEST_FILE))?;
     let map = decode(&set, &DecodeConfig::default())?;
     drop(set);
-    Ok(triangulator
-        .triangulate(&map, &TriOptions::default())?
-        .cloud)
+    let tri = triangulator.triangulate(&map, &TriOptions::default())?;
+    if edge_erosion_px == 0 {
+        return Ok(tri.cloud);
+    }
+    // Erode the valid mask one 4-connected step at a time.
+    let (w, h) = (tri.width, tri.height);
+    let mut valid: Vec<bool> = tri
+        .status
+        .iter()
+        .map(|s| *s == sl_tri::PointStatus::Valid)
+        .collect();
+    for _ in 0..edge_erosion_px {
+        let prev = valid.clone();
+        let at = |x: usize, y: usize| prev.get(y * w + x).copied().unwrap_or(false);
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                if prev[i] {
+                    let inner = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+                    valid[i] =
+                        inner && at(x - 1, y) && at(x + 1, y) && at(x, y - 1) && at(x, y + 1);
+                }
+            }
+        }
+    }
+    let keep: Vec<usize> = tri
+        .cloud_pixels
+        .iter()
+        .enumerate()
+        .filter(|(_, px)| valid.get(**px as usize).copied().unwrap_or(false))
+        .map(|(i, _)| i)
+        .collect();
+    Ok(tri.cloud.select(&keep)?)
 }
 
 /// The rig's exact calibration, as [`calibrate_virtual`] would return it (diagnostic runs).
@@ -720,7 +769,7 @@ pub fn scan_virtual(
     let mut clouds = Vec::with_capacity(cfg.views);
     for (k, dir) in session.view_dirs().iter().enumerate() {
         let cloud = drop_grazing(
-            reconstruct_view(dir, &triangulator)?,
+            reconstruct_view_eroded(dir, &triangulator, cfg.edge_erosion_px)?,
             &projector_centre,
             cfg.max_view_angle_deg,
         )?;
@@ -815,7 +864,7 @@ pub fn scan_virtual(
             .into_iter()
             .next()
             .ok_or_else(|| stage_err("plate", "the plate session has no view"))?;
-        let cloud = reconstruct_view(&dir, &triangulator)?;
+        let cloud = reconstruct_view_eroded(&dir, &triangulator, cfg.edge_erosion_px)?;
         write_ply(&out.join("plate.ply"), &cloud, PlyFormat::default())?;
         plate_truth().save(&out.join("plate_truth.json"))?;
         progress(ScanProgress {

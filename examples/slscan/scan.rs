@@ -53,6 +53,10 @@ pub(crate) struct Args {
     /// the averaging moves it onto (more: smoother).
     #[arg(long, default_value_t = VirtualScanConfig::default().smoothing_neighbours)]
     pub(crate) smoothing_neighbours: usize,
+    /// Drop the points within this many pixels of the edge of the valid region of each view
+    /// (silhouettes, plate edges, hole rims).
+    #[arg(long, default_value_t = VirtualScanConfig::default().edge_erosion_px)]
+    pub(crate) edge_erosion: usize,
     /// Do not capture the flat plate (no flatness figure).
     #[arg(long)]
     pub(crate) no_plate: bool,
@@ -82,6 +86,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         true_poses: args.true_poses,
         flatness_plate: !args.no_plate,
         smoothing_neighbours: args.smoothing_neighbours,
+        edge_erosion_px: args.edge_erosion,
         ..VirtualScanConfig::default()
     };
     let bars = MultiProgress::new();
