@@ -9,7 +9,7 @@ use anyhow::Context;
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_camera::{Calibration, TurntableAxis};
 use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
-use sl_icp::{MergeConfig, align_views, merge_aligned, turntable_poses};
+use sl_icp::{MergeConfig, PoseModel, align_views, merge_aligned, turntable_poses};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
 use crate::register::{matrix_rows, read_scaled, write_preview};
@@ -53,6 +53,11 @@ pub(crate) struct Args {
     /// Do not register the first view onto the last (for a scan that is not a full turn).
     #[arg(long)]
     pub(crate) no_loop: bool,
+    /// Give each view its own 6-degree-of-freedom pose (the free pose graph) instead of the
+    /// turntable model (an axis and one angle per view, the calibrated axis kept when the
+    /// registrations confirm it).
+    #[arg(long)]
+    pub(crate) free_poses: bool,
     /// Multiply coordinates by this when reading (1000 for clouds in metres).
     #[arg(long, default_value_t = 1.0)]
     pub(crate) scale: f64,
@@ -157,6 +162,11 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         output_voxel_size: (args.voxel > 0.0).then_some(args.voxel),
         average_overlaps: args.average,
         loop_closure: !args.no_loop,
+        pose_model: if args.free_poses {
+            PoseModel::Free
+        } else {
+            PoseModel::default()
+        },
         ..MergeConfig::default()
     };
     let bar = progress(4, "merge");
@@ -226,6 +236,25 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("pose_graph_final_cost", alignment.pose_graph.final_cost);
     report.figure("pose_graph_iterations", alignment.pose_graph.iterations);
     report.figure("largest_pose_correction_deg", moved_deg);
+    if let Some(t) = &alignment.turntable {
+        let axis = |a: &TurntableAxis| {
+            serde_json::json!({
+                "direction": [a.direction.x, a.direction.y, a.direction.z],
+                "point_mm": [a.point_mm.x, a.point_mm.y, a.point_mm.z],
+            })
+        };
+        report.figure(
+            "turntable",
+            serde_json::json!({
+                "axis_confirmed": t.axis_confirmed,
+                "initial_axis": axis(&t.initial_axis),
+                "registered_axis": axis(&t.registered_axis),
+                "axis": axis(&t.axis),
+                "angle_scale": t.angle_scale,
+                "angles_deg": t.angles_deg,
+            }),
+        );
+    }
     let path = report.write(&dir)?;
     println!(
         "{}: {} views ({} pairs used of {}), {} points; largest pose correction {:.3} deg",
