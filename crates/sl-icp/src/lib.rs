@@ -12,9 +12,12 @@
 //!   Iterations run in parallel on the rayon pool and allocate nothing.
 //! - **Turntable merge** ([`turntable_poses`], [`align_views`], [`merge_aligned`],
 //!   [`merge_views`]): initial poses from the calibrated axis and the motor angles, pairwise
-//!   registration of neighbouring views with a loop closure, a pose graph
-//!   ([`optimize_pose_graph`]) that spreads the drift, then merge, voxel downsampling, normals
-//!   and optional averaging of overlapping points.
+//!   registration of neighbouring views with a loop closure, then the poses: by default the
+//!   turntable model ([`PoseModel::Turntable`]: the axis and one angle per view, the calibrated
+//!   axis kept when the registrations confirm it, see [`TurntablePrior`]), or a free pose
+//!   graph ([`optimize_pose_graph`]) that spreads the drift; then merge, voxel downsampling,
+//!   normals and optional averaging of overlapping points. `docs/registration.md` has the
+//!   figures.
 //!
 //! ```
 //! use nalgebra::{Isometry3, Point3, Vector3};
