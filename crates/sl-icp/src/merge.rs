@@ -44,7 +44,7 @@ pub struct MergeConfig {
     /// The pose-graph optimisation (of [`PoseModel::Free`]).
     pub pose_graph: PoseGraphConfig,
     /// How the registrations become poses. Default: the turntable model with the priors of a
-    /// calibrated turntable ([`TurntablePrior::default`]), falling back to the free pose
+    /// calibrated turntable ([`TurntablePrior::default`](crate::TurntablePrior)), falling back to the free pose
     /// graph when the initial poses are not turntable poses.
     pub pose_model: PoseModel,
     /// Voxel size of the merged cloud; `None` keeps every point. Default 0.5 mm: averages the
