@@ -15,7 +15,7 @@
 //! 0.0249 mm; pairwise ICP + free pose graph 0.0597 mm; the default turntable model (the
 //! registrations confirm the calibrated axis, angles and angle scale refitted) 0.0278 mm. From
 //! an axis off by 0.5° / 1 mm (0.561 mm) the registrations reject the axis and bring it to
-//! 0.0552 mm. `merge_views` took 6–16 s for 36 × 144k points under that load (target not met). Rendering
+//! 0.0552 mm. `merge_views` took 3.8 s for 36 × 144k points at load ≈ 4, 6–16 s at load 5–7. Rendering
 //! 36 views takes minutes in the dev profile, so the test is ignored there; run it with
 //!
 //! ```sh
