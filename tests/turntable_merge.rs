@@ -212,7 +212,11 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
         }
         worst
     };
-    let config = MergeConfig::default();
+    // The turntable model (opt-in: `PoseModel::default` is the free pose graph).
+    let config = MergeConfig {
+        pose_model: PoseModel::Turntable(TurntablePrior::default()),
+        ..MergeConfig::default()
+    };
     let report = |name: &str, cloud: &PointCloud, poses: &[Isometry3<f64>]| -> f64 {
         let (r, p99) = surface(cloud);
         let (deg, mm) = pose_errors(poses);
@@ -248,7 +252,7 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     let merged = merge_views(&views, &initial, &config).unwrap();
     let merge_s = t.elapsed().as_secs_f64();
     let merged_rms = report(
-        "pairwise ICP + turntable model (default)",
+        "pairwise ICP + turntable model",
         &merged.cloud,
         &merged.alignment.poses,
     );

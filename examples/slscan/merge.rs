@@ -9,7 +9,7 @@ use anyhow::Context;
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_camera::{Calibration, TurntableAxis};
 use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
-use sl_icp::{MergeConfig, PoseModel, align_views, merge_aligned, turntable_poses};
+use sl_icp::{MergeConfig, PoseModel, TurntablePrior, align_views, merge_aligned, turntable_poses};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
 use crate::register::{matrix_rows, read_scaled, write_preview};
@@ -53,11 +53,12 @@ pub(crate) struct Args {
     /// Do not register the first view onto the last (for a scan that is not a full turn).
     #[arg(long)]
     pub(crate) no_loop: bool,
-    /// Give each view its own 6-degree-of-freedom pose (the free pose graph) instead of the
-    /// turntable model (an axis and one angle per view, the calibrated axis kept when the
-    /// registrations confirm it).
+    /// Fit the turntable model (an axis and one angle per view, the calibrated axis kept when
+    /// the registrations confirm it) instead of giving each view its own 6-degree-of-freedom
+    /// pose (the free pose graph, the default). More accurate on well-conditioned objects;
+    /// wrong on nearly symmetric ones (docs/registration.md).
     #[arg(long)]
-    pub(crate) free_poses: bool,
+    pub(crate) turntable_model: bool,
     /// Multiply coordinates by this when reading (1000 for clouds in metres).
     #[arg(long, default_value_t = 1.0)]
     pub(crate) scale: f64,
@@ -162,10 +163,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         output_voxel_size: (args.voxel > 0.0).then_some(args.voxel),
         average_overlaps: args.average,
         loop_closure: !args.no_loop,
-        pose_model: if args.free_poses {
-            PoseModel::Free
+        pose_model: if args.turntable_model {
+            PoseModel::Turntable(TurntablePrior::default())
         } else {
-            PoseModel::default()
+            PoseModel::Free
         },
         ..MergeConfig::default()
     };

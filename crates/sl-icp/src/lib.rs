@@ -12,10 +12,11 @@
 //!   Iterations run in parallel on the rayon pool and allocate nothing.
 //! - **Turntable merge** ([`turntable_poses`], [`align_views`], [`merge_aligned`],
 //!   [`merge_views`]): initial poses from the calibrated axis and the motor angles, pairwise
-//!   registration of neighbouring views with a loop closure, then the poses: by default the
-//!   turntable model ([`PoseModel::Turntable`]: the axis and one angle per view, the calibrated
-//!   axis kept when the registrations confirm it, see [`TurntablePrior`]), or a free pose
-//!   graph ([`optimize_pose_graph`]) that spreads the drift; then merge, voxel downsampling,
+//!   registration of neighbouring views with a loop closure, then the poses: by default a free
+//!   pose graph ([`optimize_pose_graph`]) that spreads the drift, or on request the turntable
+//!   model ([`PoseModel::Turntable`]: the axis and one angle per view, the calibrated axis
+//!   kept when the registrations confirm it, see [`TurntablePrior`]; wrong on nearly
+//!   symmetric objects, see [`PoseModel::default`]); then merge, voxel downsampling,
 //!   normals and optional averaging of overlapping points. `docs/registration.md` has the
 //!   figures.
 //!

@@ -43,9 +43,9 @@ pub struct MergeConfig {
     pub min_fitness: f64,
     /// The pose-graph optimisation (of [`PoseModel::Free`]).
     pub pose_graph: PoseGraphConfig,
-    /// How the registrations become poses. Default: the turntable model with the priors of a
-    /// calibrated turntable ([`TurntablePrior::default`](crate::TurntablePrior)), falling back to the free pose
-    /// graph when the initial poses are not turntable poses.
+    /// How the registrations become poses. Default: the free pose graph
+    /// ([`PoseModel::default`] says why); `PoseModel::Turntable(TurntablePrior::default())`
+    /// fits an axis and one angle per view held near a calibrated turntable's values.
     pub pose_model: PoseModel,
     /// Voxel size of the merged cloud; `None` keeps every point. Default 0.5 mm: averages the
     /// 10 to 40 overlapping samples of a dense 36-view scan, about the scanner's resolution.
