@@ -8,8 +8,9 @@
 //! point lies beyond the correspondence gate pays a full search, about 9x the bounded one
 //! (6 µs against 0.6 µs on a 20k-point scan); its bounded queries (`nearest_n_within`,
 //! `best_n_within`) and `nearest_n` return fresh heap collections, which the ICP loop must
-//! not allocate. For queries near the cloud the two trees are within 25 % of each other, ours
-//! ahead.
+//! not allocate. For queries near the cloud the two are within ~10 % of each other (kiddo
+//! ahead: 49.3 against 53.6 ms for 100k queries into 100k points, 2026-11-23); beyond the
+//! gate ours is 40x faster (24.5 against 973 ms). kiddo builds faster below 1M points.
 
 use nalgebra::Point3;
 
