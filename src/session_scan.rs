@@ -37,7 +37,7 @@ use sl_icp::{MergeConfig, merge_aligned, merge_views, turntable_poses};
 use sl_rig::{read_session_plan, turntable_angles, view_dir_name};
 use sl_tri::Triangulator;
 
-use crate::pipeline::{PipelineError, ScanProgress, StageTime, reconstruct_view};
+use crate::pipeline::{PipelineError, ScanProgress, StageTime, reconstruct_view_eroded};
 
 /// Viewpoints of the previews: azimuth and elevation (degrees), as the virtual scan's.
 const PREVIEWS: [(f64, f64); 4] = [(0.0, 20.0), (90.0, 20.0), (180.0, 20.0), (0.0, 80.0)];
@@ -55,6 +55,10 @@ pub struct SessionScanConfig {
     /// for ICP (a dumbbell seen every 45° leaves ICP a free rotation about the bar). Default
     /// `true`, as the virtual scan.
     pub icp_refinement: bool,
+    /// Points within this many pixels of a pixel without a valid point are dropped from each
+    /// view (silhouettes, rims: see [`crate::pipeline::VirtualScanConfig::edge_erosion_px`]).
+    /// Default 3, as the virtual scan.
+    pub edge_erosion_px: usize,
 }
 
 impl Default for SessionScanConfig {
@@ -65,6 +69,7 @@ impl Default for SessionScanConfig {
                 ..MergeConfig::default()
             },
             icp_refinement: true,
+            edge_erosion_px: 3,
         }
     }
 }
@@ -220,7 +225,7 @@ pub fn reconstruct_session(
                 ),
             ));
         }
-        let cloud = reconstruct_view(&dir, &triangulator).map_err(|e| {
+        let cloud = reconstruct_view_eroded(&dir, &triangulator, config.edge_erosion_px).map_err(|e| {
             stage_err(
                 "reconstruct",
                 format!(

@@ -126,6 +126,7 @@ fn reconstruct(
             ..MergeConfig::default()
         },
         icp_refinement: !args.rig.no_refine,
+        edge_erosion_px: args.edge_erosion,
     };
     let bars = MultiProgress::new();
     let mut by_stage: HashMap<String, ProgressBar> = HashMap::new();
