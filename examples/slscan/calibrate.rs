@@ -1040,7 +1040,7 @@ mod tests {
         // The pictures exist and decode.
         let mut pngs = 0;
         for dir in [out.clone(), out.join("projector")] {
-            for e in walk(&dir) {
+            for e in crate::common::files_below(&dir) {
                 if e.extension().is_some_and(|x| x == "png") {
                     assert!(is_png(&e), "{} does not decode", e.display());
                     pngs += 1;
@@ -1049,22 +1049,6 @@ mod tests {
         }
         // Corners on each of the 10 poses and 7 table views, plus error bars and residuals.
         assert!(pngs >= 17 + 4, "{pngs} pictures");
-    }
-
-    fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
-        let mut all = Vec::new();
-        let mut stack = vec![dir.to_path_buf()];
-        while let Some(d) = stack.pop() {
-            for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
-                let p = e.path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else {
-                    all.push(p);
-                }
-            }
-        }
-        all
     }
 
     /// The light part, on in debug: `calibrate camera` on the white images of a few rendered
@@ -1110,7 +1094,7 @@ mod tests {
             "fx {fx} vs {}",
             rig.config().camera.intrinsics.fx
         );
-        let pictures: Vec<_> = walk(&out)
+        let pictures: Vec<_> = crate::common::files_below(&out)
             .into_iter()
             .filter(|p| p.extension().is_some_and(|x| x == "png"))
             .collect();

@@ -1,14 +1,15 @@
 //! Helpers shared by every `slscan` subcommand: the output folder, `report.json` with
 //! per-stage timings, progress bars and the one-line error report.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Serialize;
+use structured_light::pipeline::{ScanProgress, StageTime};
 
 /// Prints an error and its causes on one line: `slscan: error: a: b: c`.
 pub(crate) fn print_error(err: &anyhow::Error) {
@@ -83,6 +84,14 @@ impl Report {
         out
     }
 
+    /// Records the stages a library pipeline timed itself, after the ones recorded so far.
+    pub(crate) fn add_stages(&mut self, stages: &[StageTime]) {
+        self.stages.extend(stages.iter().map(|s| Stage {
+            name: s.name.clone(),
+            ms: s.ms,
+        }));
+    }
+
     /// Records a figure.
     pub(crate) fn figure(&mut self, name: &str, value: impl Into<serde_json::Value>) {
         self.figures.insert(name.to_owned(), value.into());
@@ -130,4 +139,60 @@ pub(crate) fn progress(len: u64, message: &str) -> ProgressBar {
     bar.set_style(style);
     bar.set_message(message.to_owned());
     bar
+}
+
+/// One progress bar per stage of a library pipeline that reports [`ScanProgress`]
+/// (`scan_virtual`, `reconstruct_session`), created when the stage first reports.
+pub(crate) struct StageBars {
+    bars: MultiProgress,
+    by_stage: HashMap<String, ProgressBar>,
+}
+
+impl StageBars {
+    /// No bars yet.
+    pub(crate) fn new() -> Self {
+        Self {
+            bars: MultiProgress::new(),
+            by_stage: HashMap::new(),
+        }
+    }
+
+    /// Moves the bar of `p.stage` (creating it) to `p.done` of `p.total`.
+    pub(crate) fn update(&mut self, p: ScanProgress<'_>) {
+        let bars = &self.bars;
+        let bar = self
+            .by_stage
+            .entry(p.stage.to_owned())
+            .or_insert_with(|| bars.add(progress(p.total as u64, p.stage)));
+        bar.set_position(p.done as u64);
+        if p.done == p.total {
+            bar.finish();
+        }
+    }
+
+    /// Removes every bar from the terminal.
+    pub(crate) fn clear(self) {
+        for bar in self.by_stage.values() {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+/// Every file below `dir` (recursively, in no particular order): for tests of what a command
+/// wrote.
+#[cfg(test)]
+pub(crate) fn files_below(dir: &Path) -> Vec<PathBuf> {
+    let mut all = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in fs::read_dir(&d).into_iter().flatten().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                all.push(p);
+            }
+        }
+    }
+    all
 }

@@ -5,14 +5,12 @@
 //! `slscan report` reproduces the figures), captures a tilted flat plate for the flatness,
 //! and writes the merged PLY, previews, error heat maps, `report.json` and `index.html`.
 
-use std::collections::HashMap;
 use std::path::PathBuf;
 
-use indicatif::{MultiProgress, ProgressBar};
 use structured_light::pipeline::{VirtualScanConfig, scan_virtual, write_summary_html};
 
 use crate::capture::HardwareArgs;
-use crate::common::{Report, ensure_out_dir, progress};
+use crate::common::{Report, StageBars, ensure_out_dir};
 
 /// Arguments of `slscan scan`.
 #[derive(Debug, clap::Args)]
@@ -89,20 +87,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         edge_erosion_px: args.edge_erosion,
         ..VirtualScanConfig::default()
     };
-    let bars = MultiProgress::new();
-    let mut by_stage: HashMap<String, ProgressBar> = HashMap::new();
-    let result = scan_virtual(&cfg, &out, |p| {
-        let bar = by_stage
-            .entry(p.stage.to_owned())
-            .or_insert_with(|| bars.add(progress(p.total as u64, p.stage)));
-        bar.set_position(p.done as u64);
-        if p.done == p.total {
-            bar.finish();
-        }
-    })?;
-    for bar in by_stage.values() {
-        bar.finish_and_clear();
-    }
+    let mut bars = StageBars::new();
+    let result = scan_virtual(&cfg, &out, |p| bars.update(p))?;
+    bars.clear();
     let c = &result.calibration_summary;
     report.figure(
         "scene",
@@ -117,12 +104,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("flatness", serde_json::to_value(&result.flatness)?);
     report.figure("first_view", serde_json::to_value(&result.first_view)?);
     report.figure("files", serde_json::to_value(&result.files)?);
-    for s in &result.stages {
-        report.stages.push(crate::common::Stage {
-            name: s.name.clone(),
-            ms: s.ms,
-        });
-    }
+    report.add_stages(&result.stages);
     report.write(&out)?;
     let html = write_summary_html(&out, &result)?;
 

@@ -6,17 +6,15 @@
 //! A real object has no known truth here: check the result with `slscan report` against a
 //! known sphere or plane.
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use indicatif::{MultiProgress, ProgressBar};
 use sl_icp::MergeConfig;
 use structured_light::session_scan::{
     SessionScanConfig, load_scan_calibration, reconstruct_session, write_session_scan,
 };
 
 use crate::capture;
-use crate::common::{Report, ensure_out_dir, progress};
+use crate::common::{Report, StageBars, ensure_out_dir};
 use crate::scan::Args;
 
 /// Session folder inside the output folder.
@@ -128,27 +126,11 @@ fn reconstruct(
         icp_refinement: !args.rig.no_refine,
         edge_erosion_px: args.edge_erosion,
     };
-    let bars = MultiProgress::new();
-    let mut by_stage: HashMap<String, ProgressBar> = HashMap::new();
-    let scan = reconstruct_session(session_dir, calibration, &config, |p| {
-        let bar = by_stage
-            .entry(p.stage.to_owned())
-            .or_insert_with(|| bars.add(progress(p.total as u64, p.stage)));
-        bar.set_position(p.done as u64);
-        if p.done == p.total {
-            bar.finish();
-        }
-    })?;
-    for bar in by_stage.values() {
-        bar.finish_and_clear();
-    }
+    let mut bars = StageBars::new();
+    let scan = reconstruct_session(session_dir, calibration, &config, |p| bars.update(p))?;
+    bars.clear();
     let files = report.stage("write", || write_session_scan(&out, &scan))?;
-    for s in &scan.stages {
-        report.stages.push(crate::common::Stage {
-            name: s.name.clone(),
-            ms: s.ms,
-        });
-    }
+    report.add_stages(&scan.stages);
     report.figure("rig", "hardware");
     report.figure("calibration", calib_path.display().to_string());
     report.figure("views", scan.view_points.len());
@@ -200,19 +182,13 @@ mod tests {
     }
 
     fn files_in(dir: &Path) -> Vec<(std::path::PathBuf, Vec<u8>)> {
-        let mut all = Vec::new();
-        let mut stack = vec![dir.to_path_buf()];
-        while let Some(d) = stack.pop() {
-            for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
-                let p = e.path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else {
-                    let bytes = std::fs::read(&p).unwrap_or_default();
-                    all.push((p, bytes));
-                }
-            }
-        }
+        let mut all: Vec<_> = crate::common::files_below(dir)
+            .into_iter()
+            .map(|p| {
+                let bytes = std::fs::read(&p).unwrap_or_default();
+                (p, bytes)
+            })
+            .collect();
         all.sort();
         all
     }
