@@ -136,7 +136,7 @@ pub fn optimize_pose_graph(
             }
         }
     }
-    let mut nodes = graph.nodes.clone();
+    let nodes = graph.nodes.clone();
     let initial_cost = cost(&nodes, &graph.edges);
     if n < 2 || graph.edges.is_empty() {
         return Ok(PoseGraphSolution {
@@ -148,15 +148,72 @@ pub fn optimize_pose_graph(
         });
     }
     let dim = 6 * (n - 1);
+    if let Some(node) = unreachable(n, &graph.edges) {
+        return Err(IcpError::PoseGraphDisconnected { node });
+    }
+    let solved = levenberg_marquardt(
+        nodes,
+        initial_cost,
+        &LmLimits {
+            max_iterations: config.max_iterations,
+            relative_tolerance: config.relative_tolerance,
+            step_tolerance: config.step_tolerance,
+        },
+        |nodes| normal_equations(nodes, &graph.edges, dim),
+        |nodes, delta| apply(nodes, delta),
+        |nodes| cost(nodes, &graph.edges),
+    );
+    Ok(PoseGraphSolution {
+        nodes: solved.state,
+        initial_cost,
+        final_cost: solved.final_cost,
+        iterations: solved.iterations,
+        converged: solved.converged,
+    })
+}
+
+/// Stopping rules of [`levenberg_marquardt`].
+pub(crate) struct LmLimits {
+    /// Iterations at most.
+    pub(crate) max_iterations: usize,
+    /// Stop when an iteration lowers the cost by less than this fraction.
+    pub(crate) relative_tolerance: f64,
+    /// Stop when no parameter of a step moves by more than this.
+    pub(crate) step_tolerance: f64,
+}
+
+/// What [`levenberg_marquardt`] ends with.
+pub(crate) struct LmOutcome<S> {
+    /// The last accepted state.
+    pub(crate) state: S,
+    /// Its cost.
+    pub(crate) final_cost: f64,
+    /// Accepted steps.
+    pub(crate) iterations: usize,
+    /// Whether a tolerance was met or no step could lower the cost (at a minimum to rounding).
+    pub(crate) converged: bool,
+}
+
+/// Levenberg-Marquardt with multiplicative damping of the normal matrix's diagonal, shared by
+/// the pose graph and the turntable model: `normal_equations(s)` gives `(JᵀJ, Jᵀr)` at `s`,
+/// `step(s, δ)` applies a parameter step, `cost(s)` is the sum of squared residuals
+/// (`initial_cost` = `cost(start)`).
+pub(crate) fn levenberg_marquardt<S>(
+    start: S,
+    initial_cost: f64,
+    limits: &LmLimits,
+    normal_equations: impl Fn(&S) -> (DMatrix<f64>, DVector<f64>),
+    step: impl Fn(&S, &DVector<f64>) -> S,
+    cost: impl Fn(&S) -> f64,
+) -> LmOutcome<S> {
+    let mut state = start;
     let mut current = initial_cost;
     let mut lambda = INITIAL_DAMPING;
     let mut iterations = 0;
     let mut converged = false;
-    if let Some(node) = unreachable(n, &graph.edges) {
-        return Err(IcpError::PoseGraphDisconnected { node });
-    }
-    for _ in 0..config.max_iterations {
-        let (h, g) = normal_equations(&nodes, &graph.edges, dim);
+    for _ in 0..limits.max_iterations {
+        let (h, g) = normal_equations(&state);
+        let dim = g.len();
         let mut improved = false;
         while lambda < MAX_DAMPING {
             let mut damped = h.clone();
@@ -168,16 +225,16 @@ pub fn optimize_pose_graph(
                 continue;
             };
             let delta = -chol.solve(&g);
-            let candidate = apply(&nodes, &delta);
-            let c = cost(&candidate, &graph.edges);
+            let candidate = step(&state, &delta);
+            let c = cost(&candidate);
             if c < current {
                 let decrease = (current - c) / current.max(f64::MIN_POSITIVE);
-                nodes = candidate;
+                state = candidate;
                 current = c;
                 lambda = (lambda / 10.0).max(1e-12);
                 improved = true;
                 iterations += 1;
-                if decrease < config.relative_tolerance || delta.amax() < config.step_tolerance {
+                if decrease < limits.relative_tolerance || delta.amax() < limits.step_tolerance {
                     converged = true;
                 }
                 break;
@@ -192,13 +249,12 @@ pub fn optimize_pose_graph(
             break;
         }
     }
-    Ok(PoseGraphSolution {
-        nodes,
-        initial_cost,
+    LmOutcome {
+        state,
         final_cost: current,
         iterations,
         converged,
-    })
+    }
 }
 
 /// The first node not tied to node 0 by a path of edges, if any.

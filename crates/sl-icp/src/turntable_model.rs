@@ -8,7 +8,7 @@ use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, Unit, UnitQuat
 use nalgebra::{SMatrix, Vector6};
 
 use crate::IcpError;
-use crate::pose_graph::PoseGraphEdge;
+use crate::pose_graph::{LmLimits, PoseGraphEdge, levenberg_marquardt};
 use crate::se3::to_vector;
 use sl_camera::TurntableAxis;
 
@@ -24,12 +24,6 @@ const MODEL_POSITION_TOLERANCE_MM: f64 = 1e-4;
 /// Central-difference step of the numeric Jacobians (rad and mm): residuals are smooth and
 /// O(1) in these units, so 1e-6 balances truncation (~h²) against rounding (~1e-16/h).
 const JACOBIAN_STEP: f64 = 1e-6;
-
-/// Initial Levenberg-Marquardt damping, relative to the diagonal of the normal matrix.
-const INITIAL_DAMPING: f64 = 1e-4;
-
-/// Damping beyond which no step can lower the cost any more: stop.
-const MAX_DAMPING: f64 = 1e12;
 
 /// Stop when an iteration lowers the cost by less than this fraction.
 const RELATIVE_TOLERANCE: f64 = 1e-12;
@@ -546,56 +540,28 @@ fn fit_turntable(
         prior: *prior,
         prior_angles: calibrated.angles.clone(),
     };
-    let mut x = problem.chart.parameters(start);
-    let initial_cost = problem.cost(&x);
-    let mut current = initial_cost;
-    let mut lambda = INITIAL_DAMPING;
-    let mut iterations = 0;
-    let mut converged = false;
-    let dim = x.len();
-    for _ in 0..MAX_ITERATIONS {
-        let (h, g) = problem.normal_equations(&x);
-        let mut improved = false;
-        while lambda < MAX_DAMPING {
-            let mut damped = h.clone();
-            for i in 0..dim {
-                damped[(i, i)] += lambda * h[(i, i)].max(f64::MIN_POSITIVE);
-            }
-            let Some(chol) = damped.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let delta = -chol.solve(&g);
-            let candidate = &x + &delta;
-            let c = problem.cost(&candidate);
-            if c < current {
-                let decrease = (current - c) / current.max(f64::MIN_POSITIVE);
-                x = candidate;
-                current = c;
-                lambda = (lambda / 10.0).max(1e-12);
-                improved = true;
-                iterations += 1;
-                if decrease < RELATIVE_TOLERANCE || delta.amax() < STEP_TOLERANCE {
-                    converged = true;
-                }
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !improved {
-            converged = true;
-        }
-        if converged {
-            break;
-        }
-    }
+    let start = problem.chart.parameters(start);
+    let initial_cost = problem.cost(&start);
+    let solved = levenberg_marquardt(
+        start,
+        initial_cost,
+        &LmLimits {
+            max_iterations: MAX_ITERATIONS,
+            relative_tolerance: RELATIVE_TOLERANCE,
+            step_tolerance: STEP_TOLERANCE,
+        },
+        |x| problem.normal_equations(x),
+        |x, delta| x + delta,
+        |x| problem.cost(x),
+    );
+    let x = solved.state;
     ModelSolution {
         turntable: problem.chart.turntable(&x),
         angle_scale: 1.0 + x[SCALE],
         initial_cost,
-        final_cost: current,
-        iterations,
-        converged,
+        final_cost: solved.final_cost,
+        iterations: solved.iterations,
+        converged: solved.converged,
     }
 }
 
