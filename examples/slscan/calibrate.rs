@@ -38,6 +38,10 @@ pub(crate) struct Args {
 /// What to calibrate.
 #[derive(Debug, clap::Subcommand)]
 pub(crate) enum What {
+    /// Capture a calibration session on the virtual rig (`--virtual`) or real devices: the
+    /// board at guided poses under the patterns, then on the turntable (`SESSION/board/`,
+    /// `SESSION/turntable/`, as `calibrate all` reads them). Interactive, or `--auto`.
+    Capture(crate::calibrate_capture::Args),
     /// The camera (Zhang's method) from checkerboard pictures: image files, folders of
     /// images, folders of capture folders holding `white.png`, or an `slscan simulate`
     /// calibration session (its `board/` poses).
@@ -136,6 +140,7 @@ pub(crate) struct AllArgs {
 /// Runs `slscan calibrate`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     match &args.what {
+        What::Capture(a) => crate::calibrate_capture::run(a),
         What::Camera(a) => {
             let zhang = ZhangConfig {
                 fix_principal_point: a.fix_principal_point,
