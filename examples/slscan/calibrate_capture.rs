@@ -327,10 +327,10 @@ where
                         message = format!("refused: {r}");
                     }
                 }
-                if mover.moves_itself() {
-                    if let Err(e) = mover.next_pose() {
-                        message = format!("{message}; {e}");
-                    }
+                if mover.moves_itself()
+                    && let Err(e) = mover.next_pose()
+                {
+                    message = format!("{message}; {e}");
                 }
             }
             b'd' => {
@@ -474,10 +474,7 @@ mod terminal {
 /// Real devices: camera, projector and turntable together (as `slscan capture`).
 #[cfg(all(feature = "v4l", feature = "window", unix))]
 mod hardware {
-    use sl_rig::{
-        DynamixelConfig, DynamixelTurntable, ProjectorWindowConfig, V4lCamera, V4lCameraConfig,
-        run_projector,
-    };
+    use sl_rig::{ProjectorWindowConfig, V4lCamera, V4lCameraConfig, run_projector};
     use sl_scan::HandHeld;
 
     use super::{Args, run_devices};
@@ -488,13 +485,7 @@ mod hardware {
             path: camera_path.clone(),
             ..V4lCameraConfig::default()
         })?;
-        let mut table = DynamixelTurntable::open(
-            &port,
-            DynamixelConfig {
-                id: args.hardware.servo_id,
-                ..DynamixelConfig::default()
-            },
-        )?;
+        let mut table = super::open_turntable(&port, args.hardware.servo_id)?;
         let devices = format!(
             "camera {}, projector on monitor {monitor}, turntable {} id {}",
             camera_path.display(),
@@ -560,7 +551,7 @@ fn devices(args: &Args) -> anyhow::Result<(PathBuf, usize, PathBuf)> {
 
 /// Opens the Dynamixel turntable of `--turntable` and `--servo-id` with the driver's defaults:
 /// the hardware run and its test on the emulated servo share it.
-#[cfg(unix)]
+#[cfg(all(unix, any(test, all(feature = "v4l", feature = "window"))))]
 pub(crate) fn open_turntable(
     port: &std::path::Path,
     servo_id: u8,
@@ -680,6 +671,7 @@ mod tests {
         let rms = figure(&out.join("report.json"), "rms_px");
         assert!(rms > 0.0 && rms < 0.2, "turntable RMS {rms}");
         let (angle, offset) = axis_errors(&fit, &truth);
+        println!("axis {angle:.4} degrees and {offset:.4} mm from the truth");
         assert!(angle < 0.05, "axis direction {angle} degrees off");
         assert!(offset < 0.1, "axis {offset} mm off");
         let fx = fit.camera.intrinsics.fx / truth.camera.intrinsics.fx;

@@ -87,6 +87,19 @@ fn conditions() -> Vec<Condition> {
             max_tilt_deg: 20.0,
         },
         Condition {
+            name: "1688x1352, 50 px, defocus 3, noise 4",
+            spec: base(1688, 1352, 50.0, 3.0, 0.3, 2.2, 4.0),
+            max_tilt_deg: 20.0,
+        },
+        Condition {
+            name: "1688x1352, 50 px, defocus 2.5, fringe mean, tilt 40",
+            spec: RenderSpec {
+                fringes: fringes(24.0, 0.08),
+                ..base(1688, 1352, 50.0, 2.5, 0.3, 2.2, 3.0)
+            },
+            max_tilt_deg: 40.0,
+        },
+        Condition {
             name: "1920x1200, 60 px, blur 1.2, tilt 45",
             spec: base(1920, 1200, 60.0, 1.2, 0.3, 2.2, 2.0),
             max_tilt_deg: 45.0,
@@ -117,6 +130,7 @@ fn main() {
     let mut out = std::env::temp_dir().join("sl-corner-harness");
     let mut images = 3usize;
     let mut only: Option<String> = None;
+    let mut cfg = DetectorConfig::default();
     while let Some(a) = args.next() {
         match a.as_str() {
             "--python" => python = args.next(),
@@ -128,16 +142,27 @@ fn main() {
                     .expect("--images N")
             }
             "--only" => only = args.next(),
+            "--junction-fraction" => {
+                cfg.junction_fraction = args
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .expect("--junction-fraction F")
+            }
+            "--max-junction-radius" => {
+                cfg.max_junction_radius = args
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .expect("--max-junction-radius PX")
+            }
             _ => {
                 eprintln!(
-                    "usage: corner_harness [--python PEERS_PYTHON] [--out DIR] [--images N] [--only SUBSTRING]"
+                    "usage: corner_harness [--python PEERS_PYTHON] [--out DIR] [--images N] [--only SUBSTRING] [--junction-fraction F] [--max-junction-radius PX]"
                 );
                 std::process::exit(2);
             }
         }
     }
     std::fs::create_dir_all(&out).expect("output directory");
-    let cfg = DetectorConfig::default();
     let mut manifest = Vec::new();
     let mut tallies = Vec::new();
     for (ci, cond) in conditions().iter().enumerate() {

@@ -389,6 +389,36 @@ struct BoardFile {
 }
 
 /// A calibration capture session: its folder, the poses taken so far and the checks.
+///
+/// On the virtual rig, whose board moves itself (what `slscan calibrate capture --virtual
+/// --auto` runs; `examples/slscan/calibrate_capture.rs` is the interactive front end):
+///
+/// ```no_run
+/// use sl_rig::{Camera, Projector};
+/// use sl_scan::{
+///     AutoConfig, BoardMover, CalibrationCapture, CalibrationCaptureConfig, VirtualBoardRig,
+///     calibration_turntable_angles, capture_poses_auto,
+/// };
+/// use sl_sim::{BoardPoseConfig, Checkerboard, RigConfig};
+///
+/// let board = Checkerboard::default();
+/// let rig = VirtualBoardRig::new(RigConfig::default(), board, &BoardPoseConfig::default())?;
+/// let (mut camera, mut projector, mut table, mut mover) = rig.devices();
+/// let config = CalibrationCaptureConfig::new(board, projector.image_size());
+/// let mut session = CalibrationCapture::open(
+///     "calib/session".as_ref(),
+///     config,
+///     camera.frame_size(),
+///     projector.image_size(),
+/// )?;
+/// let auto = AutoConfig { poses: 12, ..AutoConfig::default() };
+/// capture_poses_auto(&mut session, &mut camera, &mut projector, &mut mover, &auto, |_| {})?;
+/// mover.onto_turntable()?;
+/// let angles = calibration_turntable_angles(7);
+/// session.capture_turntable(&mut camera, &mut projector, &mut table, &angles, |_| {})?;
+/// // `slscan calibrate all calib/session --out calib/all` calibrates from it.
+/// # Ok::<(), sl_scan::CaptureError>(())
+/// ```
 #[derive(Debug)]
 pub struct CalibrationCapture {
     dir: PathBuf,
@@ -1018,10 +1048,10 @@ where
         on_event(AutoEvent::Looked(&check));
         if !mover.moves_itself() {
             let corners = check.corners.as_ref().map(|c| c.corners.as_slice());
-            if let (Some(old), Some(now)) = (&refused_at, corners) {
-                if max_motion(old, now) <= cfg.still_tolerance_px {
-                    continue;
-                }
+            if let (Some(old), Some(now)) = (&refused_at, corners)
+                && max_motion(old, now) <= cfg.still_tolerance_px
+            {
+                continue;
             }
             refused_at = None;
             if !still.update(corners, cfg, Instant::now()) {
