@@ -940,7 +940,7 @@ mod tests {
     use sl_calib::CalibError;
     use sl_calib::sl_camera::Calibration;
     use sl_calib::sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
-    use sl_rig::{CalibrationSession, Scene, VirtualRig, simulate_calibration};
+    use sl_sim::{CalibrationSession, Scene, VirtualRig, simulate_calibration};
     use structured_light::pipeline::scaled_rig_config;
 
     use crate::{Cli, Command};
@@ -1077,20 +1077,20 @@ mod tests {
         let mut config = scaled_rig_config(DOWNSCALE);
         config.render.supersampling = 4;
         let rig = VirtualRig::new(config, Scene::plane()).unwrap();
-        let board = sl_rig::Checkerboard::default();
-        let poses = sl_rig::random_board_poses(
+        let board = sl_sim::Checkerboard::default();
+        let poses = sl_sim::random_board_poses(
             rig.config(),
             &board,
-            &sl_rig::BoardPoseConfig {
+            &sl_sim::BoardPoseConfig {
                 count: 6,
-                ..sl_rig::BoardPoseConfig::default()
+                ..sl_sim::BoardPoseConfig::default()
             },
         )
         .unwrap();
         let images = tmp.path().join("images");
         std::fs::create_dir_all(&images).unwrap();
         for (k, pose) in poses.iter().enumerate() {
-            let cap = sl_rig::capture_board(&rig, &board, pose, None, k as u64).unwrap();
+            let cap = sl_sim::capture_board(&rig, &board, pose, None, k as u64).unwrap();
             cap.white
                 .save_png(&images.join(format!("board_{k}.png")))
                 .unwrap();

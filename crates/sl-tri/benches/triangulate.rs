@@ -16,7 +16,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Point3;
 use rayon::prelude::*;
 use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
-use sl_rig::RigConfig;
+use sl_sim::RigConfig;
 use sl_tri::{Method, TriError, TriOptions, Triangulator};
 
 /// The exact map of a wall at 450 mm seen by the default rig's camera (decoded where the

@@ -1,5 +1,5 @@
 //! Noise-free accuracy on the virtual rig's default geometry (~450 mm working distance):
-//! the exact projector coordinates of sl-rig's ground truth, triangulated with the exact
+//! the exact projector coordinates of sl-sim's ground truth, triangulated with the exact
 //! calibration, must give the true surface points to below 0.005 mm RMS with every method.
 //! Also: calibrations imported from OpenCV and SLStudio files.
 
@@ -10,7 +10,7 @@ use approx::assert_abs_diff_eq;
 use nalgebra::{Point2, Point3};
 use sl_camera::Calibration;
 use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
-use sl_rig::{RigConfig, Scene, ViewTruth, VirtualRig};
+use sl_sim::{RigConfig, Scene, ViewTruth, VirtualRig};
 use sl_tri::{Method, PointStatus, TriOptions, Triangulator};
 
 /// Target of the issue: 0.005 mm RMS with noise-free correspondences. The only error left is
