@@ -251,7 +251,7 @@ fn why_empty(status: &[PointStatus], decoded_fraction: f64) -> String {
         .map(|s| (status.iter().filter(|x| *x == s).count(), *s))
         .filter(|(n, s)| *n > 0 && *s != PointStatus::Valid)
         .collect();
-    counts.sort_by(|a, b| b.0.cmp(&a.0));
+    counts.sort_by_key(|c| std::cmp::Reverse(c.0));
     let statuses: Vec<String> = counts
         .iter()
         .map(|(n, s)| format!("{n} pixels {}", s.name()))
