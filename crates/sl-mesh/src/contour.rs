@@ -159,7 +159,8 @@ fn polygonise(
         });
         (id, mid)
     };
-    let inside_c: Vector3<f64> = ins[..ni].iter().map(|&k| pos(k)).sum::<Vector3<f64>>() / ni as f64;
+    let inside_c: Vector3<f64> =
+        ins[..ni].iter().map(|&k| pos(k)).sum::<Vector3<f64>>() / ni as f64;
     let outside_c: Vector3<f64> =
         outs[..no].iter().map(|&k| pos(k)).sum::<Vector3<f64>>() / no as f64;
     let out_dir = outside_c - inside_c;

@@ -128,8 +128,8 @@ fn parse_stl(bytes: &[u8], file: &str) -> Result<TriangleMesh, MeshError> {
         let c = u32::from_le_bytes(b.get(STL_HEADER..STL_HEADER + 4)?.try_into().ok()?);
         Some(STL_HEADER + 4 + STL_TRIANGLE * c as usize)
     };
-    let looks_ascii = bytes.trim_ascii_start().starts_with(b"solid")
-        && binary_len(bytes) != Some(bytes.len());
+    let looks_ascii =
+        bytes.trim_ascii_start().starts_with(b"solid") && binary_len(bytes) != Some(bytes.len());
     if looks_ascii {
         return parse_stl_ascii(bytes, file);
     }
@@ -172,8 +172,14 @@ fn parse_stl(bytes: &[u8], file: &str) -> Result<TriangleMesh, MeshError> {
             Point3::new(f(3), f(4), f(5)),
             Point3::new(f(6), f(7), f(8)),
         ];
-        if corners.iter().any(|p| p.coords.iter().any(|c| !c.is_finite())) {
-            return Err(err(base, format!("triangle {k} has a non-finite coordinate")));
+        if corners
+            .iter()
+            .any(|p| p.coords.iter().any(|c| !c.is_finite()))
+        {
+            return Err(err(
+                base,
+                format!("triangle {k} has a non-finite coordinate"),
+            ));
         }
         builder.push(corners);
     }
@@ -389,7 +395,9 @@ pub fn ply_mesh_to_bytes(
             mesh.vertices.len()
         )));
     }
-    let mut header = String::from("ply\nformat binary_little_endian 1.0\ncomment written by sl-mesh (structured-light)\n");
+    let mut header = String::from(
+        "ply\nformat binary_little_endian 1.0\ncomment written by sl-mesh (structured-light)\n",
+    );
     let _ = writeln!(header, "element vertex {}", mesh.vertices.len());
     header.push_str("property double x\nproperty double y\nproperty double z\n");
     if normals.is_some() {
@@ -446,5 +454,150 @@ pub fn read_mesh(path: &Path) -> Result<TriangleMesh, MeshError> {
             path.display(),
             "unknown mesh file extension (expected .stl, .obj or .ply)",
         )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{PoissonConfig, check_topology, poisson_reconstruct};
+    use nalgebra::Vector3;
+    use sl_cloud::PointCloud;
+
+    /// A closed mesh of a sphere of radius 10 (Poisson at depth 5).
+    fn ball() -> TriangleMesh {
+        let n = 2000;
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let (pts, nrm): (Vec<_>, Vec<_>) = (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let r = (1.0 - z * z).sqrt();
+                let t = golden * i as f64;
+                let v = Vector3::new(r * t.cos(), r * t.sin(), z);
+                (Point3::from(v * 10.0 + Vector3::new(1.0, 2.0, 3.0)), v)
+            })
+            .unzip();
+        let cloud = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let cfg = PoissonConfig {
+            depth: 5,
+            ..PoissonConfig::default()
+        };
+        poisson_reconstruct(&cloud, &cfg).unwrap().mesh
+    }
+
+    /// STL stores `f32`: the round trip is exact to `f32` rounding, keeps the triangles and
+    /// their order and winding, and the shared vertices are found again (the mesh stays closed).
+    #[test]
+    fn stl_round_trip() {
+        let mesh = ball();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ball.stl");
+        write_stl(&path, &mesh).unwrap();
+        assert_eq!(
+            std::fs::metadata(&path).unwrap().len() as usize,
+            STL_HEADER + 4 + STL_TRIANGLE * mesh.triangles.len()
+        );
+        let back = read_mesh(&path).unwrap();
+        assert_eq!(back.triangles.len(), mesh.triangles.len());
+        assert_eq!(back.vertices.len(), mesh.vertices.len());
+        for (t, u) in mesh.triangles.iter().zip(&back.triangles) {
+            for k in 0..3 {
+                let (p, q) = (mesh.vertices[t[k] as usize], back.vertices[u[k] as usize]);
+                assert!((p - q).norm() < 1e-5 * p.coords.norm(), "{p} vs {q}");
+            }
+        }
+        assert!(check_topology(&back).is_watertight_manifold());
+    }
+
+    /// OBJ writes 17 significant digits: the round trip is exact.
+    #[test]
+    fn obj_round_trip() {
+        let mesh = ball();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ball.obj");
+        write_obj(&path, &mesh).unwrap();
+        assert_eq!(read_mesh(&path).unwrap(), mesh);
+    }
+
+    /// PLY writes `double` positions: exact; `sl_cloud` reads the normals back as the cloud's.
+    #[test]
+    fn ply_round_trip() {
+        let mesh = ball();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ball.ply");
+        write_ply_mesh(&path, &mesh).unwrap();
+        assert_eq!(read_mesh(&path).unwrap(), mesh);
+        let cloud = sl_cloud::read_ply(&path).unwrap();
+        let normals = cloud.normals().unwrap();
+        for (n, m) in normals.iter().zip(vertex_normals(&mesh)) {
+            assert!((n - m).norm() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn ascii_stl_is_read() {
+        let text = b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nfacet normal 0 0 1\nouter loop\nvertex 1 0 0\nvertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n";
+        let mesh = read_stl_from_bytes(text).unwrap();
+        assert_eq!(mesh.vertices.len(), 4);
+        assert_eq!(mesh.triangles, vec![[0, 1, 2], [1, 3, 2]]);
+    }
+
+    /// Corrupt files give typed errors naming the file and where.
+    #[test]
+    fn corrupt_files_are_named() {
+        let mesh = ball();
+        let dir = tempfile::tempdir().unwrap();
+        // A truncated binary STL.
+        let bytes = stl_to_bytes(&mesh).unwrap();
+        let path = dir.path().join("cut.stl");
+        std::fs::write(&path, &bytes[..bytes.len() - 7]).unwrap();
+        let e = read_stl(&path).unwrap_err();
+        assert!(matches!(e, MeshError::Stl { .. }), "{e}");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("cut.stl") && msg.contains("truncated"),
+            "{msg}"
+        );
+        // Shorter than the header.
+        let e = read_stl_from_bytes(&bytes[..50]).unwrap_err();
+        assert!(matches!(e, MeshError::Stl { offset: 50, .. }), "{e}");
+        // A NaN coordinate.
+        let mut nan = bytes.clone();
+        nan[STL_HEADER + 4 + 12..STL_HEADER + 4 + 16].copy_from_slice(&f32::NAN.to_le_bytes());
+        let e = read_stl_from_bytes(&nan).unwrap_err();
+        assert!(e.to_string().contains("non-finite"), "{e}");
+        // ASCII STL with a facet of two vertices.
+        let e = read_stl_from_bytes(b"solid x\nfacet\nvertex 0 0 0\nvertex 1 0 0\nendfacet\n")
+            .unwrap_err();
+        assert!(e.to_string().contains("2 vertices"), "{e}");
+        // OBJ: a bad vertex, an index out of range; the line is named.
+        let path = dir.path().join("bad.obj");
+        std::fs::write(&path, "v 0 0 0\nv 1 x 0\n").unwrap();
+        let e = read_obj(&path).unwrap_err();
+        assert!(matches!(e, MeshError::Obj { line: 2, .. }), "{e}");
+        assert!(e.to_string().contains("bad.obj"), "{e}");
+        let e = read_obj_from_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 4\n").unwrap_err();
+        assert!(matches!(e, MeshError::Obj { line: 5, .. }), "{e}");
+        // PLY: a face list cut short.
+        let ply = ply_mesh_to_bytes(&mesh, None).unwrap();
+        let path = dir.path().join("cut.ply");
+        std::fs::write(&path, &ply[..ply.len() - 5]).unwrap();
+        let e = read_mesh(&path).unwrap_err();
+        assert!(matches!(e, MeshError::Cloud(_)), "{e}");
+        assert!(e.to_string().contains("cut.ply"), "{e}");
+        // Missing file, unknown extension.
+        let e = read_mesh(&dir.path().join("none.stl")).unwrap_err();
+        assert!(matches!(e, MeshError::Io { .. }), "{e}");
+        let e = read_mesh(&dir.path().join("mesh.3ds")).unwrap_err();
+        assert!(e.to_string().contains("mesh.3ds"), "{e}");
+        // Writing a mesh with an index out of range is refused.
+        let broken = TriangleMesh {
+            vertices: vec![Point3::origin()],
+            triangles: vec![[0, 1, 2]],
+        };
+        assert!(matches!(
+            stl_to_bytes(&broken),
+            Err(MeshError::InvalidMesh(_))
+        ));
     }
 }

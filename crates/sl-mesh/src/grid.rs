@@ -46,7 +46,11 @@ impl NodeSet {
         let total = self.n * self.n * self.n;
         for (w, word) in self.bits.iter_mut().enumerate() {
             let left = total - w * 64;
-            *word = if left >= 64 { u64::MAX } else { (1 << left) - 1 };
+            *word = if left >= 64 {
+                u64::MAX
+            } else {
+                (1 << left) - 1
+            };
         }
     }
 
@@ -96,12 +100,16 @@ impl NodeSet {
     pub(crate) fn coords(&self, slot: usize) -> [i64; 3] {
         let id = self.ids[slot] as usize;
         let n = self.n;
-        [(id % n) as i64, ((id / n) % n) as i64, (id / (n * n)) as i64]
+        [
+            (id % n) as i64,
+            ((id / n) % n) as i64,
+            (id / (n * n)) as i64,
+        ]
     }
 }
 
 /// A fast hasher for integer keys (edge ids, node ids): one multiply and a fold. The keys are
-/// ours, never adversarial, so the DoS resistance of the standard `SipHash` buys nothing and
+/// ours, never adversarial, so the denial-of-service resistance of the standard `SipHash` buys nothing and
 /// costs a third of the contouring time.
 #[derive(Debug, Default, Clone, Copy)]
 pub(crate) struct IdHasher(u64);

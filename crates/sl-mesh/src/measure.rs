@@ -52,7 +52,11 @@ pub fn vertex_normals(mesh: &TriangleMesh) -> Vec<Vector3<f64>> {
 /// sample stands for, sets their number (a triangle gets `round(area / per_triangle_area)`, at
 /// least its centroid when `at_least_one`). Deterministic: a triangle's samples sit on a regular
 /// pattern of barycentric coordinates.
-pub fn sample_surface(mesh: &TriangleMesh, area_per_sample: f64, at_least_one: bool) -> Vec<Point3<f64>> {
+pub fn sample_surface(
+    mesh: &TriangleMesh,
+    area_per_sample: f64,
+    at_least_one: bool,
+) -> Vec<Point3<f64>> {
     let mut out = Vec::new();
     for t in &mesh.triangles {
         let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);

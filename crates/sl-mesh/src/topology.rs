@@ -122,7 +122,10 @@ pub fn check_topology(mesh: &TriangleMesh) -> Topology {
         .triangles
         .iter()
         .filter(|t| {
-            let ok = t.iter().all(|&i| (i as usize) < nv) && t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
+            let ok = t.iter().all(|&i| (i as usize) < nv)
+                && t[0] != t[1]
+                && t[1] != t[2]
+                && t[0] != t[2];
             if !ok {
                 topo.degenerate_triangles += 1;
             }
@@ -157,7 +160,9 @@ pub fn check_topology(mesh: &TriangleMesh) -> Topology {
             used[i as usize] = true;
         }
     }
-    topo.components = (0..nv as u32).filter(|&i| used[i as usize] && uf.find(i) == i).count();
+    topo.components = (0..nv as u32)
+        .filter(|&i| used[i as usize] && uf.find(i) == i)
+        .count();
     topo.non_manifold_vertices = count_non_manifold_vertices(&clean.triangles, nv);
     topo
 }
@@ -218,7 +223,9 @@ fn count_non_manifold_vertices(triangles: &[[u32; 3]], nv: usize) -> usize {
             let (rb, rc) = (find(&mut parent, ib), find(&mut parent, ic));
             parent[rb.max(rc)] = rb.min(rc);
         }
-        let roots = (0..local.len()).filter(|&i| find(&mut parent, i) == i).count();
+        let roots = (0..local.len())
+            .filter(|&i| find(&mut parent, i) == i)
+            .count();
         if roots > 1 {
             bad += 1;
         }
@@ -281,4 +288,78 @@ pub fn compact_vertices(mesh: &mut TriangleMesh) -> Vec<u32> {
     }
     mesh.vertices = old.iter().map(|&i| mesh.vertices[i as usize]).collect();
     old
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point3;
+
+    fn tetra() -> TriangleMesh {
+        TriangleMesh {
+            vertices: vec![
+                Point3::origin(),
+                Point3::new(1.0, 0.0, 0.0),
+                Point3::new(0.0, 1.0, 0.0),
+                Point3::new(0.0, 0.0, 1.0),
+            ],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        }
+    }
+
+    #[test]
+    fn closed_tetrahedron_is_watertight_manifold() {
+        let t = check_topology(&tetra());
+        assert!(t.is_watertight_manifold(), "{t:?}");
+        assert_eq!(t.components, 1);
+    }
+
+    #[test]
+    fn defects_are_counted() {
+        // A flipped face: three edges traversed twice the same way.
+        let mut m = tetra();
+        m.triangles[3] = [1, 3, 2];
+        let t = check_topology(&m);
+        assert_eq!(t.misoriented_edges, 3);
+        assert!(t.is_watertight() && !t.is_watertight_manifold());
+        // A fin: a third triangle on edge 0-1.
+        let mut m = tetra();
+        m.vertices.push(Point3::new(0.5, -1.0, 0.0));
+        m.triangles.push([0, 1, 4]);
+        let t = check_topology(&m);
+        assert_eq!(t.non_manifold_edges, 1);
+        assert!(!t.is_manifold() && !t.is_watertight());
+        // Two tetrahedra sharing one vertex: a non-manifold vertex, one piece.
+        let mut m = tetra();
+        let off = nalgebra::Vector3::new(-1.0, -1.0, -1.0);
+        for k in 1..4 {
+            let p = m.vertices[k] + off * 2.0;
+            m.vertices.push(p);
+        }
+        m.triangles
+            .extend([[0, 5, 4], [0, 4, 6], [0, 6, 5], [4, 5, 6]]);
+        let t = check_topology(&m);
+        assert_eq!(t.non_manifold_vertices, 1, "{t:?}");
+        assert_eq!(t.components, 1);
+        assert!(!t.is_manifold());
+        // A degenerate triangle.
+        let mut m = tetra();
+        m.triangles.push([1, 1, 2]);
+        assert_eq!(check_topology(&m).degenerate_triangles, 1);
+    }
+
+    #[test]
+    fn compact_drops_unused_vertices() {
+        let mut m = tetra();
+        m.vertices.insert(0, Point3::new(9.0, 9.0, 9.0));
+        for t in &mut m.triangles {
+            for i in t.iter_mut() {
+                *i += 1;
+            }
+        }
+        let old = compact_vertices(&mut m);
+        assert_eq!(m.vertices.len(), 4);
+        assert!(!old.contains(&0));
+        assert!(check_topology(&m).is_watertight_manifold());
+    }
 }
