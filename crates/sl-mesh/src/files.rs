@@ -12,6 +12,7 @@ use nalgebra::Point3;
 use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
+use crate::adjacency::check_indices;
 use crate::measure::vertex_normals;
 
 /// Name used in errors for data that did not come from a file.
@@ -40,20 +41,6 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), MeshError> {
 
 fn read_file(path: &Path) -> Result<Vec<u8>, MeshError> {
     std::fs::read(path).map_err(|e| MeshError::io(path, "read", e))
-}
-
-fn check_indices(mesh: &TriangleMesh) -> Result<(), MeshError> {
-    let n = mesh.vertices.len();
-    match mesh
-        .triangles
-        .iter()
-        .position(|t| t.iter().any(|&i| i as usize >= n))
-    {
-        Some(k) => Err(MeshError::InvalidMesh(format!(
-            "triangle {k} has a vertex index out of range (the mesh has {n} vertices)"
-        ))),
-        None => Ok(()),
-    }
 }
 
 /// The binary STL of `mesh` (`f32` coordinates, facet normals from the winding).

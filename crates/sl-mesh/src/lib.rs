@@ -5,8 +5,11 @@
 //!   cloud with oriented normals on an adaptive octree, extracted by marching tetrahedra: a
 //!   watertight, manifold, consistently oriented mesh; per-vertex sampling densities for
 //!   `trim_by_density`.
-//! - Clean-up: [`check_topology`] (watertight, manifold, orientation), [`remove_small_components`],
-//!   [`vertex_normals`], [`surface_area`], [`signed_volume`], [`sample_surface`].
+//! - Clean-up: [`trim_by_density`] (surface the data does not support), [`smooth_bilateral`]
+//!   (feature-preserving) and [`smooth_taubin`], [`decimate`] (quadric error, to a triangle
+//!   count), [`fill_holes`], [`remove_small_components`].
+//! - Measures: [`check_topology`] (watertight, manifold, orientation), [`vertex_normals`],
+//!   [`surface_area`], [`signed_volume`], [`sample_surface`].
 //! - Files: binary STL, OBJ and PLY with faces ([`write_stl`], [`read_stl`], [`write_obj`],
 //!   [`read_obj`], [`write_ply_mesh`], [`read_mesh`]; PLY reading is
 //!   [`sl_cloud::read_ply_mesh`]).
@@ -45,20 +48,33 @@
 
 #![deny(missing_docs)]
 
+mod adjacency;
+mod bilateral;
 mod contour;
+mod decimate;
 mod error;
 mod files;
 mod grid;
+mod holes;
 mod measure;
 mod poisson;
+mod taubin;
+#[cfg(test)]
+mod test_shapes;
 mod topology;
+mod trim;
 
+pub use bilateral::{BilateralConfig, smooth_bilateral};
+pub use decimate::{Decimation, decimate};
 pub use error::MeshError;
 pub use files::{
     obj_to_string, ply_mesh_to_bytes, read_mesh, read_obj, read_obj_from_bytes, read_stl,
     read_stl_from_bytes, stl_to_bytes, write_obj, write_ply_mesh, write_stl,
 };
+pub use holes::{HoleFilling, fill_holes};
 pub use measure::{sample_surface, signed_volume, surface_area, vertex_normals};
 pub use poisson::{MIN_POISSON_POINTS, PoissonConfig, PoissonSurface, poisson_reconstruct};
 pub use sl_cloud::{TriangleMesh, read_ply_mesh};
+pub use taubin::{TaubinConfig, smooth_taubin};
 pub use topology::{Topology, check_topology, compact_vertices, remove_small_components};
+pub use trim::{Trimmed, trim_by_density};
