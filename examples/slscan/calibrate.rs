@@ -19,9 +19,6 @@ use sl_calib::{
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
 
-/// Image files accepted in a folder, by lower-case extension.
-const IMAGE_EXTENSIONS: [&str; 6] = ["png", "jpg", "jpeg", "tif", "tiff", "bmp"];
-
 /// The white-light picture of a capture folder written by `slscan simulate --scene board`.
 const WHITE_IMAGE: &str = "white.png";
 
@@ -326,11 +323,8 @@ fn pose_folders(session: &Path) -> anyhow::Result<Vec<PathBuf>> {
 }
 
 fn is_image(path: &Path) -> bool {
-    path.is_file()
-        && path
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+    // sl-codec's list of the formats it reads (BMP, PGM/PPM, PNG, JPEG, TIFF).
+    path.is_file() && sl_codec::is_image_file(path)
 }
 
 fn sorted_entries(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {

@@ -31,6 +31,12 @@ pub enum CodecError {
         #[source]
         source: image::ImageError,
     },
+    /// An image file decoded to an image of no pixels.
+    #[error("{path}: the image is empty (0 pixels wide or high)")]
+    EmptyImage {
+        /// The image file.
+        path: PathBuf,
+    },
     /// A frame listed in the manifest does not exist.
     #[error(
         "{manifest}: frame {index} of block {block} ('{file}') is missing: {path} does not exist"
