@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::frame::check_sizes;
-use crate::image_file::{GreyImage, read_image};
+use crate::image_file::{GreyImage, find_image_file, read_image};
 use crate::manifest::MANIFEST_FILE;
 use crate::{CodecError, Frame, Frames, Manifest};
 
@@ -25,7 +25,9 @@ impl CaptureSet {
     ///
     /// Frame paths are resolved against the manifest's `frames_dir` (relative to the manifest's
     /// folder) or, without one, against the manifest's folder; absolute frame paths are used as
-    /// they are.
+    /// they are. A frame missing under its listed name is looked for under the same name with
+    /// each of the [`IMAGE_EXTENSIONS`](crate::IMAGE_EXTENSIONS) ([`find_image_file`]), so a
+    /// manifest naming `000.png` reads a capture saved as `000.bmp`.
     ///
     /// # Errors
     /// Manifest errors, [`CodecError::MissingFrame`] naming the block and frame,
@@ -64,7 +66,9 @@ impl CaptureSet {
         for (b, block) in manifest.blocks.iter().enumerate() {
             for (i, file) in block.frames.iter().enumerate() {
                 let path = dir.join(file);
-                if !path.is_file() {
+                // The frame as named, or saved under another image extension (a capture
+                // program that writes BMP frames for a manifest naming PNG ones).
+                let Some(found) = find_image_file(&path) else {
                     return Err(CodecError::MissingFrame {
                         manifest: manifest_path.clone(),
                         block: b,
@@ -72,8 +76,8 @@ impl CaptureSet {
                         file: file.clone(),
                         path,
                     });
-                }
-                paths.push(path);
+                };
+                paths.push(found);
             }
         }
         let frames = load_frames(&paths)?;

@@ -39,7 +39,8 @@ pub enum CodecError {
     },
     /// A frame listed in the manifest does not exist.
     #[error(
-        "{manifest}: frame {index} of block {block} ('{file}') is missing: {path} does not exist"
+        "{manifest}: frame {index} of block {block} ('{file}') is missing: {path} does not exist \
+         (nor under another image extension)"
     )]
     MissingFrame {
         /// The manifest that lists the frame.

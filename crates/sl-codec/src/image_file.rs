@@ -22,7 +22,7 @@
 //!   `imread(IMREAD_GRAYSCALE)` keeps the high byte (`v >> 8`) instead, at most one grey level
 //!   lower.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use image::DynamicImage;
 
@@ -114,6 +114,36 @@ pub fn is_image_file(path: &Path) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// The image file a path names, in whichever of the [`IMAGE_EXTENSIONS`] it was saved: `path`
+/// itself when it is a file, else the first existing file of the same name with one of the
+/// extensions (in the order of [`IMAGE_EXTENSIONS`], lower case before upper case). So a
+/// folder's `white.png` is found when it was saved as `white.bmp` or `white.TIF`, and a
+/// manifest written by `slscan patterns` (frames `000.png`, `001.png`, …) reads the frames a
+/// capture program saved as `000.bmp`, `001.bmp`, ….
+///
+/// Returns `None` when no such file exists. Only the extension is replaced: a path whose name
+/// has no extension gets one appended.
+///
+/// ```
+/// # fn main() -> std::io::Result<()> {
+/// let dir = tempfile::tempdir()?;
+/// std::fs::write(dir.path().join("white.bmp"), b"")?;
+/// let found = sl_codec::find_image_file(&dir.path().join("white.png"));
+/// assert_eq!(found, Some(dir.path().join("white.bmp")));
+/// assert_eq!(sl_codec::find_image_file(&dir.path().join("black.png")), None);
+/// # Ok(()) }
+/// ```
+pub fn find_image_file(path: &Path) -> Option<PathBuf> {
+    if path.is_file() {
+        return Some(path.to_path_buf());
+    }
+    IMAGE_EXTENSIONS
+        .iter()
+        .flat_map(|e| [(*e).to_owned(), e.to_ascii_uppercase()])
+        .map(|e| path.with_extension(e))
+        .find(|p| p.is_file())
 }
 
 /// Reads an image file as grey at its own depth (see the module docs for the conversion).

@@ -396,3 +396,82 @@ fn every_listed_extension_is_an_image_file() {
         );
     }
 }
+
+/// Files written by another program: OpenCV 5.0's `cv2.imwrite` (palette BMP, 24-bit BMP,
+/// binary PGM 8/16 and PPM, PNG 8/16 grey and colour, LZW-compressed TIFF 8/16 grey and
+/// colour, JPEG), made by `benches/peers/opencv_image_files.py` from the pixel formulas above.
+/// Grey files read back exactly; colour files give exactly OpenCV's own
+/// `cvtColor(COLOR_BGR2GRAY)` of them (`expected_grey.txt`, written by the same script).
+#[test]
+fn files_written_by_opencv() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/opencv_images");
+    for name in ["grey8.bmp", "grey8.pgm", "grey8.png", "grey8.tif"] {
+        assert_grey8(&read_image(&dir.join(name)).unwrap(), name);
+    }
+    for name in ["grey16.pgm", "grey16.png", "grey16.tif"] {
+        assert_grey16(&read_image(&dir.join(name)).unwrap(), name);
+    }
+    let expected = std::fs::read_to_string(dir.join("expected_grey.txt")).unwrap();
+    let mut checked = 0;
+    for line in expected.lines().filter(|l| !l.starts_with('#')) {
+        let mut words = line.split_whitespace();
+        let name = words.next().unwrap();
+        let want: Vec<u16> = words.map(|w| w.parse().unwrap()).collect();
+        let img = read_image(&dir.join(name)).unwrap();
+        assert_eq!(img.bit_depth(), if name.contains("16") { 16 } else { 8 });
+        let got: Vec<u16> = img.into_u16().data().to_vec();
+        let want: Vec<u16> = if name.contains("16") {
+            want
+        } else {
+            want.into_iter().map(|v| v * 257).collect()
+        };
+        assert_eq!(got, want, "{name}");
+        checked += 1;
+    }
+    assert_eq!(checked, 6, "colour files listed in expected_grey.txt");
+    // Quality 100, flat 8x8 blocks: within one level, as for the image crate's JPEG above.
+    let GreyImage::U8(f) = read_image(&dir.join("blocks.jpg")).unwrap() else {
+        panic!("grey JPEG is 8-bit");
+    };
+    for y in 0..H {
+        for x in 0..W {
+            let want = (40 + 100 * (x / 8) + 30 * (y / 8)) as u8;
+            let got = f.get(x, y).unwrap();
+            assert!(got.abs_diff(want) <= 1, "({x}, {y}): {got} vs {want}");
+        }
+    }
+}
+
+/// A manifest naming `.png` frames reads the same frames saved as `.bmp` (a capture program's
+/// format, the manifest written by `slscan patterns`); a frame missing under every extension
+/// is still an error naming it.
+#[test]
+fn manifest_frames_found_under_another_extension() {
+    let dir = tempfile::tempdir().unwrap();
+    write_bmp(&dir.path().join("000.bmp"), 8);
+    write_pnm(
+        &dir.path().join("001.PGM"),
+        "P5",
+        255,
+        &grey8_buf().into_iter().map(u32::from).collect::<Vec<_>>(),
+    );
+    let manifest = r#"{
+        "projector": {"width": 2, "height": 8},
+        "blocks": [{"codec": "gray", "axis": "column", "bits": 1, "frames": ["000.png", "001.png"]}]
+    }"#;
+    std::fs::write(dir.path().join("manifest.json"), manifest).unwrap();
+    let capture = CaptureSet::load(dir.path()).unwrap();
+    assert!(capture.frame_names[0].ends_with("000.bmp"));
+    assert!(capture.frame_names[1].ends_with("001.PGM"));
+    let Frames::U8(frames) = &capture.frames else {
+        panic!("8-bit frames stay 8-bit");
+    };
+    assert_eq!(frames[1].data(), grey8_buf().as_slice());
+    std::fs::remove_file(dir.path().join("001.PGM")).unwrap();
+    let e = CaptureSet::load(dir.path()).unwrap_err();
+    assert!(
+        matches!(e, CodecError::MissingFrame { index: 1, .. }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("001.png"), "{e}");
+}
