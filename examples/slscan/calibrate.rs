@@ -38,6 +38,10 @@ pub(crate) struct Args {
 /// What to calibrate.
 #[derive(Debug, clap::Subcommand)]
 pub(crate) enum What {
+    /// Capture a calibration session on the virtual rig (`--virtual`) or real devices: the
+    /// board at guided poses under the patterns, then on the turntable (`SESSION/board/`,
+    /// `SESSION/turntable/`, as `calibrate all` reads them). Interactive, or `--auto`.
+    Capture(crate::calibrate_capture::Args),
     /// The camera (Zhang's method) from checkerboard pictures: image files, folders of
     /// images, folders of capture folders holding `white.png`, or an `slscan simulate`
     /// calibration session (its `board/` poses).
@@ -127,7 +131,8 @@ pub(crate) struct TurntableArgs {
 /// Arguments of `slscan calibrate all`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct AllArgs {
-    /// An `slscan simulate --scene board` session (with `board/` and `turntable/`).
+    /// An `slscan calibrate capture` or `slscan simulate --scene board` session (with
+    /// `board/` and `turntable/`).
     pub(crate) session: PathBuf,
     #[command(flatten)]
     pub(crate) common: BoardArgs,
@@ -136,6 +141,7 @@ pub(crate) struct AllArgs {
 /// Runs `slscan calibrate`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     match &args.what {
+        What::Capture(a) => crate::calibrate_capture::run(a),
         What::Camera(a) => {
             let zhang = ZhangConfig {
                 fix_principal_point: a.fix_principal_point,
@@ -285,11 +291,23 @@ fn parse_size(text: &str) -> anyhow::Result<ImageSize> {
     Ok(ImageSize::new(w, h))
 }
 
-/// The projector size of a simulated session, from its `rig.json` (1920x1080 without one).
+/// The projector size of a session: from its `rig.json` (a simulated session), else from the
+/// first pose's `manifest.json` (an `slscan calibrate capture` session on real devices), else
+/// 1920x1080.
 fn rig_projector_size(session: &Path) -> anyhow::Result<ImageSize> {
     let path = session.join("rig.json");
     if !path.is_file() {
-        return Ok(ImageSize::new(1920, 1080));
+        let manifest = pose_folders(session)?
+            .first()
+            .map(|f| f.join(sl_calib::sl_codec::MANIFEST_FILE))
+            .filter(|m| m.is_file());
+        return Ok(match manifest {
+            Some(m) => {
+                let m = sl_calib::sl_codec::Manifest::load(&m)?;
+                ImageSize::new(m.projector.width, m.projector.height)
+            }
+            None => ImageSize::new(1920, 1080),
+        });
     }
     let text =
         fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;

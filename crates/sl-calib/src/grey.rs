@@ -62,6 +62,29 @@ impl GreyF32 {
         (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
     }
 
+    /// Half resolution: each pixel the mean of a 2×2 block (an odd last row or column is
+    /// dropped). Pixel `X` of the result is centred at `2X + 0.5` of this image.
+    pub(crate) fn half(&self) -> Self {
+        let (w, h) = (self.width / 2, self.height / 2);
+        let mut data = Vec::with_capacity(w * h);
+        for y in 0..h {
+            for x in 0..w {
+                let (x2, y2) = (2 * x as isize, 2 * y as isize);
+                data.push(
+                    0.25 * (self.at(x2, y2)
+                        + self.at(x2 + 1, y2)
+                        + self.at(x2, y2 + 1)
+                        + self.at(x2 + 1, y2 + 1)),
+                );
+            }
+        }
+        Self {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+
     /// Separable Gaussian blur with standard deviation `sigma` (pixels); `sigma <= 0` copies.
     pub(crate) fn blurred(&self, sigma: f32) -> Self {
         if sigma <= 0.0 || self.width == 0 || self.height == 0 {

@@ -38,6 +38,7 @@ mod detect;
 mod error;
 mod grey;
 mod homography;
+mod junction;
 mod local_homography;
 mod pictures;
 mod procam;

@@ -82,6 +82,7 @@ mod phase_shift;
 mod pictures;
 mod sequence;
 mod synthetic;
+mod texture;
 mod unwrap;
 
 pub use capture::{CaptureSet, load_frame};
@@ -97,7 +98,7 @@ pub use export::{
 };
 pub use frame::{Frame, Frames, Sample};
 pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIFT, decode_gray};
-pub use hybrid::{HybridSpec, decode_hybrid};
+pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, decode_hybrid};
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
 pub use pattern::{Axis, BitDepth, Pattern, ProjectorSize};
 pub use phase_shift::{
@@ -109,4 +110,5 @@ pub use pictures::{
 };
 pub use sequence::{PatternSequence, render_pattern};
 pub use synthetic::SyntheticScene;
+pub use texture::{CaptureTexture, TextureSource, capture_texture};
 pub use unwrap::Unwrap;

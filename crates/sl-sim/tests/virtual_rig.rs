@@ -6,9 +6,10 @@
 use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
 use sl_camera::{CameraModel, ImageSize, Intrinsics};
+use sl_rig::capture_sequence;
 use sl_sim::{
     Camera, GreyImage, NO_OBJECT, Pixels, Projector, ProjectorSampling, RigConfig, Scene,
-    SceneObject, SensorConfig, Shape, Texture, Turntable, VirtualRig, capture_sequence,
+    SceneObject, SensorConfig, Shape, Texture, Turntable, VirtualRig,
 };
 
 /// The default rig with both images scaled down by 4 (same fields of view, same distortion),

@@ -60,13 +60,13 @@ struct Knobs {
 }
 
 /// Phase steps of the capture the toolkit uses (`structured_light::pipeline::scan_patterns`,
-/// which `slscan scan` and `slscan capture` project by default). Mirrored here because this
-/// crate cannot depend on the root package that depends on it.
-const TOOLKIT_STEPS: u32 = 8;
+/// which `slscan scan` and `slscan capture` project by default, and `slscan patterns --codec
+/// hybrid`'s default).
+const TOOLKIT_STEPS: u32 = sl_codec::RECOMMENDED_PHASE_STEPS;
 
-/// Fringe period (projector px) of that capture: `slscan scan`'s and `slscan capture`'s
-/// default `period_px`, i.e. 1920 / 15 = 128 periods across the projector.
-const TOOLKIT_PERIOD_PX: f64 = 15.0;
+/// Fringe period (projector px) of that capture, i.e. 1920 / 15 = 128 periods across the
+/// projector.
+const TOOLKIT_PERIOD_PX: f64 = sl_codec::RECOMMENDED_PERIOD_PX;
 
 impl Default for Knobs {
     /// The capture the toolkit actually projects: hybrid code on the columns, 8 steps, 15 px
