@@ -15,7 +15,7 @@ use sl_rig::{
 };
 use sl_sim::{Scene, VirtualRig};
 use structured_light::scan::{
-    capture_session, full_turn_motor_angles, scaled_rig_config, scan_patterns,
+    SCAN_PERIOD_PX, capture_session, full_turn_motor_angles, scaled_rig_config, scan_patterns,
 };
 
 use crate::common::{Report, ensure_out_dir, progress};
@@ -98,7 +98,7 @@ fn manifest(args: &Args, projector: (u32, u32)) -> anyhow::Result<Manifest> {
     match &args.patterns {
         Some(dir) => Ok(Manifest::load(&dir.join(MANIFEST_FILE))?),
         None => Ok(
-            scan_patterns(ProjectorSize::new(projector.0, projector.1), 15.0)
+            scan_patterns(ProjectorSize::new(projector.0, projector.1), SCAN_PERIOD_PX)
                 .manifest(BitDepth::Eight),
         ),
     }

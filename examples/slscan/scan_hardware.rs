@@ -9,7 +9,6 @@
 
 use std::path::{Path, PathBuf};
 
-use sl_icp::MergeConfig;
 use structured_light::scan::{
     MergeStageConfig, ReconstructConfig, SessionScanConfig, load_scan_calibration, scan_session,
     write_scan_cloud,
@@ -121,13 +120,11 @@ fn reconstruct(
             edge_erosion_px: args.edge_erosion,
             max_view_angle_deg: args.max_view_angle,
         },
-        merge: MergeStageConfig {
-            merge: MergeConfig {
-                average_overlaps: !args.no_average,
-                ..MergeConfig::default()
-            },
-            icp_refinement: !args.rig.no_refine,
-        },
+        merge: MergeStageConfig::scan(
+            !args.no_average,
+            args.smoothing_neighbours,
+            !args.rig.no_refine,
+        ),
         poses: None,
     };
     let mut bars = StageBars::new();

@@ -14,13 +14,21 @@ use sl_rig::{
 use crate::error::stage_err;
 use crate::{ScanError, ScanProgress};
 
-/// Phase steps of the scan's hybrid code. 8 rather than 4: with 15 px fringes the plane
-/// flatness RMS falls from 0.0214 to 0.0154 mm (issue 6's target is 0.02 mm) for 4 more
-/// frames per view (24 instead of 20; `docs/triangulation.md`, rendered accuracy).
-pub const SCAN_PHASE_STEPS: u32 = 8;
+/// Phase steps of the scan's hybrid code: the capture the toolkit recommends
+/// (`sl_codec::RECOMMENDED_PHASE_STEPS`, one constant for `slscan patterns`, `capture` and
+/// `scan`). 8 rather than 4: with 15 px fringes the plane flatness RMS falls from 0.0214 to
+/// 0.0154 mm (issue 6's target is 0.02 mm) for 4 more frames per view (24 instead of 20;
+/// `docs/triangulation.md`, rendered accuracy).
+pub const SCAN_PHASE_STEPS: u32 = sl_codec::RECOMMENDED_PHASE_STEPS;
+
+/// Fringe period of the scan's hybrid code in projector pixels: the recommended capture's
+/// (`sl_codec::RECOMMENDED_PERIOD_PX`), the finest period the projector blur still resolves
+/// with good modulation.
+pub const SCAN_PERIOD_PX: f64 = sl_codec::RECOMMENDED_PERIOD_PX;
 
 /// The scan's pattern sequence: hybrid code on the projector columns, [`SCAN_PHASE_STEPS`]
-/// phase steps, periods of `period_px` projector pixels.
+/// phase steps, periods of `period_px` projector pixels ([`SCAN_PERIOD_PX`] by default, on
+/// the virtual and the real rig).
 pub fn scan_patterns(projector: ProjectorSize, period_px: f64) -> PatternSequence {
     PatternSequence::new(projector).with(Pattern::Hybrid(HybridSpec::complementary(
         Axis::Column,

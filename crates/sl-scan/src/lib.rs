@@ -65,7 +65,9 @@ pub use virtual_board::{
 pub use calibrate::{
     CalibrationSummary, calibrate_virtual, load_scan_calibration, require_turntable_axis,
 };
-pub use capture::{SCAN_PHASE_STEPS, capture_session, full_turn_motor_angles, scan_patterns};
+pub use capture::{
+    SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_session, full_turn_motor_angles, scan_patterns,
+};
 pub use error::ScanError;
 pub use measure::{
     Measurements, PLATE_SIZE_MM, PLATE_TILT_DEG, SELECT_MM, measure_scan, plate_pose, plate_scene,

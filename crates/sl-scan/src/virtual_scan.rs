@@ -14,19 +14,20 @@ use serde::Serialize;
 use sl_camera::{Calibration, ImageSize, Intrinsics};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::{BitDepth, ProjectorSize};
-use sl_icp::MergeConfig;
 use sl_metrology::{Report, Truth};
-use sl_rig::{SessionConfig, SessionDevices, SessionPlan, turntable_angles, view_dir_name};
+use sl_rig::{
+    SessionConfig, SessionDevices, SessionPlan, SessionSummary, turntable_angles, view_dir_name,
+};
 use sl_sim::{RigConfig, Scene, VirtualRig};
 use sl_tri::Triangulator;
 
 use crate::calibrate::true_calibration;
 use crate::error::{io, stage_err};
 use crate::{
-    CalibrationSummary, MergeStageConfig, ReconstructConfig, ScanError, ScanProgress,
-    SessionScanConfig, StageTime, calibrate_virtual, capture_session, measure_scan, plate_scene,
-    plate_truth, reconstruct_view_eroded, scan_patterns, scan_session, scene_truth, write_heat_map,
-    write_scan_cloud,
+    CalibrationSummary, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX, ScanError,
+    ScanProgress, SessionScanConfig, StageTime, calibrate_virtual, capture_session, measure_scan,
+    plate_scene, plate_truth, reconstruct_view_eroded, scan_patterns, scan_session, scene_truth,
+    write_heat_map, write_scan_cloud,
 };
 
 /// Options of [`scan_virtual`].
@@ -45,9 +46,9 @@ pub struct VirtualScanConfig {
     pub resolution_divisor: u32,
     /// Seed of the board poses and of the sensor noise.
     pub seed: u64,
-    /// Width of one fringe period on the projector (projector pixels). Default 15: the
-    /// finest period the rendered projector blur still resolves with good modulation
-    /// (`docs/triangulation.md`).
+    /// Width of one fringe period on the projector (projector pixels). Default
+    /// [`SCAN_PERIOD_PX`] (15), as a scan on real devices: the finest period the rendered
+    /// projector blur still resolves with good modulation (`docs/triangulation.md`).
     pub period_px: f64,
     /// Recapture views already captured in the session folder.
     pub overwrite: bool,
@@ -91,7 +92,7 @@ impl Default for VirtualScanConfig {
             table_angles_deg: (-3..=3).map(|k| f64::from(k) * 15.0).collect(),
             resolution_divisor: 1,
             seed: 0,
-            period_px: 15.0,
+            period_px: SCAN_PERIOD_PX,
             overwrite: false,
             average_overlaps: true,
             flatness_plate: true,
@@ -175,13 +176,47 @@ pub fn scaled_rig_config(d: u32) -> RigConfig {
     c
 }
 
-/// The session settings of the virtual rig: no display latency, nothing to flush.
-fn virtual_session_config(overwrite: bool) -> SessionConfig {
-    SessionConfig {
+/// Captures a session of `rig` at the motor angles `angles_deg` into `dir` with the scan's
+/// patterns, through the device traits ([`capture_session`], as on real devices), with the
+/// virtual rig's session settings: no display latency, nothing to flush. `turntable` names
+/// the turntable in the session's devices.
+fn capture_virtual(
+    rig: &VirtualRig,
+    dir: &Path,
+    angles_deg: Vec<f64>,
+    turntable: &str,
+    cfg: &VirtualScanConfig,
+    calibration: &Path,
+    progress: impl FnMut(ScanProgress<'_>),
+) -> Result<SessionSummary, ScanError> {
+    let psize = rig.config().projector.size;
+    let csize = rig.config().camera.size;
+    let plan = SessionPlan {
+        angles_deg,
+        manifest: scan_patterns(ProjectorSize::new(psize.width, psize.height), cfg.period_px)
+            .manifest(BitDepth::Eight),
+        devices: SessionDevices {
+            camera: format!("virtual camera {}x{}", csize.width, csize.height),
+            projector: format!("virtual projector {}x{}", psize.width, psize.height),
+            turntable: turntable.to_owned(),
+        },
+        calibration: Some(calibration.to_path_buf()),
+    };
+    let config = SessionConfig {
         display_latency: Duration::ZERO,
         flush_frames: 0,
-        overwrite,
-    }
+        overwrite: cfg.overwrite,
+    };
+    let (mut camera, mut projector, mut table) = rig.devices();
+    capture_session(
+        dir,
+        plan,
+        config,
+        &mut camera,
+        &mut projector,
+        &mut table,
+        progress,
+    )
 }
 
 /// Runs the whole scan on the virtual rig into `out`: the estimated calibration
@@ -220,30 +255,15 @@ pub fn scan_virtual(
 
     // 2. Capture the turntable session through the device traits.
     let t = Instant::now();
-    let psize = rig.config().projector.size;
-    let projector = ProjectorSize::new(psize.width, psize.height);
     let angles = turntable_angles(cfg.views);
-    let csize = rig.config().camera.size;
-    let devices = |turntable: &str| SessionDevices {
-        camera: format!("virtual camera {}x{}", csize.width, csize.height),
-        projector: format!("virtual projector {}x{}", psize.width, psize.height),
-        turntable: turntable.to_owned(),
-    };
-    let plan = SessionPlan {
-        angles_deg: angles.clone(),
-        manifest: scan_patterns(projector, cfg.period_px).manifest(BitDepth::Eight),
-        devices: devices("virtual turntable"),
-        calibration: Some(calib_path.clone()),
-    };
     let session_dir = out.join("session");
-    let (mut camera, mut proj, mut table) = rig.devices();
-    let summary = capture_session(
+    let summary = capture_virtual(
+        &rig,
         &session_dir,
-        plan,
-        virtual_session_config(cfg.overwrite),
-        &mut camera,
-        &mut proj,
-        &mut table,
+        angles.clone(),
+        "virtual turntable",
+        cfg,
+        &calib_path,
         &mut progress,
     )?;
     stages.push(StageTime::since("capture", t));
@@ -264,19 +284,11 @@ pub fn scan_virtual(
             edge_erosion_px: cfg.edge_erosion_px,
             max_view_angle_deg: cfg.max_view_angle_deg,
         },
-        merge: MergeStageConfig {
-            merge: MergeConfig {
-                average_overlaps: cfg.average_overlaps,
-                output_normal_neighbours: cfg.smoothing_neighbours,
-                // The free pose graph (sl-icp's default), said explicitly: with sl-icp's
-                // turntable pose model this scan's spheres came out 0.5 mm too small in
-                // diameter (form 0.9 mm) at full resolution and 0.77 mm at half
-                // (2026-11-23 19:52 UTC; `PoseModel::default`).
-                pose_model: sl_icp::PoseModel::Free,
-                ..MergeConfig::default()
-            },
-            icp_refinement: !cfg.true_poses,
-        },
+        merge: MergeStageConfig::scan(
+            cfg.average_overlaps,
+            cfg.smoothing_neighbours,
+            !cfg.true_poses,
+        ),
         poses,
     };
     let scan = scan_session(&session_dir, &calibration, &scan_config, &mut progress)?;
@@ -292,21 +304,14 @@ pub fn scan_virtual(
             total: 1,
         });
         let plate_rig = rig.with_scene(plate_scene())?;
-        let plan = SessionPlan {
-            angles_deg: vec![0.0],
-            manifest: scan_patterns(projector, cfg.period_px).manifest(BitDepth::Eight),
-            devices: devices("none: a flat plate fixed in front of the camera"),
-            calibration: Some(calib_path.clone()),
-        };
         let plate_dir = out.join("plate_session");
-        let (mut camera, mut proj, mut table) = plate_rig.devices();
-        capture_session(
+        capture_virtual(
+            &plate_rig,
             &plate_dir,
-            plan,
-            virtual_session_config(cfg.overwrite),
-            &mut camera,
-            &mut proj,
-            &mut table,
+            vec![0.0],
+            "none: a flat plate fixed in front of the camera",
+            cfg,
+            &calib_path,
             |_| {},
         )?;
         let triangulator = Triangulator::new(&calibration)?;
