@@ -31,6 +31,10 @@ use crate::common::{Report, ensure_out_dir, write_atomically};
 /// `slscan simulate --scene board`).
 const BOARD_SUPERSAMPLING: u32 = 4;
 
+/// Fewest poses Zhang's calibration accepts (focal lengths, principal point and distortion
+/// need three views of a plane).
+const MIN_CALIBRATION_POSES: usize = 3;
+
 /// How long a key is waited for between two frames of the interactive view: short, so the
 /// view follows the board, long enough not to spin.
 const KEY_POLL: Duration = Duration::from_millis(30);
@@ -220,6 +224,12 @@ where
     };
     let coverage = session.coverage();
     println!("{}", coverage.draw());
+    if session.poses().len() < MIN_CALIBRATION_POSES {
+        println!(
+            "warning: {} poses; calibrate all needs at least {MIN_CALIBRATION_POSES} (10-20 give a good calibration): run again to add poses",
+            session.poses().len()
+        );
+    }
 
     // The board on the platter; the turntable steps through its angles on its own.
     let angles = calibration_turntable_angles(args.turntable_angles);

@@ -4,7 +4,7 @@
 //!
 //! | stage | file | entry points |
 //! |---|---|---|
-//! | capture a calibration session | `calibration_capture.rs` | [`CalibrationCapture`], [`capture_poses_auto`] |
+//! | capture a calibration session | `calibration_capture.rs`, `calibration_auto.rs` | [`CalibrationCapture`], [`capture_poses_auto`] |
 //! | calibrate | `calibrate.rs` | [`calibrate_virtual`], [`load_scan_calibration`] |
 //! | capture a scan session | `capture.rs` | [`capture_session`], [`scan_patterns`], [`full_turn_motor_angles`] |
 //! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`drop_grazing`] |
@@ -40,16 +40,19 @@ mod report;
 mod session_scan;
 mod virtual_scan;
 
+mod calibration_auto;
 mod calibration_capture;
 mod calibration_coverage;
 mod pose_quality;
 mod virtual_board;
 
+pub use calibration_auto::{
+    AutoConfig, AutoEvent, BoardMover, HandHeld, capture_poses_auto, wait_for_still_board,
+};
 pub use calibration_capture::{
-    AutoConfig, AutoEvent, BOARD_DIR, BOARD_FILE, BoardMover, CalibrationCapture,
-    CalibrationCaptureConfig, CaptureError, HandHeld, PoseCheck, PoseGates, PoseRecord, Refusal,
-    TURNTABLE_DIR, TableView, TakeOutcome, WHITE_IMAGE, angle_dir_name, calibration_patterns,
-    calibration_turntable_angles, capture_poses_auto, pose_dir_name, wait_for_still_board,
+    BOARD_DIR, BOARD_FILE, CalibrationCapture, CalibrationCaptureConfig, CaptureError, PoseCheck,
+    PoseGates, PoseRecord, Refusal, TURNTABLE_DIR, TableView, TakeOutcome, WHITE_IMAGE,
+    angle_dir_name, calibration_patterns, calibration_turntable_angles, pose_dir_name,
 };
 pub use calibration_coverage::{
     COVERAGE_COLS, COVERAGE_ROWS, Coverage, FLAT_TILT_DEG, TILT_NAMES, tilt_class,
