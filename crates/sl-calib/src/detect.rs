@@ -8,7 +8,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::CalibError;
 use crate::grey::GreyF32;
-use crate::saddle::refine_saddle;
+use crate::junction::refine_junction;
+use crate::saddle::{refine_saddle, refine_saddle_coarse};
+use rayon::prelude::*;
 
 /// The inner-corner grid of a checkerboard: `cols` corners along a row (the board's `x`),
 /// `rows` corners along a column (the board's `y`). OpenCV's `patternSize = (cols, rows)`.
@@ -77,6 +79,19 @@ pub struct DetectorConfig {
     pub min_refine_radius: usize,
     /// Largest half-width (px) of the saddle-fit window (bounds the time on big squares).
     pub max_refine_radius: usize,
+    /// Radius of the junction-model fit (the second refinement, on the raw image) as a
+    /// fraction of the distance to the nearest grid neighbour; `0` turns the junction fit off
+    /// (saddle points only). The model (two blurred straight edges with an offset and a
+    /// contrast that vary linearly) holds up to the neighbouring corners, so the window can be
+    /// wide and average much noise; less than one half keeps the neighbours' blurred
+    /// junctions out of it. Measured with `examples/corner_harness.rs` (see
+    /// `docs/performance.md`).
+    pub junction_fraction: f64,
+    /// Smallest radius (px) of the junction-fit window.
+    pub min_junction_radius: f64,
+    /// Largest radius (px) of the junction-fit window: bounds the time on big squares, and
+    /// keeps the window small enough that lens distortion leaves the edges straight in it.
+    pub max_junction_radius: f64,
 }
 
 impl Default for DetectorConfig {
@@ -92,6 +107,9 @@ impl Default for DetectorConfig {
             refine_fraction: 0.15,
             min_refine_radius: 2,
             max_refine_radius: 10,
+            junction_fraction: 0.5,
+            min_junction_radius: 4.0,
+            max_junction_radius: 20.0,
         }
     }
 }
@@ -183,13 +201,136 @@ pub fn detect_checkerboard(
     };
     let grey = GreyF32::from_luma(image);
     let detect = grey.blurred(config.detect_sigma as f32);
-    let candidates = saddle_candidates(&detect, config);
+    let ordered = match find_grid(&detect, size, config) {
+        Ok(ordered) => ordered,
+        Err(reason) => {
+            // A large, defocused image: the blur spreads the corners beyond the fixed ring
+            // and the saddle response. Halving the image halves the blur (in pixels) and the
+            // squares: retry at half, quarter, ... resolution while the squares can still be
+            // resolved, and scale the grid back up; the refinement runs on the full image.
+            let mut level = grey.clone();
+            let mut scale = 1.0f64;
+            let mut found = None;
+            while level.width.min(level.height) / 2 >= MIN_PYRAMID_SIDE {
+                level = level.half();
+                scale *= 2.0;
+                if let Ok(pts) = find_grid(&level.blurred(config.detect_sigma as f32), size, config)
+                {
+                    // Level pixel X covers full pixels scale·X .. scale·X + scale − 1.
+                    let shift = 0.5 * (scale - 1.0);
+                    found = Some(
+                        pts.iter()
+                            .map(|p| Point2::new(scale * p.x + shift, scale * p.y + shift))
+                            .collect::<Vec<_>>(),
+                    );
+                    break;
+                }
+            }
+            found.ok_or_else(|| not_found(reason))?
+        }
+    };
+    let refine = grey.blurred(config.refine_sigma as f32);
+    let (cols, rows) = (size.cols as usize, size.rows as usize);
+    let refined: Vec<Result<Point2<f64>, String>> = ordered
+        .par_iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let (i, j) = (k % cols, k / cols);
+            let neighbours = [
+                (i > 0).then(|| k - 1),
+                (i + 1 < cols).then(|| k + 1),
+                (j > 0).then(|| k - cols),
+                (j + 1 < rows).then(|| k + cols),
+            ];
+            let step = neighbours
+                .iter()
+                .flatten()
+                .filter_map(|&n| ordered.get(n))
+                .map(|q| (q - p).norm())
+                .fold(f64::INFINITY, f64::min);
+            refine_corner(&grey, &refine, &detect, *p, step, config).ok_or_else(|| {
+                format!(
+                    "corner {k} at ({:.1}, {:.1}) is not a saddle point under refinement",
+                    p.x, p.y
+                )
+            })
+        })
+        .collect();
+    let corners = refined
+        .into_iter()
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(not_found)?;
+    Ok(BoardCorners { size, corners })
+}
+
+/// Images (or pyramid levels) whose short side is below this are not halved further: a
+/// board of at least 3×3 squares of ≥ 8 px needs about this many pixels.
+const MIN_PYRAMID_SIDE: usize = 160;
+
+/// Largest distance (px) the junction fit may move a corner from the saddle point: the
+/// saddle is biased by uneven light by a few tenths of a pixel at most; a larger move means
+/// the fit has locked onto something else.
+const JUNCTION_MAX_SHIFT_PX: f64 = 1.0;
+
+/// Refines the grid point `p` (px) whose nearest grid neighbour is `step` px away: the saddle
+/// point on the `refine` image (retried on the more blurred `detect` image), then the
+/// junction model on the raw `grey` image when it is on and succeeds.
+fn refine_corner(
+    grey: &GreyF32,
+    refine: &GreyF32,
+    detect: &GreyF32,
+    p: Point2<f64>,
+    step: f64,
+    config: &DetectorConfig,
+) -> Option<Point2<f64>> {
+    let radius = ((config.refine_fraction * step).floor() as usize).clamp(
+        config.min_refine_radius,
+        config.max_refine_radius.max(config.min_refine_radius),
+    );
+    let saddle = refine_saddle(refine, p, radius)
+        .or_else(|| refine_saddle(detect, p, radius))
+        .or_else(|| {
+            // Coarse to fine: a window of a fifth of the step seen through samples
+            // `spacing` apart, then the fine fit from there.
+            let spacing = (step / COARSE_SAMPLES_PER_STEP).max(1.0);
+            let coarse = refine_saddle_coarse(detect, p, COARSE_RADIUS, spacing)?;
+            refine_saddle(refine, coarse.point, radius)
+                .or_else(|| refine_saddle(detect, coarse.point, radius))
+        });
+    if config.junction_fraction <= 0.0 {
+        return saddle.map(|s| s.point);
+    }
+    let jr = (config.junction_fraction * step).clamp(
+        config.min_junction_radius,
+        config.max_junction_radius.max(config.min_junction_radius),
+    );
+    let s = saddle?;
+    Some(
+        refine_junction(grey, s.point, &s, jr, JUNCTION_MAX_SHIFT_PX).map_or(s.point, |j| j.corner),
+    )
+}
+
+/// Grid steps are sampled this many times by the coarse saddle fit.
+const COARSE_SAMPLES_PER_STEP: f64 = 20.0;
+
+/// Half-width (samples) of the coarse saddle fit's window: 4 of 20 samples per step make a
+/// window of ±0.2 step, which sees the junction's shape but not the neighbouring corners.
+const COARSE_RADIUS: usize = 4;
+
+/// The grid of `size` in the (blurred) image `detect`, in board order, at the candidates'
+/// whole-pixel positions; or why not.
+fn find_grid(
+    detect: &GreyF32,
+    size: BoardSize,
+    config: &DetectorConfig,
+) -> Result<Vec<Point2<f64>>, String> {
+    let candidates = saddle_candidates(detect, config);
     if candidates.len() < size.corner_count() {
-        return Err(not_found(format!(
+        return Err(format!(
             "only {} corner-like points (two dark and two bright sectors, contrast >= {}) in the image",
             candidates.len(),
             config.min_contrast
-        )));
+        ));
     }
     let mut best_found = 0usize;
     // Candidates already part of a grid that failed are not tried again as seeds: growing
@@ -208,46 +349,17 @@ pub fn detect_checkerboard(
             }
         }
         best_found = best_found.max(grid.len());
-        if let Some(ordered) = order_grid(&grid, &candidates, size, &detect) {
-            let refine = grey.blurred(config.refine_sigma as f32);
-            let mut corners = Vec::with_capacity(ordered.len());
-            let (cols, rows) = (size.cols as usize, size.rows as usize);
-            for (k, p) in ordered.iter().enumerate() {
-                let (i, j) = (k % cols, k / cols);
-                let neighbours = [
-                    (i > 0).then(|| k - 1),
-                    (i + 1 < cols).then(|| k + 1),
-                    (j > 0).then(|| k - cols),
-                    (j + 1 < rows).then(|| k + cols),
-                ];
-                let step = neighbours
-                    .iter()
-                    .flatten()
-                    .filter_map(|&n| ordered.get(n))
-                    .map(|q| (q - p).norm())
-                    .fold(f64::INFINITY, f64::min);
-                let radius = ((config.refine_fraction * step).floor() as usize).clamp(
-                    config.min_refine_radius,
-                    config.max_refine_radius.max(config.min_refine_radius),
-                );
-                let q = refine_saddle(&refine, *p, radius).ok_or_else(|| {
-                    not_found(format!(
-                        "corner {k} at ({:.1}, {:.1}) is not a saddle point under refinement",
-                        p.x, p.y
-                    ))
-                })?;
-                corners.push(q);
-            }
-            return Ok(BoardCorners { size, corners });
+        if let Some(ordered) = order_grid(&grid, &candidates, size, detect) {
+            return Ok(ordered);
         }
     }
-    Err(not_found(format!(
+    Err(format!(
         "{} candidate corners, but the largest regular grid grown from the {} strongest has {} corners, not {}",
         candidates.len(),
         candidates.len().min(config.max_seeds),
         best_found,
         size.corner_count()
-    )))
+    ))
 }
 
 /// Local maxima of the saddle response `Ixy² − Ixx·Iyy` that pass the ring test, strongest

@@ -106,3 +106,45 @@ fn left_camera_matches_opencv_on_our_corners() {
     assert!(calib.rms < 0.183, "rms {}", calib.rms);
     assert_eq!(calib.view_rms.len(), 13);
 }
+
+/// Calibration RMS of one camera (`left` or `right`) on our corners found with `config`.
+fn camera_rms(dir: &std::path::Path, side: &str, config: &DetectorConfig) -> f64 {
+    let size = BoardSize::new(9, 6);
+    let views: Vec<_> = NAMES
+        .iter()
+        .map(|n| {
+            let path = dir.join(format!("{side}{n}.jpg"));
+            let img = load_grey(&path).unwrap();
+            let found = detect_checkerboard(&img, size, config, &path.display().to_string())
+                .unwrap_or_else(|e| panic!("{e}"));
+            sl_calib::CalibrationView::from_corners(&found, 1.0)
+        })
+        .collect();
+    sl_calib::calibrate_camera(
+        &views,
+        sl_calib::sl_camera::ImageSize::new(640, 480),
+        &sl_calib::ZhangConfig::default(),
+    )
+    .unwrap()
+    .rms
+}
+
+/// The junction-model refinement (issue 15, item 4) must not make either camera of OpenCV's
+/// samples worse than the saddle points alone: the calibration RMS is the only truth these
+/// real images have.
+#[test]
+fn junction_fit_does_not_worsen_either_camera() {
+    let Some(dir) = data_dir() else { return };
+    let saddle_only = DetectorConfig {
+        junction_fraction: 0.0,
+        ..DetectorConfig::default()
+    };
+    for side in ["left", "right"] {
+        let with = camera_rms(&dir, side, &DetectorConfig::default());
+        let without = camera_rms(&dir, side, &saddle_only);
+        eprintln!(
+            "{side}: RMS {with:.4} px with the junction fit, {without:.4} px saddle points only"
+        );
+        assert!(with <= without, "{side}: {with} > {without}");
+    }
+}
