@@ -73,6 +73,9 @@ pub struct FeatureIndex {
     len: usize,
 }
 
+/// A neighbour in descriptor space: `(index, squared distance)`.
+type Neighbour = (u32, f32);
+
 impl FeatureIndex {
     /// Builds the tree over `features`.
     pub fn new(features: &[Fpfh]) -> Self {
@@ -93,7 +96,7 @@ impl FeatureIndex {
     }
 
     /// The nearest two descriptors: `(index, squared distance)` of each.
-    fn nearest_two(&self, q: &Fpfh) -> Option<((u32, f32), Option<(u32, f32)>)> {
+    fn nearest_two(&self, q: &Fpfh) -> Option<(Neighbour, Option<Neighbour>)> {
         if self.len == 0 {
             return None;
         }

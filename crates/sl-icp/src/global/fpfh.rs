@@ -293,7 +293,11 @@ pub fn compute_fpfh(
             for k in 0..3 {
                 let range = k * BINS_PER_FEATURE..(k + 1) * BINS_PER_FEATURE;
                 let mass: f64 = acc.get(range.clone()).map_or(0.0, |s| s.iter().sum());
-                let scale = if mass > 0.0 { HISTOGRAM_MASS / mass } else { 0.0 };
+                let scale = if mass > 0.0 {
+                    HISTOGRAM_MASS / mass
+                } else {
+                    0.0
+                };
                 for b in range {
                     if let (Some(o), Some(a), Some(s)) = (f.get_mut(b), acc.get(b), own.get(b)) {
                         *o = (s + a * scale) as f32;
@@ -359,7 +363,10 @@ mod tests {
             .fold(0.0f32, f32::max);
         assert!(worst < 0.05 * 600.0, "{worst}");
         // Curved points do not all share one descriptor.
-        assert!(a.iter().any(|x| x.iter().zip(&a[0]).any(|(u, v)| (u - v).abs() > 1.0)));
+        assert!(
+            a.iter()
+                .any(|x| x.iter().zip(&a[0]).any(|(u, v)| (u - v).abs() > 1.0))
+        );
         for d in &a[..10] {
             let s: f32 = d.iter().sum();
             assert!((s - 600.0).abs() < 1e-2, "{s}");

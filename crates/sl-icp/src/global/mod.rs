@@ -15,5 +15,7 @@ pub(crate) mod ransac;
 pub use correspondences::{Correspondence, FeatureIndex, MatchConfig, match_features};
 pub use fpfh::{FPFH_BINS, Fpfh, FpfhConfig, compute_fpfh};
 pub use orientation::orient_normals_outward;
-pub use pairwise::{GlobalCloud, GlobalConfig, GlobalRegistration, register_global, register_global_prepared};
+pub use pairwise::{
+    GlobalCloud, GlobalConfig, GlobalRegistration, register_global, register_global_prepared,
+};
 pub use ransac::{RansacConfig, RansacResult, ransac_pose};

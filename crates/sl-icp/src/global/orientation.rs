@@ -119,9 +119,17 @@ mod tests {
             .collect();
         let one_sided = orient_normals_outward(&pts, &mut normals);
         assert!(!one_sided);
-        assert!(normals.iter().zip(&pts).all(|(n, p)| n.dot(&p.coords) > 0.0));
+        assert!(
+            normals
+                .iter()
+                .zip(&pts)
+                .all(|(n, p)| n.dot(&p.coords) > 0.0)
+        );
         // The same cloud moved: the moved normals come out, moved.
-        let m = Isometry3::new(Vector3::new(100.0, -20.0, 5.0), Vector3::new(0.3, 1.2, -0.4));
+        let m = Isometry3::new(
+            Vector3::new(100.0, -20.0, 5.0),
+            Vector3::new(0.3, 1.2, -0.4),
+        );
         let moved: Vec<Point3<f64>> = pts.iter().map(|p| m * p).collect();
         let mut moved_normals: Vec<Vector3<f64>> = normals.iter().map(|n| -(m * n)).collect();
         orient_normals_outward(&moved, &mut moved_normals);

@@ -8,8 +8,7 @@ use crate::global::fpfh::{Fpfh, FpfhConfig, compute_fpfh};
 use crate::global::orientation::orient_normals_outward;
 use crate::global::ransac::{RansacConfig, RansacResult, ransac_pose};
 use crate::{
-    IcpConfig, IcpError, Metric, NormalSource, PrepareConfig, PreparedCloud, Registration,
-    register,
+    IcpConfig, IcpError, Metric, NormalSource, PrepareConfig, PreparedCloud, Registration, register,
 };
 
 /// Fewest points a downsampled cloud must keep to be described: a few FPFH neighbourhoods'
@@ -252,14 +251,13 @@ pub fn register_global_prepared(
     names: (&str, &str),
 ) -> Result<GlobalRegistration, IcpError> {
     config.validate()?;
-    let failed = |correspondences: usize, reason: &'static str| {
-        IcpError::GlobalRegistrationFailed {
+    let failed =
+        |correspondences: usize, reason: &'static str| IcpError::GlobalRegistrationFailed {
             source_cloud: names.0.to_owned(),
             target_cloud: names.1.to_owned(),
             correspondences,
             reason,
-        }
-    };
+        };
     let matches = match_features(
         &source.features,
         &source.index,
@@ -280,7 +278,12 @@ pub fn register_global_prepared(
             "no RANSAC hypothesis with enough inliers (too little overlap, or too few distinctive shapes)",
         ));
     };
-    let registration = register(&source.prepared, &target.prepared, &ransac.pose, &config.icp)?;
+    let registration = register(
+        &source.prepared,
+        &target.prepared,
+        &ransac.pose,
+        &config.icp,
+    )?;
     Ok(GlobalRegistration {
         pose: registration.pose,
         registration,
