@@ -19,11 +19,20 @@ use sl_calib::{
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
 
-/// Image files accepted in a folder, by lower-case extension.
-const IMAGE_EXTENSIONS: [&str; 6] = ["png", "jpg", "jpeg", "tif", "tiff", "bmp"];
-
-/// The white-light picture of a capture folder written by `slscan simulate --scene board`.
+/// The white-light picture of a capture folder written by `slscan simulate --scene board`;
+/// found under any image extension (`white.bmp`, `white.tif`, …: [`white_image`]).
 const WHITE_IMAGE: &str = "white.png";
+
+/// The white-light picture of a capture folder, saved in any format sl-codec reads.
+fn white_image(folder: &Path) -> Option<PathBuf> {
+    sl_calib::sl_codec::find_image_file(&folder.join(WHITE_IMAGE))
+}
+
+/// Whether a board image's name (`white.png`, `white.bmp`, …) is a white-light picture.
+fn is_white_name(name: &str) -> bool {
+    let path = Path::new(name);
+    path.file_stem().is_some_and(|s| s == "white") && sl_calib::sl_codec::is_image_file(path)
+}
 
 /// The per-view file of a simulated session that holds the motor reading.
 const BOARD_FILE: &str = "board.json";
@@ -334,9 +343,7 @@ fn pose_folders(session: &Path) -> anyhow::Result<Vec<PathBuf>> {
     // white frame use their own texture, see `procam`).
     let folders: Vec<PathBuf> = sorted_entries(&dir)?
         .into_iter()
-        .filter(|p| {
-            p.join(WHITE_IMAGE).is_file() || p.join(sl_calib::sl_codec::MANIFEST_FILE).is_file()
-        })
+        .filter(|p| white_image(p).is_some() || p.join(sl_calib::sl_codec::MANIFEST_FILE).is_file())
         .collect();
     anyhow::ensure!(
         !folders.is_empty(),
@@ -349,11 +356,8 @@ fn pose_folders(session: &Path) -> anyhow::Result<Vec<PathBuf>> {
 }
 
 fn is_image(path: &Path) -> bool {
-    path.is_file()
-        && path
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+    // sl-codec's list of the formats it reads (BMP, PGM/PPM, PNG, JPEG, TIFF).
+    path.is_file() && sl_calib::sl_codec::is_image_file(path)
 }
 
 fn sorted_entries(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
@@ -372,11 +376,7 @@ fn images_in(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     if !files.is_empty() {
         return Ok(files);
     }
-    Ok(entries
-        .iter()
-        .map(|p| p.join(WHITE_IMAGE))
-        .filter(|p| p.is_file())
-        .collect())
+    Ok(entries.iter().filter_map(|p| white_image(p)).collect())
 }
 
 /// Expands the camera command's inputs into image files.
@@ -415,13 +415,12 @@ fn board_image(
     folder: &Path,
     set: &CaptureSet,
 ) -> anyhow::Result<(String, sl_calib::image::GrayImage, String)> {
-    let white = folder.join(WHITE_IMAGE);
-    if white.is_file() {
-        return Ok((
-            short_name(&white),
-            load_grey(&white)?,
-            WHITE_IMAGE.to_owned(),
-        ));
+    if let Some(white) = white_image(folder) {
+        let file = white.file_name().map_or_else(
+            || WHITE_IMAGE.to_owned(),
+            |f| f.to_string_lossy().into_owned(),
+        );
+        return Ok((short_name(&white), load_grey(&white)?, file));
     }
     let texture = capture_texture(set).with_context(|| {
         format!(
@@ -447,14 +446,18 @@ fn short_name(path: &Path) -> String {
         .map(|f| f.to_string_lossy().into_owned())
         .unwrap_or_default();
     match path.parent().and_then(|p| p.file_name()) {
-        Some(parent) if file == WHITE_IMAGE => format!("{}/{file}", parent.to_string_lossy()),
+        Some(parent) if is_white_name(&file) => format!("{}/{file}", parent.to_string_lossy()),
         _ => file,
     }
 }
 
 fn picture_name(k: usize, name: &str) -> String {
-    let stem: String = name
-        .trim_end_matches(".png")
+    // Without its image extension, whichever it is (`white.bmp`, `left01.jpg`).
+    let bare = match name.rsplit_once('.') {
+        Some((stem, _)) if sl_calib::sl_codec::is_image_file(Path::new(name)) => stem,
+        _ => name,
+    };
+    let stem: String = bare
         .chars()
         .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
         .collect();
@@ -862,7 +865,7 @@ fn procam(
     let textured: Vec<&str> = board_images
         .iter()
         .filter_map(|b| b["board_image"].as_str())
-        .filter(|s| *s != WHITE_IMAGE)
+        .filter(|s| !is_white_name(s))
         .collect();
     if let Some(first) = textured.first() {
         println!(
@@ -990,7 +993,7 @@ mod tests {
     use sl_calib::sl_camera::Calibration;
     use sl_calib::sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
     use sl_sim::{CalibrationSession, Scene, VirtualRig, simulate_calibration};
-    use structured_light::pipeline::scaled_rig_config;
+    use structured_light::scan::scaled_rig_config;
 
     use crate::{Cli, Command};
 
@@ -1116,6 +1119,61 @@ mod tests {
         }
         // Corners on each of the 10 poses and 7 table views, plus error bars and residuals.
         assert!(pngs >= 17 + 4, "{pngs} pictures");
+    }
+
+    /// `calibrate all` on a session saved as BMP (SLStudio's format): every `white.png` and
+    /// pattern frame converted to `.bmp` and the PNGs deleted, the manifests still naming
+    /// `.png`. The white frames are found as `white.bmp`, the frames under their BMP names,
+    /// and the calibration is the rig's.
+    #[test]
+    fn calibrate_all_on_a_session_saved_as_bmp() {
+        let tmp = tempfile::tempdir().unwrap();
+        let session = tmp.path().join("session");
+        let rig = simulate(&session, 8);
+        let mut converted = 0;
+        for f in crate::common::files_below(&session) {
+            if f.extension().is_some_and(|e| e == "png") {
+                let img = sl_calib::image::open(&f).unwrap();
+                img.save(f.with_extension("bmp")).unwrap();
+                std::fs::remove_file(&f).unwrap();
+                converted += 1;
+            }
+        }
+        assert!(converted > 8 * 2, "{converted} files converted");
+        let out = tmp.path().join("calib");
+        slscan(&[
+            "calibrate",
+            "all",
+            session.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap();
+        let procam: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("projector/report.json")).unwrap(),
+        )
+        .unwrap();
+        let images = procam["figures"]["board_images"].as_array().unwrap();
+        assert_eq!(images.len(), 8);
+        for b in images {
+            assert_eq!(b["board_image"].as_str(), Some("white.bmp"), "{b}");
+        }
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        assert_eq!(report["figures"]["views_used"].as_u64(), Some(7));
+        let c = Calibration::load(out.join("calibration.json")).unwrap();
+        let truth = rig.config();
+        let fx = c.camera.intrinsics.fx;
+        assert!(
+            (fx / truth.camera.intrinsics.fx - 1.0).abs() < 0.005,
+            "{fx}"
+        );
+        let pfx = c.projector.unwrap().intrinsics.fx;
+        assert!(
+            (pfx / truth.projector.intrinsics.fx - 1.0).abs() < 0.01,
+            "{pfx}"
+        );
     }
 
     /// `calibrate projector` on a session whose `white.png` files are deleted (as SLStudio's

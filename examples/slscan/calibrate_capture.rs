@@ -22,7 +22,7 @@ use sl_scan::{
     wait_for_still_board,
 };
 use sl_sim::{BoardPoseConfig, Checkerboard};
-use structured_light::pipeline::scaled_rig_config;
+use structured_light::scan::scaled_rig_config;
 
 use crate::capture::HardwareArgs;
 use crate::common::{Report, ensure_out_dir, write_atomically};
@@ -581,7 +581,7 @@ mod tests {
     use sl_rig::{DynamixelTurntable, EmulatorConfig, Mx64Emulator, RigError, Turntable};
     use sl_scan::{BoardMover, BoardTurntable, CaptureError, VirtualBoardMover, VirtualBoardRig};
     use sl_sim::{BoardPoseConfig, Checkerboard};
-    use structured_light::pipeline::scaled_rig_config;
+    use structured_light::scan::scaled_rig_config;
 
     use crate::{Cli, Command};
 

@@ -75,6 +75,7 @@ mod fast_math;
 mod frame;
 mod gray;
 mod hybrid;
+mod image_file;
 mod kernel;
 mod manifest;
 mod pattern;
@@ -99,6 +100,9 @@ pub use export::{
 pub use frame::{Frame, Frames, Sample};
 pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIFT, decode_gray};
 pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, decode_hybrid};
+pub use image_file::{
+    GreyImage, IMAGE_EXTENSIONS, find_image_file, is_image_file, read_grey8, read_image,
+};
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
 pub use pattern::{Axis, BitDepth, Pattern, ProjectorSize};
 pub use phase_shift::{
