@@ -14,6 +14,7 @@
 //! | [`rig`] | `sl-rig` | device traits, drivers (V4L2 camera, projector window, Dynamixel turntable), capture sessions |
 //! | [`sim`] | `sl-sim` | the virtual rig: scenes, rendering, ground truth, virtual devices behind `sl-rig`'s traits |
 //! | [`metrology`] | `sl-metrology` | VDI/VDE 2634 part 2 figures against a truth description |
+//! | [`mesh`] | `sl-mesh` | screened Poisson surfaces, mesh clean-up, STL/OBJ/PLY, 3-D viewer page |
 //! | [`scan`] | `sl-scan` | the scan pipeline: calibration capture, calibrate, capture, reconstruct, merge, measure, report |
 //!
 //! [`scan`] holds the scan pipeline (calibrate, capture, reconstruct, merge, measure, report)
@@ -28,6 +29,7 @@ pub use sl_camera as camera;
 pub use sl_cloud as cloud;
 pub use sl_codec as codec;
 pub use sl_icp as icp;
+pub use sl_mesh as mesh;
 pub use sl_metrology as metrology;
 pub use sl_rig as rig;
 pub use sl_scan as scan;
