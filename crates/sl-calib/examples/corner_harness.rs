@@ -3,7 +3,7 @@
 //!
 //! ```sh
 //! cargo run --release -p sl-calib --example corner_harness -- \
-//!     --python /work/peers/bin/python [--images 3] [--out DIR]
+//!     --python /work/peers/bin/python [--images 3] [--repeat 5] [--out DIR]
 //! ```
 //!
 //! Renders each condition (lens blur, vignetting, gamma, sensor noise, 0.3–5 MP, squares of
@@ -131,6 +131,8 @@ fn main() {
     let mut images = 3usize;
     let mut only: Option<String> = None;
     let mut cfg = DetectorConfig::default();
+    // Detections per image; the fastest is the time reported (the machine is shared).
+    let mut repeat = 1usize;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--python" => python = args.next(),
@@ -142,6 +144,12 @@ fn main() {
                     .expect("--images N")
             }
             "--only" => only = args.next(),
+            "--repeat" => {
+                repeat = args
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .expect("--repeat N")
+            }
             "--junction-fraction" => {
                 cfg.junction_fraction = args
                     .next()
@@ -156,7 +164,7 @@ fn main() {
             }
             _ => {
                 eprintln!(
-                    "usage: corner_harness [--python PEERS_PYTHON] [--out DIR] [--images N] [--only SUBSTRING] [--junction-fraction F] [--max-junction-radius PX]"
+                    "usage: corner_harness [--python PEERS_PYTHON] [--out DIR] [--images N] [--only SUBSTRING] [--repeat N] [--junction-fraction F] [--max-junction-radius PX]"
                 );
                 std::process::exit(2);
             }
@@ -189,9 +197,14 @@ fn main() {
             let file = format!("c{ci}_{k}.png");
             board.image.save(out.join(&file)).expect("write the image");
             let size = BoardSize::new(spec.cols, spec.rows);
-            let start = Instant::now();
-            let found = detect_checkerboard(&board.image, size, &cfg, &file);
-            tally.seconds += start.elapsed().as_secs_f64();
+            let mut best = f64::INFINITY;
+            let mut found = detect_checkerboard(&board.image, size, &cfg, &file);
+            for _ in 0..repeat {
+                let start = Instant::now();
+                found = detect_checkerboard(&board.image, size, &cfg, &file);
+                best = best.min(start.elapsed().as_secs_f64());
+            }
+            tally.seconds += best;
             tally.tried += 1;
             match found {
                 Ok(b) => {
