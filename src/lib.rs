@@ -11,7 +11,8 @@
 //! | [`calib`] | `sl-calib` | checkerboard detection, Zhang's camera calibration |
 //! | [`tri`] | `sl-tri` | triangulation into metric clouds |
 //! | [`icp`] | `sl-icp` | ICP and turntable merging |
-//! | [`rig`] | `sl-rig` | device traits and the virtual rig |
+//! | [`rig`] | `sl-rig` | device traits, drivers (V4L2 camera, projector window, Dynamixel turntable), capture sessions |
+//! | [`sim`] | `sl-sim` | the virtual rig: scenes, rendering, ground truth, virtual devices behind `sl-rig`'s traits |
 //! | [`metrology`] | `sl-metrology` | VDI/VDE 2634 part 2 figures against a truth description |
 //!
 //! [`pipeline`] holds the end-to-end scan on the virtual rig (calibrate, capture, decode,
@@ -31,4 +32,5 @@ pub use sl_codec as codec;
 pub use sl_icp as icp;
 pub use sl_metrology as metrology;
 pub use sl_rig as rig;
+pub use sl_sim as sim;
 pub use sl_tri as tri;

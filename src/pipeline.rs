@@ -26,10 +26,12 @@ use sl_metrology::{
     SphereSpec, Truth, evaluate, heat_map,
 };
 use sl_rig::{
-    BoardPoseConfig, CaptureSession, Checkerboard, DEFAULT_ALBEDO, DEFAULT_WORKING_DISTANCE_MM,
-    GreyImage, Mount, Pixels, RigConfig, Scene, SceneObject, SessionConfig, SessionDevices,
-    SessionPlan, Shape, Texture, VirtualRig, capture_board, capture_board_on_table,
-    random_board_poses, turntable_angles,
+    CaptureSession, GreyImage, Pixels, SessionConfig, SessionDevices, SessionPlan, turntable_angles,
+};
+use sl_sim::{
+    BoardPoseConfig, Checkerboard, DEFAULT_ALBEDO, DEFAULT_WORKING_DISTANCE_MM, Mount, RigConfig,
+    Scene, SceneObject, Shape, Texture, VirtualRig, capture_board, capture_board_on_table,
+    random_board_poses,
 };
 use sl_tri::{TriOptions, Triangulator};
 
@@ -37,9 +39,12 @@ use sl_tri::{TriOptions, Triangulator};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PipelineError {
-    /// The virtual rig or the capture session.
+    /// The devices or the capture session.
     #[error(transparent)]
     Rig(#[from] sl_rig::RigError),
+    /// The virtual rig.
+    #[error(transparent)]
+    Sim(#[from] sl_sim::SimError),
     /// Calibration.
     #[error("calibration: {0}")]
     Calib(#[from] sl_calib::CalibError),

@@ -10,9 +10,8 @@ use std::time::Duration;
 
 use nalgebra::Point3;
 use sl_codec::{BitDepth, ProjectorSize};
-use sl_rig::{
-    CaptureSession, Mount, Scene, SessionConfig, SessionDevices, SessionPlan, Shape, VirtualRig,
-};
+use sl_rig::{CaptureSession, SessionConfig, SessionDevices, SessionPlan};
+use sl_sim::{Mount, Scene, Shape, VirtualRig};
 use structured_light::pipeline::{PipelineError, scaled_rig_config, scan_patterns};
 use structured_light::session_scan::{
     SessionScanConfig, full_turn_motor_angles, load_scan_calibration, reconstruct_session,

@@ -37,7 +37,8 @@ use sl_icp::{
     MergeConfig, PointCloud, PoseError, PoseModel, TurntableAxis, TurntablePrior, merge_aligned,
     merge_views, turntable_poses,
 };
-use sl_rig::{GreyImage, Pixels, RigConfig, Scene, VirtualRig, projector_images};
+use sl_rig::{GreyImage, Pixels};
+use sl_sim::{RigConfig, Scene, VirtualRig, projector_images};
 use sl_tri::{Method, TriOptions, Triangulator};
 
 /// Views of the turn and their spacing (the seed's scan).

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use serde_json::json;
 use sl_calib::sl_camera::{Calibration, ImageSize};
-use sl_calib::sl_codec::{CaptureSet, DecodeConfig, decode};
+use sl_calib::sl_codec::{CaptureSet, DecodeConfig, capture_texture, decode};
 use sl_calib::{
     BoardCorners, BoardSize, CalibError, CalibrationView, CameraCalibration, DetectorConfig,
     PictureConfig, ProcamCalibration, ProcamConfig, ProcamView, ResidualPlot, TurntableCalibration,
@@ -19,11 +19,20 @@ use sl_calib::{
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
 
-/// Image files accepted in a folder, by lower-case extension.
-const IMAGE_EXTENSIONS: [&str; 6] = ["png", "jpg", "jpeg", "tif", "tiff", "bmp"];
-
-/// The white-light picture of a capture folder written by `slscan simulate --scene board`.
+/// The white-light picture of a capture folder written by `slscan simulate --scene board`;
+/// found under any image extension (`white.bmp`, `white.tif`, …: [`white_image`]).
 const WHITE_IMAGE: &str = "white.png";
+
+/// The white-light picture of a capture folder, saved in any format sl-codec reads.
+fn white_image(folder: &Path) -> Option<PathBuf> {
+    sl_calib::sl_codec::find_image_file(&folder.join(WHITE_IMAGE))
+}
+
+/// Whether a board image's name (`white.png`, `white.bmp`, …) is a white-light picture.
+fn is_white_name(name: &str) -> bool {
+    let path = Path::new(name);
+    path.file_stem().is_some_and(|s| s == "white") && sl_calib::sl_codec::is_image_file(path)
+}
 
 /// The per-view file of a simulated session that holds the motor reading.
 const BOARD_FILE: &str = "board.json";
@@ -38,13 +47,18 @@ pub(crate) struct Args {
 /// What to calibrate.
 #[derive(Debug, clap::Subcommand)]
 pub(crate) enum What {
+    /// Capture a calibration session on the virtual rig (`--virtual`) or real devices: the
+    /// board at guided poses under the patterns, then on the turntable (`SESSION/board/`,
+    /// `SESSION/turntable/`, as `calibrate all` reads them). Interactive, or `--auto`.
+    Capture(crate::calibrate_capture::Args),
     /// The camera (Zhang's method) from checkerboard pictures: image files, folders of
     /// images, folders of capture folders holding `white.png`, or an `slscan simulate`
     /// calibration session (its `board/` poses).
     Camera(CameraArgs),
     /// The projector and the camera together (Moreno & Taubin): one capture folder per board
-    /// pose, each with `white.png` and the decoded pattern sequence's `manifest.json` and
-    /// frames (as `slscan simulate --scene board` writes them).
+    /// pose, each with the decoded pattern sequence's `manifest.json` and frames (as `slscan
+    /// simulate --scene board` writes them) and, if the capture has one, `white.png`; without
+    /// it the board is found in the capture's own texture (the fringe mean).
     Projector(ProjectorArgs),
     /// The turntable axis from a board standing on the platter at several motor angles, added
     /// to an existing calibration.
@@ -127,7 +141,8 @@ pub(crate) struct TurntableArgs {
 /// Arguments of `slscan calibrate all`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct AllArgs {
-    /// An `slscan simulate --scene board` session (with `board/` and `turntable/`).
+    /// An `slscan calibrate capture` or `slscan simulate --scene board` session (with
+    /// `board/` and `turntable/`).
     pub(crate) session: PathBuf,
     #[command(flatten)]
     pub(crate) common: BoardArgs,
@@ -136,6 +151,7 @@ pub(crate) struct AllArgs {
 /// Runs `slscan calibrate`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     match &args.what {
+        What::Capture(a) => crate::calibrate_capture::run(a),
         What::Camera(a) => {
             let zhang = ZhangConfig {
                 fix_principal_point: a.fix_principal_point,
@@ -285,11 +301,23 @@ fn parse_size(text: &str) -> anyhow::Result<ImageSize> {
     Ok(ImageSize::new(w, h))
 }
 
-/// The projector size of a simulated session, from its `rig.json` (1920x1080 without one).
+/// The projector size of a session: from its `rig.json` (a simulated session), else from the
+/// first pose's `manifest.json` (an `slscan calibrate capture` session on real devices), else
+/// 1920x1080.
 fn rig_projector_size(session: &Path) -> anyhow::Result<ImageSize> {
     let path = session.join("rig.json");
     if !path.is_file() {
-        return Ok(ImageSize::new(1920, 1080));
+        let manifest = pose_folders(session)?
+            .first()
+            .map(|f| f.join(sl_calib::sl_codec::MANIFEST_FILE))
+            .filter(|m| m.is_file());
+        return Ok(match manifest {
+            Some(m) => {
+                let m = sl_calib::sl_codec::Manifest::load(&m)?;
+                ImageSize::new(m.projector.width, m.projector.height)
+            }
+            None => ImageSize::new(1920, 1080),
+        });
     }
     let text =
         fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
@@ -311,14 +339,16 @@ fn pose_folders(session: &Path) -> anyhow::Result<Vec<PathBuf>> {
         session.to_path_buf()
     };
     anyhow::ensure!(dir.is_dir(), "{}: no such folder", dir.display());
+    // A pose folder holds a white picture, a pattern capture, or both (captures without a
+    // white frame use their own texture, see `procam`).
     let folders: Vec<PathBuf> = sorted_entries(&dir)?
         .into_iter()
-        .filter(|p| p.join(WHITE_IMAGE).is_file())
+        .filter(|p| white_image(p).is_some() || p.join(sl_calib::sl_codec::MANIFEST_FILE).is_file())
         .collect();
     anyhow::ensure!(
         !folders.is_empty(),
-        "{}: no board poses: expected one capture folder per pose holding {WHITE_IMAGE} and \
-         the pattern sequence's {}",
+        "{}: no board poses: expected one capture folder per pose holding the pattern \
+         sequence's {} (and {WHITE_IMAGE} if it has one)",
         dir.display(),
         sl_calib::sl_codec::MANIFEST_FILE
     );
@@ -326,11 +356,8 @@ fn pose_folders(session: &Path) -> anyhow::Result<Vec<PathBuf>> {
 }
 
 fn is_image(path: &Path) -> bool {
-    path.is_file()
-        && path
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+    // sl-codec's list of the formats it reads (BMP, PGM/PPM, PNG, JPEG, TIFF).
+    path.is_file() && sl_calib::sl_codec::is_image_file(path)
 }
 
 fn sorted_entries(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
@@ -349,11 +376,7 @@ fn images_in(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     if !files.is_empty() {
         return Ok(files);
     }
-    Ok(entries
-        .iter()
-        .map(|p| p.join(WHITE_IMAGE))
-        .filter(|p| p.is_file())
-        .collect())
+    Ok(entries.iter().filter_map(|p| white_image(p)).collect())
 }
 
 /// Expands the camera command's inputs into image files.
@@ -384,6 +407,37 @@ fn camera_images(inputs: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
     Ok(images)
 }
 
+/// The board picture of a pose folder, its view name and where the picture came from:
+/// `white.png` when the folder has one, else the capture's own texture (the fringe mean of its
+/// phase frames, or the mean of its Gray patterns and inverses: `sl_codec::capture_texture`),
+/// for captures made without a white frame (SLStudio's calibration sequences).
+fn board_image(
+    folder: &Path,
+    set: &CaptureSet,
+) -> anyhow::Result<(String, sl_calib::image::GrayImage, String)> {
+    if let Some(white) = white_image(folder) {
+        let file = white.file_name().map_or_else(
+            || WHITE_IMAGE.to_owned(),
+            |f| f.to_string_lossy().into_owned(),
+        );
+        return Ok((short_name(&white), load_grey(&white)?, file));
+    }
+    let texture = capture_texture(set).with_context(|| {
+        format!(
+            "{}: no {WHITE_IMAGE} and no texture in the capture",
+            folder.display()
+        )
+    })?;
+    let (w, h) = (texture.width as u32, texture.height as u32);
+    let image = sl_calib::image::GrayImage::from_raw(w, h, texture.to_u8())
+        .with_context(|| format!("{}: texture of {w}x{h} px", folder.display()))?;
+    let name = folder.file_name().map_or_else(
+        || folder.display().to_string(),
+        |f| f.to_string_lossy().into_owned(),
+    );
+    Ok((name, image, texture.source.to_string()))
+}
+
 /// A short name of an image for messages and picture file names: the file name, or
 /// `folder/white.png` for capture folders.
 fn short_name(path: &Path) -> String {
@@ -392,14 +446,18 @@ fn short_name(path: &Path) -> String {
         .map(|f| f.to_string_lossy().into_owned())
         .unwrap_or_default();
     match path.parent().and_then(|p| p.file_name()) {
-        Some(parent) if file == WHITE_IMAGE => format!("{}/{file}", parent.to_string_lossy()),
+        Some(parent) if is_white_name(&file) => format!("{}/{file}", parent.to_string_lossy()),
         _ => file,
     }
 }
 
 fn picture_name(k: usize, name: &str) -> String {
-    let stem: String = name
-        .trim_end_matches(".png")
+    // Without its image extension, whichever it is (`white.bmp`, `left01.jpg`).
+    let bare = match name.rsplit_once('.') {
+        Some((stem, _)) if sl_calib::sl_codec::is_image_file(Path::new(name)) => stem,
+        _ => name,
+    };
+    let stem: String = bare
         .chars()
         .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
         .collect();
@@ -787,6 +845,7 @@ fn procam(
     let out = ensure_out_dir(&common.out)?;
     let size = parse_board(&common.board)?;
     let bar = progress(folders.len() as u64, "decoding");
+    let mut board_images = Vec::with_capacity(folders.len());
     let views = report.stage("read and decode", || -> anyhow::Result<Vec<ProcamView>> {
         let mut views = Vec::with_capacity(folders.len());
         for folder in folders {
@@ -796,16 +855,27 @@ fn procam(
                 .with_context(|| format!("cannot read the capture set {}", manifest.display()))?;
             let map = decode(&set, &DecodeConfig::default())
                 .with_context(|| format!("cannot decode {}", manifest.display()))?;
-            let lit = load_grey(folder.join(WHITE_IMAGE))?;
-            views.push(ProcamView {
-                name: short_name(&folder.join(WHITE_IMAGE)),
-                lit,
-                map,
-            });
+            let (name, lit, source) = board_image(folder, &set)?;
+            board_images.push(json!({ "view": name, "board_image": source }));
+            views.push(ProcamView { name, lit, map });
         }
         Ok(views)
     })?;
     bar.finish_and_clear();
+    let textured: Vec<&str> = board_images
+        .iter()
+        .filter_map(|b| b["board_image"].as_str())
+        .filter(|s| !is_white_name(s))
+        .collect();
+    if let Some(first) = textured.first() {
+        println!(
+            "board images: {} of {} poses have no {WHITE_IMAGE}; their corners are found in the \
+             capture's own texture ({first})",
+            textured.len(),
+            board_images.len()
+        );
+    }
+    report.figure("board_images", board_images);
     let cfg = ProcamConfig::new(size, common.square, projector_size);
     let cal = report
         .stage("calibrate", || calibrate_procam(&views, &cfg))
@@ -922,7 +992,7 @@ mod tests {
     use sl_calib::CalibError;
     use sl_calib::sl_camera::Calibration;
     use sl_calib::sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
-    use sl_rig::{CalibrationSession, Scene, VirtualRig, simulate_calibration};
+    use sl_sim::{CalibrationSession, Scene, VirtualRig, simulate_calibration};
     use structured_light::pipeline::scaled_rig_config;
 
     use crate::{Cli, Command};
@@ -1051,6 +1121,125 @@ mod tests {
         assert!(pngs >= 17 + 4, "{pngs} pictures");
     }
 
+    /// `calibrate all` on a session saved as BMP (SLStudio's format): every `white.png` and
+    /// pattern frame converted to `.bmp` and the PNGs deleted, the manifests still naming
+    /// `.png`. The white frames are found as `white.bmp`, the frames under their BMP names,
+    /// and the calibration is the rig's.
+    #[test]
+    fn calibrate_all_on_a_session_saved_as_bmp() {
+        let tmp = tempfile::tempdir().unwrap();
+        let session = tmp.path().join("session");
+        let rig = simulate(&session, 8);
+        let mut converted = 0;
+        for f in crate::common::files_below(&session) {
+            if f.extension().is_some_and(|e| e == "png") {
+                let img = sl_calib::image::open(&f).unwrap();
+                img.save(f.with_extension("bmp")).unwrap();
+                std::fs::remove_file(&f).unwrap();
+                converted += 1;
+            }
+        }
+        assert!(converted > 8 * 2, "{converted} files converted");
+        let out = tmp.path().join("calib");
+        slscan(&[
+            "calibrate",
+            "all",
+            session.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap();
+        let procam: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("projector/report.json")).unwrap(),
+        )
+        .unwrap();
+        let images = procam["figures"]["board_images"].as_array().unwrap();
+        assert_eq!(images.len(), 8);
+        for b in images {
+            assert_eq!(b["board_image"].as_str(), Some("white.bmp"), "{b}");
+        }
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        assert_eq!(report["figures"]["views_used"].as_u64(), Some(7));
+        let c = Calibration::load(out.join("calibration.json")).unwrap();
+        let truth = rig.config();
+        let fx = c.camera.intrinsics.fx;
+        assert!(
+            (fx / truth.camera.intrinsics.fx - 1.0).abs() < 0.005,
+            "{fx}"
+        );
+        let pfx = c.projector.unwrap().intrinsics.fx;
+        assert!(
+            (pfx / truth.projector.intrinsics.fx - 1.0).abs() < 0.01,
+            "{pfx}"
+        );
+    }
+
+    /// `calibrate projector` on a session whose `white.png` files are deleted (as SLStudio's
+    /// calibration sequences have none) finds the boards in the captures' fringe means and
+    /// calibrates to an RMS close to the one with the white frames, near the rig's truth.
+    #[test]
+    fn calibrate_projector_without_white_frames_uses_the_fringe_mean() {
+        let tmp = tempfile::tempdir().unwrap();
+        let session = tmp.path().join("session");
+        let rig = simulate(&session, 8);
+        let run = |out: &str| {
+            let out = tmp.path().join(out);
+            slscan(&[
+                "calibrate",
+                "projector",
+                session.to_str().unwrap(),
+                "--projector",
+                "480x270",
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .unwrap();
+            let report: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                    .unwrap();
+            let calib = Calibration::load(out.join("calibration.json")).unwrap();
+            (report, calib)
+        };
+        let (with_white, _) = run("white");
+        let mut deleted = 0;
+        for f in crate::common::files_below(&session.join("board")) {
+            if f.file_name().is_some_and(|n| n == "white.png") {
+                std::fs::remove_file(f).unwrap();
+                deleted += 1;
+            }
+        }
+        assert_eq!(deleted, 8);
+        let (without, calib) = run("fringe_mean");
+        let images = without["figures"]["board_images"].as_array().unwrap();
+        assert_eq!(images.len(), 8);
+        for b in images {
+            let source = b["board_image"].as_str().unwrap();
+            assert!(source.starts_with("fringe mean of block 0"), "{source}");
+        }
+        for key in ["rms_camera_px", "rms_projector_px", "rms_stereo_px"] {
+            let a = with_white["figures"][key].as_f64().unwrap();
+            let b = without["figures"][key].as_f64().unwrap();
+            eprintln!("{key}: {a:.4} px with white.png, {b:.4} px with the fringe mean");
+            // The fringe mean is the board under half the light: a little more corner noise
+            // at worst, never a different calibration.
+            assert!(b < 0.5 && b < 1.5 * a + 0.02, "{key}: {b} vs {a}");
+        }
+        let truth = rig.config();
+        let pfx = calib.projector.unwrap().intrinsics.fx;
+        assert!(
+            (pfx / truth.projector.intrinsics.fx - 1.0).abs() < 0.01,
+            "projector fx {pfx} vs {}",
+            truth.projector.intrinsics.fx
+        );
+        let fx = calib.camera.intrinsics.fx;
+        assert!(
+            (fx / truth.camera.intrinsics.fx - 1.0).abs() < 0.005,
+            "camera fx {fx}"
+        );
+    }
+
     /// The light part, on in debug: `calibrate camera` on the white images of a few rendered
     /// poses, against the rig's focal length.
     #[test]
@@ -1059,20 +1248,20 @@ mod tests {
         let mut config = scaled_rig_config(DOWNSCALE);
         config.render.supersampling = 4;
         let rig = VirtualRig::new(config, Scene::plane()).unwrap();
-        let board = sl_rig::Checkerboard::default();
-        let poses = sl_rig::random_board_poses(
+        let board = sl_sim::Checkerboard::default();
+        let poses = sl_sim::random_board_poses(
             rig.config(),
             &board,
-            &sl_rig::BoardPoseConfig {
+            &sl_sim::BoardPoseConfig {
                 count: 6,
-                ..sl_rig::BoardPoseConfig::default()
+                ..sl_sim::BoardPoseConfig::default()
             },
         )
         .unwrap();
         let images = tmp.path().join("images");
         std::fs::create_dir_all(&images).unwrap();
         for (k, pose) in poses.iter().enumerate() {
-            let cap = sl_rig::capture_board(&rig, &board, pose, None, k as u64).unwrap();
+            let cap = sl_sim::capture_board(&rig, &board, pose, None, k as u64).unwrap();
             cap.white
                 .save_png(&images.join(format!("board_{k}.png")))
                 .unwrap();

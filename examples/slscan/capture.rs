@@ -10,9 +10,10 @@ use anyhow::Context;
 use sl_camera::Calibration;
 use sl_codec::{BitDepth, MANIFEST_FILE, Manifest, ProjectorSize};
 use sl_rig::{
-    Camera, CaptureSession, LatencyConfig, Projector, Scene, SessionConfig, SessionDevices,
-    SessionPlan, Turntable, VirtualRig, measure_latency,
+    Camera, CaptureSession, LatencyConfig, Projector, SessionConfig, SessionDevices, SessionPlan,
+    Turntable, measure_latency,
 };
+use sl_sim::{Scene, VirtualRig};
 use structured_light::pipeline::{scaled_rig_config, scan_patterns};
 use structured_light::session_scan::full_turn_motor_angles;
 

@@ -113,14 +113,29 @@ fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3
 }
 
+/// The mode an output file is created with before the user's umask masks it: read and write
+/// for everyone, as `File::create` (and `touch`, and every other tool) does, so that outputs
+/// written through a temporary file get the same mode as the ones written directly (0644 under
+/// the usual umask 022). `tempfile` alone creates 0600, which is right for secrets, not outputs.
+#[cfg(unix)]
+const OUTPUT_FILE_MODE: u32 = 0o666;
+
 /// Writes `bytes` to `path` through a temporary file in the same folder, so that a failure
-/// never leaves a half-written file in place of a good one.
+/// never leaves a half-written file in place of a good one. The file's mode follows the
+/// user's umask like every other output (see [`OUTPUT_FILE_MODE`]).
 pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
+    let mut builder = tempfile::Builder::new();
+    // The kernel masks the mode given to open(2) with the umask: no need to read the umask.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(
+        OUTPUT_FILE_MODE,
+    ));
+    let mut tmp = builder
+        .tempfile_in(dir)
         .with_context(|| format!("cannot write into {}", dir.display()))?;
     std::io::Write::write_all(&mut tmp, bytes)
         .with_context(|| format!("cannot write {}", path.display()))?;
@@ -195,4 +210,79 @@ pub(crate) fn files_below(dir: &Path) -> Vec<PathBuf> {
         }
     }
     all
+}
+
+#[cfg(all(test, unix))]
+mod tests {
+    //! Output files follow the user's umask. The umask belongs to the whole process, so each
+    //! umask is tried in a child process (this test binary, re-run through `sh -c 'umask …'`)
+    //! rather than by changing it under the other tests running in parallel.
+
+    use std::os::unix::fs::PermissionsExt;
+    use std::path::PathBuf;
+    use std::process::Command;
+
+    use clap::Parser;
+
+    /// Tells the child half which folder to write into.
+    const PROBE_DIR_ENV: &str = "SLSCAN_UMASK_PROBE_DIR";
+
+    /// The child half of [`outputs_follow_the_umask`]: runs `slscan patterns` (PNGs written
+    /// directly, `report.json` through [`super::write_atomically`]) into the folder named by
+    /// [`PROBE_DIR_ENV`]; does nothing when it is unset (a plain `cargo test --ignored`).
+    #[test]
+    #[ignore = "run by outputs_follow_the_umask in a child process with a chosen umask"]
+    fn umask_probe_child() {
+        let Some(dir) = std::env::var_os(PROBE_DIR_ENV) else {
+            return;
+        };
+        let dir = PathBuf::from(dir);
+        let argv = [
+            "slscan",
+            "patterns",
+            "--projector",
+            "64x32",
+            "--axes",
+            "columns",
+            "--out",
+            dir.to_str().unwrap(),
+        ];
+        match crate::Cli::try_parse_from(argv).unwrap().command {
+            crate::Command::Patterns(a) => crate::patterns::run(&a).unwrap(),
+            other => panic!("parsed as {other:?}"),
+        }
+    }
+
+    /// With umask 022 every output, `report.json` included, is 0644; with 077 every one is 0600.
+    #[test]
+    fn outputs_follow_the_umask() {
+        let exe = std::env::current_exe().unwrap();
+        for (umask, mode) in [("022", 0o644), ("077", 0o600)] {
+            let dir = tempfile::tempdir().unwrap();
+            let status = Command::new("sh")
+                .arg("-c")
+                .arg(format!("umask {umask} && exec \"$0\" \"$@\""))
+                .arg(&exe)
+                .args([
+                    "--exact",
+                    "common::tests::umask_probe_child",
+                    "--ignored",
+                    "--quiet",
+                ])
+                .env(PROBE_DIR_ENV, dir.path())
+                .status()
+                .unwrap();
+            assert!(status.success(), "child with umask {umask}: {status}");
+            let files = super::files_below(dir.path());
+            assert!(
+                files.iter().any(|f| f.ends_with("report.json")),
+                "no report.json in {files:?}"
+            );
+            assert!(files.len() > 2, "only {files:?}");
+            for f in files {
+                let got = std::fs::metadata(&f).unwrap().permissions().mode() & 0o777;
+                assert_eq!(got, mode, "{} under umask {umask}: {got:o}", f.display());
+            }
+        }
+    }
 }

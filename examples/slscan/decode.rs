@@ -126,5 +126,71 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         out.display(),
         path.display()
     );
+    // No empty success: the maps and the report stay for the diagnosis, the exit code says it.
+    if map.valid_fraction() == 0.0 {
+        let why: Vec<String> = InvalidReason::ALL
+            .iter()
+            .zip(counts)
+            .filter(|(r, n)| !r.is_valid() && *n > 0)
+            .map(|(r, n)| format!("{n} pixels {}", r.name()))
+            .collect();
+        anyhow::bail!(
+            "{}: no pixel decoded ({}); the invalid-pixel picture in {} shows where",
+            args.capture.display(),
+            why.join(", "),
+            out.display()
+        );
+    }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    //! `slscan decode` on a capture of black frames: an error naming the capture, not an
+    //! empty success.
+
+    use clap::Parser;
+
+    use crate::{Cli, Command};
+
+    fn slscan(args: &[&str]) -> anyhow::Result<()> {
+        let mut argv = vec!["slscan"];
+        argv.extend_from_slice(args);
+        match Cli::try_parse_from(argv)?.command {
+            Command::Patterns(a) => crate::patterns::run(&a),
+            Command::Decode(a) => crate::decode::run(&a),
+            other => anyhow::bail!("parsed as {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_capture_that_decodes_nothing_is_an_error() {
+        let tmp = tempfile::tempdir().unwrap();
+        let capture = tmp.path().join("capture");
+        let c = capture.to_str().unwrap();
+        slscan(&[
+            "patterns",
+            "--projector",
+            "64x32",
+            "--axes",
+            "columns",
+            "--out",
+            c,
+        ])
+        .unwrap();
+        // The "camera" saw nothing: every frame black.
+        let black = sl_calib::image::GrayImage::new(64, 32);
+        for f in crate::common::files_below(&capture) {
+            if f.extension().is_some_and(|e| e == "png") {
+                black.save(&f).unwrap();
+            }
+        }
+        let out = tmp.path().join("out");
+        let err = slscan(&["decode", c, "--out", out.to_str().unwrap()]).unwrap_err();
+        let text = format!("{err:#}");
+        assert!(text.contains("no pixel decoded"), "{text}");
+        assert!(text.contains(c), "{text}");
+        assert!(text.contains("2048 pixels shadow"), "{text}");
+        assert!(out.join("report.json").is_file());
+    }
 }

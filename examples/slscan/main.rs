@@ -9,6 +9,7 @@
 //!   code 1 (2 for a malformed command line, as clap does).
 
 mod calibrate;
+mod calibrate_capture;
 mod capture;
 mod common;
 mod decode;

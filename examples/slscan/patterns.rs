@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use sl_codec::{
     Axis, BitDepth, GrayCodeSpec, GrayReference, HybridSpec, Pattern, PatternSequence,
-    PhaseShiftSpec, ProjectorSize, Unwrap,
+    PhaseShiftSpec, ProjectorSize, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, Unwrap,
 };
 
 use crate::common::{Report, ensure_out_dir};
@@ -105,16 +105,18 @@ pub(crate) struct Args {
     /// projector pixels).
     #[arg(long, default_value_t = 1)]
     pub(crate) stripe_width: u32,
-    /// Phase and hybrid: phase steps per frequency (>= 3).
-    #[arg(long, default_value_t = 4)]
-    pub(crate) steps: u32,
+    /// Phase and hybrid: phase steps per frequency (>= 3). Default: 8 for hybrid (the capture
+    /// the toolkit recommends and scans with), 4 for phase.
+    #[arg(long)]
+    pub(crate) steps: Option<u32>,
     /// Phase: periods across the projector, comma-separated (default: a heterodyne triple
     /// derived from `--period-px`: P1 = extent / period, P2 = 7/8 P1, P3 = 2 P2 - P1 + 0.9).
     #[arg(long, value_delimiter = ',')]
     pub(crate) periods: Vec<f64>,
-    /// Phase and hybrid: finest fringe period in projector pixels (when `--periods` is not given).
-    #[arg(long, default_value_t = 30.0)]
-    pub(crate) period_px: f64,
+    /// Phase and hybrid: finest fringe period in projector pixels (when `--periods` is not
+    /// given). Default: 15 for hybrid (the capture the toolkit recommends), 30 for phase.
+    #[arg(long)]
+    pub(crate) period_px: Option<f64>,
     /// Phase: temporal unwrapping method.
     #[arg(long, value_enum, default_value_t = UnwrapArg::Heterodyne)]
     pub(crate) unwrap: UnwrapArg,
@@ -144,10 +146,34 @@ fn parse_size(s: &str) -> Result<ProjectorSize, String> {
     Ok(ProjectorSize::new(w, h))
 }
 
+/// Phase steps of `--codec phase` when `--steps` is not given: 4, the classic choice that keeps
+/// its three frequencies at 12 frames (hybrid defaults to [`RECOMMENDED_PHASE_STEPS`]).
+const PHASE_DEFAULT_STEPS: u32 = 4;
+
+/// Finest period (projector px) of `--codec phase` when `--period-px` is not given: 30, because
+/// the heterodyne triple derived from it amplifies phase noise by the ratio of the finest period
+/// to the beat of beats, which doubles at 15 px (hybrid defaults to [`RECOMMENDED_PERIOD_PX`]:
+/// its Gray code does not amplify noise).
+const PHASE_DEFAULT_PERIOD_PX: f64 = 30.0;
+
+/// Phase steps and finest period (projector px) of the phase or hybrid codes: the arguments, or
+/// the codec's defaults.
+fn steps_and_period(args: &Args) -> (u32, f64) {
+    let (steps, period) = match args.codec {
+        CodecArg::Hybrid => (RECOMMENDED_PHASE_STEPS, RECOMMENDED_PERIOD_PX),
+        _ => (PHASE_DEFAULT_STEPS, PHASE_DEFAULT_PERIOD_PX),
+    };
+    (
+        args.steps.unwrap_or(steps),
+        args.period_px.unwrap_or(period),
+    )
+}
+
 /// The block of one axis.
 fn block(args: &Args, axis: Axis) -> Pattern {
     let p = args.projector;
     let extent = f64::from(p.extent(axis));
+    let (steps, period_px) = steps_and_period(args);
     match args.codec {
         CodecArg::Gray | CodecArg::Binary => {
             let mut s = GrayCodeSpec::per_pixel(axis, p, !args.no_center);
@@ -169,7 +195,7 @@ fn block(args: &Args, axis: Axis) -> Pattern {
         }
         CodecArg::Phase => {
             let periods = if args.periods.is_empty() {
-                let p1 = extent / args.period_px;
+                let p1 = extent / period_px;
                 let p2 = p1 * 7.0 / 8.0;
                 vec![p1, p2, 2.0 * p2 - p1 + 0.9]
             } else {
@@ -177,11 +203,11 @@ fn block(args: &Args, axis: Axis) -> Pattern {
             };
             Pattern::Phase(PhaseShiftSpec {
                 gamma: args.gamma,
-                ..PhaseShiftSpec::new(axis, p, args.steps, periods, args.unwrap.into())
+                ..PhaseShiftSpec::new(axis, p, steps, periods, args.unwrap.into())
             })
         }
         CodecArg::Hybrid => {
-            let mut s = HybridSpec::complementary(axis, p, args.steps, extent / args.period_px);
+            let mut s = HybridSpec::complementary(axis, p, steps, extent / period_px);
             s.gamma = args.gamma;
             s.gray.reference = args.reference.into();
             Pattern::Hybrid(s)
@@ -225,6 +251,18 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             block.frames.last().map_or("", String::as_str),
         );
     }
+    if matches!(args.codec, CodecArg::Phase | CodecArg::Hybrid) {
+        let (steps, period_px) = steps_and_period(args);
+        let defaults = args.steps.is_none() && args.period_px.is_none();
+        let note = if defaults && args.codec == CodecArg::Hybrid {
+            " (defaults: the capture the toolkit recommends)"
+        } else {
+            ""
+        };
+        println!("{steps} phase steps, finest period {period_px} projector px{note}");
+        report.figure("phase_steps", steps);
+        report.figure("period_px", period_px);
+    }
     println!(
         "{} patterns of {} written to {} with manifest.json",
         manifest.frame_count(),
@@ -238,4 +276,114 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let path = report.write(&out)?;
     println!("report: {}", path.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    //! `slscan patterns` itself: the defaults it writes into the manifest.
+
+    use std::path::Path;
+
+    use clap::Parser;
+    use sl_codec::{Axis, Manifest, Pattern};
+
+    use crate::{Cli, Command};
+
+    fn slscan(args: &[&str]) -> anyhow::Result<()> {
+        let mut argv = vec!["slscan"];
+        argv.extend_from_slice(args);
+        match Cli::try_parse_from(argv)?.command {
+            Command::Patterns(a) => crate::patterns::run(&a),
+            other => anyhow::bail!("parsed as {other:?}"),
+        }
+    }
+
+    fn manifest(dir: &Path) -> Manifest {
+        Manifest::load(&dir.join(sl_codec::MANIFEST_FILE)).unwrap()
+    }
+
+    /// `--codec hybrid` with no other option writes the capture the scan pipeline projects:
+    /// 8 steps, 15 px periods (240 / 15 = 16 periods across the columns, 120 / 15 = 8 down
+    /// the rows), complementary Gray code with inverses.
+    #[test]
+    fn hybrid_defaults_to_the_recommended_capture() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().to_str().unwrap();
+        slscan(&[
+            "patterns",
+            "--projector",
+            "240x120",
+            "--codec",
+            "hybrid",
+            "--out",
+            out,
+        ])
+        .unwrap();
+        let m = manifest(dir.path());
+        assert_eq!(m.blocks.len(), 2);
+        for (block, (axis, periods)) in m
+            .blocks
+            .iter()
+            .zip([(Axis::Column, 16.0), (Axis::Row, 8.0)])
+        {
+            let Pattern::Hybrid(h) = &block.pattern else {
+                panic!("not a hybrid block: {:?}", block.pattern);
+            };
+            assert_eq!(h.axis, axis);
+            assert_eq!(h.steps, 8);
+            assert_eq!(h.periods, periods);
+        }
+        // The same numbers as the library's recommendation (which the scan pipeline uses).
+        let expected =
+            sl_codec::HybridSpec::recommended(Axis::Column, sl_codec::ProjectorSize::new(240, 120));
+        assert_eq!(m.blocks[0].pattern, Pattern::Hybrid(expected));
+    }
+
+    /// Explicit `--steps` and `--period-px` still win; `--codec phase` keeps its own defaults
+    /// (4 steps, finest period 30 px: 240 / 30 = 8 periods).
+    #[test]
+    fn explicit_values_and_phase_defaults() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().to_str().unwrap();
+        slscan(&[
+            "patterns",
+            "--projector",
+            "240x120",
+            "--codec",
+            "hybrid",
+            "--axes",
+            "columns",
+            "--steps",
+            "5",
+            "--period-px",
+            "24",
+            "--out",
+            out,
+        ])
+        .unwrap();
+        let Pattern::Hybrid(h) = &manifest(dir.path()).blocks[0].pattern else {
+            panic!("not hybrid");
+        };
+        assert_eq!((h.steps, h.periods), (5, 10.0));
+
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().to_str().unwrap();
+        slscan(&[
+            "patterns",
+            "--projector",
+            "240x120",
+            "--codec",
+            "phase",
+            "--axes",
+            "columns",
+            "--out",
+            out,
+        ])
+        .unwrap();
+        let Pattern::Phase(p) = &manifest(dir.path()).blocks[0].pattern else {
+            panic!("not phase");
+        };
+        assert_eq!(p.steps, 4);
+        assert_eq!(p.periods[0], 8.0);
+    }
 }

@@ -7,9 +7,10 @@ use anyhow::Context;
 use nalgebra::Vector3;
 use serde_json::json;
 use sl_codec::{MANIFEST_FILE, Manifest};
-use sl_rig::{
+use sl_rig::turntable_angles;
+use sl_sim::{
     BitDepth, CalibrationSession, Checkerboard, GlobalIllumination, MeshUnits, RigConfig, Scene,
-    SimulatedCapture, VirtualRig, simulate_calibration, simulate_scan, turntable_angles,
+    SimulatedCapture, VirtualRig, simulate_calibration, simulate_scan,
 };
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
@@ -144,7 +145,7 @@ fn config(args: &Args, board: bool) -> anyhow::Result<RigConfig> {
         });
     }
     if args.defocus {
-        c.render.effects.defocus = Some(sl_rig::Defocus::default());
+        c.render.effects.defocus = Some(sl_sim::Defocus::default());
     }
     if let Some(g) = args.gamma {
         c.render.illumination.gamma = g;

@@ -8,7 +8,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_calib::{BoardSize, DetectorConfig, TurntableConfig, TurntableView, calibrate_turntable};
-use sl_rig::{Checkerboard, Pixels, RigConfig, Scene, VirtualRig, capture_board_on_table};
+use sl_sim::{Checkerboard, Pixels, RigConfig, Scene, VirtualRig, capture_board_on_table};
 
 fn bench(c: &mut Criterion) {
     let config = RigConfig::default();

@@ -98,6 +98,10 @@ pub enum CalibError {
     /// An error of the camera model (e.g. an estimate outside the model's valid range).
     #[error(transparent)]
     Camera(#[from] CameraError),
+    /// An image file that `sl-codec`'s reader refused for another reason than decoding (an
+    /// empty image); the message names the file.
+    #[error(transparent)]
+    Codec(#[from] sl_codec::CodecError),
 }
 
 impl CalibError {

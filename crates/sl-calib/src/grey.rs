@@ -7,17 +7,31 @@ use rayon::prelude::*;
 
 use crate::CalibError;
 
-/// Loads an image file (PNG, JPEG, TIFF) as 8-bit grey.
+/// Loads an image file (BMP, PGM/PPM, PNG, JPEG, TIFF) as 8-bit grey, by
+/// [`sl_codec::read_grey8`]: colour becomes grey by OpenCV's `COLOR_RGB2GRAY` rule and 16-bit
+/// values are scaled by `round(v / 257)`, so corners are found on the same grey levels as
+/// OpenCV's.
 ///
 /// # Errors
-/// [`CalibError::Image`] naming the file when it cannot be read or decoded.
+/// [`CalibError::Image`] naming the file when it cannot be read or decoded, or is empty.
 pub fn load_grey(path: impl AsRef<Path>) -> Result<image::GrayImage, CalibError> {
     let path = path.as_ref();
-    let img = image::open(path).map_err(|source| CalibError::Image {
-        file: path.display().to_string(),
-        source,
+    let frame = sl_codec::read_grey8(path).map_err(|e| match e {
+        sl_codec::CodecError::Image { source, .. } => CalibError::Image {
+            file: path.display().to_string(),
+            source,
+        },
+        other => CalibError::Codec(other),
     })?;
-    Ok(img.into_luma8())
+    // The frame was decoded from an image of u32 dimensions, so these conversions hold.
+    let empty = || {
+        CalibError::Codec(sl_codec::CodecError::EmptyImage {
+            path: path.to_path_buf(),
+        })
+    };
+    let w = u32::try_from(frame.width()).map_err(|_| empty())?;
+    let h = u32::try_from(frame.height()).map_err(|_| empty())?;
+    image::GrayImage::from_raw(w, h, frame.into_data()).ok_or_else(empty)
 }
 
 /// Row-major `f32` grey image; pixel `(x, y)` at `y · width + x`.

@@ -30,7 +30,7 @@
 //! top-left pixel; millimetres (or the board's unit) for 3-D points, pixels for image
 //! points and RMS errors; poses `T_cam_board` map board coordinates into the camera frame;
 //! f64 for all geometry. RMS errors follow OpenCV: the square root of the mean over corners
-//! of the squared 2-D residual norm. The board frame is `sl-rig`'s: origin at the first
+//! of the squared 2-D residual norm. The board frame is `sl-sim`'s: origin at the first
 //! inner corner, x along a row, y along a column, z into the board.
 #![deny(missing_docs)]
 

@@ -76,7 +76,7 @@ impl ProcamConfig {
 const MIN_PROJECTOR_CORNERS: usize = 8;
 
 impl Default for ProcamConfig {
-    /// `sl-rig`'s default board (9×6 inner corners, 20 mm squares) and projector
+    /// `sl-sim`'s default board (9×6 inner corners, 20 mm squares) and projector
     /// (1920×1080), OpenCV's default models for both devices, views without a board skipped.
     fn default() -> Self {
         Self {

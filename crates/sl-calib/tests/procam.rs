@@ -14,7 +14,7 @@ use sl_calib::{
     BoardCorners, BoardSize, CalibError, ProcamConfig, calibrate_procam, projector_corners,
     sl_camera::ImageSize,
 };
-use sl_rig::{Checkerboard, RigConfig};
+use sl_sim::{Checkerboard, RigConfig};
 
 #[path = "support/procam_render.rs"]
 mod procam_render;

@@ -11,7 +11,7 @@ use sl_calib::{
     BoardSize, CalibError, CalibrationView, DetectorConfig, PoseAtAngle, TurntableConfig,
     TurntableView, calibrate_turntable, fit_turntable_axis,
 };
-use sl_rig::{Checkerboard, Pixels, RigConfig, Scene, VirtualRig, capture_board_on_table};
+use sl_sim::{Checkerboard, Pixels, RigConfig, Scene, VirtualRig, capture_board_on_table};
 
 /// Electrons per grey level of the default sensor (10 000 e⁻ full well over 255 levels).
 const ONE_GREY_LEVEL_E: f64 = 10_000.0 / 255.0;

@@ -6,7 +6,7 @@ use nalgebra::Point2;
 use sl_calib::{
     BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera, detect_checkerboard,
 };
-use sl_rig::{
+use sl_sim::{
     BoardPoseConfig, Checkerboard, Pixels, RigConfig, Scene, VirtualRig, capture_board,
     random_board_poses,
 };

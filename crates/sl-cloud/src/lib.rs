@@ -79,5 +79,8 @@ pub use ply::{
     PlyElement, PlyEncoding, PlyFormat, PlyHeader, PlyProperty, PlyPropertyKind, PlyScalar,
     PlyScalarType,
 };
-pub use preview::{PreviewColoring, PreviewConfig, PreviewImage, colormap, render_preview};
+pub use preview::{
+    FRAME_PERCENTILE, FRAME_SLACK, PreviewColoring, PreviewConfig, PreviewImage, colormap,
+    render_preview,
+};
 pub use voxel::{VoxelDownsample, VoxelGridConfig, voxel_downsample};

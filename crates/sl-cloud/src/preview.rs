@@ -3,6 +3,12 @@
 //! Orthographic splatting into a z-buffer, then Lambertian shading with a head light: from the
 //! cloud's normals when it has them, otherwise from the gradient of the depth buffer. Points are
 //! coloured by their own colours, by a scalar field through a colour map (error maps), or grey.
+//!
+//! The view is framed on robust bounds: per axis, the [`FRAME_PERCENTILE`] and
+//! `100 - FRAME_PERCENTILE` percentiles of the points, widened by [`FRAME_SLACK`] of their
+//! largest extent. A few far specks (a real capture's background) therefore no longer shrink
+//! the object to a dot; they fall outside the picture and [`PreviewImage::left_out`] counts
+//! them, so that callers can say so.
 
 use nalgebra::{Rotation3, Vector3};
 
@@ -17,6 +23,16 @@ const BACKGROUND: [u8; 3] = [30, 30, 34];
 const GREY: [f64; 3] = [0.82, 0.82, 0.82];
 /// Fraction of the smaller image side left as margin on each side of the cloud.
 const MARGIN: f64 = 0.05;
+/// Percentile (in %) of each coordinate that bounds the framed part of the cloud from below
+/// (and `100 -` it from above): 0.5 % leaves out up to 1 % of the points per axis before the
+/// slack below takes the object's own edges back in, while a speck cluster needs more than
+/// 0.5 % of the points to move the frame.
+pub const FRAME_PERCENTILE: f64 = 0.5;
+/// Slack added on every side of the percentile box, as a fraction of its largest extent: the
+/// object's own extreme points lie just beyond the percentiles (on a sphere the 0.5 %
+/// percentile of `x` is at 0.99 of the radius), far outliers lie well beyond them. A quarter
+/// keeps any point within 25 % of the object's size of its bounds in the picture.
+pub const FRAME_SLACK: f64 = 0.25;
 
 /// How the points of a preview are coloured.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -74,6 +90,9 @@ pub struct PreviewImage {
     pub height: u32,
     /// `width * height * 3` bytes, rows top to bottom.
     pub rgb: Vec<u8>,
+    /// Finite points that fall outside the picture: far outliers left out of the robust frame
+    /// (see the module docs). Callers should say so, e.g. with [`PreviewImage::left_out_note`].
+    pub left_out: usize,
 }
 
 impl PreviewImage {
@@ -84,6 +103,18 @@ impl PreviewImage {
         }
         let i = (y as usize * self.width as usize + x as usize) * 3;
         self.rgb.get(i..i + 3).map(|p| [p[0], p[1], p[2]])
+    }
+
+    /// A sentence for the user when points were left out of the picture, `None` otherwise:
+    /// `"3 far outliers outside the preview (of 120000 points)"`.
+    pub fn left_out_note(&self, points: usize) -> Option<String> {
+        (self.left_out > 0).then(|| {
+            let s = if self.left_out == 1 { "" } else { "s" };
+            format!(
+                "{} far outlier{s} outside the preview (of {points} points)",
+                self.left_out
+            )
+        })
     }
 
     /// Whether pixel `(x, y)` shows the background (no point was drawn there).
@@ -126,7 +157,9 @@ fn to_u8(v: f64) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
-/// Renders `cloud` as seen from the direction in `config`, orthographically, fitted to the image.
+/// Renders `cloud` as seen from the direction in `config`, orthographically, fitted to the image
+/// on robust bounds: far outliers are left out of the picture and counted in
+/// [`PreviewImage::left_out`].
 ///
 /// The camera frame convention (x right, y down, z forward) is kept: with azimuth and elevation
 /// zero the preview looks along +z, as the scanner's camera does, so a scan's preview shows what
@@ -172,21 +205,15 @@ pub fn render_preview(
     for px in rgb.chunks_exact_mut(3) {
         px.copy_from_slice(&BACKGROUND);
     }
-    let (Some(bbox), Some(_)) = (cloud.bounding_box(), cloud.centroid()) else {
+    let Some(frame) = robust_frame(cloud.positions()) else {
         return Ok(PreviewImage {
             width: config.width,
             height: config.height,
             rgb,
+            left_out: 0,
         });
     };
-    let center = bbox.center();
-    let radius = cloud
-        .positions()
-        .iter()
-        .filter(|p| p.coords.iter().all(|c| c.is_finite()))
-        .map(|p| (p - center).norm())
-        .fold(0.0f64, f64::max)
-        .max(f64::MIN_POSITIVE);
+    let (center, radius) = (frame.center, frame.radius);
     let view = Rotation3::from_axis_angle(&Vector3::x_axis(), config.elevation_deg.to_radians())
         * Rotation3::from_axis_angle(&Vector3::y_axis(), config.azimuth_deg.to_radians());
     // Pixels per unit of length, so that the bounding sphere fits the smaller side.
@@ -196,6 +223,7 @@ pub fn render_preview(
     let mut depth = vec![f64::INFINITY; w * h];
     let mut owner = vec![u32::MAX; w * h];
     let r = config.point_radius_px as i64;
+    let mut left_out = 0;
     for (i, p) in cloud.positions().iter().enumerate() {
         let q = view * (p - center);
         if !q.iter().all(|c| c.is_finite()) {
@@ -203,6 +231,10 @@ pub fn render_preview(
         }
         let u = (w as f64 * 0.5 + scale * q.x).round() as i64;
         let v = (h as f64 * 0.5 + scale * q.y).round() as i64;
+        if u < 0 || v < 0 || u >= w as i64 || v >= h as i64 {
+            left_out += 1;
+            continue;
+        }
         for dv in -r..=r {
             for du in -r..=r {
                 if du * du + dv * dv > r * r + r {
@@ -274,7 +306,56 @@ pub fn render_preview(
         width: config.width,
         height: config.height,
         rgb,
+        left_out,
     })
+}
+
+/// The sphere a preview is fitted to.
+struct Frame {
+    center: nalgebra::Point3<f64>,
+    radius: f64,
+}
+
+/// Centre of the percentile box of the finite points and the radius that holds every point
+/// inside that box widened by [`FRAME_SLACK`]; `None` without finite points.
+fn robust_frame(points: &[nalgebra::Point3<f64>]) -> Option<Frame> {
+    let finite: Vec<&nalgebra::Point3<f64>> = points
+        .iter()
+        .filter(|p| p.coords.iter().all(|c| c.is_finite()))
+        .collect();
+    if finite.is_empty() {
+        return None;
+    }
+    let mut lo = [0.0; 3];
+    let mut hi = [0.0; 3];
+    let mut axis: Vec<f64> = Vec::with_capacity(finite.len());
+    let last = finite.len() - 1;
+    // Nearest-rank percentiles: the lowest and highest kept ranks.
+    let k_lo = ((FRAME_PERCENTILE / 100.0) * last as f64).floor() as usize;
+    let k_hi = last - k_lo;
+    for a in 0..3 {
+        axis.clear();
+        axis.extend(finite.iter().map(|p| p[a]));
+        let (_, &mut l, _) = axis.select_nth_unstable_by(k_lo, f64::total_cmp);
+        let (_, &mut u, _) = axis.select_nth_unstable_by(k_hi, f64::total_cmp);
+        (lo[a], hi[a]) = (l, u);
+    }
+    let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0f64, f64::max);
+    let slack = FRAME_SLACK * extent;
+    let center = nalgebra::Point3::new(
+        0.5 * (lo[0] + hi[0]),
+        0.5 * (lo[1] + hi[1]),
+        0.5 * (lo[2] + hi[2]),
+    );
+    let inside =
+        |p: &nalgebra::Point3<f64>| (0..3).all(|a| p[a] >= lo[a] - slack && p[a] <= hi[a] + slack);
+    let radius = finite
+        .iter()
+        .filter(|p| inside(p))
+        .map(|p| (*p - center).norm())
+        .fold(0.0f64, f64::max)
+        .max(f64::MIN_POSITIVE);
+    Some(Frame { center, radius })
 }
 
 /// Surface normal from the depth buffer's central differences (one-sided at holes and borders).
@@ -392,6 +473,56 @@ mod tests {
             left[2] > left[0] && right[0] > right[2],
             "left {left:?} right {right:?}"
         );
+    }
+
+    /// A sphere of radius 50 with five specks 5 m away: framed on the specks it would be a
+    /// dot of ~1 px radius; framed robustly it fills the disc of radius 90 px as without them,
+    /// and the specks are counted as left out.
+    #[test]
+    fn far_specks_do_not_shrink_the_object() {
+        let clean = sphere(50_000, 50.0);
+        let mut pts = clean.positions().to_vec();
+        for k in 0..5 {
+            let s = 5000.0 * (1.0 + f64::from(k));
+            pts.push(Point3::new(s, -s, 500.0 + s));
+        }
+        let specked = PointCloud::from_positions(pts);
+        let cfg = PreviewConfig {
+            width: 200,
+            height: 200,
+            ..Default::default()
+        };
+        let a = render_preview(&clean, PreviewColoring::Grey, &cfg).unwrap();
+        let b = render_preview(&specked, PreviewColoring::Grey, &cfg).unwrap();
+        assert_eq!(a.left_out, 0);
+        assert!(a.left_out_note(clean.len()).is_none());
+        assert_eq!(b.left_out, 5);
+        assert_eq!(
+            b.left_out_note(specked.len()).unwrap(),
+            "5 far outliers outside the preview (of 50005 points)"
+        );
+        // The object fills the same disc: drawn 80 px from the centre, not at 97 px.
+        let covered = |img: &PreviewImage| img.rgb.chunks(3).filter(|p| *p != BACKGROUND).count();
+        assert!(!b.is_background(100 + 80, 100));
+        assert!(b.is_background(100 + 97, 100));
+        // The same picture up to the frame's shift by 5 ranks of 50 000 (~0.01 px).
+        let (ca, cb) = (covered(&a) as f64, covered(&b) as f64);
+        assert!((ca - cb).abs() < 0.01 * ca, "{ca} vs {cb}");
+        // pi 90^2 = 25447 px: the object fills the picture's disc.
+        assert!(covered(&b) > 24_000, "{}", covered(&b));
+    }
+
+    /// Points just past the percentiles (the object's own extremes, a thin feature) stay in.
+    #[test]
+    fn a_thin_spike_within_the_slack_stays_in_the_picture() {
+        let mut pts = sphere(20_000, 50.0).positions().to_vec();
+        // 20 points (0.1 %) on a spike reaching 20 mm beyond the sphere along +x.
+        for k in 0..20 {
+            pts.push(Point3::new(50.0 + f64::from(k), 0.0, 500.0));
+        }
+        let cloud = PointCloud::from_positions(pts);
+        let img = render_preview(&cloud, PreviewColoring::Grey, &PreviewConfig::default()).unwrap();
+        assert_eq!(img.left_out, 0);
     }
 
     #[test]

@@ -2,10 +2,10 @@
 
 use std::path::{Path, PathBuf};
 
-use image::DynamicImage;
 use rayon::prelude::*;
 
 use crate::frame::check_sizes;
+use crate::image_file::{GreyImage, find_image_file, read_image};
 use crate::manifest::MANIFEST_FILE;
 use crate::{CodecError, Frame, Frames, Manifest};
 
@@ -25,7 +25,9 @@ impl CaptureSet {
     ///
     /// Frame paths are resolved against the manifest's `frames_dir` (relative to the manifest's
     /// folder) or, without one, against the manifest's folder; absolute frame paths are used as
-    /// they are.
+    /// they are. A frame missing under its listed name is looked for under the same name with
+    /// each of the [`IMAGE_EXTENSIONS`](crate::IMAGE_EXTENSIONS) ([`find_image_file`]), so a
+    /// manifest naming `000.png` reads a capture saved as `000.bmp`.
     ///
     /// # Errors
     /// Manifest errors, [`CodecError::MissingFrame`] naming the block and frame,
@@ -64,7 +66,9 @@ impl CaptureSet {
         for (b, block) in manifest.blocks.iter().enumerate() {
             for (i, file) in block.frames.iter().enumerate() {
                 let path = dir.join(file);
-                if !path.is_file() {
+                // The frame as named, or saved under another image extension (a capture
+                // program that writes BMP frames for a manifest naming PNG ones).
+                let Some(found) = find_image_file(&path) else {
                     return Err(CodecError::MissingFrame {
                         manifest: manifest_path.clone(),
                         block: b,
@@ -72,8 +76,8 @@ impl CaptureSet {
                         file: file.clone(),
                         path,
                     });
-                }
-                paths.push(path);
+                };
+                paths.push(found);
             }
         }
         let frames = load_frames(&paths)?;
@@ -108,67 +112,37 @@ impl CaptureSet {
     }
 }
 
-/// One decoded image, before depths are unified.
-enum AnyFrame {
-    U8(Frame<u8>),
-    U16(Frame<u16>),
-}
-
-/// Reads one image file as a grey frame: 8-bit grey stays 8-bit, 16-bit grey stays 16-bit,
-/// colour is converted to luma (Rec. 709 weights, by the `image` crate) at its own depth, and
-/// float images become 16-bit.
+/// Reads one image file as a grey frame ([`read_image`]): 8-bit grey stays 8-bit, 16-bit
+/// grey stays 16-bit, colour is converted to grey by OpenCV's `COLOR_RGB2GRAY` rule at its own
+/// depth, and float images become 16-bit. BMP, PGM/PPM, PNG, JPEG and TIFF are read.
 ///
 /// # Errors
 /// [`CodecError::Image`] naming the file.
 pub fn load_frame(path: &Path) -> Result<Frames, CodecError> {
-    Ok(match load_any(path)? {
-        AnyFrame::U8(f) => Frames::U8(vec![f]),
-        AnyFrame::U16(f) => Frames::U16(vec![f]),
+    Ok(match read_image(path)? {
+        GreyImage::U8(f) => Frames::U8(vec![f]),
+        GreyImage::U16(f) => Frames::U16(vec![f]),
     })
-}
-
-fn load_any(path: &Path) -> Result<AnyFrame, CodecError> {
-    let img = image::open(path).map_err(|source| CodecError::Image {
-        path: path.to_path_buf(),
-        action: "decode",
-        source,
-    })?;
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    let frame = match img {
-        DynamicImage::ImageLuma8(b) => AnyFrame::U8(Frame::new(w, h, b.into_raw())?),
-        DynamicImage::ImageLuma16(b) => AnyFrame::U16(Frame::new(w, h, b.into_raw())?),
-        DynamicImage::ImageLumaA8(_) | DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) => {
-            AnyFrame::U8(Frame::new(w, h, img.to_luma8().into_raw())?)
-        }
-        other => AnyFrame::U16(Frame::new(w, h, other.to_luma16().into_raw())?),
-    };
-    Ok(frame)
 }
 
 /// Loads frames in parallel; if any is 16-bit, all become 16-bit.
 fn load_frames(paths: &[PathBuf]) -> Result<Frames, CodecError> {
-    let loaded: Vec<AnyFrame> = paths
+    let loaded: Vec<GreyImage> = paths
         .par_iter()
-        .map(|p| load_any(p))
+        .map(|p| read_image(p))
         .collect::<Result<_, _>>()?;
     let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
-    let any16 = loaded.iter().any(|f| matches!(f, AnyFrame::U16(_)));
+    let any16 = loaded.iter().any(|f| matches!(f, GreyImage::U16(_)));
     let frames = if any16 {
-        let v: Vec<Frame<u16>> = loaded
-            .into_iter()
-            .map(|f| match f {
-                AnyFrame::U8(f) => f.to_u16(),
-                AnyFrame::U16(f) => f,
-            })
-            .collect();
+        let v: Vec<Frame<u16>> = loaded.into_iter().map(GreyImage::into_u16).collect();
         check_sizes(&v, Some(&names))?;
         Frames::U16(v)
     } else {
         let v: Vec<Frame<u8>> = loaded
             .into_iter()
             .filter_map(|f| match f {
-                AnyFrame::U8(f) => Some(f),
-                AnyFrame::U16(_) => None,
+                GreyImage::U8(f) => Some(f),
+                GreyImage::U16(_) => None,
             })
             .collect();
         check_sizes(&v, Some(&names))?;

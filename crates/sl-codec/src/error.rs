@@ -31,9 +31,16 @@ pub enum CodecError {
         #[source]
         source: image::ImageError,
     },
+    /// An image file decoded to an image of no pixels.
+    #[error("{path}: the image is empty (0 pixels wide or high)")]
+    EmptyImage {
+        /// The image file.
+        path: PathBuf,
+    },
     /// A frame listed in the manifest does not exist.
     #[error(
-        "{manifest}: frame {index} of block {block} ('{file}') is missing: {path} does not exist"
+        "{manifest}: frame {index} of block {block} ('{file}') is missing: {path} does not exist \
+         (nor under another image extension)"
     )]
     MissingFrame {
         /// The manifest that lists the frame.

@@ -175,6 +175,19 @@ impl<T: Sample> Frame<T> {
     }
 }
 
+impl<T> Frame<T> {
+    /// Wraps a buffer the caller knows to be `width * height` samples of a non-empty image
+    /// (a decoded image file); `Frame::new`'s checks are the caller's.
+    pub(crate) fn from_valid_parts(width: usize, height: usize, data: Vec<T>) -> Self {
+        debug_assert!(width > 0 && height > 0 && data.len() == width * height);
+        Self {
+            width,
+            height,
+            data,
+        }
+    }
+}
+
 impl Frame<u8> {
     /// Widens to 16 bits (`v * 257`, so 255 becomes 65535).
     pub fn to_u16(&self) -> Frame<u16> {

@@ -32,6 +32,18 @@ use crate::phase_shift::{
 };
 use crate::{Axis, CodecError, DecodeConfig, Frame, ProjectorSize, Sample, ShiftSign};
 
+/// Phase steps of the capture the toolkit recommends and scans with (`slscan patterns --codec
+/// hybrid` and `slscan capture`/`scan` by default). 8 rather than 4: with
+/// [`RECOMMENDED_PERIOD_PX`] fringes the rendered plane's flatness error falls from 0.0416 to
+/// 0.0159 mm against 4 steps of 30 px (issue 15), phase noise falling as `1/sqrt(N)`, for 4
+/// more frames per axis (`docs/codecs.md`, `docs/triangulation.md`).
+pub const RECOMMENDED_PHASE_STEPS: u32 = 8;
+
+/// Fringe period in projector pixels of the recommended capture: the finest period the
+/// rendered projector blur still resolves with good modulation (phase noise in pixels scales
+/// with the period), i.e. 128 periods across a 1920-px projector.
+pub const RECOMMENDED_PERIOD_PX: f64 = 15.0;
+
 /// Parameters of a hybrid block.
 ///
 /// Frame order: the `steps` phase-shift frames first, then the Gray frames in the order of
@@ -59,6 +71,18 @@ pub struct HybridSpec {
 }
 
 impl HybridSpec {
+    /// The capture the toolkit recommends on `axis`: [`RECOMMENDED_PHASE_STEPS`] steps,
+    /// fringes [`RECOMMENDED_PERIOD_PX`] projector pixels wide, complementary Gray code.
+    pub fn recommended(axis: Axis, projector: ProjectorSize) -> Self {
+        let extent = f64::from(projector.extent(axis));
+        Self::complementary(
+            axis,
+            projector,
+            RECOMMENDED_PHASE_STEPS,
+            extent / RECOMMENDED_PERIOD_PX,
+        )
+    }
+
     /// Phase shift with `steps` steps and `periods` periods plus the complementary Gray code:
     /// stripes of half a period aligned with the periods (`ceil(log2(ceil(2 periods)))` bits),
     /// with inverse patterns.
@@ -429,6 +453,16 @@ impl<'a, T: Sample> HybridKernel<'a, T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn recommended_is_8_steps_of_15_px() {
+        let h = HybridSpec::recommended(Axis::Column, ProjectorSize::new(1920, 1080));
+        h.validate().unwrap();
+        assert_eq!(h.steps, 8);
+        assert_eq!(h.periods, 128.0);
+        let r = HybridSpec::recommended(Axis::Row, ProjectorSize::new(1920, 1080));
+        assert_eq!(r.periods, 72.0);
+    }
 
     #[test]
     fn complementary_layout() {

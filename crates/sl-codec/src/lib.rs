@@ -75,6 +75,7 @@ mod fast_math;
 mod frame;
 mod gray;
 mod hybrid;
+mod image_file;
 mod kernel;
 mod manifest;
 mod pattern;
@@ -82,6 +83,7 @@ mod phase_shift;
 mod pictures;
 mod sequence;
 mod synthetic;
+mod texture;
 mod unwrap;
 
 pub use capture::{CaptureSet, load_frame};
@@ -97,7 +99,10 @@ pub use export::{
 };
 pub use frame::{Frame, Frames, Sample};
 pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIFT, decode_gray};
-pub use hybrid::{HybridSpec, decode_hybrid};
+pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, decode_hybrid};
+pub use image_file::{
+    GreyImage, IMAGE_EXTENSIONS, find_image_file, is_image_file, read_grey8, read_image,
+};
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
 pub use pattern::{Axis, BitDepth, Pattern, ProjectorSize};
 pub use phase_shift::{
@@ -109,4 +114,5 @@ pub use pictures::{
 };
 pub use sequence::{PatternSequence, render_pattern};
 pub use synthetic::SyntheticScene;
+pub use texture::{CaptureTexture, TextureSource, capture_texture};
 pub use unwrap::Unwrap;

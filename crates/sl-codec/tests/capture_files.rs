@@ -117,3 +117,37 @@ fn broken_sets_name_the_fault() {
         .unwrap();
     assert_eq!(c.frames.len(), 28);
 }
+
+/// A capture whose frames a capture program saved as BMP (SLStudio's format), 8-bit PGM,
+/// 16-bit PGM or 16-bit TIFF decodes end to end, from a manifest naming them and from the
+/// manifest `PatternSequence::write` made (naming `.png`) with only the converted frames left.
+#[test]
+fn captures_of_bmp_pgm_and_tiff_frames_decode() {
+    for (depth, ext) in [
+        (BitDepth::Eight, "bmp"),
+        (BitDepth::Eight, "pgm"),
+        (BitDepth::Sixteen, "pgm"),
+        (BitDepth::Sixteen, "tif"),
+    ] {
+        for rename_in_manifest in [true, false] {
+            let dir = tempfile::tempdir().unwrap();
+            let mut m = sequence().write(dir.path(), depth).unwrap();
+            for block in &mut m.blocks {
+                for file in &mut block.frames {
+                    let png = dir.path().join(&*file);
+                    let other = png.with_extension(ext);
+                    image::open(&png).unwrap().save(&other).unwrap();
+                    std::fs::remove_file(&png).unwrap();
+                    if rename_in_manifest {
+                        *file = other.file_name().unwrap().to_string_lossy().into_owned();
+                    }
+                }
+            }
+            m.save(&dir.path().join(MANIFEST_FILE)).unwrap();
+            let capture = CaptureSet::load(dir.path()).unwrap();
+            assert_eq!(capture.frames.bit_depth(), depth.bits(), "{ext}");
+            assert!(capture.frame_names[0].ends_with(ext), "{ext}");
+            check_identity(dir.path());
+        }
+    }
+}

@@ -132,3 +132,53 @@ fn the_two_captures_agree_with_each_other() {
     assert!(median < 0.75, "median |difference| {median} px");
     assert!(beyond_3px < 0.01, "{:.2}% beyond 3 px", 100.0 * beyond_3px);
 }
+
+/// The texture of a capture without a white frame (`capture_texture`, the fringe mean) on the
+/// two real captures: both show the same scene from the same camera under fringes of different
+/// periods, so their fringe means are two independent measures of the same picture `A` and
+/// must agree to within a few grey levels where the scene is lit, and the picture must have
+/// contrast (the object against the background).
+#[test]
+fn fringe_means_of_the_two_captures_agree() {
+    let load = |set: &str| {
+        let frames = data_dir(set)?;
+        Some(CaptureSet::load_with_frames_dir(&manifest(set), Some(&frames)).unwrap())
+    };
+    let (Some(h), Some(g)) = (load("three_frequency_heterodyne"), load("shift_graycode")) else {
+        return;
+    };
+    let th = sl_codec::capture_texture(&h).unwrap();
+    let tg = sl_codec::capture_texture(&g).unwrap();
+    assert_eq!(
+        th.source,
+        sl_codec::TextureSource::FringeMean {
+            block: 0,
+            frames: 4
+        }
+    );
+    assert_eq!(
+        tg.source,
+        sl_codec::TextureSource::FringeMean {
+            block: 0,
+            frames: 4
+        }
+    );
+    let mut d: Vec<f32> = th
+        .values
+        .iter()
+        .zip(&tg.values)
+        .map(|(a, b)| (a - b).abs())
+        .collect();
+    d.sort_by(f32::total_cmp);
+    let median = d[d.len() / 2];
+    let p95 = d[d.len() * 95 / 100];
+    let mut v = th.values.clone();
+    v.sort_by(f32::total_cmp);
+    let (dark, bright) = (v[v.len() / 20], v[v.len() * 19 / 20]);
+    eprintln!(
+        "fringe means: |difference| median {median:.2}, 95 % {p95:.2} grey levels; \
+         5-95 % range {dark:.0}..{bright:.0}"
+    );
+    assert!(median < 3.0 && p95 < 10.0, "median {median}, 95 % {p95}");
+    assert!(bright - dark > 30.0, "no contrast: {dark}..{bright}");
+}

@@ -1,5 +1,5 @@
-//! The device traits that real drivers and the virtual rig both implement, and capture code
-//! written once against them.
+//! The device traits that every driver implements, and capture code written once against
+//! them.
 
 use crate::{GreyImage, RigError};
 
@@ -32,7 +32,7 @@ pub trait Turntable {
 }
 
 /// Shows each image of `patterns` in turn and captures one camera frame under each: the core of
-/// every structured-light capture, written once for real and virtual devices.
+/// every structured-light capture, written once for every device.
 ///
 /// Returns the frames in the order of `patterns`.
 pub fn capture_sequence<C, P>(

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-/// Everything that can go wrong in `sl-rig`: a bad parameter, a bad scene, a device that cannot
+/// Everything that can go wrong in `sl-rig`: a bad parameter, a device that cannot
 /// do what it was asked, or a file that cannot be written or read.
 ///
 /// Messages name the parameter, object, frame or file at fault.
@@ -15,14 +15,6 @@ pub enum RigError {
         /// Name of the parameter (as the field or command-line option is called).
         name: String,
         /// What is wrong with its value.
-        reason: String,
-    },
-    /// A scene object cannot be built (degenerate size, bad mesh, ...).
-    #[error("scene object `{object}`: {reason}")]
-    InvalidScene {
-        /// Name of the object.
-        object: String,
-        /// What is wrong with it.
         reason: String,
     },
     /// An image handed to a device has the wrong size.
@@ -60,8 +52,8 @@ pub enum RigError {
         /// What is wrong with its bytes.
         reason: String,
     },
-    /// A device could not do what it was asked (a real driver's failure, or a virtual device
-    /// used out of order).
+    /// A device could not do what it was asked (a driver's failure, or a device used
+    /// out of order).
     #[error("{device}: {reason}")]
     Device {
         /// The device (`camera`, `projector`, `turntable`).
@@ -83,9 +75,6 @@ pub enum RigError {
     /// A pattern sequence, manifest or image file was refused by `sl-codec`.
     #[error(transparent)]
     Codec(#[from] sl_codec::CodecError),
-    /// A mesh file was refused by `sl-cloud`.
-    #[error(transparent)]
-    Cloud(#[from] sl_cloud::CloudError),
     /// The Dynamixel turntable (serial port, servo, protocol) failed.
     #[cfg(all(feature = "dynamixel", unix))]
     #[error(transparent)]
@@ -124,14 +113,6 @@ impl RigError {
     pub(crate) fn param(name: impl Into<String>, reason: impl Into<String>) -> Self {
         Self::InvalidParameter {
             name: name.into(),
-            reason: reason.into(),
-        }
-    }
-
-    /// Shorthand for [`RigError::InvalidScene`].
-    pub(crate) fn scene(object: impl Into<String>, reason: impl Into<String>) -> Self {
-        Self::InvalidScene {
-            object: object.into(),
             reason: reason.into(),
         }
     }

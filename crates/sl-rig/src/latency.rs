@@ -107,13 +107,34 @@ where
 /// [`LatencyConfig::min_contrast`] or does not settle inside the window; the devices' errors.
 ///
 /// ```
-/// use sl_rig::{BufferedCamera, LatencyConfig, RigConfig, Scene, VirtualRig, measure_latency};
+/// use sl_rig::{BufferedCamera, LatencyConfig, measure_latency};
+/// # use std::{cell::RefCell, rc::Rc};
+/// # use sl_rig::{Camera, GreyImage, Projector, RigError, Turntable};
+/// # // A "mirror" rig: the camera sees exactly what the projector shows (black before).
+/// # struct Mirror(Rc<RefCell<GreyImage>>);
+/// # impl Camera for Mirror {
+/// #     fn frame_size(&self) -> (u32, u32) { (64, 36) }
+/// #     fn capture(&mut self) -> Result<GreyImage, RigError> { Ok(self.0.borrow().clone()) }
+/// # }
+/// # impl Projector for Mirror {
+/// #     fn image_size(&self) -> (u32, u32) { (64, 36) }
+/// #     fn show(&mut self, image: &GreyImage) -> Result<(), RigError> {
+/// #         *self.0.borrow_mut() = image.clone();
+/// #         Ok(())
+/// #     }
+/// # }
+/// # struct Table(f64);
+/// # impl Turntable for Table {
+/// #     fn rotate_to(&mut self, a: f64) -> Result<f64, RigError> { self.0 = a; Ok(a) }
+/// #     fn angle_deg(&mut self) -> Result<f64, RigError> { Ok(self.0) }
+/// # }
+/// # fn devices() -> (Mirror, Mirror, Table) {
+/// #     let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)));
+/// #     (Mirror(screen.clone()), Mirror(screen), Table(0.0))
+/// # }
 /// # fn main() -> Result<(), sl_rig::RigError> {
-/// # let mut config = RigConfig::default();
-/// # config.camera.size = sl_camera::ImageSize::new(64, 36);
-/// # config.camera.intrinsics = sl_camera::Intrinsics::new(72.0, 72.0, 31.5, 17.5);
-/// let rig = VirtualRig::new(config, Scene::plane())?;
-/// let (camera, mut projector, _) = rig.devices();
+/// // A camera that sees exactly what the projector shows (any devices behind the traits do).
+/// let (camera, mut projector, _) = devices();
 /// // A camera whose driver queues 2 frames.
 /// let mut camera = BufferedCamera::new(camera, 2);
 /// let latency = measure_latency(&mut camera, &mut projector, &LatencyConfig::default())?;
@@ -208,8 +229,8 @@ where
 
 /// A camera whose frames come out of a queue `depth` frames deep, like a driver's ring of
 /// buffers: each capture takes a frame of the scene now and returns the one taken `depth`
-/// captures ago. Wraps any [`Camera`]; with the virtual rig it is the stand-in that makes the
-/// session's flushing and [`measure_latency`] testable.
+/// captures ago. Wraps any [`Camera`]: with a camera that buffers nothing it is the stand-in that makes
+/// the session's flushing and [`measure_latency`] testable.
 #[derive(Debug, Clone)]
 pub struct BufferedCamera<C> {
     inner: C,

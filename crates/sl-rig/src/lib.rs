@@ -1,31 +1,14 @@
-//! The hardware of a structured-light rig, and a virtual rig that renders exactly the frames a
-//! real rig would capture, together with the truth behind them.
+//! The hardware of a structured-light rig: the device traits, the drivers, and the capture
+//! code written once against the traits.
 //!
-//! Without hardware nothing in a scanner can be trusted unless it is tested against ground
-//! truth. This crate holds:
+//! This crate holds:
 //!
-//! - the **device traits** [`Camera`], [`Projector`] and [`Turntable`] that real drivers and
-//!   the virtual rig both implement, and capture code written once against them
-//!   ([`capture_sequence`]);
-//! - **scenes** ([`Scene`]): planes, spheres, boxes, cylinders, two spheres at a known
-//!   distance, triangle meshes and printed checkerboards ([`Checkerboard`]), with uniform or
-//!   textured Lambertian albedo ([`Texture`]), standing on the turntable or fixed in front of
-//!   the camera ([`Mount`]);
-//! - the **virtual rig** ([`VirtualRig`], configured by [`RigConfig`]): `sl-camera` models for
-//!   the camera and the projector (intrinsics, distortion, pose), rays cast with `parry3d-f64`
-//!   once per view into a geometry cache ([`ViewGeometry`]) so that each projected image
-//!   renders as a cheap lookup, then camera effects ([`CameraEffects`]: global illumination,
-//!   defocus, photon and read noise, exposure, saturation, 8/16-bit quantisation), seeded and
-//!   reproducible;
-//! - **ground truth** ([`ViewTruth`], [`BoardTruth`]): depth, 3-D points, the exact projector
-//!   coordinate of every camera pixel, masks and poses, the rig's exact calibration
-//!   ([`RigConfig::calibration`]), and calibration captures ([`capture_board`],
-//!   [`capture_board_on_table`], [`simulate_calibration`]);
+//! - the **device traits** [`Camera`], [`Projector`] and [`Turntable`] that every driver
+//!   implements, the grey images they exchange ([`GreyImage`]), and capture code written once
+//!   against them ([`capture_sequence`], [`write_capture_set`]);
 //! - **capture sessions** ([`CaptureSession`]): a turntable scan through the device traits,
 //!   written view by view and atomically so that an interrupted scan resumes, with the
 //!   display latency measured by flashing ([`measure_latency`]);
-//! - **files**: capture sets in `sl-codec`'s format with their truth ([`simulate_scan`],
-//!   [`write_view_truth`]). `docs/virtual-rig.md` describes scenes, parameters and files.
 //! - the **turntable hardware** (feature `dynamixel`, on by default): `DynamixelTurntable`
 //!   drives a Dynamixel MX-64 over Protocol 2.0 and `Mx64Emulator` answers for it on a
 //!   pseudo-terminal, so the driver is tested without hardware (`docs/hardware-turntable.md`).
@@ -36,81 +19,53 @@
 //!   window on a chosen monitor, pixel for pixel) — see `docs/hardware-camera-projector.md`.
 //!
 //! ```
-//! use sl_rig::{GreyImage, RigConfig, Scene, VirtualRig};
-//! # fn main() -> Result<(), sl_rig::RigError> {
-//! // The default rig (1280x720 camera, 1920x1080 projector), shrunk for a quick example.
-//! let mut config = RigConfig::default();
-//! config.camera.size = sl_camera::ImageSize::new(64, 36);
-//! config.camera.intrinsics = sl_camera::Intrinsics::new(72.0, 72.0, 31.5, 17.5);
-//! let rig = VirtualRig::new(config, Scene::sphere())?;
-//! // Cast the view with the turntable at 30 degrees, then render a frame under full white.
-//! let view = rig.view(30.0, 0)?;
-//! let white = GreyImage::filled_u8(1920, 1080, 255);
-//! let frame = view.capture(&white, 0)?;
-//! assert_eq!((frame.width, frame.height), (64, 36));
-//! // The truth: the centre pixel sees the sphere, lit by the projector.
-//! let centre = 18 * 64 + 32;
-//! assert!(view.truth.lit(centre));
-//! assert!(view.truth.depth_mm[centre] > 350.0 && view.truth.depth_mm[centre] < 450.0);
+//! use std::{cell::RefCell, rc::Rc};
+//! use sl_rig::{Camera, GreyImage, Projector, RigError, capture_sequence};
+//! # fn main() -> Result<(), RigError> {
+//! // Any driver fits the traits; here a 4x2 camera that sees exactly what the projector shows.
+//! struct Mirror(Rc<RefCell<GreyImage>>);
+//! impl Camera for Mirror {
+//!     fn frame_size(&self) -> (u32, u32) { (4, 2) }
+//!     fn capture(&mut self) -> Result<GreyImage, RigError> { Ok(self.0.borrow().clone()) }
+//! }
+//! impl Projector for Mirror {
+//!     fn image_size(&self) -> (u32, u32) { (4, 2) }
+//!     fn show(&mut self, image: &GreyImage) -> Result<(), RigError> {
+//!         *self.0.borrow_mut() = image.clone();
+//!         Ok(())
+//!     }
+//! }
+//! let screen = Rc::new(RefCell::new(GreyImage::filled_u8(4, 2, 0)));
+//! let (mut camera, mut projector) = (Mirror(screen.clone()), Mirror(screen));
+//! let patterns = [GreyImage::filled_u8(4, 2, 255), GreyImage::filled_u8(4, 2, 0)];
+//! let frames = capture_sequence(&mut camera, &mut projector, &patterns)?;
+//! assert_eq!(frames, patterns);
 //! # Ok(())
 //! # }
 //! ```
 //!
 //! # Conventions
-//! - Camera and projector frames as OpenCV: `x` right, `y` down, `z` forward; the projector is
-//!   an inverse camera (`sl-camera`'s model). The camera frame is the rig's reference.
-//! - Lengths in millimetres (`f64`), angles in degrees at the API surface; poses are
-//!   `Isometry3<f64>` named `T_a_b` (maps `b` coordinates into `a`): `t_cam_proj`,
-//!   `t_cam_table`, `T_cam_board`, `T_cam_object`.
-//! - Pixel `(0, 0)` is the centre of the top-left pixel; an image spans
-//!   `[-0.5, w - 0.5) × [-0.5, h - 0.5)`, for the camera and the projector alike. A projector
-//!   pixel `(i, j)` lights the square `[i - 0.5, i + 0.5) × [j - 0.5, j + 0.5)` of projector
-//!   coordinates (a real projector shows square pixels), blurred by the projection lens
-//!   (`Illumination::projector_blur_px`, a Gaussian of 0.5 px by default).
-//! - `table` frame: origin on the turntable axis at the table top, `z` up along the axis;
-//!   positive angles turn right-handedly about `z`. `board` frame: origin at the first inner
-//!   corner, `x` along the first row, `y` along the columns, `z` into the board.
-//! - Maps are row-major, pixel `(x, y)` at index `y · width + x`, NaN where there is no value.
-//! - Radiance is in units of the projector's full white at normal incidence; camera frames
-//!   are 8- or 16-bit grey.
+//! - Pixel `(0, 0)` is the centre of the top-left pixel; images are row-major, pixel `(x, y)`
+//!   at index `y · width + x`; camera frames and projector images are 8- or 16-bit grey.
+//! - Angles in degrees at the API surface; a turntable's angle is its motor reading, in its
+//!   own zero.
 #![deny(missing_docs)]
 
-mod blur;
-mod board;
-mod calib;
-mod config;
 mod device;
 #[cfg(all(feature = "dynamixel", unix))]
 mod dynamixel;
 mod error;
 mod files;
-mod geometry;
 mod image;
 mod latency;
 mod pixel_format;
 #[cfg(feature = "window")]
 mod projector_window;
-mod raycast;
-mod render;
-mod scene;
-mod sensor;
 mod session;
-mod simulate;
-mod truth;
 #[cfg(feature = "v4l")]
 mod v4l_camera;
 mod v4l_camera_controls;
-mod virtual_rig;
 
-pub use board::{BOARD_DARK_ALBEDO, BOARD_LIGHT_ALBEDO, Checkerboard};
-pub use calib::{
-    BoardCapture, BoardPoseConfig, BoardTruth, capture_board, capture_board_on_table,
-    random_board_poses,
-};
-pub use config::{
-    DEFAULT_AIM_HEIGHT_MM, DEFAULT_BASELINE_MM, DEFAULT_TILT_DEG, DEFAULT_WORKING_DISTANCE_MM,
-    MAX_SUPERSAMPLING, RenderConfig, RigConfig,
-};
 pub use device::{Camera, Projector, Turntable, capture_sequence};
 #[cfg(all(feature = "dynamixel", unix))]
 pub use dynamixel::{
@@ -119,8 +74,7 @@ pub use dynamixel::{
     MX64_MODEL_NUMBER, MidMoveFault, Mx64Emulator, ServoStatus, TICKS_PER_TURN, dynamixel_crc16,
 };
 pub use error::RigError;
-pub use files::{TRUTH_DIR, VIEW_JSON, pose_matrix, write_capture_set, write_view_truth};
-pub use geometry::{CameraRays, ViewGeometry};
+pub use files::write_capture_set;
 pub use image::{GreyImage, Pixels};
 pub use latency::{BufferedCamera, Latency, LatencyConfig, MIN_FLASH_CONTRAST, measure_latency};
 pub use pixel_format::{FrameLayout, PixelFormat, convert_frame};
@@ -129,27 +83,14 @@ pub use projector_window::{
     DEFAULT_PRESENT_TIMEOUT, MonitorInfo, PROJECTOR_WINDOW_TITLE, ProjectorWindow,
     ProjectorWindowConfig, list_monitors, run_projector,
 };
-pub use raycast::{Hit, PlacedScene};
-pub use render::{Illumination, ProjectorSampling};
-pub use scene::{
-    AUTO_METRES_BELOW, DEFAULT_ALBEDO, DUMBBELL_CENTRE_DISTANCE_MM, MeshUnits, Mount, Scene,
-    SceneObject, Shape, Texture, upright_facing_camera,
-};
-pub use sensor::{BitDepth, CameraEffects, Defocus, GlobalIllumination, NoiseKey, SensorConfig};
 pub use session::{
     CaptureSession, DEFAULT_DISPLAY_LATENCY, SESSION_FILE, SESSION_FORMAT, SESSION_VERSION,
     SessionConfig, SessionDevices, SessionPlan, SessionSummary, ViewOutcome, ViewState,
-    read_session_plan, view_dir_name,
+    read_session_plan, turntable_angles, view_dir_name,
 };
-pub use simulate::{
-    CalibrationSession, SimulatedCapture, projector_images, simulate_calibration, simulate_scan,
-    turntable_angles,
-};
-pub use truth::{NO_OBJECT, ObjectPose, ViewTruth};
 #[cfg(feature = "v4l")]
 pub use v4l_camera::{
     DEFAULT_FRAME_TIMEOUT, DEFAULT_IN_FLIGHT_FRAMES, DEFAULT_V4L_BUFFERS, V4lCamera,
     V4lCameraConfig, V4lControlInfo, V4lDeviceInfo, V4lFormatInfo, list_v4l_cameras,
 };
 pub use v4l_camera_controls::ControlKey;
-pub use virtual_rig::{View, VirtualCamera, VirtualProjector, VirtualRig, VirtualTurntable};

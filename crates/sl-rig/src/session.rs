@@ -30,14 +30,21 @@ pub fn view_dir_name(index: usize) -> String {
     format!("view_{index:03}")
 }
 
+/// Angles (degrees) of `views` views evenly spread over a full turn, starting at 0.
+pub fn turntable_angles(views: usize) -> Vec<f64> {
+    (0..views)
+        .map(|k| 360.0 * k as f64 / views.max(1) as f64)
+        .collect()
+}
+
 /// What the devices of a session are, as free text for the record (`session.json`).
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct SessionDevices {
-    /// The camera, e.g. `virtual 1280x720` or `/dev/video0`.
+    /// The camera, e.g. `/dev/video0`.
     pub camera: String,
-    /// The projector, e.g. `virtual 1920x1080` or `monitor 1`.
+    /// The projector, e.g. `monitor 1`.
     pub projector: String,
-    /// The turntable, e.g. `virtual` or `/dev/ttyUSB0 id 1`.
+    /// The turntable, e.g. `/dev/ttyUSB0 id 1`.
     pub turntable: String,
 }
 
@@ -61,8 +68,8 @@ pub struct SessionConfig {
     /// (input lag plus the frame being scanned out). Default [`DEFAULT_DISPLAY_LATENCY`].
     pub display_latency: Duration,
     /// Frames captured and dropped after each pattern change: the frames the camera driver
-    /// buffered before the change ([`crate::measure_latency`] measures it). Default 0 (the
-    /// virtual camera buffers nothing).
+    /// buffered before the change ([`crate::measure_latency`] measures it). Default 0 (a camera
+    /// that buffers nothing).
     pub flush_frames: usize,
     /// Recapture views that are already complete, and accept a `session.json` with another
     /// plan (which is then replaced). Default `false`: a finished view is never overwritten.
@@ -143,15 +150,35 @@ struct SessionFile {
 /// disk.
 ///
 /// ```
-/// use sl_rig::{CaptureSession, RigConfig, Scene, SessionConfig, SessionPlan, VirtualRig};
+/// use sl_rig::{CaptureSession, SessionConfig, SessionPlan};
+/// # use std::{cell::RefCell, rc::Rc};
+/// # use sl_rig::{Camera, GreyImage, Projector, RigError, Turntable};
+/// # // A "mirror" rig: the camera sees exactly what the projector shows (black before).
+/// # struct Mirror(Rc<RefCell<GreyImage>>);
+/// # impl Camera for Mirror {
+/// #     fn frame_size(&self) -> (u32, u32) { (64, 36) }
+/// #     fn capture(&mut self) -> Result<GreyImage, RigError> { Ok(self.0.borrow().clone()) }
+/// # }
+/// # impl Projector for Mirror {
+/// #     fn image_size(&self) -> (u32, u32) { (64, 36) }
+/// #     fn show(&mut self, image: &GreyImage) -> Result<(), RigError> {
+/// #         *self.0.borrow_mut() = image.clone();
+/// #         Ok(())
+/// #     }
+/// # }
+/// # struct Table(f64);
+/// # impl Turntable for Table {
+/// #     fn rotate_to(&mut self, a: f64) -> Result<f64, RigError> { self.0 = a; Ok(a) }
+/// #     fn angle_deg(&mut self) -> Result<f64, RigError> { Ok(self.0) }
+/// # }
+/// # fn devices() -> (Mirror, Mirror, Table) {
+/// #     let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)));
+/// #     (Mirror(screen.clone()), Mirror(screen), Table(0.0))
+/// # }
 /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
-/// # let mut config = RigConfig::default();
-/// # config.camera.size = sl_camera::ImageSize::new(64, 36);
-/// # config.camera.intrinsics = sl_camera::Intrinsics::new(72.0, 72.0, 31.5, 17.5);
-/// # config.projector.size = sl_camera::ImageSize::new(64, 36);
-/// # config.projector.intrinsics = sl_camera::Intrinsics::new(72.0, 72.0, 31.5, 17.5);
-/// let rig = VirtualRig::new(config, Scene::sphere())?;
-/// let (mut camera, mut projector, mut table) = rig.devices();
+/// // Any devices behind the traits; here a 64x36 camera that sees exactly what the projector
+/// // shows, and a turntable.
+/// let (mut camera, mut projector, mut table) = devices();
 /// // Gray code columns of the 64x36 projector, two views.
 /// use sl_codec::{Axis, BitDepth, GrayCodeSpec, Pattern, PatternSequence, ProjectorSize};
 /// let p = ProjectorSize::new(64, 36);

@@ -16,7 +16,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Point3;
 use rayon::prelude::*;
 use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
-use sl_rig::RigConfig;
+use sl_sim::RigConfig;
 use sl_tri::{Method, TriError, TriOptions, Triangulator};
 
 /// The exact map of a wall at 450 mm seen by the default rig's camera (decoded where the
@@ -110,6 +110,18 @@ fn run(c: &mut Criterion) -> Result<(), TriError> {
             b.iter(|| tri.triangulate_into(black_box(&map), None, &bare, &mut reused))
         });
     }
+    // A column-only capture (issue 15): linear on one axis (fixed point on the missing row).
+    let mut columns_only = map.clone();
+    columns_only.row.iter_mut().for_each(|r| *r = f32::NAN);
+    let bare = TriOptions {
+        normals: false,
+        max_depth_jump: f64::INFINITY,
+        ..TriOptions::with_method(Method::Linear)
+    };
+    let mut reused = tri.triangulate(&columns_only, &bare)?;
+    group.bench_function("linear columns only points reused", |b| {
+        b.iter(|| tri.triangulate_into(black_box(&columns_only), None, &bare, &mut reused))
+    });
     group.finish();
     Ok(())
 }

@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use nalgebra::Point3;
 use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
-use sl_rig::RigConfig;
+use sl_sim::RigConfig;
 use sl_tri::{Method, TriError, TriOptions, Triangulator};
 
 /// The depth (camera `z`, mm) at which the camera ray `(x, y, 1)` meets the scene: `wall`, the

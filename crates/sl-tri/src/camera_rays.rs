@@ -91,7 +91,7 @@ mod tests {
     /// is not a multiple of the lane count.
     #[test]
     fn equals_the_scalar_table() {
-        let rig = sl_rig::RigConfig::default().calibration().camera;
+        let rig = sl_sim::RigConfig::default().calibration().camera;
         let small = |d: Distortion| {
             CameraModel::new(
                 Intrinsics::new(144.04, 143.71, 66.78, 35.42),

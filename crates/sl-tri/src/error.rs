@@ -2,7 +2,7 @@
 
 use sl_camera::CameraError;
 use sl_cloud::CloudError;
-use sl_codec::CodecError;
+use sl_codec::{Axis, CodecError};
 
 /// Everything that can go wrong in `sl-tri`.
 ///
@@ -29,6 +29,25 @@ pub enum TriError {
         expected: String,
         /// Size found.
         found: String,
+    },
+
+    /// The method needs a projector axis that the correspondence map does not code (a
+    /// column-only capture triangulated by the midpoint of two rays, or ray–plane on the
+    /// axis that was not coded).
+    #[error(
+        "method `{method}` needs the projector {}s, but the correspondence map codes only the {}s \
+         (ray_plane on the {}s, linear and optimal work with one axis)",
+        missing.name(),
+        present.name(),
+        present.name()
+    )]
+    MissingAxis {
+        /// The method's name ([`crate::Method::name`]).
+        method: &'static str,
+        /// The axis it needs and the map lacks.
+        missing: Axis,
+        /// The axis the map codes.
+        present: Axis,
     },
 
     /// An option is out of range.

@@ -22,13 +22,14 @@ use nalgebra::{Point3, Vector3};
 use sl_camera::RayTable;
 use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
 
-use crate::linear::linear_lanes;
+use crate::linear::{LinearOneAxisState, linear_lanes, linear_one_axis_lanes};
 use crate::midpoint::midpoint_lanes;
 use crate::optimal::refine;
+use crate::options::Solver;
 use crate::ray_plane::{SurfaceLanes, ray_surface_depth, ray_surface_lanes};
 use crate::stereo::Stereo;
 use crate::undistort::{UndistortWarm, undistort_lanes};
-use crate::{Method, PointStatus, TriOptions};
+use crate::{PointStatus, TriOptions};
 
 /// Pixels per lane group: 8 `f64`s are two AVX2 registers (or one AVX-512), enough
 /// independent work to hide the latency of the divisions.
@@ -40,16 +41,21 @@ pub(crate) const LANES: usize = 8;
 /// (128 · 29 bytes).
 pub(crate) const BLOCK: usize = 128;
 
-/// The method of a lane loop, as a const generic parameter ([`Method`] with its axis).
+/// The method of a lane loop, as a const generic parameter ([`crate::Method`] resolved against
+/// the map's axes).
 const RAY_PLANE_COLUMN: u8 = 0;
 /// Ray–plane on the projector rows.
 const RAY_PLANE_ROW: u8 = 1;
-/// [`Method::Linear`].
+/// [`crate::Method::Linear`].
 const LINEAR: u8 = 2;
-/// [`Method::Midpoint`].
+/// [`crate::Method::Midpoint`].
 const MIDPOINT: u8 = 3;
-/// [`Method::Optimal`].
+/// [`crate::Method::Optimal`].
 const OPTIMAL: u8 = 4;
+/// [`crate::Method::Linear`] on a map that codes the projector columns only.
+const LINEAR_COLUMN: u8 = 5;
+/// [`crate::Method::Linear`] on a map that codes the projector rows only.
+const LINEAR_ROW: u8 = 6;
 
 /// Points of a lane group (camera frame, mm) and whether each lane has one.
 #[derive(Clone, Copy, Debug, Default)]
@@ -77,6 +83,8 @@ struct WarmStart {
     t2: [f64; LANES],
     /// The previous group's undistorted projector points (linear, midpoint).
     proj: UndistortWarm,
+    /// The previous group's other projector coordinate (one-axis linear).
+    linear: LinearOneAxisState,
 }
 
 impl WarmStart {
@@ -109,6 +117,8 @@ pub(crate) struct Pass<'a> {
     pub(crate) rays: &'a RayTable,
     pub(crate) map: &'a CorrespondenceMap,
     pub(crate) options: &'a TriOptions,
+    /// The method resolved against the axes the map codes.
+    pub(crate) solver: Solver,
     pub(crate) width: usize,
     pub(crate) arch: pulp::Arch,
 }
@@ -239,11 +249,7 @@ impl Pass<'_> {
     #[inline(always)]
     fn status_before(&self, rx: f64, c: f32, r: f32, q: f32, inv: InvalidReason) -> PointStatus {
         let o = self.options;
-        let coordinates = match o.method {
-            Method::RayPlane { axis: Axis::Column } => c.is_finite(),
-            Method::RayPlane { axis: Axis::Row } => r.is_finite(),
-            _ => c.is_finite() && r.is_finite(),
-        };
+        let coordinates = self.solver.has_coordinates(c, r);
         if !(inv.is_valid() && coordinates) {
             PointStatus::NotDecoded
         } else if !(q >= o.min_quality) {
@@ -324,7 +330,10 @@ impl Pass<'_> {
                 let pc = s.cam.project_normalised(p.x[l] * iz, p.y[l] * iz);
                 let pp = s.proj.project_normalised(qx[l], qy[l]);
                 let (du, dv) = (pc.x - g.u[l], pc.y - g.v[l]);
+                // A coordinate the map does not code (one-axis linear) has no residual.
                 let (dc, dr) = (pp.x - g.c[l], pp.y - g.r[l]);
+                let dc = if g.c[l].is_finite() { dc } else { 0.0 };
+                let dr = if g.r[l].is_finite() { dr } else { 0.0 };
                 error[l] = (0.5 * (du * du + dv * dv + dc * dc + dr * dr)).sqrt();
             }
         }
@@ -342,6 +351,19 @@ impl Pass<'_> {
             r[l] = if solve { g.r[l] } else { f64::NAN };
         }
         undistort_lanes(&self.stereo.proj, &c, &r, &mut warm.proj)
+    }
+
+    /// Linear with the one coded coordinate on `axis` (see `linear.rs`).
+    #[inline(always)]
+    fn linear_one_axis(&self, g: &Gathered, axis: Axis, warm: &mut WarmStart) -> PointLanes {
+        let mut target = if axis == Axis::Column { g.c } else { g.r };
+        for l in 0..LANES {
+            if g.pre[l] != PointStatus::Valid {
+                target[l] = f64::NAN;
+            }
+        }
+        let WarmStart { proj, linear, .. } = warm;
+        linear_one_axis_lanes(self.stereo, linear, &g.rx, &g.ry, &target, proj)
     }
 
     /// Optimal: ray–plane start on the column, Gauss–Newton per lane.
@@ -417,6 +439,16 @@ impl Pass<'_> {
                 let e = self.project(g, &mut p, with_error);
                 (p, e)
             }
+            LINEAR_COLUMN | LINEAR_ROW => {
+                let axis = if M == LINEAR_COLUMN {
+                    Axis::Column
+                } else {
+                    Axis::Row
+                };
+                let mut p = self.linear_one_axis(g, axis, warm);
+                let e = self.project(g, &mut p, with_error);
+                (p, e)
+            }
             _ => self.optimal(g, warm),
         };
         // The filters, as selects per lane, written straight into the output.
@@ -463,25 +495,34 @@ impl pulp::WithSimd for BlockJob<'_, '_, '_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
+        let one_axis = match self.pass.solver {
+            Solver::LinearOneAxis(axis) => axis,
+            _ => Axis::Column,
+        };
         let mut warm = WarmStart {
             t1: [f64::NAN; LANES],
             t2: [f64::NAN; LANES],
             proj: UndistortWarm::default(),
+            linear: LinearOneAxisState::new(self.pass.stereo, one_axis),
         };
         let (pass, start, out) = (self.pass, self.start, self.out);
         // One loop per method, each compiled with only its method's code (the method is a
         // constant of the loop: no dispatch per lane group, and the register allocation of
         // one method is not burdened by the others').
-        match self.pass.options.method {
-            Method::RayPlane { axis: Axis::Column } => {
+        match self.pass.solver {
+            Solver::RayPlane(Axis::Column) => {
                 run::<RAY_PLANE_COLUMN>(pass, start, out, &mut warm);
             }
-            Method::RayPlane { axis: Axis::Row } => {
+            Solver::RayPlane(Axis::Row) => {
                 run::<RAY_PLANE_ROW>(pass, start, out, &mut warm);
             }
-            Method::Linear => run::<LINEAR>(pass, start, out, &mut warm),
-            Method::Midpoint => run::<MIDPOINT>(pass, start, out, &mut warm),
-            Method::Optimal => run::<OPTIMAL>(pass, start, out, &mut warm),
+            Solver::Linear => run::<LINEAR>(pass, start, out, &mut warm),
+            Solver::LinearOneAxis(Axis::Column) => {
+                run::<LINEAR_COLUMN>(pass, start, out, &mut warm);
+            }
+            Solver::LinearOneAxis(Axis::Row) => run::<LINEAR_ROW>(pass, start, out, &mut warm),
+            Solver::Midpoint => run::<MIDPOINT>(pass, start, out, &mut warm),
+            Solver::Optimal => run::<OPTIMAL>(pass, start, out, &mut warm),
         }
     }
 }

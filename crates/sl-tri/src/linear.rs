@@ -1,5 +1,5 @@
-//! Linear least-squares triangulation (the seed design's DLT) from both projector
-//! coordinates.
+//! Linear triangulation (the seed design's DLT) from both projector coordinates, or from the
+//! one a capture codes.
 //!
 //! With the camera ray `(xc, yc, 1)` and the undistorted projector point `(xp, yp)`, the
 //! point `X` (camera frame) satisfies four linear equations, two per image:
@@ -12,9 +12,132 @@
 //!
 //! Hand-written on [`LANES`] pixels at once with plain numbers and no branch, so that it is
 //! vectorised; a 3×3 matrix inverse per pixel through a general routine would not be.
+//!
+//! # One axis
+//!
+//! Most real captures code the projector columns only. The DLT then has three equations for
+//! three unknowns — the two of the camera ray and `(r1 - xp r3) · X + t1 - xp t3 = 0` — and
+//! its solution is the meeting of the camera ray with the pinhole plane of the undistorted
+//! column `xp`: `Z = -(t1 - xp t3) / ((r1 - xp r3) · (xc, yc, 1))` ([`linear_one_axis_lanes`];
+//! rows alike with `r2`, `t2`, `yp`). Undistorting a column needs the row too, which the
+//! capture does not give; it is taken from the point itself by a fixed-point iteration: start
+//! from the previous lane group's row (or the principal point), undistort `(c, row)`, solve,
+//! project the point into the projector for its row, repeat until the row settles. At the
+//! fixed point the point's distorted projection has exactly the decoded column, so the
+//! answer is the exact meeting with the projector's curved column surface, i.e. the
+//! ray–plane method's answer, reached by the linear route. The row moves the undistorted
+//! column only through the distortion's cross terms (`k1 · 2 x y`, tangential terms: ~1e-2
+//! of a px per px of row for projector lenses), so each iteration shrinks the row's error
+//! a hundredfold and two or three iterations settle from a neighbour's row.
 
 use crate::kernel::{LANES, PointLanes};
 use crate::stereo::Stereo;
+use crate::undistort::{UndistortWarm, undistort_lanes};
+use sl_codec::Axis;
+
+/// Most fixed-point iterations of the one-axis DLT. Each divides the error of the other
+/// coordinate by ~100 (see the module docs): from the principal point (error up to ~1000 px)
+/// five reach 1e-7 px; eight leave room for strong lenses. A lane not settled by then has
+/// no point (`NoSolution`).
+const MAX_ONE_AXIS_ITERATIONS: usize = 8;
+
+/// Change of the other projector coordinate (px) below which the iteration has settled:
+/// its effect on the undistorted decoded coordinate is ~1e-2 of it, 1e-9 px, far below the
+/// f32 resolution of decoded coordinates (6e-5 px at 1920).
+const ONE_AXIS_SETTLED_PX: f64 = 1e-7;
+
+/// The other coordinate of the previous lane group, the warm start of the next.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LinearOneAxisState {
+    /// The coded axis.
+    axis: Axis,
+    /// The other projector coordinate (px) per lane of the previous group (NaN where none).
+    other: [f64; LANES],
+    /// Where to start without a previous answer: the principal point's other coordinate.
+    centre: f64,
+}
+
+impl LinearOneAxisState {
+    /// No previous answer.
+    pub(crate) fn new(s: &Stereo, axis: Axis) -> Self {
+        let k = &s.proj.intrinsics;
+        Self {
+            axis,
+            other: [f64::NAN; LANES],
+            centre: if axis == Axis::Column { k.cy } else { k.cx },
+        }
+    }
+}
+
+/// The one-axis linear points (camera frame, mm) of [`LANES`] pixels: camera rays
+/// `(rx, ry, 1)` and the decoded projector coordinate `target` (px) on the state's axis, NaN
+/// for lanes not to solve (see the module docs). A lane is not `ok` if its equation is
+/// singular, not finite, or the iteration did not settle.
+#[inline(always)]
+pub(crate) fn linear_one_axis_lanes(
+    s: &Stereo,
+    state: &mut LinearOneAxisState,
+    rx: &[f64; LANES],
+    ry: &[f64; LANES],
+    target: &[f64; LANES],
+    warm: &mut UndistortWarm,
+) -> PointLanes {
+    let column = state.axis == Axis::Column;
+    let (ra, ta) = if column {
+        (s.r_pc[0], s.t_pc[0])
+    } else {
+        (s.r_pc[1], s.t_pc[1])
+    };
+    let (r3, t3) = (s.r_pc[2], s.t_pc[2]);
+    let mut other = [0.0; LANES];
+    for l in 0..LANES {
+        let o = state.other[l];
+        other[l] = if o.is_finite() { o } else { state.centre };
+    }
+    let mut out = PointLanes::default();
+    let mut settled = [false; LANES];
+    for _ in 0..MAX_ONE_AXIS_ITERATIONS {
+        let (xn, yn) = if column {
+            undistort_lanes(&s.proj, target, &other, warm)
+        } else {
+            undistort_lanes(&s.proj, &other, target, warm)
+        };
+        let w = if column { xn } else { yn };
+        let mut all = true;
+        for l in 0..LANES {
+            let (xc, yc) = (rx[l], ry[l]);
+            let a = [
+                ra[0] - w[l] * r3[0],
+                ra[1] - w[l] * r3[1],
+                ra[2] - w[l] * r3[2],
+            ];
+            let den = a[0] * xc + a[1] * yc + a[2];
+            let z = -(ta - w[l] * t3) / den;
+            out.x[l] = z * xc;
+            out.y[l] = z * yc;
+            out.z[l] = z;
+            out.ok[l] = (den != 0.0) & z.is_finite() & xc.is_finite() & yc.is_finite();
+            // The point's other projector coordinate, for the next undistortion.
+            let q = s.to_proj([out.x[l], out.y[l], z]);
+            let iq = 1.0 / q[2];
+            let pp = s.proj.project_normalised(q[0] * iq, q[1] * iq);
+            let next = if column { pp.y } else { pp.x };
+            let change = (next - other[l]).abs();
+            // NaN lanes (nothing to solve) count as settled; they are not `ok` anyway.
+            settled[l] = !(change >= ONE_AXIS_SETTLED_PX);
+            all &= settled[l];
+            other[l] = next;
+        }
+        if all {
+            break;
+        }
+    }
+    for l in 0..LANES {
+        out.ok[l] &= settled[l];
+        state.other[l] = if out.ok[l] { other[l] } else { f64::NAN };
+    }
+    out
+}
 
 /// The linear least-squares points (camera frame, mm) of [`LANES`] pixels: camera rays
 /// `(rx, ry, 1)`, undistorted projector points `(xp, yp)`. A lane is not `ok` if its system

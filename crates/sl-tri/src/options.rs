@@ -15,13 +15,20 @@ pub enum Method {
         axis: Axis,
     },
     /// Linear least squares (the DLT, inhomogeneous, normal equations in closed form) from
-    /// both coordinates.
+    /// both coordinates. On a map that codes one axis only (a column-only capture), the
+    /// three equations of the camera ray and the decoded coordinate, solved exactly, with the
+    /// projector's distortion removed by a fixed-point iteration on the other coordinate (see
+    /// `linear.rs`).
     Linear,
     /// Midpoint of the closest points of the camera and projector rays, from both
-    /// coordinates.
+    /// coordinates: a projector ray needs both, so a one-axis map is refused
+    /// ([`crate::TriError::MissingAxis`]).
     Midpoint,
     /// Minimum of the squared reprojection errors in camera and projector (Gauss–Newton with
     /// the exact distorted models, started from the ray–plane point), from both coordinates.
+    /// On a one-axis map, the minimum constrained to the decoded (curved) projector surface:
+    /// three residuals for three unknowns, so the exact ray–surface point, where every
+    /// residual is zero.
     Optimal,
 }
 
@@ -45,9 +52,75 @@ impl Method {
         }
     }
 
-    /// Whether the method needs both projector coordinates.
+    /// Whether the method needs both projector coordinates (only [`Method::Midpoint`]: the
+    /// others work on maps that code one axis).
     pub fn needs_both(self) -> bool {
-        !matches!(self, Self::RayPlane { .. })
+        matches!(self, Self::Midpoint)
+    }
+
+    /// What the per-pixel pass runs for this method on a map that codes the given axes;
+    /// `None` when no axis is coded (nothing to triangulate: every pixel is `NotDecoded`).
+    ///
+    /// # Errors
+    /// [`TriError::MissingAxis`] when the method needs an axis the map lacks.
+    pub(crate) fn solver(self, column: bool, row: bool) -> Result<Option<Solver>, TriError> {
+        let one = match (column, row) {
+            (true, true) => None,
+            (true, false) => Some(Axis::Column),
+            (false, true) => Some(Axis::Row),
+            (false, false) => return Ok(None),
+        };
+        let other = |a: Axis| match a {
+            Axis::Column => Axis::Row,
+            Axis::Row => Axis::Column,
+        };
+        let missing = |present: Axis| TriError::MissingAxis {
+            method: self.name(),
+            missing: other(present),
+            present,
+        };
+        Ok(Some(match (self, one) {
+            (Self::RayPlane { axis }, Some(present)) if present != axis => {
+                return Err(missing(present));
+            }
+            (Self::RayPlane { axis }, _) => Solver::RayPlane(axis),
+            (Self::Linear, None) => Solver::Linear,
+            (Self::Linear, Some(a)) => Solver::LinearOneAxis(a),
+            (Self::Midpoint, None) => Solver::Midpoint,
+            (Self::Midpoint, Some(present)) => return Err(missing(present)),
+            (Self::Optimal, None) => Solver::Optimal,
+            // Three residuals (camera u, v and the decoded coordinate) for three unknowns:
+            // the constrained optimum is the exact ray–surface point.
+            (Self::Optimal, Some(a)) => Solver::RayPlane(a),
+        }))
+    }
+}
+
+/// The computation the per-pixel pass runs: a [`Method`] resolved against the axes a map codes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Solver {
+    /// Ray against the exact projector surface of one coordinate.
+    RayPlane(Axis),
+    /// DLT with both coordinates.
+    Linear,
+    /// DLT with the one coded coordinate.
+    LinearOneAxis(Axis),
+    /// Midpoint of the two rays.
+    Midpoint,
+    /// Gauss–Newton on both coordinates.
+    Optimal,
+}
+
+impl Solver {
+    /// Whether a pixel with these decoded coordinates (finite or not) has what the solver
+    /// needs.
+    #[inline(always)]
+    pub(crate) fn has_coordinates(self, c: f32, r: f32) -> bool {
+        match self {
+            Self::RayPlane(Axis::Column) | Self::LinearOneAxis(Axis::Column) => c.is_finite(),
+            Self::RayPlane(Axis::Row) | Self::LinearOneAxis(Axis::Row) => r.is_finite(),
+            Self::Linear | Self::Midpoint | Self::Optimal => c.is_finite() && r.is_finite(),
+        }
     }
 }
 

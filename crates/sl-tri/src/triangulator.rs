@@ -4,12 +4,13 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 use sl_camera::{Calibration, CameraModel, RayTable};
 use sl_cloud::PointCloud;
-use sl_codec::CorrespondenceMap;
+use sl_codec::{Axis, CorrespondenceMap};
 
 use crate::camera_rays::camera_ray_table;
 use crate::grid_normals::cloud_normals;
 use crate::kernel::{BLOCK, BlockOut, Pass};
 use crate::mixed_pixels::filter_mixed_pixels;
+use crate::options::Solver;
 use crate::stereo::Stereo;
 use crate::{PointStatus, Texture, TriCounts, TriError, TriOptions, Triangulation};
 
@@ -94,7 +95,9 @@ impl Triangulator {
     ///
     /// # Errors
     /// [`TriError::SizeMismatch`] if the map is not the camera's size or its vectors are
-    /// short; [`TriError::InvalidParameter`] for a bad option.
+    /// short; [`TriError::InvalidParameter`] for a bad option; [`TriError::MissingAxis`] if
+    /// the method needs a projector axis the map does not code (midpoint on a column-only
+    /// capture; linear and optimal work with one axis, see [`crate::Method`]).
     pub fn triangulate(
         &self,
         map: &CorrespondenceMap,
@@ -186,11 +189,20 @@ impl Triangulator {
             });
         }
 
+        // The axes the map codes: a one-axis capture changes what linear and optimal solve and
+        // is refused by the midpoint method.
+        let coded = |v: &[f32]| v.iter().any(|x| x.is_finite());
+        let solver = options
+            .method
+            .solver(coded(&map.col), coded(&map.row))?
+            // No axis coded: every pixel ends `NotDecoded` whatever the solver.
+            .unwrap_or(Solver::RayPlane(Axis::Column));
         let pass = Pass {
             stereo: &self.stereo,
             rays: &self.camera_rays,
             map,
             options,
+            solver,
             width,
             arch: pulp::Arch::new(),
         };

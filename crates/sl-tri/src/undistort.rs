@@ -145,7 +145,7 @@ mod tests {
         let k = Intrinsics::new(2000.0, 2000.0, 960.0, 1050.0);
         let size = ImageSize::new(1920, 1080);
         [
-            sl_rig::RigConfig::default()
+            sl_sim::RigConfig::default()
                 .calibration()
                 .projector
                 .map(|p| p.distortion)

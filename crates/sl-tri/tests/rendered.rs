@@ -24,7 +24,7 @@ use sl_codec::{
     Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
     ProjectorSize, decode,
 };
-use sl_rig::{GreyImage, Pixels, RigConfig, Scene, VirtualRig, projector_images};
+use sl_sim::{GreyImage, Pixels, RigConfig, Scene, VirtualRig, projector_images};
 use sl_tri::{Method, TriOptions, Triangulator, fit_plane, fit_sphere};
 
 /// Issue 6 target for the plane's flatness RMS and the sphere's radius error (mm).
@@ -52,7 +52,7 @@ struct Knobs {
     /// Fringe periods across the projector's 1920 columns.
     periods: f64,
     /// Camera bit depth.
-    camera_bits: sl_rig::BitDepth,
+    camera_bits: sl_sim::BitDepth,
     /// Projector lens blur (px).
     blur_px: f64,
     /// Sensor noise on (photon + read) or off.
@@ -60,13 +60,13 @@ struct Knobs {
 }
 
 /// Phase steps of the capture the toolkit uses (`structured_light::pipeline::scan_patterns`,
-/// which `slscan scan` and `slscan capture` project by default). Mirrored here because this
-/// crate cannot depend on the root package that depends on it.
-const TOOLKIT_STEPS: u32 = 8;
+/// which `slscan scan` and `slscan capture` project by default, and `slscan patterns --codec
+/// hybrid`'s default).
+const TOOLKIT_STEPS: u32 = sl_codec::RECOMMENDED_PHASE_STEPS;
 
-/// Fringe period (projector px) of that capture: `slscan scan`'s and `slscan capture`'s
-/// default `period_px`, i.e. 1920 / 15 = 128 periods across the projector.
-const TOOLKIT_PERIOD_PX: f64 = 15.0;
+/// Fringe period (projector px) of that capture, i.e. 1920 / 15 = 128 periods across the
+/// projector.
+const TOOLKIT_PERIOD_PX: f64 = sl_codec::RECOMMENDED_PERIOD_PX;
 
 impl Default for Knobs {
     /// The capture the toolkit actually projects: hybrid code on the columns, 8 steps, 15 px
@@ -75,8 +75,8 @@ impl Default for Knobs {
         Self {
             steps: TOOLKIT_STEPS,
             periods: 1920.0 / TOOLKIT_PERIOD_PX,
-            camera_bits: sl_rig::BitDepth::Eight,
-            blur_px: sl_rig::Illumination::DEFAULT_PROJECTOR_BLUR_PX,
+            camera_bits: sl_sim::BitDepth::Eight,
+            blur_px: sl_sim::Illumination::DEFAULT_PROJECTOR_BLUR_PX,
             noise: true,
         }
     }
@@ -346,7 +346,7 @@ fn flatness_knobs() {
         (
             "16-bit camera",
             Knobs {
-                camera_bits: sl_rig::BitDepth::Sixteen,
+                camera_bits: sl_sim::BitDepth::Sixteen,
                 ..base
             },
         ),
@@ -423,5 +423,5 @@ fn write_capture_for_the_cli() {
     let manifest = sequence.manifest(BitDepth::Eight);
     let images = projector_images(&rig, &manifest).unwrap();
     let frames = rig.view(0.0, 0).unwrap().capture_all(&images).unwrap();
-    sl_rig::write_capture_set(&out.join("capture"), &manifest, &frames, "sl-tri test").unwrap();
+    sl_sim::write_capture_set(&out.join("capture"), &manifest, &frames, "sl-tri test").unwrap();
 }

@@ -12,7 +12,7 @@ use sl_codec::{
     Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
     ProjectorSize, decode,
 };
-use sl_rig::{
+use sl_sim::{
     BoardPoseConfig, BoardTruth, Checkerboard, GreyImage, Pixels, RigConfig, Scene, VirtualRig,
     capture_board, random_board_poses,
 };

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use sl_camera::{CameraModel, Distortion, ImageSize, Intrinsics, TurntableAxis};
 
 use crate::geometry::Lens;
-use crate::{CameraEffects, Illumination, RigError};
+use crate::{CameraEffects, Illumination, SimError};
 
 /// Distance from the camera to the point where the optical axes cross and the turntable axis
 /// stands (mm): the seed design's working distance.
@@ -142,16 +142,16 @@ pub const MAX_SUPERSAMPLING: u32 = 8;
 
 impl RigConfig {
     /// Checks both models, the poses, the turntable and the rendering options.
-    pub fn validate(&self) -> Result<(), RigError> {
+    pub fn validate(&self) -> Result<(), SimError> {
         self.camera
             .validate()
-            .map_err(|e| RigError::param("camera", e.to_string()))?;
+            .map_err(|e| SimError::param("camera", e.to_string()))?;
         self.projector
             .validate()
-            .map_err(|e| RigError::param("projector", e.to_string()))?;
+            .map_err(|e| SimError::param("projector", e.to_string()))?;
         let pixels = u64::from(self.projector.size.width) * u64::from(self.projector.size.height);
         if pixels >= u64::from(u32::MAX) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "projector size",
                 format!("{} is too large", self.projector.size),
             ));
@@ -167,14 +167,14 @@ impl RigConfig {
                 .chain(pose.rotation.coords.iter())
                 .all(|v| v.is_finite());
             if !finite {
-                return Err(RigError::param(name, "pose is not finite"));
+                return Err(SimError::param(name, "pose is not finite"));
             }
         }
         if !(self.angle_offset_deg.is_finite()
             && self.angle_scale.is_finite()
             && self.angle_scale != 0.0)
         {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "turntable angle_offset_deg / angle_scale",
                 format!(
                     "{} / {} must be finite, the scale non-zero",
@@ -184,7 +184,7 @@ impl RigConfig {
         }
         let s = self.render.supersampling;
         if s == 0 || s > MAX_SUPERSAMPLING {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "supersampling",
                 format!("{s} is not in 1..={MAX_SUPERSAMPLING}"),
             ));

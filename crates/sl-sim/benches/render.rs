@@ -5,7 +5,7 @@
 //! `cargo bench -p sl-rig --bench render -- --warm-up-time 1 --measurement-time 3`
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use sl_rig::{GreyImage, Pixels, RigConfig, RigError, Scene, VirtualRig};
+use sl_sim::{GreyImage, Pixels, RigConfig, Scene, SimError, VirtualRig};
 
 /// Gray-code bit `bit` (MSB = 10) of every projector column (or row), and its inverse.
 fn gray_set(w: u32, h: u32) -> Vec<GreyImage> {
@@ -33,7 +33,7 @@ fn gray_set(w: u32, h: u32) -> Vec<GreyImage> {
     out
 }
 
-fn benches(c: &mut Criterion) -> Result<(), RigError> {
+fn benches(c: &mut Criterion) -> Result<(), SimError> {
     let config = RigConfig::default();
     let (pw, ph) = (config.projector.size.width, config.projector.size.height);
     let rig = VirtualRig::new(config, Scene::sphere())?;
@@ -41,7 +41,7 @@ fn benches(c: &mut Criterion) -> Result<(), RigError> {
     let mut group = c.benchmark_group("virtual_rig");
     group.sample_size(10);
     group.bench_function("camera_rays_1280x720_ss2", |b| {
-        b.iter(|| sl_rig::CameraRays::new(&rig.config().camera, 2))
+        b.iter(|| sl_sim::CameraRays::new(&rig.config().camera, 2))
     });
     // The camera rays are computed once per rig, outside this timing.
     rig.camera_rays();

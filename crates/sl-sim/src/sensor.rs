@@ -7,7 +7,7 @@ use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::{GreyImage, Pixels, RigError, blur};
+use crate::{GreyImage, Pixels, SimError, blur};
 
 /// Bits per pixel of the frames a camera delivers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -67,21 +67,21 @@ impl Default for SensorConfig {
 
 impl SensorConfig {
     /// Checks that every value is finite and in range.
-    pub fn validate(&self) -> Result<(), RigError> {
+    pub fn validate(&self) -> Result<(), SimError> {
         if !(self.full_well_electrons.is_finite() && self.full_well_electrons >= 1.0) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "sensor full_well_electrons",
                 format!("{} is not at least 1", self.full_well_electrons),
             ));
         }
         if !(self.read_noise_electrons.is_finite() && self.read_noise_electrons >= 0.0) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "sensor read_noise_electrons",
                 format!("{} is not a non-negative number", self.read_noise_electrons),
             ));
         }
         if !(self.exposure.is_finite() && self.exposure > 0.0) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "sensor exposure",
                 format!("{} is not positive", self.exposure),
             ));

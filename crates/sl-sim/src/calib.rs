@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use sl_codec::PatternSequence;
 
 use crate::{
-    Checkerboard, GreyImage, Mount, RigConfig, RigError, Scene, SceneObject, View, VirtualRig,
+    Checkerboard, GreyImage, Mount, RigConfig, Scene, SceneObject, SimError, View, VirtualRig,
 };
 
 /// Ground truth of a checkerboard in one pose.
@@ -110,10 +110,10 @@ pub fn random_board_poses(
     rig: &RigConfig,
     board: &Checkerboard,
     cfg: &BoardPoseConfig,
-) -> Result<Vec<Isometry3<f64>>, RigError> {
+) -> Result<Vec<Isometry3<f64>>, SimError> {
     board.validate()?;
     if !(cfg.min_distance_mm > 0.0 && cfg.max_distance_mm >= cfg.min_distance_mm) {
-        return Err(RigError::param(
+        return Err(SimError::param(
             "board pose distance",
             format!(
                 "[{}, {}] mm is not a valid range",
@@ -134,7 +134,7 @@ pub fn random_board_poses(
     while poses.len() < cfg.count {
         attempts += 1;
         if attempts > POSE_ATTEMPTS_PER_POSE * cfg.count.max(1) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "board poses",
                 format!(
                     "found only {} of {} poses that both camera and projector see entirely; \
@@ -214,7 +214,7 @@ pub fn capture_board(
     t_cam_board: &Isometry3<f64>,
     sequence: Option<&PatternSequence>,
     index: u64,
-) -> Result<BoardCapture, RigError> {
+) -> Result<BoardCapture, SimError> {
     let scene = Scene::new().with(SceneObject::board(
         "board",
         *board,
@@ -234,7 +234,7 @@ pub fn capture_board_on_table(
     motor_angle_deg: f64,
     sequence: Option<&PatternSequence>,
     index: u64,
-) -> Result<BoardCapture, RigError> {
+) -> Result<BoardCapture, SimError> {
     let scene = Scene::board_on_table(*board);
     let t_table_board = scene
         .objects
@@ -252,7 +252,7 @@ fn capture_view(
     view: View,
     t_cam_board: &Isometry3<f64>,
     sequence: Option<&PatternSequence>,
-) -> Result<BoardCapture, RigError> {
+) -> Result<BoardCapture, SimError> {
     let cfg = rig.config();
     let (pw, ph) = (cfg.projector.size.width, cfg.projector.size.height);
     let white = view.capture(&GreyImage::filled_u8(pw, ph, u8::MAX), 0)?;
@@ -262,7 +262,7 @@ fn capture_view(
                 let img = GreyImage::from_sequence(seq, k, false)?;
                 view.capture(&img, k as u64 + 1)
             })
-            .collect::<Result<Vec<_>, RigError>>()?,
+            .collect::<Result<Vec<_>, SimError>>()?,
         None => Vec::new(),
     };
     Ok(BoardCapture {

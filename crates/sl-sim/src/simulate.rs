@@ -6,11 +6,12 @@ use std::time::Instant;
 
 use serde::Serialize;
 use sl_codec::{BitDepth as PatternDepth, Manifest};
+use sl_rig::write_capture_set;
 
 use crate::files::write_json;
 use crate::{
-    BoardCapture, BoardPoseConfig, Checkerboard, GreyImage, RigError, TRUTH_DIR, VirtualRig,
-    capture_board, capture_board_on_table, random_board_poses, write_capture_set, write_view_truth,
+    BoardCapture, BoardPoseConfig, Checkerboard, GreyImage, SimError, TRUTH_DIR, VirtualRig,
+    capture_board, capture_board_on_table, random_board_poses, write_view_truth,
 };
 
 /// What one simulated capture wrote, and how long it took.
@@ -38,11 +39,11 @@ fn ms(t: Instant) -> f64 {
 
 /// The projector images of every frame of `manifest`'s sequence, checked against the rig's
 /// projector size.
-pub fn projector_images(rig: &VirtualRig, manifest: &Manifest) -> Result<Vec<GreyImage>, RigError> {
+pub fn projector_images(rig: &VirtualRig, manifest: &Manifest) -> Result<Vec<GreyImage>, SimError> {
     let sequence = manifest.sequence();
     let p = rig.config().projector.size;
     if (sequence.projector.width, sequence.projector.height) != (p.width, p.height) {
-        return Err(RigError::param(
+        return Err(SimError::param(
             "patterns",
             format!(
                 "the manifest's projector is {}x{}, the rig's is {}",
@@ -52,14 +53,7 @@ pub fn projector_images(rig: &VirtualRig, manifest: &Manifest) -> Result<Vec<Gre
     }
     let sixteen = manifest.bit_depth == PatternDepth::Sixteen;
     (0..sequence.frame_count())
-        .map(|k| GreyImage::from_sequence(&sequence, k, sixteen))
-        .collect()
-}
-
-/// Angles (degrees) of `views` views evenly spread over a full turn, starting at 0.
-pub fn turntable_angles(views: usize) -> Vec<f64> {
-    (0..views)
-        .map(|k| 360.0 * k as f64 / views.max(1) as f64)
+        .map(|k| GreyImage::from_sequence(&sequence, k, sixteen).map_err(SimError::from))
         .collect()
 }
 
@@ -73,7 +67,7 @@ pub fn simulate_scan(
     angles: &[f64],
     out: &Path,
     mut on_capture: impl FnMut(&SimulatedCapture),
-) -> Result<Vec<SimulatedCapture>, RigError> {
+) -> Result<Vec<SimulatedCapture>, SimError> {
     let images = projector_images(rig, manifest)?;
     let mut done = Vec::with_capacity(angles.len());
     for (k, &angle) in angles.iter().enumerate() {
@@ -89,7 +83,7 @@ pub fn simulate_scan(
             &dir,
             manifest,
             &frames,
-            &format!("sl-rig virtual rig, view {k}, turntable motor at {angle} degrees"),
+            &format!("sl-sim virtual rig, view {k}, turntable motor at {angle} degrees"),
         )?;
         write_view_truth(&view.truth, &dir.join(TRUTH_DIR))?;
         let c = SimulatedCapture {
@@ -140,7 +134,7 @@ pub fn simulate_calibration(
     manifest: &Manifest,
     out: &Path,
     mut on_capture: impl FnMut(&SimulatedCapture),
-) -> Result<Vec<SimulatedCapture>, RigError> {
+) -> Result<Vec<SimulatedCapture>, SimError> {
     let sequence = manifest.sequence();
     projector_images(rig, manifest)?; // checks the projector size
     let poses = random_board_poses(rig.config(), &session.board, &session.poses)?;
@@ -203,13 +197,13 @@ fn write_board_capture(
     motor_angle_deg: f64,
     render_ms: f64,
     what: &str,
-) -> Result<SimulatedCapture, RigError> {
+) -> Result<SimulatedCapture, SimError> {
     let t = Instant::now();
     write_capture_set(
         dir,
         manifest,
         &cap.frames,
-        &format!("sl-rig virtual rig, {what}"),
+        &format!("sl-sim virtual rig, {what}"),
     )?;
     cap.white.save_png(&dir.join("white.png"))?;
     write_view_truth(&cap.view.truth, &dir.join(TRUTH_DIR))?;

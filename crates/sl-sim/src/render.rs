@@ -4,7 +4,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::UNLIT;
-use crate::{GreyImage, Pixels, RigError, ViewGeometry, blur};
+use crate::{GreyImage, Pixels, RigError, SimError, ViewGeometry, blur};
 
 /// The light in the scene: the room's ambient light and the projector's response and optics.
 ///
@@ -57,7 +57,7 @@ impl Illumination {
     /// when `σ = 0`. Sums to 1 over any grid of unit spacing.
     ///
     /// ```
-    /// let light = sl_rig::Illumination::default();
+    /// let light = sl_sim::Illumination::default();
     /// let total: f64 = (-5..=5).map(|m| light.pixel_spread(m as f64 + 0.3)).sum();
     /// assert!((total - 1.0).abs() < 1e-6);
     /// ```
@@ -126,26 +126,26 @@ impl Default for Illumination {
 impl Illumination {
     /// Checks that every value is finite and non-negative, the gamma positive and the black
     /// level below 1.
-    pub fn validate(&self) -> Result<(), RigError> {
+    pub fn validate(&self) -> Result<(), SimError> {
         for (name, v) in [
             ("ambient", self.ambient),
             ("projector_power", self.projector_power),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(RigError::param(
+                return Err(SimError::param(
                     format!("illumination {name}"),
                     format!("{v} is not a non-negative number"),
                 ));
             }
         }
         if !(self.gamma.is_finite() && self.gamma > 0.0) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "illumination gamma",
                 format!("{} is not positive", self.gamma),
             ));
         }
         if !(0.0..=Self::MAX_PROJECTOR_BLUR_PX).contains(&self.projector_blur_px) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "illumination projector_blur_px",
                 format!(
                     "{} is not in [0, {}]",
@@ -155,7 +155,7 @@ impl Illumination {
             ));
         }
         if !(0.0..1.0).contains(&self.black_level) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "illumination black_level",
                 format!("{} is not in [0, 1)", self.black_level),
             ));
@@ -188,7 +188,7 @@ impl ViewGeometry {
         &self,
         image: &GreyImage,
         light: &Illumination,
-    ) -> Result<Vec<f32>, RigError> {
+    ) -> Result<Vec<f32>, SimError> {
         if image.width != self.projector_width || image.height != self.projector_height {
             return Err(RigError::ImageSize {
                 what: "projector image".to_owned(),
@@ -196,7 +196,8 @@ impl ViewGeometry {
                 expected_height: self.projector_height,
                 width: image.width,
                 height: image.height,
-            });
+            }
+            .into());
         }
         if light.projector_blur_px > 0.0 {
             let (w, h) = (image.width as usize, image.height as usize);

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use parry3d_f64::shape::TriMesh;
 
-use crate::{Checkerboard, RigError};
+use crate::{Checkerboard, SimError};
 
 /// Geometry of one object, in its own frame (millimetres).
 #[derive(Debug, Clone)]
@@ -57,21 +57,21 @@ impl Shape {
 
     /// A triangle mesh from vertices (mm) and triangles (indices into `vertices`).
     ///
-    /// Fails with [`RigError::InvalidScene`] naming `name` when the mesh is empty, an index is
+    /// Fails with [`SimError::InvalidScene`] naming `name` when the mesh is empty, an index is
     /// out of range or a vertex is not finite.
     pub fn mesh(
         name: &str,
         vertices: Vec<Point3<f64>>,
         triangles: Vec<[u32; 3]>,
-    ) -> Result<Self, RigError> {
+    ) -> Result<Self, SimError> {
         if triangles.is_empty() {
-            return Err(RigError::scene(name, "the mesh has no triangle"));
+            return Err(SimError::scene(name, "the mesh has no triangle"));
         }
         if let Some(i) = vertices
             .iter()
             .position(|v| !v.coords.iter().all(|c| c.is_finite()))
         {
-            return Err(RigError::scene(name, format!("vertex {i} is not finite")));
+            return Err(SimError::scene(name, format!("vertex {i} is not finite")));
         }
         let n = vertices.len();
         if let Some((t, tri)) = triangles
@@ -79,22 +79,22 @@ impl Shape {
             .enumerate()
             .find(|(_, tri)| tri.iter().any(|&i| i as usize >= n))
         {
-            return Err(RigError::scene(
+            return Err(SimError::scene(
                 name,
                 format!("triangle {t} {tri:?} refers to a vertex beyond the {n} vertices"),
             ));
         }
         let mesh = TriMesh::new(vertices, triangles)
-            .map_err(|e| RigError::scene(name, format!("{e:?}")))?;
+            .map_err(|e| SimError::scene(name, format!("{e:?}")))?;
         Ok(Self::Mesh(Arc::new(mesh)))
     }
 
-    fn validate(&self, name: &str) -> Result<(), RigError> {
+    fn validate(&self, name: &str) -> Result<(), SimError> {
         let positive = |what: &str, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err(RigError::scene(
+                Err(SimError::scene(
                     name,
                     format!("{what} {v} is not a positive length"),
                 ))
@@ -168,12 +168,12 @@ impl Texture {
         }
     }
 
-    fn validate(&self, name: &str) -> Result<(), RigError> {
+    fn validate(&self, name: &str) -> Result<(), SimError> {
         let check = |a: f64| {
             if (0.0..=1.0).contains(&a) {
                 Ok(())
             } else {
-                Err(RigError::scene(
+                Err(SimError::scene(
                     name,
                     format!("albedo {a} is not in [0, 1]"),
                 ))
@@ -187,7 +187,7 @@ impl Texture {
                 light,
             } => {
                 if !(period_mm.is_finite() && *period_mm > 0.0) {
-                    return Err(RigError::scene(
+                    return Err(SimError::scene(
                         name,
                         format!("checker period {period_mm} is not positive"),
                     ));
@@ -197,7 +197,7 @@ impl Texture {
             }
             Self::Board(b) => b
                 .validate()
-                .map_err(|e| RigError::scene(name, e.to_string())),
+                .map_err(|e| SimError::scene(name, e.to_string())),
         }
     }
 }
@@ -314,9 +314,9 @@ impl Scene {
     }
 
     /// Checks every object (positive sizes, albedos in `[0, 1]`, valid boards).
-    pub fn validate(&self) -> Result<(), RigError> {
+    pub fn validate(&self) -> Result<(), SimError> {
         if self.objects.is_empty() {
-            return Err(RigError::scene("scene", "the scene has no object"));
+            return Err(SimError::scene("scene", "the scene has no object"));
         }
         for o in &self.objects {
             o.shape.validate(&o.name)?;
@@ -424,9 +424,9 @@ impl Scene {
         scale: f64,
         up: Vector3<f64>,
         texture: Texture,
-    ) -> Result<Self, RigError> {
+    ) -> Result<Self, SimError> {
         if !(scale.is_finite() && scale > 0.0) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "mesh scale",
                 format!("{scale} is not positive"),
             ));
@@ -481,7 +481,7 @@ impl Scene {
         path: &std::path::Path,
         units: MeshUnits,
         up: Vector3<f64>,
-    ) -> Result<Self, RigError> {
+    ) -> Result<Self, SimError> {
         let mesh = sl_cloud::read_ply_mesh(path)?;
         let name = path
             .file_stem()

@@ -6,9 +6,10 @@
 use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
 use sl_camera::{CameraModel, ImageSize, Intrinsics};
-use sl_rig::{
+use sl_rig::capture_sequence;
+use sl_sim::{
     Camera, GreyImage, NO_OBJECT, Pixels, Projector, ProjectorSampling, RigConfig, Scene,
-    SceneObject, SensorConfig, Shape, Texture, Turntable, VirtualRig, capture_sequence,
+    SceneObject, SensorConfig, Shape, Texture, Turntable, VirtualRig,
 };
 
 /// The default rig with both images scaled down by 4 (same fields of view, same distortion),
@@ -48,7 +49,7 @@ fn plane_projector_coordinates_match_the_closed_form() {
     );
     let rig = VirtualRig::new(
         RigConfig {
-            render: sl_rig::RenderConfig {
+            render: sl_sim::RenderConfig {
                 supersampling: 1,
                 ..config.render
             },
@@ -233,7 +234,7 @@ fn white_frame_radiance_matches_lambert() {
     config.render.effects.sensor = SensorConfig {
         photon_noise: false,
         read_noise_electrons: 0.0,
-        bit_depth: sl_rig::BitDepth::Sixteen,
+        bit_depth: sl_sim::BitDepth::Sixteen,
         ..SensorConfig::default()
     };
     let rig = VirtualRig::new(
@@ -335,7 +336,7 @@ fn camera_model_literals_are_consistent() {
     // The default rig's optical axes cross at the working distance: the camera's principal
     // ray and the projector's meet at (0, 0, 450).
     let c = RigConfig::default();
-    let aim = Point3::new(0.0, 0.0, sl_rig::DEFAULT_WORKING_DISTANCE_MM);
+    let aim = Point3::new(0.0, 0.0, sl_sim::DEFAULT_WORKING_DISTANCE_MM);
     let p_proj = c.t_cam_proj.inverse_transform_point(&aim);
     assert_relative_eq!(p_proj.x, 0.0, epsilon = 1e-9);
     assert_relative_eq!(p_proj.y, 0.0, epsilon = 1e-9);
@@ -355,13 +356,13 @@ fn board_texture_matches_the_printed_squares() {
     config.render.effects.sensor = SensorConfig {
         photon_noise: false,
         read_noise_electrons: 0.0,
-        bit_depth: sl_rig::BitDepth::Sixteen,
+        bit_depth: sl_sim::BitDepth::Sixteen,
         ..SensorConfig::default()
     };
-    let board = sl_rig::Checkerboard::default();
+    let board = sl_sim::Checkerboard::default();
     let t_cam_board = Isometry3::translation(-80.0, -50.0, 450.0);
     let rig = VirtualRig::new(config.clone(), Scene::plane()).unwrap();
-    let cap = sl_rig::capture_board(&rig, &board, &t_cam_board, None, 0).unwrap();
+    let cap = sl_sim::capture_board(&rig, &board, &t_cam_board, None, 0).unwrap();
     assert!(cap.frames.is_empty());
     let Pixels::U16(px) = &cap.white.pixels else {
         panic!("16-bit expected")
@@ -433,7 +434,7 @@ fn fringe_column_error(blur_px: f64) -> (f64, f64) {
     config.render.effects.sensor = SensorConfig {
         photon_noise: false,
         read_noise_electrons: 0.0,
-        bit_depth: sl_rig::BitDepth::Sixteen,
+        bit_depth: sl_sim::BitDepth::Sixteen,
         ..SensorConfig::default()
     };
     let rig = VirtualRig::new(config, Scene::plane()).unwrap();
@@ -495,7 +496,7 @@ fn projector_blur_removes_the_pixel_grid_moire() {
     // 5.1e-4 rad, 0.0024 px of a 30 px period. The patterns are exact functions and the frames
     // 16-bit and noise-free, so little else remains (measured 0.0008 px rms, 0.002 px max).
     // Bounds: 2× and 4× that closed-form peak.
-    let (rms, max) = fringe_column_error(sl_rig::Illumination::DEFAULT_PROJECTOR_BLUR_PX);
+    let (rms, max) = fringe_column_error(sl_sim::Illumination::DEFAULT_PROJECTOR_BLUR_PX);
     eprintln!("blurred pixels: column error rms {rms:.4} px, max {max:.3} px");
     assert!(rms < 0.005, "column error rms {rms} px");
     assert!(max < 0.01, "column error max {max} px");
@@ -512,7 +513,7 @@ fn moire_diagnostics() {
         Axis, BitDepth, CaptureSet, DecodeConfig, HybridSpec, Pattern, PatternSequence,
         ProjectorSize, decode,
     };
-    use sl_rig::projector_images;
+    use sl_sim::projector_images;
     let Some(out) = std::env::var_os("SL_MOIRE_OUT") else {
         eprintln!("SL_MOIRE_OUT not set: skipping");
         return;
@@ -569,12 +570,12 @@ fn moire_diagnostics() {
         ));
         let manifest = sequence.manifest(BitDepth::Eight);
         let view = rig.view(0.0, 0).unwrap();
-        let frames: Vec<sl_rig::GreyImage> = if continuous {
+        let frames: Vec<sl_sim::GreyImage> = if continuous {
             (0..sequence.frame_count())
                 .map(|k| {
                     view.capture_fn(
                         |x, y| sequence.pattern_value(k, x, y).unwrap_or(0.0),
-                        sl_rig::ProjectorSampling::Continuous,
+                        sl_sim::ProjectorSampling::Continuous,
                         k as u64,
                     )
                 })

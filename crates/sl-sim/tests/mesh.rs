@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use nalgebra::{Isometry3, Point2, Point3, Vector3};
 use proptest::prelude::*;
 use sl_camera::{ImageSize, Intrinsics};
-use sl_rig::{NO_OBJECT, RigConfig, Scene, SceneObject, Shape, Texture, VirtualRig};
+use sl_sim::{NO_OBJECT, RigConfig, Scene, SceneObject, Shape, Texture, VirtualRig};
 
 /// An icosphere of radius `r` centred on the origin: an icosahedron whose faces are split in
 /// four `levels` times, every vertex pushed onto the sphere.
@@ -185,7 +185,7 @@ fn stanford_bunny_stands_on_the_table() {
         return;
     };
     let path = std::path::Path::new(&root).join("bunny").join("bun000.ply");
-    let scene = Scene::ply_mesh(&path, sl_rig::MeshUnits::Auto, Vector3::y()).unwrap();
+    let scene = Scene::ply_mesh(&path, sl_sim::MeshUnits::Auto, Vector3::y()).unwrap();
     let Shape::Mesh(mesh) = &scene.objects[0].shape else {
         panic!("a mesh expected")
     };

@@ -5,7 +5,7 @@ use sl_camera::{ImageSize, Intrinsics};
 use sl_codec::{
     Axis, CaptureSet, DecodeConfig, GrayCodeSpec, Pattern, PatternSequence, ProjectorSize, decode,
 };
-use sl_rig::{RigConfig, Scene, VirtualRig, simulate_scan};
+use sl_sim::{RigConfig, Scene, VirtualRig, simulate_scan};
 
 /// The default rig with both images scaled down by 4 (same fields of view).
 fn small_rig() -> RigConfig {

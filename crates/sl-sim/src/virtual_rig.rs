@@ -8,7 +8,7 @@ use crate::sensor::{NoiseKey, expose};
 use crate::truth::ObjectPose;
 use crate::{
     Camera, GreyImage, Mount, PlacedScene, Projector, ProjectorSampling, RenderConfig, RigConfig,
-    RigError, Scene, Turntable, ViewGeometry, ViewTruth,
+    RigError, Scene, SimError, Turntable, ViewGeometry, ViewTruth,
 };
 
 /// A virtual structured-light rig looking at a scene.
@@ -38,7 +38,7 @@ pub struct View {
 
 impl VirtualRig {
     /// A rig looking at `scene`; fails when the configuration or the scene is invalid.
-    pub fn new(config: RigConfig, scene: Scene) -> Result<Self, RigError> {
+    pub fn new(config: RigConfig, scene: Scene) -> Result<Self, SimError> {
         config.validate()?;
         scene.validate()?;
         Ok(Self {
@@ -59,7 +59,7 @@ impl VirtualRig {
     }
 
     /// The same rig (sharing its camera-ray cache) looking at another scene.
-    pub fn with_scene(&self, scene: Scene) -> Result<Self, RigError> {
+    pub fn with_scene(&self, scene: Scene) -> Result<Self, SimError> {
         scene.validate()?;
         Ok(Self {
             config: self.config.clone(),
@@ -76,9 +76,9 @@ impl VirtualRig {
 
     /// Casts the view with the turntable motor at `motor_angle_deg`: the geometry cache (with
     /// the configured super-sampling) and the ground truth. `index` keys the view's noise.
-    pub fn view(&self, motor_angle_deg: f64, index: u64) -> Result<View, RigError> {
+    pub fn view(&self, motor_angle_deg: f64, index: u64) -> Result<View, SimError> {
         if !motor_angle_deg.is_finite() {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "turntable angle",
                 format!("{motor_angle_deg} is not finite"),
             ));
@@ -142,7 +142,7 @@ impl VirtualRig {
 impl View {
     /// Renders the frame the camera captures while the projector shows `image`; `frame`
     /// keys the noise (the same frame index gives the same noise).
-    pub fn capture(&self, image: &GreyImage, frame: u64) -> Result<GreyImage, RigError> {
+    pub fn capture(&self, image: &GreyImage, frame: u64) -> Result<GreyImage, SimError> {
         let radiance = self
             .geometry
             .render_image(image, &self.render.illumination)?;
@@ -162,25 +162,25 @@ impl View {
     }
 
     /// Renders one frame per projector image, frame `k` under `images[k]`.
-    pub fn capture_all(&self, images: &[GreyImage]) -> Result<Vec<GreyImage>, RigError> {
+    pub fn capture_all(&self, images: &[GreyImage]) -> Result<Vec<GreyImage>, SimError> {
         images
             .iter()
             .enumerate()
             .map(|(k, img)| {
                 self.capture(img, k as u64).map_err(|e| match e {
-                    RigError::ImageSize {
+                    SimError::Rig(RigError::ImageSize {
                         expected_width,
                         expected_height,
                         width,
                         height,
                         ..
-                    } => RigError::ImageSize {
+                    }) => SimError::Rig(RigError::ImageSize {
                         what: format!("projector image {k}"),
                         expected_width,
                         expected_height,
                         width,
                         height,
-                    },
+                    }),
                     other => other,
                 })
             })
@@ -244,7 +244,7 @@ pub struct VirtualTurntable {
 
 impl VirtualCamera {
     /// The view the camera sees now (cast on first use after the turntable moved).
-    pub fn current_view(&mut self) -> Result<Arc<View>, RigError> {
+    pub fn current_view(&mut self) -> Result<Arc<View>, SimError> {
         let mut st = lock(&self.state);
         if let Some(v) = &st.view {
             return Ok(v.clone());
@@ -272,7 +272,7 @@ impl Camera for VirtualCamera {
             (st.shown.clone(), frame)
         };
         match shown {
-            Some(img) => view.capture(&img, frame),
+            Some(img) => Ok(view.capture(&img, frame)?),
             // Nothing shown yet: the projector is dark.
             None => Ok(view.capture_fn(|_, _| 0.0, ProjectorSampling::Nearest, frame)),
         }

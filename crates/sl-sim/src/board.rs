@@ -3,7 +3,7 @@
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
-use crate::RigError;
+use crate::SimError;
 
 /// Albedo of the black squares of a printed board (matte black ink reflects a few percent).
 pub const BOARD_DARK_ALBEDO: f64 = 0.05;
@@ -51,9 +51,9 @@ impl Default for Checkerboard {
 impl Checkerboard {
     /// Checks the parameters: at least 2×2 inner corners, a positive finite square size, a
     /// non-negative margin, albedos in `[0, 1]`.
-    pub fn validate(&self) -> Result<(), RigError> {
+    pub fn validate(&self) -> Result<(), SimError> {
         if self.inner_cols < 2 || self.inner_rows < 2 {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "board inner corners",
                 format!(
                     "{}x{}: at least 2x2 inner corners are needed",
@@ -62,13 +62,13 @@ impl Checkerboard {
             ));
         }
         if !(self.square_mm.is_finite() && self.square_mm > 0.0) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "board square_mm",
                 format!("{} is not a positive size", self.square_mm),
             ));
         }
         if !(self.margin_squares.is_finite() && self.margin_squares >= 0.0) {
-            return Err(RigError::param(
+            return Err(SimError::param(
                 "board margin_squares",
                 format!("{} is not a non-negative number", self.margin_squares),
             ));
@@ -78,7 +78,7 @@ impl Checkerboard {
             ("light_albedo", self.light_albedo),
         ] {
             if !(0.0..=1.0).contains(&a) {
-                return Err(RigError::param(
+                return Err(SimError::param(
                     format!("board {name}"),
                     format!("{a} is not in [0, 1]"),
                 ));

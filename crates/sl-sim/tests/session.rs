@@ -10,9 +10,10 @@ use std::time::Duration;
 use sl_camera::{ImageSize, Intrinsics};
 use sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
 use sl_rig::{
-    BufferedCamera, Camera, CaptureSession, GreyImage, LatencyConfig, RigConfig, RigError, Scene,
-    SessionConfig, SessionPlan, ViewState, VirtualRig, measure_latency,
+    BufferedCamera, Camera, CaptureSession, GreyImage, LatencyConfig, RigError, SessionConfig,
+    SessionPlan, ViewState, measure_latency,
 };
+use sl_sim::{RigConfig, Scene, VirtualRig};
 
 /// The default rig at a quarter of its resolution (camera 320x180, projector 480x270), without
 /// noise: with noise the virtual camera numbers its views in the order it casts them (a real
@@ -275,10 +276,10 @@ fn measured_latency_equals_the_configured_queue_depth() {
 #[test]
 fn a_camera_that_sees_no_flash_is_reported() {
     // The only object is behind the camera: nothing the projector lights comes back.
-    let behind = sl_rig::SceneObject::in_camera(
+    let behind = sl_sim::SceneObject::in_camera(
         "behind",
-        sl_rig::Shape::Sphere { radius: 10.0 },
-        sl_rig::Texture::Uniform(0.5),
+        sl_sim::Shape::Sphere { radius: 10.0 },
+        sl_sim::Texture::Uniform(0.5),
         nalgebra::Isometry3::translation(0.0, 0.0, -1000.0),
     );
     let rig = small_rig().with_scene(Scene::new().with(behind)).unwrap();

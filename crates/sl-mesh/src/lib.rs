@@ -1,0 +1,80 @@
+//! Triangle meshes from structured-light scans: the surface users print, import into CAD or
+//! measure.
+//!
+//! - [`poisson_reconstruct`]: screened Poisson reconstruction (Kazhdan & Hoppe 2013) of a
+//!   cloud with oriented normals on an adaptive octree, extracted by marching tetrahedra: a
+//!   watertight, manifold, consistently oriented mesh; per-vertex sampling densities for
+//!   `trim_by_density`.
+//! - Clean-up: [`trim_by_density`] (surface the data does not support), [`smooth_bilateral`]
+//!   (feature-preserving) and [`smooth_taubin`], [`decimate`] (quadric error, to a triangle
+//!   count), [`fill_holes`], [`remove_small_components`].
+//! - Measures: [`check_topology`] (watertight, manifold, orientation), [`vertex_normals`],
+//!   [`surface_area`], [`signed_volume`], [`sample_surface`].
+//! - Files: binary STL, OBJ and PLY with faces ([`write_stl`], [`read_stl`], [`write_obj`],
+//!   [`read_obj`], [`write_ply_mesh`], [`read_mesh`]; PLY reading is
+//!   [`sl_cloud::read_ply_mesh`]).
+//!
+//! The mesh type is [`TriangleMesh`] of `sl-cloud` (re-exported), where the PLY mesh reader
+//! lives: one type from the PLY file to the STL.
+//!
+//! ```
+//! use nalgebra::{Point3, Vector3};
+//! use sl_cloud::PointCloud;
+//! use sl_mesh::{PoissonConfig, check_topology, poisson_reconstruct, read_stl_from_bytes, stl_to_bytes};
+//!
+//! // Points of a sphere of radius 5 with outward normals.
+//! let (pts, nrm): (Vec<_>, Vec<_>) = (0..3000)
+//!     .map(|i| {
+//!         let z = 1.0 - 2.0 * (i as f64 + 0.5) / 3000.0;
+//!         let t = 2.399_963 * i as f64;
+//!         let n = Vector3::new((1.0 - z * z).sqrt() * t.cos(), (1.0 - z * z).sqrt() * t.sin(), z);
+//!         (Point3::from(n * 5.0), n)
+//!     })
+//!     .unzip();
+//! let cloud = PointCloud::from_positions(pts).with_normals(nrm)?;
+//! let surface = poisson_reconstruct(&cloud, &PoissonConfig { depth: 6, ..PoissonConfig::default() })?;
+//! assert!(check_topology(&surface.mesh).is_watertight_manifold());
+//! let back = read_stl_from_bytes(&stl_to_bytes(&surface.mesh)?)?;
+//! assert_eq!(back.triangles.len(), surface.mesh.triangles.len());
+//! # Ok::<(), sl_mesh::MeshError>(())
+//! ```
+//!
+//! # Conventions
+//!
+//! - Geometry is `f64` in the cloud's units (millimetres for the scanner), in the cloud's frame.
+//! - Triangles wind counter-clockwise seen from outside: normals (right-hand rule) point out of
+//!   the solid, as STL requires.
+//! - Heavy loops run on the global rayon pool.
+
+#![deny(missing_docs)]
+
+mod adjacency;
+mod bilateral;
+mod contour;
+mod decimate;
+mod error;
+mod files;
+mod grid;
+mod holes;
+mod measure;
+mod poisson;
+mod taubin;
+#[cfg(test)]
+mod test_shapes;
+mod topology;
+mod trim;
+
+pub use bilateral::{BilateralConfig, smooth_bilateral};
+pub use decimate::{Decimation, decimate};
+pub use error::MeshError;
+pub use files::{
+    obj_to_string, ply_mesh_to_bytes, read_mesh, read_obj, read_obj_from_bytes, read_stl,
+    read_stl_from_bytes, stl_to_bytes, write_obj, write_ply_mesh, write_stl,
+};
+pub use holes::{HoleFilling, fill_holes};
+pub use measure::{sample_surface, signed_volume, surface_area, vertex_normals};
+pub use poisson::{MIN_POISSON_POINTS, PoissonConfig, PoissonSurface, poisson_reconstruct};
+pub use sl_cloud::{TriangleMesh, read_ply_mesh};
+pub use taubin::{TaubinConfig, smooth_taubin};
+pub use topology::{Topology, check_topology, compact_vertices, remove_small_components};
+pub use trim::{Trimmed, trim_by_density};

@@ -1,0 +1,976 @@
+//! Screened Poisson surface reconstruction (Kazhdan & Hoppe, "Screened Poisson surface
+//! reconstruction", ACM Transactions on Graphics 2013) on an adaptive octree.
+//!
+//! The indicator function `χ` of the solid minimises
+//! `∫ |∇χ − V|² + α Σ_s a_s χ(s)²`: its gradient follows the vector field `V` of the oriented
+//! samples, and the screening term pulls its zero set through the samples. `χ` is a sum of
+//! trilinear B-splines over the nodes of an octree:
+//!
+//! - levels `0..=full_depth` cover the whole (padded) bounding cube: the far field, where the
+//!   surface has no data, comes from them;
+//! - deeper levels hold nodes only in a band of one cell around the cells holding samples.
+//!
+//! The finite-element system of every level is the Galerkin projection of the same energy (the
+//! right-hand side of a level is the restriction of the finest one), solved coarse to fine
+//! (cascadic multigrid): a level starts from the prolongation of the coarser solution, its
+//! nodes on the rim of the band keep that value (the finer level only corrects inside its band),
+//! and Jacobi-preconditioned conjugate gradients relax it. The surface is the level set of `χ`
+//! at the weighted mean of `χ` over the samples, extracted on the finest grid by
+//! [`contour`](crate::contour) — one value per grid node, so the mesh is watertight.
+//!
+//! Samples carry an area `a_s` (the inverse of the local sampling density, estimated two levels
+//! above the finest), so that overlapping views of a merged scan do not weigh twice.
+
+use std::time::Instant;
+
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+use sl_cloud::{PointCloud, TriangleMesh};
+
+use crate::MeshError;
+use crate::contour::{ContourInput, contour};
+use crate::grid::{MAX_DEPTH, NodeSet};
+
+/// Fewest usable points (finite, with a normal) accepted: fewer cannot outline a closed surface
+/// at any useful depth, and the density estimate needs several points per cell.
+pub const MIN_POISSON_POINTS: usize = 16;
+
+/// The sampling density is estimated this many levels above the finest: cells four times the
+/// finest hold enough samples (tens) for a stable count even where a merged scan is thin.
+const DENSITY_LEVELS_UP: u32 = 2;
+
+/// Mean over the offset `t` of a plane in a cell of `(1 − t)² + t²`: the interpolated trilinear
+/// splat of a uniformly sampled plane is this fraction of `ρ h²` (ρ samples per area).
+const DENSITY_KERNEL_MEAN: f64 = 2.0 / 3.0;
+
+/// The coarsest level solved: below it the grid has too few nodes to matter (9 at level 1).
+const COARSEST_LEVEL: u32 = 2;
+
+/// Conjugate-gradient iterations at the fully populated levels (at most 33³ nodes at the
+/// default `full_depth`, so they are cheap); they start the cascade and must converge.
+const FULL_LEVEL_ITERATIONS: usize = 200;
+
+/// Relative residual at which a level's conjugate gradients stop early.
+const CG_TOLERANCE: f64 = 1e-7;
+
+/// Parameters of [`poisson_reconstruct`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoissonConfig {
+    /// Depth of the finest octree level: its cells are the bounding cube (times
+    /// [`scale`](Self::scale)) divided by `2^depth`. 9 (as Open3D's comparison here) gives
+    /// 0.3 mm cells on the 130 mm scene of the default scan. At most 10.
+    pub depth: u32,
+    /// Levels `0..=full_depth` cover the whole cube; deeper ones only a band around the samples.
+    pub full_depth: u32,
+    /// Ratio of the cube's edge to the largest extent of the samples (≥ 1): the margin keeps the
+    /// surface away from the cube's faces. 1.1 as Kazhdan's and Open3D's default.
+    pub scale: f64,
+    /// Screening weight `α` (Kazhdan & Hoppe's default 4): how strongly the surface is pulled
+    /// through the samples rather than only following their normals. 0 is plain Poisson.
+    pub screening: f64,
+    /// Conjugate-gradient iterations per band level (each starts from the coarser solution).
+    pub iterations: usize,
+}
+
+impl Default for PoissonConfig {
+    fn default() -> Self {
+        Self {
+            depth: 9,
+            full_depth: 5,
+            scale: 1.1,
+            screening: 4.0,
+            iterations: 25,
+        }
+    }
+}
+
+/// What [`poisson_reconstruct`] returns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoissonSurface {
+    /// The closed surface, in the cloud's frame and units; triangles wind counter-clockwise
+    /// seen from outside (normals point out of the solid).
+    pub mesh: TriangleMesh,
+    /// Sampling density at each vertex, in samples per unit area of the cloud's units (per mm²
+    /// for a scan): low where the surface bridges a gap in the data. See
+    /// `trim_by_density`.
+    pub densities: Vec<f64>,
+    /// Nodes of each solved octree level, coarse to fine (starting at level 2).
+    pub nodes_per_level: Vec<usize>,
+    /// Number of usable samples (finite, with a normal).
+    pub samples: usize,
+    /// Edge of a finest cell, in the cloud's units.
+    pub cell_size: f64,
+    /// Wall time of the solve (octree, system, conjugate gradients), milliseconds.
+    pub solve_ms: f64,
+    /// Wall time of the surface extraction, milliseconds.
+    pub contour_ms: f64,
+}
+
+/// One octree level: its nodes, solution and right-hand side.
+struct Level {
+    depth: u32,
+    nodes: NodeSet,
+    /// Whether every node of the level's grid is present.
+    full: bool,
+    /// Solution at each node slot.
+    x: Vec<f64>,
+    /// Right-hand side `∫ ∇B_i · V` at each node slot.
+    b: Vec<f64>,
+}
+
+impl Level {
+    fn cells(&self) -> i64 {
+        1 << self.depth
+    }
+}
+
+/// A cluster of samples: all those of one finest cell, at their area-weighted centroid.
+#[derive(Debug, Clone, Copy)]
+struct SuperSample {
+    /// Position in the unit cube.
+    u: [f64; 3],
+    /// Sum of the sample areas.
+    area: f64,
+    /// Finest cell.
+    cell: [i64; 3],
+}
+
+/// Reconstructs a closed surface from a cloud with oriented normals (screened Poisson).
+///
+/// Points with a non-finite coordinate or without a normal (zero or non-finite) are ignored.
+///
+/// # Errors
+/// [`MeshError::NoNormals`] when the cloud has no normals, [`MeshError::TooFewPoints`] with
+/// fewer than [`MIN_POISSON_POINTS`] usable points, [`MeshError::DegenerateCloud`] when they are
+/// all at one position, [`MeshError::InvalidParameter`] for a parameter out of range.
+///
+/// ```
+/// use nalgebra::{Point3, Vector3};
+/// use sl_cloud::PointCloud;
+/// use sl_mesh::{PoissonConfig, check_topology, poisson_reconstruct};
+///
+/// // 4000 points of a sphere of radius 10 with outward normals.
+/// let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+/// let (pts, nrm): (Vec<_>, Vec<_>) = (0..4000)
+///     .map(|i| {
+///         let z = 1.0 - 2.0 * (i as f64 + 0.5) / 4000.0;
+///         let r = (1.0 - z * z).sqrt();
+///         let n = Vector3::new(r * (golden * i as f64).cos(), r * (golden * i as f64).sin(), z);
+///         (Point3::from(n * 10.0), n)
+///     })
+///     .unzip();
+/// let cloud = PointCloud::from_positions(pts).with_normals(nrm)?;
+/// let cfg = PoissonConfig { depth: 6, ..PoissonConfig::default() };
+/// let surface = poisson_reconstruct(&cloud, &cfg)?;
+/// assert!(check_topology(&surface.mesh).is_watertight_manifold());
+/// let worst = surface.mesh.vertices.iter().map(|p| (p.coords.norm() - 10.0).abs()).fold(0.0, f64::max);
+/// assert!(worst < 0.3, "{worst}");
+/// # Ok::<(), sl_mesh::MeshError>(())
+/// ```
+pub fn poisson_reconstruct(
+    cloud: &PointCloud,
+    cfg: &PoissonConfig,
+) -> Result<PoissonSurface, MeshError> {
+    validate(cfg)?;
+    let Some(normals) = cloud.normals() else {
+        return Err(MeshError::NoNormals {
+            points: cloud.len(),
+        });
+    };
+    let t0 = Instant::now();
+    let samples: Vec<(Point3<f64>, Vector3<f64>)> = cloud
+        .positions()
+        .iter()
+        .zip(normals)
+        .filter(|(p, n)| {
+            p.coords.iter().all(|c| c.is_finite())
+                && n.iter().all(|c| c.is_finite())
+                && n.norm() > 0.5
+        })
+        .map(|(p, n)| (*p, n.normalize()))
+        .collect();
+    if samples.len() < MIN_POISSON_POINTS {
+        return Err(MeshError::TooFewPoints {
+            found: samples.len(),
+            min: MIN_POISSON_POINTS,
+        });
+    }
+    let (mut lo, mut hi) = (samples[0].0, samples[0].0);
+    for (p, _) in &samples {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    let extent = (hi - lo).max();
+    if extent.is_nan() || extent <= 0.0 {
+        return Err(MeshError::DegenerateCloud {
+            points: samples.len(),
+        });
+    }
+    let size = extent * cfg.scale;
+    let centre = nalgebra::center(&lo, &hi);
+    let to_unit = |p: &Point3<f64>| -> [f64; 3] {
+        let q = (p - centre) / size;
+        [q.x + 0.5, q.y + 0.5, q.z + 0.5]
+    };
+    let depth = cfg.depth;
+    let finest = 1i64 << depth;
+    let units: Vec<[f64; 3]> = samples.iter().map(|(p, _)| to_unit(p)).collect();
+
+    // Sample areas from the density two levels up.
+    let dd = depth.saturating_sub(DENSITY_LEVELS_UP);
+    let density = DensityGrid::new(dd, &units);
+    let h_dd = 1.0 / f64::from(1u32 << dd);
+    let areas: Vec<f64> = units
+        .iter()
+        .map(|u| DENSITY_KERNEL_MEAN * h_dd * h_dd / density.at(u).max(f64::MIN_POSITIVE))
+        .collect();
+
+    // Finest cells and their super-samples.
+    let cell_of = |u: &[f64; 3]| -> [i64; 3] {
+        let c = |v: f64| ((v * finest as f64).floor() as i64).clamp(0, finest - 1);
+        [c(u[0]), c(u[1]), c(u[2])]
+    };
+    let mut order: Vec<(u64, u32)> = units
+        .iter()
+        .enumerate()
+        .map(|(i, u)| {
+            let c = cell_of(u);
+            ((((c[2] * finest) + c[1]) * finest + c[0]) as u64, i as u32)
+        })
+        .collect();
+    order.par_sort_unstable();
+    let mut supers: Vec<SuperSample> = Vec::new();
+    let mut i = 0;
+    while i < order.len() {
+        let key = order[i].0;
+        let mut acc = [0.0; 3];
+        let mut area = 0.0;
+        let first = order[i].1 as usize;
+        while i < order.len() && order[i].0 == key {
+            let s = order[i].1 as usize;
+            for a in 0..3 {
+                acc[a] += areas[s] * units[s][a];
+            }
+            area += areas[s];
+            i += 1;
+        }
+        supers.push(SuperSample {
+            u: [acc[0] / area, acc[1] / area, acc[2] / area],
+            area,
+            cell: cell_of(&units[first]),
+        });
+    }
+
+    // Node sets of every level.
+    let mut levels: Vec<Level> = (0..=depth)
+        .map(|d| {
+            let n = (1usize << d) + 1;
+            let mut nodes = NodeSet::empty(n);
+            let full = d <= cfg.full_depth;
+            if full {
+                nodes.fill();
+            } else {
+                let shift = depth - d;
+                let mut cells: Vec<u64> = supers
+                    .iter()
+                    .map(|s| {
+                        let c = s.cell.map(|v| (v >> shift) as u64);
+                        (c[2] << 42) | (c[1] << 21) | c[0]
+                    })
+                    .collect();
+                cells.sort_unstable();
+                cells.dedup();
+                let last = n as i64 - 1;
+                for key in cells {
+                    let c = [
+                        (key & 0x1F_FFFF) as i64,
+                        ((key >> 21) & 0x1F_FFFF) as i64,
+                        (key >> 42) as i64,
+                    ];
+                    for z in (c[2] - 1).max(0)..=(c[2] + 2).min(last) {
+                        for y in (c[1] - 1).max(0)..=(c[1] + 2).min(last) {
+                            for x in (c[0] - 1).max(0)..=(c[0] + 2).min(last) {
+                                nodes.insert(x as usize, y as usize, z as usize);
+                            }
+                        }
+                    }
+                }
+            }
+            nodes.finish();
+            let len = nodes.len();
+            Level {
+                depth: d,
+                nodes,
+                full,
+                x: vec![0.0; len],
+                b: vec![0.0; len],
+            }
+        })
+        .collect();
+
+    // Right-hand side at the finest level, restricted to the coarser ones.
+    finest_rhs(&mut levels[depth as usize], &units, &samples, &areas);
+    for d in (1..=depth as usize).rev() {
+        let (coarse, fine) = levels.split_at_mut(d);
+        restrict(&fine[0], &mut coarse[d - 1]);
+    }
+
+    // Cascadic solve, coarse to fine.
+    let alpha = cfg.screening * finest as f64;
+    let first = COARSEST_LEVEL.min(depth) as usize;
+    let mut nodes_per_level = Vec::new();
+    for d in first..=depth as usize {
+        if d > first {
+            let (coarse, fine) = levels.split_at_mut(d);
+            let level = &mut fine[0];
+            let h = 1.0 / level.cells() as f64;
+            let x: Vec<f64> = (0..level.nodes.len())
+                .into_par_iter()
+                .map(|s| {
+                    let c = level.nodes.coords(s);
+                    eval(coarse, [c[0] as f64 * h, c[1] as f64 * h, c[2] as f64 * h])
+                })
+                .collect();
+            level.x = x;
+        }
+        let iterations = if levels[d].full {
+            FULL_LEVEL_ITERATIONS
+        } else {
+            cfg.iterations
+        };
+        solve_level(&mut levels[d], &supers, alpha, iterations);
+        nodes_per_level.push(levels[d].nodes.len());
+    }
+
+    // Iso-value: the area-weighted mean of χ over the samples.
+    let (mut num, mut den) = (0.0, 0.0);
+    for s in &supers {
+        num += s.area * eval(&levels, s.u);
+        den += s.area;
+    }
+    let iso = num / den;
+    let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
+
+    let t1 = Instant::now();
+    let finest_level = &levels[depth as usize];
+    let seeds: Vec<[i64; 3]> = supers.iter().map(|s| s.cell).collect();
+    let coarser = &levels[..depth as usize];
+    let value = |x: i64, y: i64, z: i64| -> f64 {
+        let v = match finest_level.nodes.slot(x, y, z) {
+            Some(s) => finest_level.x[s as usize],
+            None => {
+                let h = 1.0 / finest as f64;
+                eval(coarser, [x as f64 * h, y as f64 * h, z as f64 * h])
+            }
+        };
+        v - iso
+    };
+    let unit_mesh = contour(&ContourInput {
+        cells: finest,
+        seeds: &seeds,
+        value: &value,
+    });
+    let contour_ms = t1.elapsed().as_secs_f64() * 1e3;
+    let unit_area = size * size;
+    let densities = unit_mesh
+        .vertices
+        .iter()
+        .map(|u| {
+            let u = [u.x, u.y, u.z];
+            density.at(&u) / (DENSITY_KERNEL_MEAN * h_dd * h_dd) / unit_area
+        })
+        .collect();
+    let vertices = unit_mesh
+        .vertices
+        .iter()
+        .map(|u| centre + Vector3::new(u.x - 0.5, u.y - 0.5, u.z - 0.5) * size)
+        .collect();
+    Ok(PoissonSurface {
+        mesh: TriangleMesh {
+            vertices,
+            triangles: unit_mesh.triangles,
+        },
+        densities,
+        nodes_per_level,
+        samples: samples.len(),
+        cell_size: size / finest as f64,
+        solve_ms,
+        contour_ms,
+    })
+}
+
+fn validate(cfg: &PoissonConfig) -> Result<(), MeshError> {
+    if !(COARSEST_LEVEL..=MAX_DEPTH).contains(&cfg.depth) {
+        return Err(MeshError::invalid(
+            "PoissonConfig::depth",
+            cfg.depth,
+            "must be between 2 and 10 (the finest grid of depth 10 has 1025³ nodes)",
+        ));
+    }
+    if cfg.full_depth < COARSEST_LEVEL {
+        return Err(MeshError::invalid(
+            "PoissonConfig::full_depth",
+            cfg.full_depth,
+            "at least 2 (the cascade starts from a full level-2 grid)",
+        ));
+    }
+    if cfg.full_depth > 7 {
+        return Err(MeshError::invalid(
+            "PoissonConfig::full_depth",
+            cfg.full_depth,
+            "at most 7 (a full grid of 129³ nodes); deeper levels are adaptive",
+        ));
+    }
+    if !(cfg.scale.is_finite() && cfg.scale >= 1.0) {
+        return Err(MeshError::invalid(
+            "PoissonConfig::scale",
+            cfg.scale,
+            "must be a finite ratio of at least 1",
+        ));
+    }
+    if !(cfg.screening.is_finite() && cfg.screening >= 0.0) {
+        return Err(MeshError::invalid(
+            "PoissonConfig::screening",
+            cfg.screening,
+            "must be finite and not negative",
+        ));
+    }
+    if cfg.iterations == 0 {
+        return Err(MeshError::invalid(
+            "PoissonConfig::iterations",
+            cfg.iterations,
+            "at least one iteration per level",
+        ));
+    }
+    Ok(())
+}
+
+/// Trilinear weights and the lower cell corner of unit-cube position `u` at a level of `cells`
+/// cells per axis.
+#[inline]
+fn cell_weights(u: [f64; 3], cells: i64) -> ([i64; 3], [f64; 8]) {
+    let mut c = [0i64; 3];
+    let mut f = [0.0f64; 3];
+    for a in 0..3 {
+        let g = u[a] * cells as f64;
+        c[a] = (g.floor() as i64).clamp(0, cells - 1);
+        f[a] = (g - c[a] as f64).clamp(0.0, 1.0);
+    }
+    let mut w = [0.0; 8];
+    for (k, wk) in w.iter_mut().enumerate() {
+        let wx = if k & 1 != 0 { f[0] } else { 1.0 - f[0] };
+        let wy = if k & 2 != 0 { f[1] } else { 1.0 - f[1] };
+        let wz = if k & 4 != 0 { f[2] } else { 1.0 - f[2] };
+        *wk = wx * wy * wz;
+    }
+    (c, w)
+}
+
+#[inline]
+fn corner(c: [i64; 3], k: usize) -> [i64; 3] {
+    [
+        c[0] + (k & 1) as i64,
+        c[1] + ((k >> 1) & 1) as i64,
+        c[2] + ((k >> 2) & 1) as i64,
+    ]
+}
+
+/// `χ` at unit-cube position `u`: the deepest of `levels` whose cell around `u` has all eight
+/// nodes (the fully populated levels always do).
+fn eval(levels: &[Level], u: [f64; 3]) -> f64 {
+    for level in levels.iter().rev() {
+        let (c, w) = cell_weights(u, level.cells());
+        let mut v = 0.0;
+        let mut complete = true;
+        for (k, wk) in w.iter().enumerate() {
+            let q = corner(c, k);
+            match level.nodes.slot(q[0], q[1], q[2]) {
+                Some(s) => v += wk * level.x[s as usize],
+                None => {
+                    complete = false;
+                    break;
+                }
+            }
+        }
+        if complete {
+            return v;
+        }
+    }
+    0.0
+}
+
+/// Sampling density (trilinear splat of sample counts) on a full grid.
+struct DensityGrid {
+    cells: i64,
+    n: usize,
+    counts: Vec<f32>,
+}
+
+impl DensityGrid {
+    fn new(depth: u32, units: &[[f64; 3]]) -> Self {
+        let cells = 1i64 << depth;
+        let n = cells as usize + 1;
+        let mut counts = vec![0.0f32; n * n * n];
+        for u in units {
+            let (c, w) = cell_weights(*u, cells);
+            for (k, wk) in w.iter().enumerate() {
+                let q = corner(c, k);
+                counts[(q[2] as usize * n + q[1] as usize) * n + q[0] as usize] += *wk as f32;
+            }
+        }
+        Self { cells, n, counts }
+    }
+
+    fn at(&self, u: &[f64; 3]) -> f64 {
+        let (c, w) = cell_weights(*u, self.cells);
+        let n = self.n;
+        w.iter()
+            .enumerate()
+            .map(|(k, wk)| {
+                let q = corner(c, k);
+                wk * f64::from(self.counts[(q[2] as usize * n + q[1] as usize) * n + q[0] as usize])
+            })
+            .sum()
+    }
+}
+
+/// Offset index of a 27-neighbourhood: `(dz + 1) * 9 + (dy + 1) * 3 + (dx + 1)`.
+#[inline]
+fn offset_index(d: [i64; 3]) -> usize {
+    ((d[2] + 1) * 9 + (d[1] + 1) * 3 + (d[0] + 1)) as usize
+}
+
+/// The 27 offsets, in [`offset_index`] order.
+fn offsets() -> [[i64; 3]; 27] {
+    let mut o = [[0i64; 3]; 27];
+    for (i, oi) in o.iter_mut().enumerate() {
+        *oi = [
+            (i % 3) as i64 - 1,
+            ((i / 3) % 3) as i64 - 1,
+            (i / 9) as i64 - 1,
+        ];
+    }
+    o
+}
+
+/// The right-hand side `b_i = ∫ ∇B_i · V` at the finest level, with `V` the trilinear splat of
+/// the samples' area-weighted normals (`V = Σ_j v_j B_j`, `v_j = Σ_s a_s n_s B_j(s) / h³`).
+fn finest_rhs(
+    level: &mut Level,
+    units: &[[f64; 3]],
+    samples: &[(Point3<f64>, Vector3<f64>)],
+    areas: &[f64],
+) {
+    let cells = level.cells();
+    let h = 1.0 / cells as f64;
+    let mut w = vec![[0.0f64; 3]; level.nodes.len()];
+    for ((u, (_, n)), a) in units.iter().zip(samples).zip(areas) {
+        let (c, wt) = cell_weights(*u, cells);
+        for (k, wk) in wt.iter().enumerate() {
+            let q = corner(c, k);
+            if let Some(s) = level.nodes.slot(q[0], q[1], q[2]) {
+                let v = &mut w[s as usize];
+                for a_ in 0..3 {
+                    v[a_] += a * wk * n[a_];
+                }
+            }
+        }
+    }
+    // 1-D integrals on a unit spacing: ∫ B_i' B_{i+o} and ∫ B_i B_{i+o} / h.
+    let d1 = |o: i64| match o {
+        1 => -0.5,
+        -1 => 0.5,
+        _ => 0.0,
+    };
+    let m1 = |o: i64| if o == 0 { 2.0 / 3.0 } else { 1.0 / 6.0 };
+    let offs = offsets();
+    // G(o) = ∫ ∇B_i B_{i+o} = h² (d1 m1 m1, m1 d1 m1, m1 m1 d1); b = Σ G·v = Σ G·w / h³.
+    let g: Vec<[f64; 3]> = offs
+        .iter()
+        .map(|o| {
+            [
+                d1(o[0]) * m1(o[1]) * m1(o[2]) / h,
+                m1(o[0]) * d1(o[1]) * m1(o[2]) / h,
+                m1(o[0]) * m1(o[1]) * d1(o[2]) / h,
+            ]
+        })
+        .collect();
+    let nodes = &level.nodes;
+    level.b = (0..nodes.len())
+        .into_par_iter()
+        .map(|s| {
+            let c = nodes.coords(s);
+            let mut acc = 0.0;
+            for (o, gi) in offs.iter().zip(&g) {
+                if let Some(t) = nodes.slot(c[0] + o[0], c[1] + o[1], c[2] + o[2]) {
+                    let v = &w[t as usize];
+                    acc += gi[0] * v[0] + gi[1] * v[1] + gi[2] * v[2];
+                }
+            }
+            acc
+        })
+        .collect();
+}
+
+/// Galerkin restriction of the right-hand side: a coarse B-spline is the sum of the fine ones
+/// with weights 1 (same node) and ½ per axis (the fine nodes halfway).
+fn restrict(fine: &Level, coarse: &mut Level) {
+    coarse.b.iter_mut().for_each(|v| *v = 0.0);
+    for (s, &bv) in fine.b.iter().enumerate() {
+        if bv == 0.0 {
+            continue;
+        }
+        let c = fine.nodes.coords(s);
+        let options = |v: i64| -> [(i64, f64); 2] {
+            if v % 2 == 0 {
+                [(v / 2, 1.0), (-1, 0.0)]
+            } else {
+                [((v - 1) / 2, 0.5), ((v + 1) / 2, 0.5)]
+            }
+        };
+        let (ox, oy, oz) = (options(c[0]), options(c[1]), options(c[2]));
+        for &(z, wz) in &oz {
+            for &(y, wy) in &oy {
+                for &(x, wx) in &ox {
+                    if wx * wy * wz == 0.0 {
+                        continue;
+                    }
+                    if let Some(t) = coarse.nodes.slot(x, y, z) {
+                        coarse.b[t as usize] += wx * wy * wz * bv;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Element stiffness of the trilinear cube of unit edge between two corners `hamming` bits
+/// apart: `∫ ∇B_a·∇B_b`.
+fn element_stiffness(hamming: u32) -> f64 {
+    match hamming {
+        0 => 1.0 / 3.0,
+        1 => 0.0,
+        _ => -1.0 / 12.0,
+    }
+}
+
+/// Stiffness coefficients of node `p` towards its 27 neighbours on a grid of `n` nodes per
+/// axis, summed over the cells inside the grid (so faces of the cube get the natural, Neumann,
+/// condition), for unit spacing.
+fn stiffness_row(p: [i64; 3], n: i64) -> [f64; 27] {
+    let mut row = [0.0; 27];
+    for cell in 0..8usize {
+        // Lower corner of one of the eight cells around p.
+        let lo = [
+            p[0] - 1 + (cell & 1) as i64,
+            p[1] - 1 + ((cell >> 1) & 1) as i64,
+            p[2] - 1 + ((cell >> 2) & 1) as i64,
+        ];
+        if lo.iter().any(|&v| v < 0 || v > n - 2) {
+            continue;
+        }
+        let pl = (0..3).fold(0u32, |acc, a| acc | (((p[a] - lo[a]) as u32) << a));
+        for q in 0..8u32 {
+            let d = [
+                lo[0] + i64::from(q & 1) - p[0],
+                lo[1] + i64::from((q >> 1) & 1) - p[1],
+                lo[2] + i64::from((q >> 2) & 1) - p[2],
+            ];
+            row[offset_index(d)] += element_stiffness((pl ^ q).count_ones());
+        }
+    }
+    row
+}
+
+/// Relaxes one level with Jacobi-preconditioned conjugate gradients. Nodes whose 26
+/// neighbours are not all present (the rim of a band) keep their values.
+fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations: usize) {
+    let nodes = &level.nodes;
+    let n = nodes.n as i64;
+    let cells = level.cells();
+    let h = 1.0 / cells as f64;
+    let offs = offsets();
+    let interior = stiffness_row([1, 1, 1], n.max(3));
+    // Free rows: neighbour slots and coefficients.
+    let rows: Vec<(u32, [u32; 27])> = (0..nodes.len())
+        .into_par_iter()
+        .filter_map(|s| {
+            let c = nodes.coords(s);
+            let mut nb = [s as u32; 27];
+            for (i, o) in offs.iter().enumerate() {
+                let q = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
+                if q.iter().any(|&v| v < 0 || v >= n) {
+                    continue;
+                }
+                nb[i] = nodes.slot(q[0], q[1], q[2])?;
+            }
+            Some((s as u32, nb))
+        })
+        .collect();
+    let mut row_of = vec![u32::MAX; nodes.len()];
+    for (r, (s, _)) in rows.iter().enumerate() {
+        row_of[*s as usize] = r as u32;
+    }
+    let mut coef: Vec<[f32; 27]> = rows
+        .par_iter()
+        .map(|(s, _)| {
+            let c = nodes.coords(*s as usize);
+            let on_face = c.iter().any(|&v| v == 0 || v == n - 1);
+            let row = if on_face {
+                stiffness_row(c, n)
+            } else {
+                interior
+            };
+            row.map(|v| (v * h) as f32)
+        })
+        .collect();
+    // Screening: α Σ_s a_s B_i(s) B_j(s), from the super-samples.
+    for sup in supers {
+        let (c, w) = cell_weights(sup.u, cells);
+        for k in 0..8 {
+            let qk = corner(c, k);
+            let Some(slot) = nodes.slot(qk[0], qk[1], qk[2]) else {
+                continue;
+            };
+            let r = row_of[slot as usize];
+            if r == u32::MAX {
+                continue;
+            }
+            let row = &mut coef[r as usize];
+            for (l, wl) in w.iter().enumerate() {
+                let ql = corner(c, l);
+                let d = [ql[0] - qk[0], ql[1] - qk[1], ql[2] - qk[2]];
+                row[offset_index(d)] += (alpha * sup.area * w[k] * wl) as f32;
+            }
+        }
+    }
+    // Zero the coefficients towards the grid outside (their nb points at the row itself).
+    for ((s, nb), cf) in rows.iter().zip(coef.iter_mut()) {
+        for i in 0..27 {
+            if i != 13 && nb[i] == *s {
+                cf[i] = 0.0;
+            }
+        }
+    }
+    let x = &mut level.x;
+    let b = &level.b;
+    let apply = |v: &[f64], out: &mut [f64]| {
+        out.par_iter_mut()
+            .zip(rows.par_iter().zip(coef.par_iter()))
+            .for_each(|(o, ((_, nb), cf))| {
+                let mut acc = 0.0;
+                for i in 0..27 {
+                    acc += f64::from(cf[i]) * v[nb[i] as usize];
+                }
+                *o = acc;
+            });
+    };
+    let m = rows.len();
+    if m == 0 {
+        return;
+    }
+    let mut ax = vec![0.0; m];
+    apply(x, &mut ax);
+    let mut r: Vec<f64> = rows
+        .iter()
+        .zip(&ax)
+        .map(|((s, _), a)| b[*s as usize] - a)
+        .collect();
+    let diag: Vec<f64> = coef
+        .iter()
+        .map(|c| 1.0 / f64::from(c[13]).max(f64::MIN_POSITIVE))
+        .collect();
+    let bnorm = rows
+        .iter()
+        .map(|(s, _)| b[*s as usize].powi(2))
+        .sum::<f64>()
+        .sqrt()
+        .max(f64::MIN_POSITIVE);
+    let mut z: Vec<f64> = r.iter().zip(&diag).map(|(a, d)| a * d).collect();
+    let mut p = vec![0.0; nodes.len()];
+    for ((s, _), zi) in rows.iter().zip(&z) {
+        p[*s as usize] = *zi;
+    }
+    let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+    let mut q = vec![0.0; m];
+    for _ in 0..iterations {
+        apply(&p, &mut q);
+        let pq: f64 = rows
+            .iter()
+            .zip(&q)
+            .map(|((s, _), qi)| p[*s as usize] * qi)
+            .sum();
+        if pq.is_nan() || pq <= 0.0 {
+            break;
+        }
+        let a = rz / pq;
+        for (((s, _), ri), qi) in rows.iter().zip(r.iter_mut()).zip(&q) {
+            x[*s as usize] += a * p[*s as usize];
+            *ri -= a * qi;
+        }
+        let rnorm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if rnorm < CG_TOLERANCE * bnorm {
+            break;
+        }
+        for ((zi, ri), d) in z.iter_mut().zip(&r).zip(&diag) {
+            *zi = ri * d;
+        }
+        let rz_new: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+        let beta = rz_new / rz;
+        rz = rz_new;
+        for ((s, _), zi) in rows.iter().zip(&z) {
+            let v = &mut p[*s as usize];
+            *v = zi + beta * *v;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::check_topology;
+
+    fn sphere(n: usize, radius: f64, centre: Point3<f64>) -> PointCloud {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let (pts, nrm): (Vec<_>, Vec<_>) = (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let r = (1.0 - z * z).sqrt();
+                let t = golden * i as f64;
+                let nv = Vector3::new(r * t.cos(), r * t.sin(), z);
+                (centre + nv * radius, nv)
+            })
+            .unzip();
+        PointCloud::from_positions(pts).with_normals(nrm).unwrap()
+    }
+
+    #[test]
+    fn interior_stiffness_row_sums_to_zero() {
+        let row = stiffness_row([3, 3, 3], 8);
+        approx::assert_relative_eq!(row[13], 8.0 / 3.0, epsilon = 1e-12);
+        approx::assert_relative_eq!(row.iter().sum::<f64>(), 0.0, epsilon = 1e-12);
+        // A corner of the cube: one cell only.
+        let corner_row = stiffness_row([0, 0, 0], 8);
+        approx::assert_relative_eq!(corner_row[13], 1.0 / 3.0, epsilon = 1e-12);
+        approx::assert_relative_eq!(corner_row.iter().sum::<f64>(), 0.0, epsilon = 1e-12);
+    }
+
+    /// A sphere of radius 20 mm sampled with 20 000 exact points (0.5 mm apart): the mesh is
+    /// closed, manifold, oriented outwards, and its vertices lie within 7 % of a finest cell
+    /// (depth 7: cells of 0.34 mm) of the sphere in RMS, unbiased to 1 % of a cell. Measured:
+    /// 6.0 % and 0.2 %; linear interpolation along the cell edges of a field that curves over
+    /// a few cells costs a few per cent of a cell, a wrong screening or a misplaced iso-value
+    /// costs tens.
+    #[test]
+    fn sphere_mesh_is_close_to_the_sphere() {
+        let centre = Point3::new(5.0, -3.0, 300.0);
+        let cloud = sphere(20_000, 20.0, centre);
+        let cfg = PoissonConfig {
+            depth: 7,
+            ..PoissonConfig::default()
+        };
+        let s = poisson_reconstruct(&cloud, &cfg).unwrap();
+        let topo = check_topology(&s.mesh);
+        assert!(topo.is_watertight_manifold(), "{topo:?}");
+        assert_eq!(topo.components, 1);
+        let errs: Vec<f64> = s
+            .mesh
+            .vertices
+            .iter()
+            .map(|p| (p - centre).norm() - 20.0)
+            .collect();
+        let rms = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt();
+        let mean = errs.iter().sum::<f64>() / errs.len() as f64;
+        assert!(
+            rms < 0.07 * s.cell_size,
+            "rms {rms} mm, cell {}",
+            s.cell_size
+        );
+        assert!(
+            mean.abs() < 0.01 * s.cell_size,
+            "mean {mean} mm, cell {}",
+            s.cell_size
+        );
+        // Oriented outwards: the signed volume is that of the sphere.
+        let vol = crate::signed_volume(&s.mesh);
+        let exact = 4.0 / 3.0 * std::f64::consts::PI * 20f64.powi(3);
+        assert!(
+            (vol - exact).abs() < 0.01 * exact,
+            "volume {vol} vs {exact}"
+        );
+    }
+
+    /// Two separate spheres give two closed pieces; an open cap (the camera-facing half of a
+    /// sphere, as one view sees it) is still closed by the reconstruction.
+    #[test]
+    fn separate_and_partial_shapes_stay_closed() {
+        let a = sphere(6000, 10.0, Point3::origin());
+        let b = sphere(6000, 8.0, Point3::new(40.0, 0.0, 0.0));
+        let mut pts = a.positions().to_vec();
+        pts.extend_from_slice(b.positions());
+        let mut nrm = a.normals().unwrap().to_vec();
+        nrm.extend_from_slice(b.normals().unwrap());
+        let two = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let cfg = PoissonConfig {
+            depth: 7,
+            ..PoissonConfig::default()
+        };
+        let s = poisson_reconstruct(&two, &cfg).unwrap();
+        let topo = check_topology(&s.mesh);
+        assert!(topo.is_watertight_manifold(), "{topo:?}");
+        assert_eq!(topo.components, 2, "{topo:?}");
+
+        let full = sphere(8000, 10.0, Point3::origin());
+        let (pts, nrm): (Vec<_>, Vec<_>) = full
+            .positions()
+            .iter()
+            .zip(full.normals().unwrap())
+            .filter(|(p, _)| p.z < 2.0)
+            .map(|(p, n)| (*p, *n))
+            .unzip();
+        let cap = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let s = poisson_reconstruct(&cap, &cfg).unwrap();
+        let topo = check_topology(&s.mesh);
+        assert!(topo.is_watertight_manifold(), "{topo:?}");
+        // Where the data is, the surface follows it: vertices near samples (z < 0) are on the
+        // sphere to a fifth of a cell.
+        let near: Vec<f64> = s
+            .mesh
+            .vertices
+            .iter()
+            .filter(|p| p.z < -2.0)
+            .map(|p| p.coords.norm() - 10.0)
+            .collect();
+        assert!(near.len() > 100);
+        let rms = (near.iter().map(|e| e * e).sum::<f64>() / near.len() as f64).sqrt();
+        assert!(rms < 0.2 * s.cell_size, "rms {rms}, cell {}", s.cell_size);
+    }
+
+    #[test]
+    fn bad_input_is_named() {
+        let c = sphere(100, 1.0, Point3::origin());
+        let bare = PointCloud::from_positions(c.positions().to_vec());
+        let e = poisson_reconstruct(&bare, &PoissonConfig::default()).unwrap_err();
+        assert!(matches!(e, MeshError::NoNormals { points: 100 }), "{e}");
+        let few = sphere(10, 1.0, Point3::origin());
+        let e = poisson_reconstruct(&few, &PoissonConfig::default()).unwrap_err();
+        assert!(
+            matches!(e, MeshError::TooFewPoints { found: 10, .. }),
+            "{e}"
+        );
+        let bad = PoissonConfig {
+            depth: 11,
+            ..PoissonConfig::default()
+        };
+        let e = poisson_reconstruct(&c, &bad).unwrap_err().to_string();
+        assert!(e.contains("PoissonConfig::depth"), "{e}");
+        let same = PointCloud::from_positions(vec![Point3::new(1.0, 2.0, 3.0); 50])
+            .with_normals(vec![Vector3::x(); 50])
+            .unwrap();
+        let e = poisson_reconstruct(&same, &PoissonConfig::default()).unwrap_err();
+        assert!(
+            matches!(e, MeshError::DegenerateCloud { points: 50 }),
+            "{e}"
+        );
+    }
+}

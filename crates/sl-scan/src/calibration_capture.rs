@@ -1,0 +1,1182 @@
+//! The capture of a calibration session through the device traits: the board held at varied
+//! poses under the patterns, then standing on the turntable at several angles — what
+//! `slscan calibrate capture` runs on the virtual rig and on real devices alike.
+//!
+//! The session folder has the layout `slscan simulate --scene board` writes, so that
+//! `slscan calibrate all SESSION` reads either:
+//!
+//! ```text
+//! SESSION/board/pose_NNN/      white.png, the pattern frames, manifest.json, board.json
+//! SESSION/turntable/angle_NNN/ the same, board.json holding motor_angle_deg
+//! ```
+//!
+//! Every pose is checked before it is written ([`CalibrationCapture::check`]): the board must
+//! be found with all its corners, not over-exposed, sharp, and far enough from every earlier
+//! pose in position, size or tilt; a refused pose writes nothing and says why ([`Refusal`]).
+//! A pose is written into a hidden folder and renamed when complete, so an interrupted
+//! capture leaves no half pose; a session opened again continues its numbering.
+//!
+//! Who moves the board is a [`BoardMover`]: a person ([`HandHeld`]) or the virtual rig
+//! ([`crate::VirtualBoardRig`]). [`capture_poses_auto`] takes the poses without a key press:
+//! right after each move when the board moves itself, else once the board has been still for
+//! [`AutoConfig::still_for`].
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use nalgebra::Point2;
+use serde::{Deserialize, Serialize};
+use sl_calib::sl_camera::{CameraModel, ImageSize};
+use sl_calib::sl_codec::{
+    Axis, BitDepth, HybridSpec, MANIFEST_FILE, Manifest, Pattern, PatternSequence, ProjectorSize,
+};
+use sl_calib::{
+    BoardCorners, BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera,
+    detect_checkerboard,
+};
+use sl_rig::{Camera, GreyImage, Pixels, Projector, RigError, Turntable, write_capture_set};
+use sl_sim::Checkerboard;
+
+use crate::calibration_coverage::Coverage;
+use crate::pose_quality::{BoardGeometry, edge_width_px, nominal_camera, saturated_fraction};
+
+/// Folder of the hand-held poses inside a session.
+pub const BOARD_DIR: &str = "board";
+/// Folder of the turntable views inside a session.
+pub const TURNTABLE_DIR: &str = "turntable";
+/// The board under full white in each capture folder (what corner detection reads).
+pub const WHITE_IMAGE: &str = "white.png";
+/// The per-folder description of the board and the motor angle.
+pub const BOARD_FILE: &str = "board.json";
+
+/// Prefix of a pose folder being written; renamed to `pose_NNN` when complete.
+const PARTIAL_PREFIX: &str = ".partial_";
+
+/// Poses needed before the camera guess is replaced by a calibration of the poses so far:
+/// Zhang's method needs three views for the focal length and the principal point.
+const MIN_POSES_FOR_CAMERA: usize = 3;
+
+/// Folder name of hand-held pose `k`.
+pub fn pose_dir_name(k: usize) -> String {
+    format!("pose_{k:03}")
+}
+
+/// Folder name of turntable view `k`.
+pub fn angle_dir_name(k: usize) -> String {
+    format!("angle_{k:03}")
+}
+
+/// `count` motor angles spread evenly over −45° … 45° (0 for one): the turntable views of a
+/// calibration session, as `slscan simulate --scene board` takes them for 7 (15° apart).
+pub fn calibration_turntable_angles(count: usize) -> Vec<f64> {
+    match count {
+        0 => Vec::new(),
+        1 => vec![0.0],
+        n => (0..n)
+            .map(|k| -45.0 + 90.0 * k as f64 / (n - 1) as f64)
+            .collect(),
+    }
+}
+
+/// Projector periods across the image of the calibration code: 30 periods (64 projector px on
+/// a 1920 px projector) decode robustly on a board seen at an angle.
+const CALIBRATION_PERIODS: f64 = 30.0;
+/// Phase steps of the calibration code (4: 8 halve the phase noise for twice the frames).
+const CALIBRATION_PHASE_STEPS: u32 = 4;
+
+/// The default pattern sequence of a calibration capture: the complementary hybrid code on
+/// the projector columns, then on its rows (the projector calibration needs both), 4 phase
+/// steps, 30 periods across — as `slscan scan` calibrates the virtual rig.
+pub fn calibration_patterns(projector: ProjectorSize) -> PatternSequence {
+    let code = |axis, extent: u32| {
+        Pattern::Hybrid(HybridSpec::complementary(
+            axis,
+            projector,
+            CALIBRATION_PHASE_STEPS,
+            f64::from(extent) / CALIBRATION_PERIODS,
+        ))
+    };
+    PatternSequence::new(projector)
+        .with(code(Axis::Column, projector.width))
+        .with(code(Axis::Row, projector.height))
+}
+
+/// Everything that can go wrong in a calibration capture (a refused pose is not an error: see
+/// [`Refusal`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CaptureError {
+    /// A device failed, or a file could not be written by `sl-rig`.
+    #[error(transparent)]
+    Rig(#[from] RigError),
+    /// A file or folder of the session could not be read, written or removed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// A session file is not what it should be.
+    #[error("{}: {reason}", path.display())]
+    BadFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// An option is out of its range.
+    #[error("parameter `{name}`: {reason}")]
+    InvalidParameter {
+        /// The option, as the command line names it.
+        name: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The virtual rig could not do what it was asked.
+    #[error("virtual rig: {0}")]
+    Simulator(String),
+}
+
+impl CaptureError {
+    fn io(path: &Path, source: std::io::Error) -> Self {
+        Self::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    pub(crate) fn param(name: &str, reason: impl Into<String>) -> Self {
+        Self::InvalidParameter {
+            name: name.to_owned(),
+            reason: reason.into(),
+        }
+    }
+
+    /// Wraps an error of the simulator (whatever its type: it moves between crates).
+    pub(crate) fn sim(e: impl std::fmt::Display) -> Self {
+        Self::Simulator(e.to_string())
+    }
+}
+
+/// The checks a pose must pass.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PoseGates {
+    /// Largest fraction of the board's pixels at the sensor's top
+    /// ([`crate::SATURATION_LEVEL`]): clipped white squares move the corners. Default 0.02.
+    pub max_saturated_fraction: f64,
+    /// Widest edge (px, [`crate::edge_width_px`]): about 2 for a sharp board, 2.5 σ for a
+    /// blur of σ px. Default 5 (σ ≈ 2 px: corner errors grow past a tenth of a pixel).
+    pub max_edge_width_px: f64,
+    /// A pose is new when its board normal turns at least this much from every earlier pose
+    /// (degrees), … Default 10 (Zhang's least useful tilt difference).
+    pub min_tilt_change_deg: f64,
+    /// … or its centre moves at least this fraction of the image diagonal, … Default 0.1.
+    pub min_shift: f64,
+    /// … or its apparent size changes by at least this fraction. Default 0.25.
+    pub min_size_change: f64,
+}
+
+impl Default for PoseGates {
+    fn default() -> Self {
+        Self {
+            max_saturated_fraction: 0.02,
+            max_edge_width_px: 5.0,
+            min_tilt_change_deg: 10.0,
+            min_shift: 0.1,
+            min_size_change: 0.25,
+        }
+    }
+}
+
+/// Why a pose was refused (nothing is written for it).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum Refusal {
+    /// The board is not in the frame, or not all of it.
+    BoardNotFound {
+        /// The detector's reason.
+        reason: String,
+    },
+    /// Too much of the board is saturated.
+    OverExposed {
+        /// Fraction of the board's pixels saturated.
+        saturated_fraction: f64,
+    },
+    /// The board's edges are blurred (motion or focus).
+    Blurred {
+        /// Median edge width (px).
+        edge_width_px: f64,
+    },
+    /// The pose is too close to an earlier one in position, size and tilt.
+    TooClose {
+        /// Number of the earlier pose (its folder `pose_NNN`).
+        pose: usize,
+        /// Angle between the two board normals (degrees).
+        tilt_change_deg: f64,
+        /// Shift of the board centre, as a fraction of the image diagonal.
+        shift: f64,
+    },
+}
+
+impl std::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::BoardNotFound { reason } => write!(f, "board not found: {reason}"),
+            Self::OverExposed { saturated_fraction } => write!(
+                f,
+                "over-exposed: {:.0} % of the board is saturated; lower the camera exposure or \
+                 the projector brightness",
+                100.0 * saturated_fraction
+            ),
+            Self::Blurred { edge_width_px } => write!(
+                f,
+                "blurred: edges {edge_width_px:.1} px wide; hold the board still and check the focus"
+            ),
+            Self::TooClose {
+                pose,
+                tilt_change_deg,
+                shift,
+            } => write!(
+                f,
+                "too close to pose {pose} (tilt {tilt_change_deg:.0} degrees and {:.0} % of the \
+                 image away): move or tilt the board more",
+                100.0 * shift
+            ),
+        }
+    }
+}
+
+/// What the camera sees now, and whether it makes a pose.
+#[derive(Debug, Clone)]
+pub struct PoseCheck {
+    /// The frame under full white.
+    pub white: GreyImage,
+    /// The detected corners, when the whole board was found.
+    pub corners: Option<BoardCorners>,
+    /// Inner corners of the board.
+    pub expected_corners: usize,
+    /// Where and how tilted the board is (with the camera known so far).
+    pub geometry: Option<BoardGeometry>,
+    /// Fraction of the board's pixels saturated.
+    pub saturated_fraction: f64,
+    /// Median width of the board's edges (px).
+    pub edge_width_px: Option<f64>,
+    /// `Ok` when the pose would be taken, else why not.
+    pub verdict: Result<(), Refusal>,
+}
+
+impl PoseCheck {
+    /// One line for the screen: `board found: 54/54 corners, tilt 23°` and the verdict.
+    pub fn summary(&self) -> String {
+        let found = self.corners.as_ref().map_or(0, |c| c.corners.len());
+        let mut s = if found > 0 {
+            format!("board found: {found}/{} corners", self.expected_corners)
+        } else {
+            format!("board not found: 0/{} corners", self.expected_corners)
+        };
+        if let Some(g) = &self.geometry {
+            s.push_str(&format!(", tilt {:.0} degrees", g.tilt_deg));
+        }
+        if let Some(w) = self.edge_width_px {
+            s.push_str(&format!(", edges {w:.1} px"));
+        }
+        if found > 0 {
+            s.push_str(&format!(
+                ", saturated {:.1} %",
+                100.0 * self.saturated_fraction
+            ));
+        }
+        match &self.verdict {
+            Ok(()) => s.push_str(" - ready"),
+            Err(r) => {
+                if found > 0 {
+                    s.push_str(&format!(" - {r}"));
+                } else if let Refusal::BoardNotFound { reason } = r {
+                    s.push_str(&format!(" ({reason})"));
+                }
+            }
+        }
+        s
+    }
+}
+
+/// A pose of the session.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseRecord {
+    /// Its number (folder `pose_NNN`).
+    pub index: usize,
+    /// Its folder.
+    pub dir: PathBuf,
+    /// The detected corners (px).
+    pub corners: Vec<Point2<f64>>,
+    /// Its geometry, measured with the camera known so far.
+    pub geometry: BoardGeometry,
+}
+
+/// What [`CalibrationCapture::take`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TakeOutcome {
+    /// The pose was captured and written.
+    Taken {
+        /// Its number.
+        index: usize,
+        /// Its folder.
+        dir: PathBuf,
+    },
+    /// The pose was refused; nothing was written.
+    Refused(Refusal),
+}
+
+/// One turntable view of the session.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TableView {
+    /// Its folder.
+    pub dir: PathBuf,
+    /// The motor angle the turntable reported (degrees).
+    pub motor_angle_deg: f64,
+    /// Whether the whole board was found on its white frame.
+    pub board_found: bool,
+    /// `true` when the view was complete from an earlier run and kept.
+    pub kept: bool,
+}
+
+/// Options of a calibration capture.
+#[derive(Debug, Clone)]
+pub struct CalibrationCaptureConfig {
+    /// The printed board.
+    pub board: Checkerboard,
+    /// The pattern sequence captured at every pose (its projector size must be the
+    /// projector's).
+    pub manifest: Manifest,
+    /// Wait after showing an image before capturing (the projector's display latency).
+    pub display_latency: Duration,
+    /// Camera frames to drop after the wait (frames the camera buffered earlier).
+    pub flush_frames: usize,
+    /// Corner detection.
+    pub detector: DetectorConfig,
+    /// The checks of a pose.
+    pub gates: PoseGates,
+}
+
+impl CalibrationCaptureConfig {
+    /// The default board, the default calibration patterns for a projector of `projector`
+    /// pixels, no latency, the default detector and gates.
+    pub fn new(board: Checkerboard, projector: (u32, u32)) -> Self {
+        Self {
+            board,
+            manifest: calibration_patterns(ProjectorSize::new(projector.0, projector.1))
+                .manifest(BitDepth::Eight),
+            display_latency: Duration::ZERO,
+            flush_frames: 0,
+            detector: DetectorConfig::default(),
+            gates: PoseGates::default(),
+        }
+    }
+}
+
+/// The `board.json` of a capture folder: what `slscan calibrate` reads (`motor_angle_deg`)
+/// and what a resumed capture needs (the detected corners).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct BoardFile {
+    board: Checkerboard,
+    motor_angle_deg: f64,
+    /// Detected inner corners `[x, y]` (px), row by row; empty when the board was not found.
+    detected_corners_px: Vec<[f64; 2]>,
+    /// Fraction of the board's pixels saturated under white.
+    saturated_fraction: f64,
+    /// Median edge width (px).
+    edge_width_px: Option<f64>,
+}
+
+/// A calibration capture session: its folder, the poses taken so far and the checks.
+///
+/// On the virtual rig, whose board moves itself (what `slscan calibrate capture --virtual
+/// --auto` runs; `examples/slscan/calibrate_capture.rs` is the interactive front end):
+///
+/// ```no_run
+/// use sl_rig::{Camera, Projector};
+/// use sl_scan::{
+///     AutoConfig, BoardMover, CalibrationCapture, CalibrationCaptureConfig, VirtualBoardRig,
+///     calibration_turntable_angles, capture_poses_auto,
+/// };
+/// use sl_sim::{BoardPoseConfig, Checkerboard, RigConfig};
+///
+/// let board = Checkerboard::default();
+/// let rig = VirtualBoardRig::new(RigConfig::default(), board, &BoardPoseConfig::default())?;
+/// let (mut camera, mut projector, mut table, mut mover) = rig.devices();
+/// let config = CalibrationCaptureConfig::new(board, projector.image_size());
+/// let mut session = CalibrationCapture::open(
+///     "calib/session".as_ref(),
+///     config,
+///     camera.frame_size(),
+///     projector.image_size(),
+/// )?;
+/// let auto = AutoConfig { poses: 12, ..AutoConfig::default() };
+/// capture_poses_auto(&mut session, &mut camera, &mut projector, &mut mover, &auto, |_| {})?;
+/// mover.onto_turntable()?;
+/// let angles = calibration_turntable_angles(7);
+/// session.capture_turntable(&mut camera, &mut projector, &mut table, &angles, |_| {})?;
+/// // `slscan calibrate all calib/session --out calib/all` calibrates from it.
+/// # Ok::<(), sl_scan::CaptureError>(())
+/// ```
+#[derive(Debug)]
+pub struct CalibrationCapture {
+    dir: PathBuf,
+    config: CalibrationCaptureConfig,
+    frame_size: (u32, u32),
+    patterns: Vec<GreyImage>,
+    poses: Vec<PoseRecord>,
+    camera: CameraModel,
+}
+
+impl CalibrationCapture {
+    /// Opens (creating it) the session folder `dir` for a camera of `frame_size` pixels and a
+    /// projector of `projector_size`: the poses already in `dir/board/` are kept and the
+    /// numbering continues after them; half-written poses of an interrupted run are removed.
+    pub fn open(
+        dir: &Path,
+        config: CalibrationCaptureConfig,
+        frame_size: (u32, u32),
+        projector_size: (u32, u32),
+    ) -> Result<Self, CaptureError> {
+        config.board.validate().map_err(CaptureError::sim)?;
+        let m = &config.manifest;
+        if (m.projector.width, m.projector.height) != projector_size {
+            return Err(CaptureError::param(
+                "patterns",
+                format!(
+                    "the patterns are for a {}x{} projector, the projector is {}x{}",
+                    m.projector.width, m.projector.height, projector_size.0, projector_size.1
+                ),
+            ));
+        }
+        let camera = nominal_camera(frame_size.0, frame_size.1).ok_or_else(|| {
+            CaptureError::param(
+                "camera",
+                format!("frame size {}x{}", frame_size.0, frame_size.1),
+            )
+        })?;
+        let sequence = m.sequence();
+        let sixteen = m.bit_depth == BitDepth::Sixteen;
+        let patterns = (0..sequence.frame_count())
+            .map(|k| GreyImage::from_sequence(&sequence, k, sixteen))
+            .collect::<Result<Vec<_>, RigError>>()?;
+        let board_dir = dir.join(BOARD_DIR);
+        for d in [&board_dir, &dir.join(TURNTABLE_DIR)] {
+            std::fs::create_dir_all(d).map_err(|e| CaptureError::io(d, e))?;
+            remove_partials(d)?;
+        }
+        let mut session = Self {
+            dir: dir.to_path_buf(),
+            config,
+            frame_size,
+            patterns,
+            poses: Vec::new(),
+            camera,
+        };
+        session.poses = session.read_poses(&board_dir)?;
+        session.update_camera();
+        Ok(session)
+    }
+
+    /// The session folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The options.
+    pub fn config(&self) -> &CalibrationCaptureConfig {
+        &self.config
+    }
+
+    /// The poses taken so far (from earlier runs too), in order.
+    pub fn poses(&self) -> &[PoseRecord] {
+        &self.poses
+    }
+
+    /// The camera the tilts are measured with: a nominal one until three poses are taken,
+    /// then Zhang's calibration of the poses so far.
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
+    }
+
+    /// Coverage of the image and the tilts by the poses so far.
+    pub fn coverage(&self) -> Coverage {
+        Coverage::of(
+            self.frame_size.0,
+            self.frame_size.1,
+            self.poses
+                .iter()
+                .map(|p| (p.corners.as_slice(), &p.geometry)),
+        )
+    }
+
+    fn board_size(&self) -> BoardSize {
+        BoardSize::new(self.config.board.inner_cols, self.config.board.inner_rows)
+    }
+
+    /// Checks a frame of the board under white: found, exposure, sharpness, novelty.
+    pub fn check(&self, white: GreyImage) -> PoseCheck {
+        let size = self.board_size();
+        let mut check = PoseCheck {
+            expected_corners: size.corner_count(),
+            corners: None,
+            geometry: None,
+            saturated_fraction: 0.0,
+            edge_width_px: None,
+            verdict: Ok(()),
+            white,
+        };
+        let max_value = f64::from(check.white.pixels.max_value());
+        let grey = match to_gray8(&check.white) {
+            Ok(g) => g,
+            Err(e) => {
+                check.verdict = Err(Refusal::BoardNotFound {
+                    reason: e.to_string(),
+                });
+                return check;
+            }
+        };
+        let corners = match detect_checkerboard(&grey, size, &self.config.detector, "frame") {
+            Ok(c) => c,
+            Err(e) => {
+                let reason = match e {
+                    sl_calib::CalibError::BoardNotFound { reason, .. } => reason,
+                    other => other.to_string(),
+                };
+                check.verdict = Err(Refusal::BoardNotFound { reason });
+                return check;
+            }
+        };
+        let full = if max_value > 255.0 { 255.0 } else { max_value };
+        check.saturated_fraction = saturated_fraction(&grey, full, &corners);
+        check.edge_width_px = edge_width_px(&grey, &corners);
+        check.geometry =
+            BoardGeometry::measure(&corners, self.config.board.square_mm, &self.camera);
+        let gates = &self.config.gates;
+        check.verdict = if check.saturated_fraction > gates.max_saturated_fraction {
+            Err(Refusal::OverExposed {
+                saturated_fraction: check.saturated_fraction,
+            })
+        } else if let Some(w) = check.edge_width_px.filter(|&w| w > gates.max_edge_width_px) {
+            Err(Refusal::Blurred { edge_width_px: w })
+        } else if let Some(r) = check.geometry.as_ref().and_then(|g| self.too_close(g)) {
+            Err(r)
+        } else {
+            Ok(())
+        };
+        check.corners = Some(corners);
+        check
+    }
+
+    /// The earlier pose this one is too close to, if any.
+    fn too_close(&self, g: &BoardGeometry) -> Option<Refusal> {
+        let (w, h) = self.frame_size;
+        let diagonal = f64::from(w).hypot(f64::from(h));
+        let gates = &self.config.gates;
+        self.poses
+            .iter()
+            .map(|p| {
+                let q = &p.geometry;
+                let tilt = g.facing.angle(&q.facing).to_degrees();
+                let shift = (g.centre_px - q.centre_px).norm() / diagonal;
+                let size = (g.size_px / q.size_px.max(f64::MIN_POSITIVE)).ln().abs();
+                (p.index, tilt, shift, size)
+            })
+            .filter(|&(_, tilt, shift, size)| {
+                tilt < gates.min_tilt_change_deg
+                    && shift < gates.min_shift
+                    && size < (1.0 + gates.min_size_change).ln()
+            })
+            .min_by(|a, b| a.2.total_cmp(&b.2))
+            .map(|(pose, tilt_change_deg, shift, _)| Refusal::TooClose {
+                pose,
+                tilt_change_deg,
+                shift,
+            })
+    }
+
+    /// Shows full white, waits for the display, and checks the frame the camera captures.
+    pub fn look<C, P>(&self, camera: &mut C, projector: &mut P) -> Result<PoseCheck, CaptureError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+    {
+        let white = self.white_image(projector.image_size());
+        let frame = self.show_and_capture(camera, projector, &white)?;
+        Ok(self.check(frame))
+    }
+
+    fn white_image(&self, (w, h): (u32, u32)) -> GreyImage {
+        GreyImage::filled_u8(w, h, u8::MAX)
+    }
+
+    /// Show → wait for the display latency → flush → capture.
+    fn show_and_capture<C, P>(
+        &self,
+        camera: &mut C,
+        projector: &mut P,
+        image: &GreyImage,
+    ) -> Result<GreyImage, CaptureError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+    {
+        projector.show(image)?;
+        if !self.config.display_latency.is_zero() {
+            std::thread::sleep(self.config.display_latency);
+        }
+        for _ in 0..self.config.flush_frames {
+            camera.capture()?;
+        }
+        Ok(camera.capture()?)
+    }
+
+    /// Takes the pose `check` was made of: refused (nothing written) unless its verdict is
+    /// `Ok`; else every pattern is shown and captured and the pose folder written (into a
+    /// hidden folder renamed when complete).
+    pub fn take<C, P>(
+        &mut self,
+        check: &PoseCheck,
+        camera: &mut C,
+        projector: &mut P,
+    ) -> Result<TakeOutcome, CaptureError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+    {
+        if let Err(r) = &check.verdict {
+            return Ok(TakeOutcome::Refused(r.clone()));
+        }
+        let (Some(corners), Some(geometry)) = (&check.corners, &check.geometry) else {
+            return Ok(TakeOutcome::Refused(Refusal::BoardNotFound {
+                reason: "no pose fits the corners".to_owned(),
+            }));
+        };
+        let index = self.poses.last().map_or(0, |p| p.index + 1);
+        let dir = self.dir.join(BOARD_DIR).join(pose_dir_name(index));
+        let frames = self.capture_patterns(camera, projector)?;
+        self.write_folder(
+            &dir,
+            &check.white,
+            &frames,
+            &BoardFile {
+                board: self.config.board,
+                motor_angle_deg: 0.0,
+                detected_corners_px: corners.corners.iter().map(|p| [p.x, p.y]).collect(),
+                saturated_fraction: check.saturated_fraction,
+                edge_width_px: check.edge_width_px,
+            },
+            &format!("slscan calibrate capture, board pose {index}"),
+        )?;
+        self.poses.push(PoseRecord {
+            index,
+            dir: dir.clone(),
+            corners: corners.corners.clone(),
+            geometry: geometry.clone(),
+        });
+        self.update_camera();
+        Ok(TakeOutcome::Taken { index, dir })
+    }
+
+    fn capture_patterns<C, P>(
+        &self,
+        camera: &mut C,
+        projector: &mut P,
+    ) -> Result<Vec<GreyImage>, CaptureError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+    {
+        self.patterns
+            .iter()
+            .map(|p| self.show_and_capture(camera, projector, p))
+            .collect()
+    }
+
+    /// Writes a capture folder atomically: everything into a hidden sibling, `white.png`
+    /// last, then one rename.
+    fn write_folder(
+        &self,
+        dir: &Path,
+        white: &GreyImage,
+        frames: &[GreyImage],
+        board: &BoardFile,
+        description: &str,
+    ) -> Result<(), CaptureError> {
+        let (Some(parent), Some(name)) = (dir.parent(), dir.file_name()) else {
+            return Err(CaptureError::param(
+                "session folder",
+                dir.display().to_string(),
+            ));
+        };
+        let partial = parent.join(format!("{PARTIAL_PREFIX}{}", name.to_string_lossy()));
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial).map_err(|e| CaptureError::io(&partial, e))?;
+        }
+        write_capture_set(&partial, &self.config.manifest, frames, description)?;
+        let json = serde_json::to_string_pretty(board).map_err(|e| CaptureError::BadFile {
+            path: partial.join(BOARD_FILE),
+            reason: e.to_string(),
+        })?;
+        let file = partial.join(BOARD_FILE);
+        std::fs::write(&file, json).map_err(|e| CaptureError::io(&file, e))?;
+        white.save_png(&partial.join(WHITE_IMAGE))?;
+        if dir.exists() {
+            std::fs::remove_dir_all(dir).map_err(|e| CaptureError::io(dir, e))?;
+        }
+        std::fs::rename(&partial, dir).map_err(|e| CaptureError::io(dir, e))
+    }
+
+    /// Removes the last pose (its folder too); returns its folder, `None` without poses.
+    pub fn drop_last(&mut self) -> Result<Option<PathBuf>, CaptureError> {
+        let Some(last) = self.poses.pop() else {
+            return Ok(None);
+        };
+        if last.dir.exists() {
+            std::fs::remove_dir_all(&last.dir).map_err(|e| CaptureError::io(&last.dir, e))?;
+        }
+        self.update_camera();
+        Ok(Some(last.dir))
+    }
+
+    /// Captures the board standing on the turntable at each of `angles_deg` (motor degrees):
+    /// rotate, white frame, every pattern, one folder `turntable/angle_NNN` each. Views
+    /// complete from an earlier run are kept. `on_view` is called after each view.
+    pub fn capture_turntable<C, P, T>(
+        &self,
+        camera: &mut C,
+        projector: &mut P,
+        turntable: &mut T,
+        angles_deg: &[f64],
+        mut on_view: impl FnMut(&TableView),
+    ) -> Result<Vec<TableView>, CaptureError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+        T: Turntable + ?Sized,
+    {
+        let mut views = Vec::with_capacity(angles_deg.len());
+        for (k, &angle) in angles_deg.iter().enumerate() {
+            let dir = self.dir.join(TURNTABLE_DIR).join(angle_dir_name(k));
+            if let Some(file) = complete_folder(&dir)? {
+                let v = TableView {
+                    dir,
+                    motor_angle_deg: file.motor_angle_deg,
+                    board_found: !file.detected_corners_px.is_empty(),
+                    kept: true,
+                };
+                on_view(&v);
+                views.push(v);
+                continue;
+            }
+            let reached = turntable.rotate_to(angle)?;
+            let white = self.white_image(projector.image_size());
+            let white = self.show_and_capture(camera, projector, &white)?;
+            let check = self.check(white);
+            let frames = self.capture_patterns(camera, projector)?;
+            let corners = check
+                .corners
+                .as_ref()
+                .map(|c| c.corners.iter().map(|p| [p.x, p.y]).collect())
+                .unwrap_or_default();
+            self.write_folder(
+                &dir,
+                &check.white,
+                &frames,
+                &BoardFile {
+                    board: self.config.board,
+                    motor_angle_deg: reached,
+                    detected_corners_px: corners,
+                    saturated_fraction: check.saturated_fraction,
+                    edge_width_px: check.edge_width_px,
+                },
+                &format!("slscan calibrate capture, board on the turntable at {reached} degrees"),
+            )?;
+            let v = TableView {
+                dir,
+                motor_angle_deg: reached,
+                board_found: check.corners.is_some(),
+                kept: false,
+            };
+            on_view(&v);
+            views.push(v);
+        }
+        Ok(views)
+    }
+
+    /// Reads the complete pose folders of `board_dir` in order.
+    fn read_poses(&self, board_dir: &Path) -> Result<Vec<PoseRecord>, CaptureError> {
+        let mut entries: Vec<(usize, PathBuf)> = std::fs::read_dir(board_dir)
+            .map_err(|e| CaptureError::io(board_dir, e))?
+            .filter_map(Result::ok)
+            .filter_map(|e| {
+                let name = e.file_name().to_string_lossy().into_owned();
+                let k = name.strip_prefix("pose_")?.parse::<usize>().ok()?;
+                Some((k, e.path()))
+            })
+            .collect();
+        entries.sort();
+        let size = self.board_size();
+        let mut poses = Vec::new();
+        for (index, dir) in entries {
+            let Some(file) = complete_folder(&dir)? else {
+                continue;
+            };
+            let corners: Vec<Point2<f64>> = file
+                .detected_corners_px
+                .iter()
+                .map(|&[x, y]| Point2::new(x, y))
+                .collect();
+            if corners.len() != size.corner_count() {
+                // A folder of another board or written by another program: kept on disk,
+                // counted neither for coverage nor for closeness.
+                continue;
+            }
+            let bc = BoardCorners {
+                size,
+                corners: corners.clone(),
+            };
+            let Some(geometry) =
+                BoardGeometry::measure(&bc, self.config.board.square_mm, &self.camera)
+            else {
+                continue;
+            };
+            poses.push(PoseRecord {
+                index,
+                dir,
+                corners,
+                geometry,
+            });
+        }
+        Ok(poses)
+    }
+
+    /// Replaces the camera guess by a calibration of the poses so far (from three on), and
+    /// measures every pose again with it.
+    fn update_camera(&mut self) {
+        let (w, h) = self.frame_size;
+        let nominal = nominal_camera(w, h);
+        let size = self.board_size();
+        let square = self.config.board.square_mm;
+        let calibrated = if self.poses.len() >= MIN_POSES_FOR_CAMERA {
+            let views: Vec<CalibrationView> = self
+                .poses
+                .iter()
+                .map(|p| {
+                    CalibrationView::from_corners(
+                        &BoardCorners {
+                            size,
+                            corners: p.corners.clone(),
+                        },
+                        square,
+                    )
+                })
+                .collect();
+            let cfg = ZhangConfig {
+                fix_k3: true,
+                ..ZhangConfig::default()
+            };
+            calibrate_camera(&views, ImageSize::new(w, h), &cfg)
+                .ok()
+                .map(|c| c.camera)
+        } else {
+            None
+        };
+        if let Some(camera) = calibrated.or(nominal) {
+            self.camera = camera;
+        }
+        for p in &mut self.poses {
+            let bc = BoardCorners {
+                size,
+                corners: p.corners.clone(),
+            };
+            if let Some(g) = BoardGeometry::measure(&bc, square, &self.camera) {
+                p.geometry = g;
+            }
+        }
+    }
+}
+
+/// The `board.json` of a complete capture folder (white frame, manifest and board file);
+/// `None` when the folder is missing or incomplete.
+fn complete_folder(dir: &Path) -> Result<Option<BoardFile>, CaptureError> {
+    let file = dir.join(BOARD_FILE);
+    if !(dir.join(WHITE_IMAGE).is_file() && dir.join(MANIFEST_FILE).is_file() && file.is_file()) {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&file).map_err(|e| CaptureError::io(&file, e))?;
+    serde_json::from_str(&text)
+        .map(Some)
+        .map_err(|e| CaptureError::BadFile {
+            path: file,
+            reason: e.to_string(),
+        })
+}
+
+/// Removes the hidden half-written folders an interrupted run left in `dir`.
+fn remove_partials(dir: &Path) -> Result<(), CaptureError> {
+    for e in std::fs::read_dir(dir)
+        .map_err(|e| CaptureError::io(dir, e))?
+        .filter_map(Result::ok)
+    {
+        if e.file_name().to_string_lossy().starts_with(PARTIAL_PREFIX) {
+            let p = e.path();
+            std::fs::remove_dir_all(&p).map_err(|e| CaptureError::io(&p, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// A camera frame as an 8-bit image for the detector (16-bit frames keep their high byte).
+fn to_gray8(img: &GreyImage) -> Result<sl_calib::image::GrayImage, CaptureError> {
+    let px = match &img.pixels {
+        Pixels::U8(p) => p.clone(),
+        Pixels::U16(p) => p.iter().map(|&v| (v >> 8) as u8).collect(),
+    };
+    sl_calib::image::GrayImage::from_raw(img.width, img.height, px)
+        .ok_or_else(|| CaptureError::param("frame", "pixel buffer of the wrong length"))
+}
+
+/// Who moves the board between poses.
+pub trait BoardMover {
+    /// Whether the board moves by itself (the virtual rig): then [`capture_poses_auto`] takes
+    /// each pose right after the move instead of waiting for the board to be still.
+    fn moves_itself(&self) -> bool;
+
+    /// Called after each pose taken or refused: moves the board to its next pose (a person
+    /// does that on their own: nothing to do).
+    fn next_pose(&mut self) -> Result<(), CaptureError>;
+
+    /// Lays the board on the turntable (a person is asked by the user interface instead).
+    fn onto_turntable(&mut self) -> Result<(), CaptureError>;
+}
+
+/// A person holds the board: nothing to do here, the user interface asks them.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct HandHeld;
+
+impl BoardMover for HandHeld {
+    fn moves_itself(&self) -> bool {
+        false
+    }
+
+    fn next_pose(&mut self) -> Result<(), CaptureError> {
+        Ok(())
+    }
+
+    fn onto_turntable(&mut self) -> Result<(), CaptureError> {
+        Ok(())
+    }
+}
+
+/// Options of [`capture_poses_auto`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AutoConfig {
+    /// Poses wanted in the session (those of earlier runs count).
+    pub poses: usize,
+    /// A hand-held board is taken once it has been still this long. Default 1 s.
+    pub still_for: Duration,
+    /// Largest corner motion (px) that counts as still. Default 1 px.
+    pub still_tolerance_px: f64,
+    /// Give up after this many frames looked at (`None`: never). A guard for scripts.
+    pub max_looks: Option<usize>,
+}
+
+impl Default for AutoConfig {
+    fn default() -> Self {
+        Self {
+            poses: 15,
+            still_for: Duration::from_secs(1),
+            still_tolerance_px: 1.0,
+            max_looks: None,
+        }
+    }
+}
+
+/// What [`capture_poses_auto`] reports as it goes.
+#[derive(Debug)]
+pub enum AutoEvent<'a> {
+    /// A frame was looked at.
+    Looked(&'a PoseCheck),
+    /// A pose was taken.
+    Taken {
+        /// Its number.
+        index: usize,
+        /// Its folder.
+        dir: &'a Path,
+    },
+    /// A pose was refused.
+    Refused(&'a Refusal),
+}
+
+/// Takes poses without a key press until the session holds `cfg.poses`: each pose as soon as
+/// the board moved itself, or once a hand-held board has been still for `cfg.still_for` (a
+/// refused pose is not tried again until the board moved). Returns the poses taken now.
+pub fn capture_poses_auto<C, P, M>(
+    session: &mut CalibrationCapture,
+    camera: &mut C,
+    projector: &mut P,
+    mover: &mut M,
+    cfg: &AutoConfig,
+    mut on_event: impl FnMut(AutoEvent<'_>),
+) -> Result<usize, CaptureError>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+    M: BoardMover + ?Sized,
+{
+    let mut taken = 0;
+    let mut looks = 0usize;
+    // Corners the board must leave before a refused hand-held pose is tried again.
+    let mut refused_at: Option<Vec<Point2<f64>>> = None;
+    let mut still = Stillness::default();
+    while session.poses().len() < cfg.poses {
+        if cfg.max_looks.is_some_and(|m| looks >= m) {
+            return Err(CaptureError::param(
+                "auto",
+                format!(
+                    "{} of {} poses after {looks} frames: the board was not still, or every \
+                     pose was refused",
+                    session.poses().len(),
+                    cfg.poses
+                ),
+            ));
+        }
+        looks += 1;
+        let check = session.look(camera, projector)?;
+        on_event(AutoEvent::Looked(&check));
+        if !mover.moves_itself() {
+            let corners = check.corners.as_ref().map(|c| c.corners.as_slice());
+            if let (Some(old), Some(now)) = (&refused_at, corners)
+                && max_motion(old, now) <= cfg.still_tolerance_px
+            {
+                continue;
+            }
+            refused_at = None;
+            if !still.update(corners, cfg, Instant::now()) {
+                continue;
+            }
+        }
+        match session.take(&check, camera, projector)? {
+            TakeOutcome::Taken { index, dir } => {
+                taken += 1;
+                on_event(AutoEvent::Taken { index, dir: &dir });
+            }
+            TakeOutcome::Refused(r) => {
+                on_event(AutoEvent::Refused(&r));
+                refused_at = check.corners.as_ref().map(|c| c.corners.clone());
+            }
+        }
+        still = Stillness::default();
+        if session.poses().len() < cfg.poses {
+            mover.next_pose()?;
+        }
+    }
+    Ok(taken)
+}
+
+/// Looks until the whole board is found and has been still for `cfg.still_for` (the board
+/// laid on the turntable by a person, in `--auto` mode); `cfg.max_looks` bounds the wait.
+pub fn wait_for_still_board<C, P>(
+    session: &CalibrationCapture,
+    camera: &mut C,
+    projector: &mut P,
+    cfg: &AutoConfig,
+    mut on_look: impl FnMut(&PoseCheck),
+) -> Result<PoseCheck, CaptureError>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+{
+    let mut still = Stillness::default();
+    let mut looks = 0usize;
+    loop {
+        if cfg.max_looks.is_some_and(|m| looks >= m) {
+            return Err(CaptureError::param(
+                "auto",
+                format!("no still board after {looks} frames"),
+            ));
+        }
+        looks += 1;
+        let check = session.look(camera, projector)?;
+        on_look(&check);
+        let corners = check.corners.as_ref().map(|c| c.corners.as_slice());
+        if still.update(corners, cfg, Instant::now()) {
+            return Ok(check);
+        }
+    }
+}
+
+/// Largest distance between corresponding corners (px); infinite for different counts.
+fn max_motion(a: &[Point2<f64>], b: &[Point2<f64>]) -> f64 {
+    if a.len() != b.len() {
+        return f64::INFINITY;
+    }
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| (p - q).norm())
+        .fold(0.0, f64::max)
+}
+
+/// Tracks how long the board has been still.
+#[derive(Debug, Default)]
+struct Stillness {
+    reference: Option<(Vec<Point2<f64>>, Instant)>,
+}
+
+impl Stillness {
+    /// Updates with the corners of a new frame; `true` once the board has been within the
+    /// tolerance of the reference for `still_for`.
+    fn update(&mut self, corners: Option<&[Point2<f64>]>, cfg: &AutoConfig, now: Instant) -> bool {
+        let Some(corners) = corners else {
+            self.reference = None;
+            return false;
+        };
+        match &self.reference {
+            Some((r, since)) if max_motion(r, corners) <= cfg.still_tolerance_px => {
+                now.duration_since(*since) >= cfg.still_for
+            }
+            _ => {
+                self.reference = Some((corners.to_vec(), now));
+                cfg.still_for.is_zero()
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn turntable_angles_span_ninety_degrees() {
+        assert_eq!(
+            calibration_turntable_angles(7),
+            [-45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0]
+        );
+        assert_eq!(calibration_turntable_angles(1), [0.0]);
+        assert!(calibration_turntable_angles(0).is_empty());
+    }
+
+    #[test]
+    fn stillness_needs_the_whole_interval() {
+        let cfg = AutoConfig {
+            still_for: Duration::from_millis(1000),
+            ..AutoConfig::default()
+        };
+        let t0 = Instant::now();
+        let a = [Point2::new(10.0, 10.0), Point2::new(20.0, 10.0)];
+        let b = [Point2::new(13.0, 10.0), Point2::new(23.0, 10.0)];
+        let mut s = Stillness::default();
+        assert!(!s.update(Some(&a), &cfg, t0));
+        assert!(!s.update(Some(&a), &cfg, t0 + Duration::from_millis(600)));
+        // Moved 3 px: the interval starts again.
+        assert!(!s.update(Some(&b), &cfg, t0 + Duration::from_millis(1100)));
+        assert!(!s.update(Some(&b), &cfg, t0 + Duration::from_millis(1900)));
+        assert!(s.update(Some(&b), &cfg, t0 + Duration::from_millis(2100)));
+        // Lost: starts again.
+        assert!(!s.update(None, &cfg, t0 + Duration::from_millis(2200)));
+        assert!(!s.update(Some(&b), &cfg, t0 + Duration::from_millis(2300)));
+    }
+}

@@ -1,0 +1,931 @@
+//! `slscan calibrate capture --out SESSION`: capture a calibration session (the board at varied
+//! poses under the patterns, then on the turntable) on the virtual rig (`--virtual`) or on real
+//! devices (`--camera /dev/videoN --projector-monitor N --turntable /dev/ttyUSB0`), in the
+//! layout `slscan calibrate all SESSION` reads.
+//!
+//! Interactive by default, in the terminal: each frame is checked (`board found: 54/54
+//! corners, tilt 23 degrees`), the coverage of the image and the tilts is drawn with a hint for
+//! the next pose; space or enter takes the pose, `d` drops the last one, `q` goes on to the
+//! turntable. `--auto` takes the poses without keys. The engine is `sl_scan`'s
+//! [`CalibrationCapture`]; this file is the user interface.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context;
+use sl_codec::{MANIFEST_FILE, Manifest};
+use sl_rig::{Camera, Projector, Turntable};
+use sl_scan::{
+    AutoConfig, AutoEvent, BoardMover, CalibrationCapture, CalibrationCaptureConfig, PoseCheck,
+    TakeOutcome, VirtualBoardRig, calibration_turntable_angles, capture_poses_auto,
+    wait_for_still_board,
+};
+use sl_sim::{BoardPoseConfig, Checkerboard};
+use structured_light::pipeline::scaled_rig_config;
+
+use crate::capture::HardwareArgs;
+use crate::common::{Report, ensure_out_dir, write_atomically};
+
+/// Super-sampling of the virtual rig: corner accuracy needs well anti-aliased edges (as
+/// `slscan simulate --scene board`).
+const BOARD_SUPERSAMPLING: u32 = 4;
+
+/// How long a key is waited for between two frames of the interactive view: short, so the
+/// view follows the board, long enough not to spin.
+const KEY_POLL: Duration = Duration::from_millis(30);
+
+/// Arguments of `slscan calibrate capture`.
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct Args {
+    /// Session folder (created; an existing session continues: its poses are kept and
+    /// numbering goes on).
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    /// Board poses wanted in the session.
+    #[arg(long, default_value_t = 15)]
+    pub(crate) poses: usize,
+    /// Turntable views of the board on the platter, spread over -45..45 motor degrees.
+    #[arg(long, default_value_t = 7)]
+    pub(crate) turntable_angles: usize,
+    /// Take each pose without a key press: the virtual board moves itself; a hand-held board
+    /// is taken once it has been still for a second.
+    #[arg(long)]
+    pub(crate) auto: bool,
+    /// Use the virtual rig (its board moves through seeded random poses).
+    #[arg(long = "virtual")]
+    pub(crate) virtual_rig: bool,
+    /// Inner corners of the board, `COLSxROWS`.
+    #[arg(long, default_value = "9x6")]
+    pub(crate) board: String,
+    /// Side of a square (mm).
+    #[arg(long, default_value_t = 20.0)]
+    pub(crate) square: f64,
+    /// Folder with the patterns' `manifest.json` (default: hybrid code on the columns and on
+    /// the rows, 4 phase steps, 30 periods across).
+    #[arg(long)]
+    pub(crate) patterns: Option<PathBuf>,
+    /// Virtual rig: divide its resolution by this.
+    #[arg(long, default_value_t = 1)]
+    pub(crate) downscale: u32,
+    /// Virtual rig: seed of the board poses and of the noise.
+    #[arg(long, default_value_t = 1)]
+    pub(crate) seed: u64,
+    /// Wait after showing a pattern (ms); default 100 on hardware, 0 on the virtual rig.
+    #[arg(long)]
+    pub(crate) latency_ms: Option<u64>,
+    #[command(flatten)]
+    pub(crate) hardware: HardwareArgs,
+}
+
+/// Runs `slscan calibrate capture`.
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(args.poses >= 1, "--poses must be at least 1");
+    match (args.virtual_rig, args.hardware.any()) {
+        (true, true) => anyhow::bail!(
+            "--virtual and the device options (--camera, --projector-monitor, --turntable) exclude each other"
+        ),
+        (false, false) => anyhow::bail!(
+            "give --virtual, or the devices: --camera /dev/videoN --projector-monitor N --turntable /dev/ttyUSB0"
+        ),
+        (true, false) => run_virtual(args),
+        (false, true) => hardware::run(args),
+    }
+}
+
+fn checkerboard(args: &Args) -> anyhow::Result<Checkerboard> {
+    let bad = || {
+        format!(
+            "--board {}: expected inner corners as COLSxROWS, e.g. 9x6",
+            args.board
+        )
+    };
+    let (c, r) = args.board.split_once(['x', 'X']).with_context(bad)?;
+    let board = Checkerboard {
+        inner_cols: c.trim().parse().with_context(bad)?,
+        inner_rows: r.trim().parse().with_context(bad)?,
+        square_mm: args.square,
+        ..Checkerboard::default()
+    };
+    board
+        .validate()
+        .map_err(|e| anyhow::anyhow!("--board {} --square {}: {e}", args.board, args.square))?;
+    Ok(board)
+}
+
+fn run_virtual(args: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
+    let mut config = scaled_rig_config(args.downscale);
+    config.render.supersampling = BOARD_SUPERSAMPLING;
+    config.render.seed = args.seed;
+    let board = checkerboard(args)?;
+    let rig = VirtualBoardRig::new(
+        config,
+        board,
+        &BoardPoseConfig {
+            count: args.poses,
+            seed: args.seed,
+            ..BoardPoseConfig::default()
+        },
+    )?;
+    let out = ensure_out_dir(&args.out)?;
+    // The truth beside the session, as `slscan simulate` writes it: `rig.json` (which
+    // `calibrate all` reads the projector size from) and the exact calibration.
+    let truth = rig.rig();
+    let rig_json =
+        serde_json::to_string_pretty(truth.config()).context("cannot serialise rig.json")?;
+    write_atomically(&out.join("rig.json"), rig_json.as_bytes())?;
+    truth
+        .config()
+        .calibration()
+        .save(out.join("calibration_true.json"))?;
+    let (mut camera, mut projector, mut table, mut mover) = rig.devices();
+    run_devices(
+        args,
+        "virtual rig",
+        &mut camera,
+        &mut projector,
+        &mut table,
+        &mut mover,
+        Duration::ZERO,
+    )
+}
+
+/// The capture on any devices: poses (interactive or `--auto`), then the turntable. The real
+/// devices and the tests' virtual devices behind the same traits run this.
+pub(crate) fn run_devices<C, P, T, M>(
+    args: &Args,
+    devices: &str,
+    camera: &mut C,
+    projector: &mut P,
+    turntable: &mut T,
+    mover: &mut M,
+    default_latency: Duration,
+) -> anyhow::Result<()>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+    T: Turntable + ?Sized,
+    M: BoardMover + ?Sized,
+{
+    let mut report = Report::new("calibrate capture");
+    let out = ensure_out_dir(&args.out)?;
+    let mut config = CalibrationCaptureConfig::new(checkerboard(args)?, projector.image_size());
+    if let Some(dir) = &args.patterns {
+        config.manifest = Manifest::load(&dir.join(MANIFEST_FILE))?;
+    }
+    config.display_latency = args
+        .latency_ms
+        .map_or(default_latency, Duration::from_millis);
+    let mut session =
+        CalibrationCapture::open(&out, config, camera.frame_size(), projector.image_size())?;
+    let kept = session.poses().len();
+    println!(
+        "calibration capture into {} with the {devices}: {} poses wanted{}",
+        out.display(),
+        args.poses,
+        if kept > 0 {
+            format!(", {kept} kept from an earlier run")
+        } else {
+            String::new()
+        }
+    );
+    let auto = AutoConfig {
+        poses: args.poses,
+        ..AutoConfig::default()
+    };
+    let counts = if args.auto {
+        let mut refused = 0usize;
+        let taken = report.stage("poses", || {
+            capture_poses_auto(&mut session, camera, projector, mover, &auto, |e| match e {
+                AutoEvent::Taken { index, dir } => {
+                    println!("pose {index} taken: {}", dir.display());
+                }
+                AutoEvent::Refused(r) => {
+                    refused += 1;
+                    println!("pose refused: {r}");
+                }
+                AutoEvent::Looked(_) => {}
+            })
+        })?;
+        Counts {
+            taken,
+            refused,
+            dropped: 0,
+        }
+    } else {
+        report.stage("poses", || {
+            interactive(&mut session, camera, projector, mover, args.poses)
+        })?
+    };
+    let coverage = session.coverage();
+    println!("{}", coverage.draw());
+
+    // The board on the platter; the turntable steps through its angles on its own.
+    let angles = calibration_turntable_angles(args.turntable_angles);
+    if !angles.is_empty() {
+        mover.onto_turntable()?;
+        if !mover.moves_itself() {
+            println!(
+                "lay the board on the platter, upright and facing the camera{}",
+                if args.auto {
+                    " (taken once it is still)"
+                } else {
+                    ", then press enter"
+                }
+            );
+            if args.auto {
+                wait_for_still_board(&session, camera, projector, &auto, |_| {})?;
+            } else {
+                wait_for_enter()?;
+            }
+        }
+        let views = report.stage("turntable", || {
+            session.capture_turntable(camera, projector, turntable, &angles, |v| {
+                println!(
+                    "turntable view at {:.2} degrees: {}{}",
+                    v.motor_angle_deg,
+                    if v.board_found {
+                        "board found"
+                    } else {
+                        "board NOT found (calibrate skips this view)"
+                    },
+                    if v.kept {
+                        " (kept from an earlier run)"
+                    } else {
+                        ""
+                    }
+                );
+            })
+        })?;
+        report.figure("turntable_views", views.len());
+        report.figure(
+            "turntable_views_with_board",
+            views.iter().filter(|v| v.board_found).count(),
+        );
+        turntable.rotate_to(0.0)?;
+    }
+    report.figure("poses", session.poses().len());
+    report.figure("poses_taken_now", counts.taken);
+    report.figure("poses_refused", counts.refused);
+    report.figure("poses_dropped", counts.dropped);
+    report.figure("coverage", serde_json::to_value(&coverage)?);
+    report.figure("devices", devices);
+    let path = report.write(&out)?;
+    println!(
+        "{}: {} poses, {} turntable views (report: {}); next: slscan calibrate all {} --out calib",
+        out.display(),
+        session.poses().len(),
+        angles.len(),
+        path.display(),
+        out.display()
+    );
+    Ok(())
+}
+
+/// Poses taken, refused and dropped in an interactive run.
+#[derive(Debug, Default)]
+struct Counts {
+    taken: usize,
+    refused: usize,
+    dropped: usize,
+}
+
+/// The interactive pose loop: look, draw, act on a key.
+fn interactive<C, P, M>(
+    session: &mut CalibrationCapture,
+    camera: &mut C,
+    projector: &mut P,
+    mover: &mut M,
+    target: usize,
+) -> anyhow::Result<Counts>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+    M: BoardMover + ?Sized,
+{
+    let keys = terminal::Keys::raw().context(
+        "the interactive capture needs a terminal on standard input; use --auto in scripts",
+    )?;
+    let mut counts = Counts::default();
+    let mut message = String::from("ready");
+    loop {
+        let check = session.look(camera, projector)?;
+        draw(session, &check, target, &message, mover.moves_itself());
+        let Some(key) = keys.next(KEY_POLL)? else {
+            continue;
+        };
+        match key {
+            b' ' | b'\r' | b'\n' => {
+                match session.take(&check, camera, projector)? {
+                    TakeOutcome::Taken { index, dir } => {
+                        counts.taken += 1;
+                        message = format!("pose {index} taken: {}", dir.display());
+                    }
+                    TakeOutcome::Refused(r) => {
+                        counts.refused += 1;
+                        message = format!("refused: {r}");
+                    }
+                }
+                if mover.moves_itself()
+                    && let Err(e) = mover.next_pose()
+                {
+                    message = format!("{message}; {e}");
+                }
+            }
+            b'd' => {
+                message = match session.drop_last()? {
+                    Some(dir) => {
+                        counts.dropped += 1;
+                        format!("dropped {}", dir.display())
+                    }
+                    None => "no pose to drop".to_owned(),
+                };
+            }
+            b'n' if mover.moves_itself() => {
+                message = match mover.next_pose() {
+                    Ok(()) => "board moved".to_owned(),
+                    Err(e) => e.to_string(),
+                };
+            }
+            b'q' => break,
+            _ => {}
+        }
+    }
+    Ok(counts)
+}
+
+/// Draws the interactive view: the check of the current frame, the coverage and the keys.
+fn draw(
+    session: &CalibrationCapture,
+    check: &PoseCheck,
+    target: usize,
+    message: &str,
+    virtual_board: bool,
+) {
+    let coverage = session.coverage();
+    let mut s = String::from("\x1b[2J\x1b[H");
+    s.push_str(&format!(
+        "slscan calibrate capture: {} - pose {} of {}\n\n",
+        session.dir().display(),
+        session.poses().len(),
+        target
+    ));
+    s.push_str(&check.summary());
+    s.push_str("\n\n");
+    s.push_str(&coverage.draw());
+    s.push_str(&format!("hint: {}\n\n", coverage.hint(target)));
+    s.push_str(&format!("last: {message}\n"));
+    s.push_str("keys: space/enter take pose, d drop last pose, q finish");
+    if virtual_board {
+        s.push_str(", n move the virtual board");
+    }
+    s.push('\n');
+    let mut out = std::io::stdout().lock();
+    // A terminal that cannot be written to has nothing to show: the capture goes on.
+    let _ = out.write_all(s.as_bytes());
+    let _ = out.flush();
+}
+
+/// Waits for enter on standard input (line mode).
+fn wait_for_enter() -> anyhow::Result<()> {
+    let mut line = String::new();
+    std::io::stdin()
+        .read_line(&mut line)
+        .context("cannot read standard input")?;
+    Ok(())
+}
+
+/// Single key presses from the terminal: canonical mode and echo off while the capture runs,
+/// restored on drop. rustix's termios (already the turntable driver's) instead of a terminal
+/// crate: two flags and a poll are all that is needed.
+#[cfg(unix)]
+mod terminal {
+    use std::io::Read;
+    use std::os::fd::AsFd;
+    use std::time::Duration;
+
+    use rustix::event::{PollFd, PollFlags, Timespec, poll};
+    use rustix::termios::{LocalModes, OptionalActions, Termios, tcgetattr, tcsetattr};
+
+    /// The terminal in single-key mode.
+    pub(super) struct Keys {
+        saved: Termios,
+    }
+
+    impl Keys {
+        /// Switches standard input to single keys without echo; fails when it is no terminal.
+        pub(super) fn raw() -> std::io::Result<Self> {
+            let stdin = std::io::stdin();
+            let saved = tcgetattr(stdin.as_fd())?;
+            let mut raw = saved.clone();
+            raw.local_modes &= !(LocalModes::ICANON | LocalModes::ECHO);
+            tcsetattr(stdin.as_fd(), OptionalActions::Now, &raw)?;
+            Ok(Self { saved })
+        }
+
+        /// The next key, waiting at most `timeout`.
+        pub(super) fn next(&self, timeout: Duration) -> std::io::Result<Option<u8>> {
+            let stdin = std::io::stdin();
+            let ts = Timespec {
+                tv_sec: timeout.as_secs() as _,
+                tv_nsec: i64::from(timeout.subsec_nanos()) as _,
+            };
+            let mut fds = [PollFd::new(&stdin, PollFlags::IN)];
+            if poll(&mut fds, Some(&ts))? == 0 {
+                return Ok(None);
+            }
+            let mut byte = [0u8; 1];
+            match stdin.lock().read(&mut byte)? {
+                0 => Err(std::io::Error::new(
+                    std::io::ErrorKind::UnexpectedEof,
+                    "standard input closed",
+                )),
+                _ => Ok(Some(byte[0])),
+            }
+        }
+    }
+
+    impl Drop for Keys {
+        fn drop(&mut self) {
+            // Restoring can only fail when the terminal is gone: nothing left to restore.
+            let _ = tcsetattr(std::io::stdin().as_fd(), OptionalActions::Now, &self.saved);
+        }
+    }
+}
+
+#[cfg(not(unix))]
+mod terminal {
+    use std::time::Duration;
+
+    pub(super) struct Keys;
+
+    impl Keys {
+        pub(super) fn raw() -> std::io::Result<Self> {
+            Err(std::io::Error::other("single keys need a Unix terminal"))
+        }
+
+        pub(super) fn next(&self, _timeout: Duration) -> std::io::Result<Option<u8>> {
+            Ok(None)
+        }
+    }
+}
+
+/// Real devices: camera, projector and turntable together (as `slscan capture`).
+#[cfg(all(feature = "v4l", feature = "window", unix))]
+mod hardware {
+    use sl_rig::{ProjectorWindowConfig, V4lCamera, V4lCameraConfig, run_projector};
+    use sl_scan::HandHeld;
+
+    use super::{Args, run_devices};
+
+    pub(super) fn run(args: &Args) -> anyhow::Result<()> {
+        let (camera_path, monitor, port) = super::devices(args)?;
+        let mut camera = V4lCamera::open(V4lCameraConfig {
+            path: camera_path.clone(),
+            ..V4lCameraConfig::default()
+        })?;
+        let mut table = super::open_turntable(&port, args.hardware.servo_id)?;
+        let devices = format!(
+            "camera {}, projector on monitor {monitor}, turntable {} id {}",
+            camera_path.display(),
+            port.display(),
+            args.hardware.servo_id
+        );
+        let args = args.clone();
+        // The window lives on the main thread's event loop; the capture runs in the worker.
+        run_projector(
+            ProjectorWindowConfig {
+                monitor,
+                ..ProjectorWindowConfig::default()
+            },
+            move |mut projector| {
+                run_devices(
+                    &args,
+                    &devices,
+                    &mut camera,
+                    &mut projector,
+                    &mut table,
+                    &mut HandHeld,
+                    sl_rig::DEFAULT_DISPLAY_LATENCY,
+                )
+                .map_err(|e| sl_rig::RigError::Device {
+                    device: "calibration capture".to_owned(),
+                    reason: format!("{e:#}"),
+                })
+            },
+        )?;
+        Ok(())
+    }
+}
+
+#[cfg(not(all(feature = "v4l", feature = "window", unix)))]
+mod hardware {
+    use super::Args;
+
+    pub(super) fn run(args: &Args) -> anyhow::Result<()> {
+        super::devices(args)?;
+        anyhow::bail!(
+            "calibrate capture on hardware needs `--features v4l,window` on Linux: `cargo run --release --features v4l,window --example slscan -- calibrate capture …`"
+        )
+    }
+}
+
+/// The three device options, all required, the serial port checked before anything opens.
+fn devices(args: &Args) -> anyhow::Result<(PathBuf, usize, PathBuf)> {
+    let hw = &args.hardware;
+    let (Some(camera), Some(monitor), Some(port)) =
+        (&hw.camera, hw.projector_monitor, &hw.turntable)
+    else {
+        anyhow::bail!(
+            "calibrate capture on hardware needs --camera, --projector-monitor and --turntable together"
+        );
+    };
+    anyhow::ensure!(
+        port.exists(),
+        "--turntable {}: no such serial port (`slscan devices` lists the ports)",
+        port.display()
+    );
+    Ok((camera.clone(), monitor, port.clone()))
+}
+
+/// Opens the Dynamixel turntable of `--turntable` and `--servo-id` with the driver's defaults:
+/// the hardware run and its test on the emulated servo share it.
+#[cfg(all(unix, any(test, all(feature = "v4l", feature = "window"))))]
+pub(crate) fn open_turntable(
+    port: &std::path::Path,
+    servo_id: u8,
+) -> anyhow::Result<sl_rig::DynamixelTurntable> {
+    sl_rig::DynamixelTurntable::open(
+        port,
+        sl_rig::DynamixelConfig {
+            id: servo_id,
+            ..sl_rig::DynamixelConfig::default()
+        },
+    )
+    .with_context(|| format!("cannot open the turntable on {}", port.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    //! The command on the virtual rig (`--virtual --auto` then `calibrate all`, against the
+    //! rig's truth), the real-device path on virtual devices with the emulated MX-64 as the
+    //! turntable, and the interactive keys in a terminal under tmux.
+
+    use std::path::{Path, PathBuf};
+    use std::process::Command as Process;
+    use std::time::{Duration, Instant};
+
+    use clap::Parser;
+    use sl_calib::sl_camera::Calibration;
+    use sl_rig::{DynamixelTurntable, EmulatorConfig, Mx64Emulator, RigError, Turntable};
+    use sl_scan::{BoardMover, BoardTurntable, CaptureError, VirtualBoardMover, VirtualBoardRig};
+    use sl_sim::{BoardPoseConfig, Checkerboard};
+    use structured_light::pipeline::scaled_rig_config;
+
+    use crate::{Cli, Command};
+
+    fn slscan(args: &[&str]) -> anyhow::Result<()> {
+        let mut argv = vec!["slscan"];
+        argv.extend_from_slice(args);
+        match Cli::try_parse_from(argv)?.command {
+            Command::Calibrate(a) => crate::calibrate::run(&a),
+            other => anyhow::bail!("parsed as {other:?}"),
+        }
+    }
+
+    fn capture_args(args: &[&str]) -> super::Args {
+        let mut argv = vec!["slscan", "calibrate", "capture"];
+        argv.extend_from_slice(args);
+        match Cli::try_parse_from(argv).unwrap().command {
+            Command::Calibrate(crate::calibrate::Args {
+                what: crate::calibrate::What::Capture(a),
+            }) => a,
+            other => panic!("parsed as {other:?}"),
+        }
+    }
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    fn figure(report: &Path, key: &str) -> f64 {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
+        v["figures"][key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key} in {}", report.display()))
+    }
+
+    /// Angle (degrees) between the fitted and the true axis, and the distance (mm) of the true
+    /// axis point from the fitted line.
+    fn axis_errors(fit: &Calibration, truth: &Calibration) -> (f64, f64) {
+        let (a, t) = (fit.turntable.unwrap(), truth.turntable.unwrap());
+        let (d, dt) = (a.direction.normalize(), t.direction.normalize());
+        let angle = d.dot(&dt).clamp(-1.0, 1.0).acos().to_degrees();
+        let off = t.point_mm - a.point_mm;
+        (angle, (off - d * off.dot(&d)).norm())
+    }
+
+    /// `--virtual --auto --poses 12 --turntable-angles 7` then `calibrate all`: the accuracy of
+    /// a simulated session (issue 14), against the rig's exact calibration written beside the
+    /// session.
+    #[test]
+    fn virtual_auto_session_calibrates_to_the_truth() {
+        let tmp = tempfile::tempdir().unwrap();
+        let session = tmp.path().join("session");
+        let s = session.to_str().unwrap();
+        slscan(&[
+            "calibrate",
+            "capture",
+            "--virtual",
+            "--auto",
+            "--poses",
+            "12",
+            "--turntable-angles",
+            "7",
+            "--downscale",
+            DOWNSCALE_A,
+            "--out",
+            s,
+        ])
+        .unwrap();
+        assert_eq!(names(&session.join("board")).len(), 12);
+        assert_eq!(
+            names(&session.join("turntable")),
+            (0..7).map(|k| format!("angle_{k:03}")).collect::<Vec<_>>()
+        );
+        let out = tmp.path().join("calib");
+        slscan(&["calibrate", "all", s, "--out", out.to_str().unwrap()]).unwrap();
+        let fit = Calibration::load(out.join("calibration.json")).unwrap();
+        let truth = Calibration::load(session.join("calibration_true.json")).unwrap();
+        for key in ["rms_camera_px", "rms_projector_px", "rms_stereo_px"] {
+            let v = figure(&out.join("projector/report.json"), key);
+            assert!(v > 0.0 && v < 0.2, "{key} = {v}");
+        }
+        let rms = figure(&out.join("report.json"), "rms_px");
+        assert!(rms > 0.0 && rms < 0.2, "turntable RMS {rms}");
+        let (angle, offset) = axis_errors(&fit, &truth);
+        println!("axis {angle:.4} degrees and {offset:.4} mm from the truth");
+        assert!(angle < 0.05, "axis direction {angle} degrees off");
+        assert!(offset < 0.1, "axis {offset} mm off");
+        let fx = fit.camera.intrinsics.fx / truth.camera.intrinsics.fx;
+        assert!((fx - 1.0).abs() < 0.002, "fx ratio {fx}");
+    }
+
+    /// Resolution divider of the accuracy test.
+    const DOWNSCALE_A: &str = "1";
+
+    /// The emulated MX-64 turning the virtual board: the servo's reported angle is what the
+    /// virtual turntable is turned to, so the frames show the angle the driver recorded.
+    struct EmulatedTurntable {
+        servo: DynamixelTurntable,
+        table: BoardTurntable,
+    }
+
+    impl Turntable for EmulatedTurntable {
+        fn rotate_to(&mut self, angle_deg: f64) -> Result<f64, RigError> {
+            let reached = self.servo.rotate_to(angle_deg)?;
+            self.table.rotate_to(reached)?;
+            Ok(reached)
+        }
+
+        fn angle_deg(&mut self) -> Result<f64, RigError> {
+            self.servo.angle_deg()
+        }
+    }
+
+    /// A person moving the virtual board: it does not move by itself (the capture waits for
+    /// it to be still, as on real devices), but it is moved after each pose.
+    struct Person(VirtualBoardMover);
+
+    impl BoardMover for Person {
+        fn moves_itself(&self) -> bool {
+            false
+        }
+
+        fn next_pose(&mut self) -> Result<(), CaptureError> {
+            self.0.next_pose()
+        }
+
+        fn onto_turntable(&mut self) -> Result<(), CaptureError> {
+            self.0.onto_turntable()
+        }
+    }
+
+    /// The real-device path (`run_devices` with a hand-held board, waiting for a still board,
+    /// the Dynamixel driver opened as `--turntable` opens it) on the virtual camera and
+    /// projector with the emulated MX-64 on a pseudo-terminal.
+    #[test]
+    fn hardware_path_with_the_emulated_turntable() {
+        let tmp = tempfile::tempdir().unwrap();
+        let servo = Mx64Emulator::spawn(EmulatorConfig::default()).unwrap();
+        let session = tmp.path().join("session");
+        let args = capture_args(&[
+            "--out",
+            session.to_str().unwrap(),
+            "--auto",
+            "--poses",
+            "4",
+            "--turntable-angles",
+            "3",
+            "--turntable",
+            servo.port_path().to_str().unwrap(),
+        ]);
+        let mut config = scaled_rig_config(4);
+        config.render.supersampling = super::BOARD_SUPERSAMPLING;
+        let rig = VirtualBoardRig::new(
+            config,
+            Checkerboard::default(),
+            &BoardPoseConfig {
+                count: 4,
+                ..BoardPoseConfig::default()
+            },
+        )
+        .unwrap();
+        let (mut camera, mut projector, table, mover) = rig.devices();
+        let mut turntable = EmulatedTurntable {
+            servo: super::open_turntable(servo.port_path(), args.hardware.servo_id).unwrap(),
+            table,
+        };
+        super::run_devices(
+            &args,
+            "virtual camera and projector, emulated MX-64",
+            &mut camera,
+            &mut projector,
+            &mut turntable,
+            &mut Person(mover),
+            Duration::ZERO,
+        )
+        .unwrap();
+        assert_eq!(
+            names(&session.join("board")),
+            ["pose_000", "pose_001", "pose_002", "pose_003"]
+        );
+        // The motor angles recorded are the servo's: within its 4-tick tolerance (0.35°) of
+        // -45, 0 and 45 degrees, and the board was found at each.
+        for (k, target) in [-45.0, 0.0, 45.0].into_iter().enumerate() {
+            let text =
+                std::fs::read_to_string(session.join(format!("turntable/angle_{k:03}/board.json")))
+                    .unwrap();
+            let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+            let a = v["motor_angle_deg"].as_f64().unwrap();
+            assert!((a - target).abs() < 0.36, "{k}: {a}");
+            assert_eq!(v["detected_corners_px"].as_array().unwrap().len(), 54);
+        }
+        // The table went back to 0 at the end.
+        let ticks = servo.snapshot().present_ticks;
+        assert!(ticks.abs() <= 4, "{ticks}");
+        let report = session.join("report.json");
+        assert_eq!(figure(&report, "poses"), 4.0);
+        assert_eq!(figure(&report, "turntable_views_with_board"), 3.0);
+    }
+
+    /// The interactive command in a terminal: this test runs inside tmux, started by
+    /// `interactive_keys_under_tmux` (ignored when run alone: it needs the keys).
+    #[test]
+    #[ignore = "run by interactive_keys_under_tmux inside a terminal"]
+    fn interactive_child() {
+        let Some(out) = std::env::var_os(CHILD_OUT) else {
+            return;
+        };
+        let out = PathBuf::from(out);
+        slscan(&[
+            "calibrate",
+            "capture",
+            "--virtual",
+            "--poses",
+            "3",
+            "--turntable-angles",
+            "2",
+            "--downscale",
+            "4",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap();
+        println!("CHILD DONE");
+    }
+
+    /// Environment variable naming the session folder of [`interactive_child`].
+    const CHILD_OUT: &str = "SLSCAN_INTERACTIVE_TEST_OUT";
+
+    /// Longest wait for a screen text: the virtual rig renders a frame in well under a second;
+    /// a loaded 2-core machine is slower, and the wait ends as soon as the text shows.
+    const SCREEN_WAIT: Duration = Duration::from_secs(120);
+
+    struct Tmux {
+        socket: String,
+        session: String,
+    }
+
+    impl Tmux {
+        fn cmd(&self, args: &[&str]) -> std::process::Output {
+            Process::new("tmux")
+                .arg("-L")
+                .arg(&self.socket)
+                .args(args)
+                .output()
+                .unwrap()
+        }
+
+        fn screen(&self) -> String {
+            let o = self.cmd(&["capture-pane", "-p", "-t", &self.session]);
+            String::from_utf8_lossy(&o.stdout).into_owned()
+        }
+
+        fn keys(&self, keys: &str) {
+            assert!(
+                self.cmd(&["send-keys", "-t", &self.session, keys])
+                    .status
+                    .success()
+            );
+        }
+
+        /// Waits until the screen shows `text`; returns the screen.
+        fn wait_for(&self, text: &str) -> String {
+            let start = Instant::now();
+            loop {
+                let s = self.screen();
+                if s.contains(text) {
+                    return s;
+                }
+                assert!(
+                    start.elapsed() < SCREEN_WAIT,
+                    "no `{text}` on the screen:\n{s}"
+                );
+                std::thread::sleep(Duration::from_millis(200));
+            }
+        }
+    }
+
+    impl Drop for Tmux {
+        fn drop(&mut self) {
+            let _ = self.cmd(&["kill-server"]);
+        }
+    }
+
+    /// Take, take, drop, take, quit in a real terminal (tmux): the screen shows the checks,
+    /// the coverage and what each key did; the folders are those of the keys.
+    #[test]
+    fn interactive_keys_under_tmux() {
+        if Process::new("tmux").arg("-V").output().is_err() {
+            println!("note: tmux not installed: interactive_keys_under_tmux skipped");
+            return;
+        }
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("session");
+        let exe = std::env::current_exe().unwrap();
+        let tmux = Tmux {
+            socket: format!("slscan-test-{}", std::process::id()),
+            session: "capture".to_owned(),
+        };
+        let command = format!(
+            "env {CHILD_OUT}='{}' '{}' --ignored --exact calibrate_capture::tests::interactive_child --nocapture --test-threads 1; sleep 600",
+            out.display(),
+            exe.display()
+        );
+        let started = tmux.cmd(&[
+            "new-session",
+            "-d",
+            "-s",
+            &tmux.session,
+            "-x",
+            "120",
+            "-y",
+            "50",
+            &command,
+        ]);
+        assert!(started.status.success(), "{started:?}");
+
+        let screen = tmux.wait_for("board found: 54/54 corners, tilt");
+        assert!(screen.contains("image coverage"), "{screen}");
+        assert!(
+            screen.contains("hint: hold the board facing the camera"),
+            "{screen}"
+        );
+        tmux.keys("Space");
+        tmux.wait_for("pose 0 taken");
+        tmux.keys("Enter");
+        tmux.wait_for("pose 1 taken");
+        tmux.keys("d");
+        let screen = tmux.wait_for("dropped");
+        assert!(screen.contains("pose_001"), "{screen}");
+        assert!(screen.contains("pose 1 of 3"), "{screen}");
+        tmux.keys("Space");
+        tmux.wait_for("pose 1 taken");
+        tmux.keys("q");
+        let screen = tmux.wait_for("CHILD DONE");
+        assert!(
+            screen.contains("turntable view at 45.00 degrees: board found"),
+            "{screen}"
+        );
+        assert_eq!(names(&out.join("board")), ["pose_000", "pose_001"]);
+        assert_eq!(names(&out.join("turntable")), ["angle_000", "angle_001"]);
+    }
+}
