@@ -51,6 +51,9 @@ def main() -> None:
         rms = float(math.sqrt((e**2).mean())) if e.size else None
         mx = float(e.max()) if e.size else None
         out["conditions"][name] = {
+            "mean": float(e.mean()) if e.size else None,
+            # Nearest rank, as the harness's p95.
+            "p95": float(np.percentile(e, 95, method="inverted_cdf")) if e.size else None,
             "rms": rms,
             "max": mx,
             "found": c["found"],
