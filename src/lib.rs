@@ -8,29 +8,30 @@
 //! | [`camera`] | `sl-camera` | pinhole intrinsics, OpenCV distortion, projection, poses, calibration files |
 //! | [`cloud`] | `sl-cloud` | point clouds, PLY, voxel grid, neighbours, normals, outliers |
 //! | [`codec`] | `sl-codec` | pattern sequences and decoders |
-//! | [`calib`] | `sl-calib` | checkerboard detection, Zhang's camera calibration |
+//! | [`calib`] | `sl-calib` | checkerboards, Zhang's camera calibration, projector calibration by local homographies, stereo, turntable axis |
 //! | [`tri`] | `sl-tri` | triangulation into metric clouds |
 //! | [`icp`] | `sl-icp` | ICP and turntable merging |
 //! | [`rig`] | `sl-rig` | device traits, drivers (V4L2 camera, projector window, Dynamixel turntable), capture sessions |
 //! | [`sim`] | `sl-sim` | the virtual rig: scenes, rendering, ground truth, virtual devices behind `sl-rig`'s traits |
 //! | [`metrology`] | `sl-metrology` | VDI/VDE 2634 part 2 figures against a truth description |
+//! | [`mesh`] | `sl-mesh` | screened Poisson surfaces, mesh clean-up, STL/OBJ/PLY, 3-D viewer page |
+//! | [`scan`] | `sl-scan` | the scan pipeline: calibration capture, calibrate, capture, reconstruct, merge, measure, report |
 //!
-//! [`pipeline`] holds the end-to-end scan on the virtual rig (calibrate, capture, decode,
-//! triangulate, merge, measure) that `slscan scan` and `tests/scan_pipeline.rs` run.
+//! [`scan`] holds the scan pipeline (calibrate, capture, reconstruct, merge, measure, report)
+//! that `slscan scan` runs on the virtual rig and on real devices.
 //!
 //! The command line `slscan` (in `examples/slscan`) composes them; run
 //! `cargo run --release --example slscan -- --help`.
 #![deny(missing_docs)]
-
-pub mod pipeline;
-pub mod session_scan;
 
 pub use sl_calib as calib;
 pub use sl_camera as camera;
 pub use sl_cloud as cloud;
 pub use sl_codec as codec;
 pub use sl_icp as icp;
+pub use sl_mesh as mesh;
 pub use sl_metrology as metrology;
 pub use sl_rig as rig;
+pub use sl_scan as scan;
 pub use sl_sim as sim;
 pub use sl_tri as tri;

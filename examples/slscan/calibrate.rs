@@ -993,7 +993,7 @@ mod tests {
     use sl_calib::sl_camera::Calibration;
     use sl_calib::sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
     use sl_sim::{CalibrationSession, Scene, VirtualRig, simulate_calibration};
-    use structured_light::pipeline::scaled_rig_config;
+    use structured_light::scan::scaled_rig_config;
 
     use crate::{Cli, Command};
 

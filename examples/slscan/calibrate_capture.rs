@@ -22,7 +22,7 @@ use sl_scan::{
     wait_for_still_board,
 };
 use sl_sim::{BoardPoseConfig, Checkerboard};
-use structured_light::pipeline::scaled_rig_config;
+use structured_light::scan::scaled_rig_config;
 
 use crate::capture::HardwareArgs;
 use crate::common::{Report, ensure_out_dir, write_atomically};
@@ -30,6 +30,10 @@ use crate::common::{Report, ensure_out_dir, write_atomically};
 /// Super-sampling of the virtual rig: corner accuracy needs well anti-aliased edges (as
 /// `slscan simulate --scene board`).
 const BOARD_SUPERSAMPLING: u32 = 4;
+
+/// Fewest poses Zhang's calibration accepts (focal lengths, principal point and distortion
+/// need three views of a plane).
+const MIN_CALIBRATION_POSES: usize = 3;
 
 /// How long a key is waited for between two frames of the interactive view: short, so the
 /// view follows the board, long enough not to spin.
@@ -220,6 +224,12 @@ where
     };
     let coverage = session.coverage();
     println!("{}", coverage.draw());
+    if session.poses().len() < MIN_CALIBRATION_POSES {
+        println!(
+            "warning: {} poses; calibrate all needs at least {MIN_CALIBRATION_POSES} (10-20 give a good calibration): run again to add poses",
+            session.poses().len()
+        );
+    }
 
     // The board on the platter; the turntable steps through its angles on its own.
     let angles = calibration_turntable_angles(args.turntable_angles);
@@ -581,7 +591,7 @@ mod tests {
     use sl_rig::{DynamixelTurntable, EmulatorConfig, Mx64Emulator, RigError, Turntable};
     use sl_scan::{BoardMover, BoardTurntable, CaptureError, VirtualBoardMover, VirtualBoardRig};
     use sl_sim::{BoardPoseConfig, Checkerboard};
-    use structured_light::pipeline::scaled_rig_config;
+    use structured_light::scan::scaled_rig_config;
 
     use crate::{Cli, Command};
 

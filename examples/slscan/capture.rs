@@ -10,12 +10,13 @@ use anyhow::Context;
 use sl_camera::Calibration;
 use sl_codec::{BitDepth, MANIFEST_FILE, Manifest, ProjectorSize};
 use sl_rig::{
-    Camera, CaptureSession, LatencyConfig, Projector, SessionConfig, SessionDevices, SessionPlan,
-    Turntable, measure_latency,
+    Camera, LatencyConfig, Projector, SessionConfig, SessionDevices, SessionPlan, Turntable,
+    measure_latency,
 };
 use sl_sim::{Scene, VirtualRig};
-use structured_light::pipeline::{scaled_rig_config, scan_patterns};
-use structured_light::session_scan::full_turn_motor_angles;
+use structured_light::scan::{
+    SCAN_PERIOD_PX, capture_session, full_turn_motor_angles, scaled_rig_config, scan_patterns,
+};
 
 use crate::common::{Report, ensure_out_dir, progress};
 
@@ -97,7 +98,7 @@ fn manifest(args: &Args, projector: (u32, u32)) -> anyhow::Result<Manifest> {
     match &args.patterns {
         Some(dir) => Ok(Manifest::load(&dir.join(MANIFEST_FILE))?),
         None => Ok(
-            scan_patterns(ProjectorSize::new(projector.0, projector.1), 15.0)
+            scan_patterns(ProjectorSize::new(projector.0, projector.1), SCAN_PERIOD_PX)
                 .manifest(BitDepth::Eight),
         ),
     }
@@ -144,10 +145,11 @@ where
         devices,
         calibration: args.calib.clone(),
     };
-    let session = CaptureSession::open(&out, plan, config)?;
     let bar = progress(args.views as u64, "capture");
     let summary = report.stage("capture", || {
-        session.run(camera, projector, turntable, |_| bar.inc(1))
+        capture_session(&out, plan, config, camera, projector, turntable, |_| {
+            bar.inc(1)
+        })
     })?;
     bar.finish_and_clear();
     report.figure("views", args.views);

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Serialize;
-use structured_light::pipeline::{ScanProgress, StageTime};
+use structured_light::scan::{ScanProgress, StageTime};
 
 /// Prints an error and its causes on one line: `slscan: error: a: b: c`.
 pub(crate) fn print_error(err: &anyhow::Error) {

@@ -16,6 +16,7 @@ mod decode;
 mod devices;
 mod info;
 mod merge;
+mod mesh;
 mod patterns;
 mod reconstruct;
 mod register;
@@ -55,6 +56,9 @@ enum Command {
     Register(register::Args),
     /// Register and merge the views of a turntable scan: merged cloud, poses, preview, report.
     Merge(merge::Args),
+    /// A watertight mesh from a cloud with normals (screened Poisson): mesh.ply, mesh.stl,
+    /// preview.png, an interactive 3-D view (mesh.html) and report.json.
+    Mesh(mesh::Args),
     /// Run one capture session (virtual rig by default, or real devices); resumes when
     /// interrupted.
     Capture(capture::Args),
@@ -78,6 +82,7 @@ fn main() -> std::process::ExitCode {
         Command::Reconstruct(args) => reconstruct::run(&args),
         Command::Register(args) => register::run(&args),
         Command::Merge(args) => merge::run(&args),
+        Command::Mesh(args) => mesh::run(&args),
         Command::Capture(args) => capture::run(&args),
         Command::Scan(args) => scan::run(&args),
         Command::Report(args) => report::run(&args),

@@ -285,8 +285,8 @@ mod tests {
 
     use clap::Parser;
     use sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
+    use sl_scan::scaled_rig_config;
     use sl_sim::{Scene, VirtualRig, simulate_scan};
-    use structured_light::pipeline::scaled_rig_config;
 
     use crate::{Cli, Command};
 

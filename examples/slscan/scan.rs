@@ -1,5 +1,5 @@
 //! `slscan scan --out DIR`: the whole scan in one command. Without hardware options it runs on
-//! the virtual rig (`structured_light::pipeline::scan_virtual`): calibrates from simulated
+//! the virtual rig (`structured_light::scan::scan_virtual`): calibrates from simulated
 //! board captures, captures a turntable session of a dumbbell, decodes, triangulates, merges,
 //! measures the result against the truth (sl-metrology; `truth.json` beside `merged.ply`, so
 //! `slscan report` reproduces the figures), captures a tilted flat plate for the flatness,
@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use structured_light::pipeline::{VirtualScanConfig, scan_virtual, write_summary_html};
+use structured_light::scan::{VirtualScanConfig, scan_virtual, write_summary_html};
 
 use crate::capture::HardwareArgs;
 use crate::common::{Report, StageBars, ensure_out_dir};

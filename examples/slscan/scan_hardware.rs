@@ -2,15 +2,16 @@
 //! /dev/ttyUSB0 --calib calibration.json --out DIR`. Captures the turntable session on the
 //! devices with the code of `slscan capture` (into `DIR/session/`, resumed when interrupted),
 //! then reconstructs every view and merges them with the turntable poses of the calibrated axis
-//! (`structured_light::session_scan`), and writes `merged.ply`, previews and `report.json`.
+//! (`sl_scan::scan_session`: the same stage functions as the virtual scan), and writes
+//! `merged.ply`, previews and `report.json`.
 //! A real object has no known truth here: check the result with `slscan report` against a
 //! known sphere or plane.
 
 use std::path::{Path, PathBuf};
 
-use sl_icp::MergeConfig;
-use structured_light::session_scan::{
-    SessionScanConfig, load_scan_calibration, reconstruct_session, write_session_scan,
+use structured_light::scan::{
+    MergeStageConfig, ReconstructConfig, SessionScanConfig, load_scan_calibration, scan_session,
+    write_scan_cloud,
 };
 
 use crate::capture;
@@ -80,10 +81,6 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         "--true-calibration and --true-poses are diagnostics of the virtual rig: a real rig has no truth"
     );
     anyhow::ensure!(
-        args.max_view_angle >= 90.0,
-        "--max-view-angle is not applied to a scan on hardware yet: leave it at 90"
-    );
-    anyhow::ensure!(
         args.views >= 2,
         "--views {}: a turntable scan needs at least 2 views",
         args.views
@@ -119,17 +116,21 @@ fn reconstruct(
 ) -> anyhow::Result<()> {
     let out = ensure_out_dir(&args.out)?;
     let config = SessionScanConfig {
-        merge: MergeConfig {
-            average_overlaps: !args.no_average,
-            ..MergeConfig::default()
+        reconstruct: ReconstructConfig {
+            edge_erosion_px: args.edge_erosion,
+            max_view_angle_deg: args.max_view_angle,
         },
-        icp_refinement: !args.rig.no_refine,
-        edge_erosion_px: args.edge_erosion,
+        merge: MergeStageConfig::scan(
+            !args.no_average,
+            args.smoothing_neighbours,
+            !args.rig.no_refine,
+        ),
+        poses: None,
     };
     let mut bars = StageBars::new();
-    let scan = reconstruct_session(session_dir, calibration, &config, |p| bars.update(p))?;
+    let scan = scan_session(session_dir, calibration, &config, |p| bars.update(p))?;
     bars.clear();
-    let files = report.stage("write", || write_session_scan(&out, &scan))?;
+    let files = report.stage("write", || write_scan_cloud(&out, &scan.merged, |_| {}))?;
     report.add_stages(&scan.stages);
     report.figure("rig", "hardware");
     report.figure("calibration", calib_path.display().to_string());
@@ -138,7 +139,7 @@ fn reconstruct(
     report.figure("platter_angles_deg", scan.platter_angles_deg.clone());
     report.figure("view_points", scan.view_points.clone());
     report.figure("merged_points", scan.merged.len());
-    report.figure("icp_refinement", config.icp_refinement);
+    report.figure("icp_refinement", config.merge.icp_refinement);
     report.figure(
         "accuracy",
         "no truth for a real object: run `slscan report merged.ply --truth …` on a scan of a known sphere or plane",
@@ -164,7 +165,7 @@ mod tests {
     use std::path::Path;
 
     use clap::Parser;
-    use structured_light::pipeline::scaled_rig_config;
+    use structured_light::scan::scaled_rig_config;
 
     use crate::{Cli, Command};
 

@@ -1,13 +1,15 @@
 //! The calibration of a whole rig (camera, projector, extrinsics, turntable) and its files.
 
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
-use crate::filestorage::{parse_xml, parse_yaml, to_xml, to_yaml};
-use crate::opencv_io::{calibration_from_document, calibration_to_items};
+use crate::filestorage::{Document, parse_xml, parse_yaml, to_xml, to_yaml};
+use crate::layouts::{
+    self, CalibrationLayout, LoadOptions, LoadedCalibration, extrinsics_sibling, intrinsics_sibling,
+};
 use crate::pose::PoseRepr;
 use crate::{CameraError, CameraModel, DistortionModel, ProjectorModel, TurntableAxis};
 
@@ -222,29 +224,137 @@ impl Calibration {
         self.t_cam_proj.map(|t| t.inverse())
     }
 
-    /// Loads a calibration, choosing the format by extension (`.json`, `.yml`/`.yaml`,
-    /// `.xml`).
+    /// Loads a calibration: JSON by its `.json` extension, OpenCV FileStorage (`.yml`,
+    /// `.yaml`, `.xml`) in any of the [`CalibrationLayout`]s, detected by its keys. For files
+    /// that do not store everything (scan3d-capture's image sizes), use
+    /// [`Calibration::load_with`].
     ///
     /// # Errors
     /// [`CameraError::Io`] if the file cannot be read, [`CameraError::UnknownExtension`],
     /// and the errors of [`Calibration::from_json`], [`Calibration::from_opencv_yaml`] and
     /// [`Calibration::from_opencv_xml`], which name the file, the line and the key.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, CameraError> {
-        let path = path.as_ref();
-        let format = CalibrationFormat::from_path(path)?;
-        let text = std::fs::read_to_string(path).map_err(|source| CameraError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
-        let name = path.display().to_string();
-        match format {
-            CalibrationFormat::Json => Self::from_json(&text, &name),
-            CalibrationFormat::OpenCvYaml => Self::from_opencv_yaml(&text, &name),
-            CalibrationFormat::OpenCvXml => Self::from_opencv_xml(&text, &name),
-        }
+        Ok(Self::load_with(path, &LoadOptions::default())?.calibration)
     }
 
-    /// Saves the calibration, choosing the format by extension (see [`Calibration::load`]).
+    /// Loads a calibration in any [`CalibrationLayout`] (detected by its keys unless
+    /// `options.layout` says which), with the sizes a layout does not store taken from
+    /// `options`, and says which layout it was and which files were read. OpenCV's stereo
+    /// sample is read from its two files, whichever is named: `intrinsics.yml` and the
+    /// `extrinsics.yml` beside it (a missing extrinsics file leaves the calibration without
+    /// extrinsics).
+    ///
+    /// ```
+    /// use sl_camera::{Calibration, CalibrationLayout, ImageSize, LoadOptions};
+    /// // A scan3d-capture calibration.yml, as cv::FileStorage writes it (no image sizes).
+    /// let m = |rows: usize, cols: usize, data: &str| {
+    ///     format!("!!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {data} ]\n")
+    /// };
+    /// let text = format!(
+    ///     "%YAML:1.0\ncam_K: {}cam_kc: {}proj_K: {}proj_kc: {}R: {}T: {}cam_error: 0.12\n",
+    ///     m(3, 3, "1400., 0., 640., 0., 1400., 512., 0., 0., 1."),
+    ///     m(1, 5, "0., 0., 0., 0., 0."),
+    ///     m(3, 3, "2000., 0., 512., 0., 2000., 768., 0., 0., 1."),
+    ///     m(1, 5, "0., 0., 0., 0., 0."),
+    ///     m(3, 3, "1., 0., 0., 0., 1., 0., 0., 0., 1."),
+    ///     m(3, 1, "-150., 0., 0."),
+    /// );
+    /// let dir = tempfile::tempdir().unwrap();
+    /// let path = dir.path().join("calibration.yml");
+    /// std::fs::write(&path, text).unwrap();
+    /// assert!(Calibration::load(&path).is_err()); // the image sizes are needed
+    /// let options = LoadOptions {
+    ///     camera_size: Some(ImageSize::new(1280, 1024)),
+    ///     projector_size: Some(ImageSize::new(1024, 768)),
+    ///     ..LoadOptions::default()
+    /// };
+    /// let loaded = Calibration::load_with(&path, &options)?;
+    /// assert_eq!(loaded.layout, CalibrationLayout::Scan3dCapture);
+    /// // p_proj = R p_cam + T: the projector sits at x = +150 mm in the camera frame.
+    /// let t_cam_proj = loaded.calibration.t_cam_proj.unwrap();
+    /// assert!((t_cam_proj.translation.vector.x - 150.0).abs() < 1e-12);
+    /// # Ok::<(), sl_camera::CameraError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Calibration::load`]; [`CameraError::MissingKey`] naming the size a layout lacks
+    /// and the option that gives it.
+    pub fn load_with(
+        path: impl AsRef<Path>,
+        options: &LoadOptions,
+    ) -> Result<LoadedCalibration, CameraError> {
+        let path = path.as_ref();
+        let format = CalibrationFormat::from_path(path)?;
+        if format == CalibrationFormat::Json {
+            if let Some(layout) = options.layout
+                && layout != CalibrationLayout::Json
+            {
+                return Err(CameraError::invalid(
+                    "layout",
+                    format!(
+                        "{}: a .json file cannot be read as {layout}",
+                        path.display()
+                    ),
+                ));
+            }
+            let calibration = Self::from_json(&read_text(path)?, &path.display().to_string())?;
+            return Ok(LoadedCalibration {
+                calibration,
+                layout: CalibrationLayout::Json,
+                files: vec![path.to_owned()],
+            });
+        }
+        let doc = parse_file(path, format)?;
+        let layout = match options.layout {
+            Some(l) => l,
+            None => layouts::detect(&doc).ok_or_else(|| layouts::unknown_layout(&doc))?,
+        };
+        if layout != CalibrationLayout::OpenCvStereo {
+            let calibration = layouts::read_document(&doc, layout, options)?;
+            return Ok(LoadedCalibration {
+                calibration,
+                layout,
+                files: vec![path.to_owned()],
+            });
+        }
+        // OpenCV's stereo sample: the intrinsics file and the extrinsics file beside it.
+        let (calibration, other) = if doc.has("M1") {
+            let e = extrinsics_sibling(path);
+            let extrinsics = if e.is_file() && e != path {
+                Some(parse_file(&e, CalibrationFormat::from_path(&e)?)?)
+            } else {
+                None
+            };
+            let c = layouts::read_stereo_pair(&doc, extrinsics.as_ref(), options)?;
+            (c, extrinsics.map(|_| e))
+        } else {
+            let i = intrinsics_sibling(path);
+            if !i.is_file() || i == path {
+                return Err(doc.missing(
+                    "M1",
+                    Some(&format!(
+                        "this is the stereo sample's extrinsics file; its intrinsics (M1 D1 M2 \
+                         D2) were looked for in {}",
+                        i.display()
+                    )),
+                ));
+            }
+            let intrinsics = parse_file(&i, CalibrationFormat::from_path(&i)?)?;
+            let c = layouts::read_stereo_pair(&intrinsics, Some(&doc), options)?;
+            (c, Some(i))
+        };
+        let mut files = vec![path.to_owned()];
+        files.extend(other);
+        Ok(LoadedCalibration {
+            calibration,
+            layout,
+            files,
+        })
+    }
+
+    /// Saves the calibration, choosing the format by extension (see [`Calibration::load`]):
+    /// JSON, or FileStorage in SLStudio's layout when there is a projector and OpenCV's
+    /// calibration sample's when there is none ([`CalibrationLayout::default_for`]).
     /// FileStorage files keep everything except the distinction between a 4- and a
     /// 5-coefficient distortion (both are the same model).
     ///
@@ -253,15 +363,83 @@ impl Calibration {
     /// [`Calibration::validate`].
     pub fn save(&self, path: impl AsRef<Path>) -> Result<(), CameraError> {
         let path = path.as_ref();
-        let text = match CalibrationFormat::from_path(path)? {
-            CalibrationFormat::Json => self.to_json()?,
-            CalibrationFormat::OpenCvYaml => self.to_opencv_yaml()?,
-            CalibrationFormat::OpenCvXml => self.to_opencv_xml()?,
+        let layout = match CalibrationFormat::from_path(path)? {
+            CalibrationFormat::Json => CalibrationLayout::Json,
+            _ => CalibrationLayout::default_for(self),
         };
-        std::fs::write(path, text).map_err(|source| CameraError::Io {
-            path: path.to_owned(),
-            source,
-        })
+        self.save_as(path, layout).map(|_| ())
+    }
+
+    /// Saves the calibration in a [`CalibrationLayout`], as the other system writes it
+    /// (`.yml`/`.yaml` as FileStorage YAML, `.xml` as XML; JSON needs `.json`), and returns
+    /// the files written: for OpenCV's stereo sample, `path` is the intrinsics file and the
+    /// extrinsics file is written beside it (`intrinsics.yml` → `extrinsics.yml`). What the
+    /// layout has no key for is written under extra keys the other system ignores (see
+    /// `docs/formats.md`), so [`Calibration::load`] reads it all back.
+    ///
+    /// # Errors
+    /// [`CameraError::UnknownExtension`], [`CameraError::Io`], the error of
+    /// [`Calibration::validate`], and [`CameraError::InvalidParameter`] when the layout
+    /// cannot hold the calibration (scan3d-capture or OpenCV's stereo sample without a
+    /// projector, OpenCV's calibration sample with one) or the extension does not fit it.
+    pub fn save_as(
+        &self,
+        path: impl AsRef<Path>,
+        layout: CalibrationLayout,
+    ) -> Result<Vec<PathBuf>, CameraError> {
+        let path = path.as_ref();
+        let format = CalibrationFormat::from_path(path)?;
+        let write = |p: &Path, text: String| {
+            std::fs::write(p, text).map_err(|source| CameraError::Io {
+                path: p.to_owned(),
+                source,
+            })
+        };
+        match (layout, format) {
+            (CalibrationLayout::Json, CalibrationFormat::Json) => {
+                write(path, self.to_json()?)?;
+                return Ok(vec![path.to_owned()]);
+            }
+            (CalibrationLayout::Json, _) | (_, CalibrationFormat::Json) => {
+                let wanted = if layout == CalibrationLayout::Json {
+                    ".json"
+                } else {
+                    ".yml, .yaml or .xml"
+                };
+                return Err(CameraError::invalid(
+                    "layout",
+                    format!(
+                        "{}: the {layout} layout is written as {wanted}",
+                        path.display()
+                    ),
+                ));
+            }
+            _ => {}
+        }
+        self.validate()?;
+        let items = layouts::write_items(self, layout)?;
+        let render = |items: &[(&'static str, layouts::Item)]| match format {
+            CalibrationFormat::OpenCvXml => to_xml(items),
+            _ => to_yaml(items),
+        };
+        let mut files = vec![path.to_owned()];
+        if let Some(extrinsics) = &items.extrinsics {
+            let e = extrinsics_sibling(path);
+            if e == path {
+                return Err(CameraError::invalid(
+                    "layout",
+                    format!(
+                        "{}: name the intrinsics file (e.g. intrinsics.yml); the extrinsics \
+                         file is written beside it",
+                        path.display()
+                    ),
+                ));
+            }
+            write(&e, render(extrinsics))?;
+            files.push(e);
+        }
+        write(path, render(&items.main))?;
+        Ok(files)
     }
 
     /// Reads this project's JSON format; `file` names the text in error messages.
@@ -359,7 +537,7 @@ impl Calibration {
     /// [`CameraError::Syntax`] and [`CameraError::BadValue`] with the line,
     /// [`CameraError::MissingKey`].
     pub fn from_opencv_yaml(text: &str, file: &str) -> Result<Self, CameraError> {
-        calibration_from_document(&parse_yaml(text, file)?)
+        from_document(&parse_yaml(text, file)?, &LoadOptions::default())
     }
 
     /// Reads an OpenCV FileStorage XML file (see the type docs for the layouts).
@@ -367,7 +545,7 @@ impl Calibration {
     /// # Errors
     /// As [`Calibration::from_opencv_yaml`].
     pub fn from_opencv_xml(text: &str, file: &str) -> Result<Self, CameraError> {
-        calibration_from_document(&parse_xml(text, file)?)
+        from_document(&parse_xml(text, file)?, &LoadOptions::default())
     }
 
     /// Writes OpenCV FileStorage YAML that `cv::FileStorage` reads.
@@ -376,7 +554,9 @@ impl Calibration {
     /// The error of [`Calibration::validate`].
     pub fn to_opencv_yaml(&self) -> Result<String, CameraError> {
         self.validate()?;
-        Ok(to_yaml(&calibration_to_items(self)))
+        Ok(to_yaml(
+            &layouts::write_items(self, CalibrationLayout::default_for(self))?.main,
+        ))
     }
 
     /// Writes OpenCV FileStorage XML that `cv::FileStorage` reads.
@@ -385,7 +565,9 @@ impl Calibration {
     /// The error of [`Calibration::validate`].
     pub fn to_opencv_xml(&self) -> Result<String, CameraError> {
         self.validate()?;
-        Ok(to_xml(&calibration_to_items(self)))
+        Ok(to_xml(
+            &layouts::write_items(self, CalibrationLayout::default_for(self))?.main,
+        ))
     }
 
     /// Checks everything a file must satisfy: valid camera and projector models, extrinsics
@@ -454,6 +636,32 @@ impl Calibration {
             ));
         }
         Ok(())
+    }
+}
+
+/// Reads a FileStorage document in any layout (one file; OpenCV's stereo sample from its
+/// intrinsics file alone).
+fn from_document(doc: &Document, options: &LoadOptions) -> Result<Calibration, CameraError> {
+    let layout = match options.layout {
+        Some(l) => l,
+        None => layouts::detect(doc).ok_or_else(|| layouts::unknown_layout(doc))?,
+    };
+    layouts::read_document(doc, layout, options)
+}
+
+fn read_text(path: &Path) -> Result<String, CameraError> {
+    std::fs::read_to_string(path).map_err(|source| CameraError::Io {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+fn parse_file(path: &Path, format: CalibrationFormat) -> Result<Document, CameraError> {
+    let text = read_text(path)?;
+    let name = path.display().to_string();
+    match format {
+        CalibrationFormat::OpenCvXml => parse_xml(&text, &name),
+        _ => parse_yaml(&text, &name),
     }
 }
 

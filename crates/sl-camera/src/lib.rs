@@ -69,9 +69,9 @@ mod filestorage;
 mod injective;
 mod intrinsics;
 mod jacobians;
+mod layouts;
 mod model;
 mod monotonic;
-mod opencv_io;
 mod pose;
 mod ray_table;
 mod turntable;
@@ -83,6 +83,7 @@ pub use distortion::{DISTORTION_PARAMETERS, Distortion, DistortionJacobians, Dis
 pub use error::CameraError;
 pub use intrinsics::{ImageSize, Intrinsics};
 pub use jacobians::{INTRINSIC_PARAMETERS, PoseProjectionJacobians, ProjectionJacobians};
+pub use layouts::{CalibrationLayout, LoadOptions, LoadedCalibration};
 pub use model::{CameraModel, FieldOfView, PixelJacobian, ProjectorModel};
 pub use pose::{
     RvecTvec, isometry_from_rt, rotation_from_rvec, rotation_jacobian, rvec_from_rotation,

@@ -111,6 +111,53 @@ pub enum IcpError {
         /// Number of nodes.
         nodes: usize,
     },
+    /// A cloud is too small for the voxel size of a registration: after downsampling it has
+    /// too few points to describe its shape. A cloud spanning a fraction of a voxel is almost
+    /// surely in metres while the workspace works in millimetres.
+    #[error(
+        "{cloud} spans {extent_mm:.4} mm and keeps {points} points on the {voxel_size} mm voxel grid ({needed} needed){hint}"
+    )]
+    CloudTooSmall {
+        /// Which cloud (`"source"`, `"view 2"`).
+        cloud: String,
+        /// Diagonal of its bounding box, in its own units (taken for mm).
+        extent_mm: f64,
+        /// Points left after downsampling.
+        points: usize,
+        /// Fewest points needed.
+        needed: usize,
+        /// The voxel size, mm.
+        voxel_size: f64,
+        /// `": it is almost surely in metres (scale it by 1000)"` when the extent is a
+        /// fraction of the voxel size, else empty.
+        hint: &'static str,
+    },
+    /// Global registration found no pose: too few descriptor matches, or no RANSAC hypothesis
+    /// with enough inliers.
+    #[error(
+        "global registration of {source_cloud} onto {target_cloud} failed: {reason} ({correspondences} descriptor matches)"
+    )]
+    GlobalRegistrationFailed {
+        /// The source cloud.
+        source_cloud: String,
+        /// The target cloud.
+        target_cloud: String,
+        /// Descriptor matches found.
+        correspondences: usize,
+        /// Why it failed.
+        reason: &'static str,
+    },
+    /// Some views could not be placed: no registration tied them (through other views) to
+    /// view 0. `why` gives, per view, the best pair tried and why it was rejected.
+    #[error("views {views:?} could not be placed: {why}")]
+    ViewsNotPlaced {
+        /// The views (0-based) left without a pose.
+        views: Vec<usize>,
+        /// For each, why (semicolon-separated).
+        why: String,
+        /// Every pair registration tried, for the report.
+        pairs: Vec<crate::PairRegistration>,
+    },
     /// A pose-graph node is not tied to node 0 by any chain of edges, so nothing fixes it.
     #[error("pose graph: node {node} is not connected to node 0 by any chain of edges")]
     PoseGraphDisconnected {

@@ -66,6 +66,7 @@
 mod association;
 mod config;
 mod error;
+mod global;
 mod icp;
 mod merge;
 mod metric;
@@ -80,6 +81,11 @@ mod turntable_model;
 
 pub use config::{Association, IcpConfig, Metric, RobustKernel, Trimming};
 pub use error::IcpError;
+pub use global::{
+    Correspondence, FPFH_BINS, FeatureIndex, Fpfh, FpfhConfig, GlobalCloud, GlobalConfig,
+    GlobalRegistration, MatchConfig, RansacConfig, RansacResult, compute_fpfh, match_features,
+    orient_normals_outward, ransac_pose, register_global, register_global_prepared,
+};
 pub use icp::{Evaluation, Icp, IcpStep, Registration, register};
 pub use merge::{
     MergeConfig, MergedScan, PairRegistration, ViewAlignment, align_views, merge_aligned,

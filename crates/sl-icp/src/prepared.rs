@@ -347,6 +347,11 @@ impl PreparedCloud {
             .get_or_init(|| KdIndex::new(&self.points).unwrap_or_default())
     }
 
+    /// Replaces the normals (one per point; the caller guarantees the length).
+    pub(crate) fn replace_normals(&mut self, normals: Option<Vec<Vector3<f64>>>) {
+        self.normals = normals;
+    }
+
     pub(crate) fn organized(&self) -> Option<&Organized> {
         self.organized.as_ref()
     }

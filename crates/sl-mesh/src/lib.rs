@@ -9,10 +9,14 @@
 //!   (feature-preserving) and [`smooth_taubin`], [`decimate`] (quadric error, to a triangle
 //!   count), [`fill_holes`], [`remove_small_components`].
 //! - Measures: [`check_topology`] (watertight, manifold, orientation), [`vertex_normals`],
-//!   [`surface_area`], [`signed_volume`], [`sample_surface`].
+//!   [`surface_area`], [`signed_volume`], [`sample_surface`]; [`render_mesh`] draws a shaded
+//!   picture.
 //! - Files: binary STL, OBJ and PLY with faces ([`write_stl`], [`read_stl`], [`write_obj`],
 //!   [`read_obj`], [`write_ply_mesh`], [`read_mesh`]; PLY reading is
 //!   [`sl_cloud::read_ply_mesh`]).
+//!
+//! - [`viewer_html`]: a self-contained interactive 3-D page (WebGL, script inline, works from
+//!   `file://`) of meshes and clouds, coloured by their error against a truth.
 //!
 //! The mesh type is [`TriangleMesh`] of `sl-cloud` (re-exported), where the PLY mesh reader
 //! lives: one type from the PLY file to the STL.
@@ -58,11 +62,13 @@ mod grid;
 mod holes;
 mod measure;
 mod poisson;
+mod render;
 mod taubin;
 #[cfg(test)]
 mod test_shapes;
 mod topology;
 mod trim;
+mod viewer;
 
 pub use bilateral::{BilateralConfig, smooth_bilateral};
 pub use decimate::{Decimation, decimate};
@@ -74,7 +80,9 @@ pub use files::{
 pub use holes::{HoleFilling, fill_holes};
 pub use measure::{sample_surface, signed_volume, surface_area, vertex_normals};
 pub use poisson::{MIN_POISSON_POINTS, PoissonConfig, PoissonSurface, poisson_reconstruct};
+pub use render::{MeshColoring, render_mesh};
 pub use sl_cloud::{TriangleMesh, read_ply_mesh};
 pub use taubin::{TaubinConfig, smooth_taubin};
 pub use topology::{Topology, check_topology, compact_vertices, remove_small_components};
 pub use trim::{Trimmed, trim_by_density};
+pub use viewer::{ViewerConfig, ViewerLayer, viewer_html};

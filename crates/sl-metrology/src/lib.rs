@@ -10,6 +10,8 @@
 //!   plane — over all points and with 0.3 % left out, as the guideline allows — the RMS and
 //!   per-point signed distances to the reference surfaces, and point counts.
 //! - [`heat_map`] renders the cloud coloured by those signed distances.
+//! - [`evaluate_mesh`] measures a triangle mesh (`sl-mesh`'s surfaces) the same way, over its
+//!   vertices or over points spread evenly over its area ([`MeshSampling`]).
 //!
 //! ```
 //! use nalgebra::{Point3, Vector3};
@@ -56,6 +58,7 @@ mod error;
 mod evaluate;
 mod find;
 mod heat_map;
+mod mesh;
 mod truth;
 
 pub use error::MetrologyError;
@@ -64,6 +67,8 @@ pub use evaluate::{
     SphereReport, VDI_TRIM_FRACTION, evaluate, evaluate_with,
 };
 pub use heat_map::{DEFAULT_HEAT_MAP_RANGE_MM, heat_map};
+pub use mesh::{MeshSampling, evaluate_mesh, mesh_samples};
+pub use sl_cloud::TriangleMesh;
 pub use truth::{
     DEFAULT_SELECT_MM, Feature, PlaneNominal, PlaneSpec, SpherePairSpec, SphereSpec, Truth,
 };

@@ -1,20 +1,58 @@
 //! The structured-light scan pipeline as a library: each stage is a function over session folders
 //! and `sl-rig`'s device traits (capture a calibration session, calibrate, capture a scan session,
-//! reconstruct the views, merge, measure), one path for the virtual and the real rig.
+//! reconstruct the views, merge, measure, report), one path for the virtual and the real rig.
 //!
-//! The stages are being moved here from the facade package (issue 14).
+//! | stage | file | entry points |
+//! |---|---|---|
+//! | capture a calibration session | `calibration_capture.rs`, `calibration_auto.rs` | [`CalibrationCapture`], [`capture_poses_auto`] |
+//! | calibrate | `calibrate.rs` | [`calibrate_virtual`], [`load_scan_calibration`] |
+//! | capture a scan session | `capture.rs` | [`capture_session`], [`scan_patterns`], [`full_turn_motor_angles`] |
+//! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`drop_grazing`] |
+//! | merge | `merge.rs` | [`merge_scan`] |
+//! | measure (where a truth exists) | `measure.rs` | [`measure_scan`], [`scene_truth`], [`plate_truth`] |
+//! | report | `report.rs` | [`write_scan_cloud`], [`write_heat_map`], [`write_summary_html`] |
+//!
+//! A scan on real devices is: [`load_scan_calibration`], [`capture_session`] on the drivers,
+//! [`scan_session`] (reconstruct, then merge), [`write_scan_cloud`]. A scan on the virtual rig
+//! ([`scan_virtual`]) runs the same capture, reconstruct, merge and report stages on
+//! `sl-sim`'s virtual devices, and adds what only the virtual rig has: a calibration from
+//! simulated board captures, its truth and the measure stage. `slscan scan` is a thin wrapper
+//! around both.
+//!
+//! ```no_run
+//! use std::path::Path;
+//! use sl_scan::{VirtualScanConfig, scan_virtual};
+//! let cfg = VirtualScanConfig { views: 8, resolution_divisor: 2, ..Default::default() };
+//! let result = scan_virtual(&cfg, Path::new("scan"), |_| {})?;
+//! println!("{} points, {:?}", result.merged.len(), result.accuracy.summary());
+//! # Ok::<(), sl_scan::ScanError>(())
+//! ```
 #![deny(missing_docs)]
 
+mod calibrate;
+mod capture;
+mod error;
+mod measure;
+mod merge;
+mod progress;
+mod reconstruct;
+mod report;
+mod session_scan;
+mod virtual_scan;
+
+mod calibration_auto;
 mod calibration_capture;
 mod calibration_coverage;
 mod pose_quality;
 mod virtual_board;
 
+pub use calibration_auto::{
+    AutoConfig, AutoEvent, BoardMover, HandHeld, capture_poses_auto, wait_for_still_board,
+};
 pub use calibration_capture::{
-    AutoConfig, AutoEvent, BOARD_DIR, BOARD_FILE, BoardMover, CalibrationCapture,
-    CalibrationCaptureConfig, CaptureError, HandHeld, PoseCheck, PoseGates, PoseRecord, Refusal,
-    TURNTABLE_DIR, TableView, TakeOutcome, WHITE_IMAGE, angle_dir_name, calibration_patterns,
-    calibration_turntable_angles, capture_poses_auto, pose_dir_name, wait_for_still_board,
+    BOARD_DIR, BOARD_FILE, CalibrationCapture, CalibrationCaptureConfig, CaptureError, PoseCheck,
+    PoseGates, PoseRecord, Refusal, TURNTABLE_DIR, TableView, TakeOutcome, WHITE_IMAGE,
+    angle_dir_name, calibration_patterns, calibration_turntable_angles, pose_dir_name,
 };
 pub use calibration_coverage::{
     COVERAGE_COLS, COVERAGE_ROWS, Coverage, FLAT_TILT_DEG, TILT_NAMES, tilt_class,
@@ -26,3 +64,24 @@ pub use pose_quality::{
 pub use virtual_board::{
     BoardCamera, BoardPlacement, BoardProjector, BoardTurntable, VirtualBoardMover, VirtualBoardRig,
 };
+
+pub use calibrate::{
+    CalibrationSummary, calibrate_virtual, load_scan_calibration, require_turntable_axis,
+};
+pub use capture::{
+    SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_session, full_turn_motor_angles, scan_patterns,
+};
+pub use error::ScanError;
+pub use measure::{
+    Measurements, PLATE_SIZE_MM, PLATE_TILT_DEG, SELECT_MM, measure_scan, plate_pose, plate_scene,
+    plate_truth, scene_truth,
+};
+pub use merge::{MergeStageConfig, merge_scan};
+pub use progress::{ScanProgress, StageTime};
+pub use reconstruct::{
+    ReconstructConfig, ReconstructedViews, drop_grazing, reconstruct_session, reconstruct_view,
+    reconstruct_view_eroded,
+};
+pub use report::{SessionScanFiles, write_heat_map, write_scan_cloud, write_summary_html};
+pub use session_scan::{SessionScan, SessionScanConfig, scan_session};
+pub use virtual_scan::{ScanFiles, ScanResult, VirtualScanConfig, scaled_rig_config, scan_virtual};

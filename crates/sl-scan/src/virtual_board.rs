@@ -15,7 +15,8 @@ use sl_sim::{
     VirtualRig, VirtualTurntable, random_board_poses,
 };
 
-use crate::calibration_capture::{BoardMover, CaptureError};
+use crate::calibration_auto::BoardMover;
+use crate::calibration_capture::CaptureError;
 
 /// Poses drawn per pose asked for: the spares replace poses the capture refuses.
 const SPARE_POSE_FACTOR: usize = 3;

@@ -4,9 +4,7 @@
 //! plate, that `slscan report` on the written PLY and truth reproduces the figures, and that
 //! every file the user is promised exists. The ground truth is the scene's own geometry, not an earlier output.
 
-use structured_light::pipeline::{
-    ScanProgress, VirtualScanConfig, scan_virtual, write_summary_html,
-};
+use sl_scan::{ScanProgress, VirtualScanConfig, scan_virtual, write_summary_html};
 
 #[test]
 fn a_small_virtual_scan_measures_the_dumbbell() {
@@ -156,7 +154,7 @@ fn a_small_virtual_scan_measures_the_dumbbell() {
 #[test]
 fn grazing_points_are_dropped() {
     use nalgebra::{Point3, Vector3};
-    use structured_light::pipeline::drop_grazing;
+    use sl_scan::drop_grazing;
     let p = Point3::new(0.0, 0.0, 400.0);
     let tilted = |deg: f64| {
         let a = f64::to_radians(deg);

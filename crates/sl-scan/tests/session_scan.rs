@@ -1,4 +1,4 @@
-//! `structured_light::session_scan` on a session the virtual rig captured through the device
+//! `sl_scan::scan_session` on a session the virtual rig captured through the device
 //! traits (`VirtualRig::devices` + `CaptureSession`), as `slscan scan` captures one on the real
 //! rig. The rig's turntable has a gear scale of 0.5 platter degrees per motor degree, so the
 //! motor angles must come from the calibrated scale for the platter to turn a full turn, and
@@ -11,12 +11,11 @@ use std::time::Duration;
 use nalgebra::Point3;
 use sl_codec::{BitDepth, ProjectorSize};
 use sl_rig::{CaptureSession, SessionConfig, SessionDevices, SessionPlan};
-use sl_sim::{Mount, Scene, Shape, VirtualRig};
-use structured_light::pipeline::{PipelineError, scaled_rig_config, scan_patterns};
-use structured_light::session_scan::{
-    SessionScanConfig, full_turn_motor_angles, load_scan_calibration, reconstruct_session,
-    write_session_scan,
+use sl_scan::{
+    MergeStageConfig, ScanError, SessionScanConfig, full_turn_motor_angles, load_scan_calibration,
+    scaled_rig_config, scan_patterns, scan_session, write_scan_cloud,
 };
+use sl_sim::{Mount, Scene, Shape, VirtualRig};
 
 /// Views of the test session: 45° apart, enough overlap for the pairwise ICP.
 const VIEWS: usize = 8;
@@ -107,11 +106,14 @@ fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
     // dumbbell seen every 45° has a free rotation about the bar (it moves views by degrees
     // here), so the refinement is left to the dense scans it is made for.
     let config = SessionScanConfig {
-        icp_refinement: false,
+        merge: MergeStageConfig {
+            icp_refinement: false,
+            ..MergeStageConfig::default()
+        },
         ..SessionScanConfig::default()
     };
     let mut stages = Vec::new();
-    let scan = reconstruct_session(&session_dir, &calibration, &config, |p| {
+    let scan = scan_session(&session_dir, &calibration, &config, |p| {
         if stages.last() != Some(&p.stage.to_owned()) {
             stages.push(p.stage.to_owned());
         }
@@ -158,7 +160,7 @@ fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
 
     // The files.
     let out = tmp.path().join("out");
-    let files = write_session_scan(&out, &scan).unwrap();
+    let files = write_scan_cloud(&out, &scan.merged, |_| {}).unwrap();
     let back = sl_cloud::read_ply(&out.join(&files.merged)).unwrap();
     assert_eq!(back.len(), scan.merged.len());
     assert_eq!(files.previews.len(), 4);
@@ -170,7 +172,7 @@ fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
     // A corrupt frame: the error names the view and its folder.
     let view3 = session_dir.join("view_003");
     std::fs::write(first_png(&view3), b"not a png").unwrap();
-    let err = reconstruct_session(&session_dir, &calibration, &config, |_| {}).unwrap_err();
+    let err = scan_session(&session_dir, &calibration, &config, |_| {}).unwrap_err();
     let text = err.to_string();
     assert!(
         text.contains("view 3") && text.contains(&view3.display().to_string()),
@@ -179,7 +181,7 @@ fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
 
     // A view never captured (an interrupted session): named, with what to do.
     std::fs::remove_dir_all(&view3).unwrap();
-    let err = reconstruct_session(&session_dir, &calibration, &config, |_| {}).unwrap_err();
+    let err = scan_session(&session_dir, &calibration, &config, |_| {}).unwrap_err();
     let text = err.to_string();
     assert!(text.contains("view 3") && text.contains("resume"), "{text}");
 }
@@ -256,18 +258,21 @@ fn a_dense_session_with_an_approximate_axis_is_refined_onto_the_true_spheres() {
         .unwrap();
     let spheres = true_spheres(&rig, angles[0]);
 
-    let placed = reconstruct_session(
+    let placed = scan_session(
         &session_dir,
         &calibration,
         &SessionScanConfig {
-            icp_refinement: false,
+            merge: MergeStageConfig {
+                icp_refinement: false,
+                ..MergeStageConfig::default()
+            },
             ..SessionScanConfig::default()
         },
         |_| {},
     )
     .unwrap();
     let (rms_placed, _) = distance_to_spheres(&placed.merged, &spheres);
-    let refined = reconstruct_session(
+    let refined = scan_session(
         &session_dir,
         &calibration,
         &SessionScanConfig::default(),
@@ -298,14 +303,14 @@ fn a_calibration_without_turntable_axis_is_refused_by_name() {
     let path = tmp.path().join("no_axis.json");
     calibration.save(&path).unwrap();
     let err = load_scan_calibration(&path).unwrap_err();
-    assert!(matches!(err, PipelineError::Stage { .. }), "{err:?}");
+    assert!(matches!(err, ScanError::Stage { .. }), "{err:?}");
     let text = err.to_string();
     assert!(
         text.contains(&path.display().to_string()) && text.contains("slscan calibrate turntable"),
         "{text}"
     );
 
-    // reconstruct_session refuses it too, naming the calibration the session recorded,
+    // scan_session refuses it too, naming the calibration the session recorded,
     // before reading any view (this session has none).
     let session = tmp.path().join("session");
     let p = scaled_rig_config(4).projector.size;
@@ -325,7 +330,7 @@ fn a_calibration_without_turntable_axis_is_refused_by_name() {
         SessionConfig::default(),
     )
     .unwrap();
-    let err = reconstruct_session(
+    let err = scan_session(
         &session,
         &calibration,
         &SessionScanConfig::default(),

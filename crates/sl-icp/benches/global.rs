@@ -1,0 +1,112 @@
+//! Global registration (no initial pose): FPFH descriptors of 10k and 100k points of a
+//! synthetic surface, and the Stanford bunny pairs (`$SL_DATA/bunny`, skipped with a note
+//! when `SL_DATA` is unset) with the settings of the Open3D figures
+//! (`benches/peers/global_bunny.py`: 2 mm voxels).
+//!
+//! `SL_DATA=/work/shared/data cargo bench -p sl-icp --bench global -- --warm-up-time 1 --measurement-time 3`
+//!
+//! - `fpfh/{10k,100k}`: the descriptors alone (normals and k-d tree built beforehand);
+//! - `global_bunny/describe/NAME`: one scan's voxel grid, normals, orientation and FPFH
+//!   (Open3D's `voxel_down_sample` + `estimate_normals` + `compute_fpfh_feature`);
+//! - `global_bunny/match_ransac_icp/S_T`: matching, RANSAC and the final ICP of a described
+//!   pair (Open3D's `registration_ransac_based_on_feature_matching`, which has no ICP);
+//! - `global_bunny/total/S_T`: everything for one pair from the raw scans.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)] // benches: fail loudly on bad setup
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::{Point3, Vector3};
+use sl_cloud::{KdIndex, NormalConfig, NormalOrientation, estimate_normals_with_index};
+use sl_icp::{FpfhConfig, GlobalCloud, GlobalConfig, compute_fpfh, register_global_prepared};
+
+#[path = "../tests/support/bunny.rs"]
+mod bunny;
+
+/// `n` points of a bumpy closed blob about 80 mm across (mm).
+fn blob(n: usize) -> Vec<Point3<f64>> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let (r, t) = ((1.0 - y * y).sqrt(), golden * i as f64);
+            let d = Vector3::new(r * t.cos(), y, r * t.sin());
+            let bump =
+                6.0 * (3.0 * d.x).sin() * (2.0 * d.y + 0.5).cos() + 5.0 * (4.0 * d.z * d.x).sin();
+            Point3::from(d * (40.0 + bump))
+        })
+        .collect()
+}
+
+fn descriptors(c: &mut Criterion) {
+    let mut g = c.benchmark_group("fpfh");
+    g.sample_size(10);
+    for (name, n) in [("10k", 10_000), ("100k", 100_000)] {
+        let points = blob(n);
+        let index = KdIndex::new(&points).unwrap();
+        let normals = estimate_normals_with_index(
+            &points,
+            &index,
+            &NormalConfig {
+                k: 16,
+                orientation: NormalOrientation::Unoriented,
+            },
+        )
+        .unwrap()
+        .normals;
+        let config = FpfhConfig::default();
+        g.bench_function(name, |b| {
+            b.iter(|| black_box(compute_fpfh(&points, &normals, &index, &config).unwrap()));
+        });
+    }
+    g.finish();
+}
+
+fn bunny_pairs(c: &mut Criterion) {
+    let Some(dir) = bunny::bunny_dir("the global registration benchmark") else {
+        return;
+    };
+    let names = ["bun000", "bun045", "bun090"];
+    let scans: Vec<_> = names.iter().map(|n| bunny::load(&dir, n)).collect();
+    let config = GlobalConfig::default();
+    let described: Vec<GlobalCloud> = scans
+        .iter()
+        .zip(names)
+        .map(|(s, n)| GlobalCloud::new(&s.cloud, &config, n).unwrap())
+        .collect();
+    let mut g = c.benchmark_group("global_bunny");
+    g.sample_size(10);
+    for (i, name) in names.iter().enumerate() {
+        g.bench_function(format!("describe/{name}"), |b| {
+            b.iter(|| black_box(GlobalCloud::new(&scans[i].cloud, &config, name).unwrap()));
+        });
+    }
+    for (s, t) in [(1, 0), (2, 0), (2, 1)] {
+        let pair = format!("{}_{}", names[s], names[t]);
+        g.bench_function(format!("match_ransac_icp/{pair}"), |b| {
+            b.iter(|| {
+                black_box(
+                    register_global_prepared(
+                        &described[s],
+                        &described[t],
+                        &config,
+                        (names[s], names[t]),
+                    )
+                    .unwrap(),
+                )
+            });
+        });
+        g.bench_function(format!("total/{pair}"), |b| {
+            b.iter(|| {
+                black_box(
+                    sl_icp::register_global(&scans[s].cloud, &scans[t].cloud, &config).unwrap(),
+                )
+            });
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, descriptors, bunny_pairs);
+criterion_main!(benches);

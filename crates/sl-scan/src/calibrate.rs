@@ -1,0 +1,259 @@
+//! The calibration stage: the camera, the projector, `T_cam_proj` and the turntable axis,
+//! estimated from board captures (`sl_calib::calibrate_procam`,
+//! `sl_calib::calibrate_turntable`), and the checks a calibration file passes before a scan
+//! starts.
+
+use std::path::Path;
+
+use serde::Serialize;
+use sl_calib::{
+    BoardSize, ProcamConfig, ProcamView, TurntableConfig, TurntableView, calibrate_procam,
+    calibrate_turntable,
+};
+use sl_camera::{Calibration, TurntableAxis};
+use sl_codec::{
+    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
+    ProjectorSize, decode,
+};
+use sl_rig::{GreyImage, Pixels};
+use sl_sim::{
+    BoardPoseConfig, Checkerboard, VirtualRig, capture_board, capture_board_on_table,
+    random_board_poses,
+};
+
+use crate::error::stage_err;
+use crate::{ScanError, ScanProgress, VirtualScanConfig};
+
+/// How the calibration was obtained and how far it is from the rig's truth.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CalibrationSummary {
+    /// Where each part of the calibration comes from.
+    pub sources: Vec<String>,
+    /// Board poses used / rendered.
+    pub poses_used: usize,
+    /// RMS reprojection errors (px): camera alone, projector alone, joint.
+    pub rms_camera_px: f64,
+    /// See `rms_camera_px`.
+    pub rms_projector_px: f64,
+    /// See `rms_camera_px`.
+    pub rms_stereo_px: f64,
+    /// RMS of the turntable-axis fit (px).
+    pub rms_turntable_px: f64,
+    /// Relative error of the camera's `fx` against the truth (%).
+    pub camera_fx_error_percent: f64,
+    /// Relative error of the projector's `fx` against the truth (%).
+    pub projector_fx_error_percent: f64,
+    /// Error of the camera–projector translation (mm).
+    pub baseline_error_mm: f64,
+    /// Angle between the fitted and the true axis direction (degrees).
+    pub axis_direction_error_deg: f64,
+    /// Distance of the true axis point to the fitted axis line, near the object (mm).
+    pub axis_position_error_mm: f64,
+}
+
+fn grey_image(img: GreyImage, what: &str) -> Result<sl_calib::image::GrayImage, ScanError> {
+    let px = match img.pixels {
+        Pixels::U8(p) => p,
+        Pixels::U16(p) => p.into_iter().map(|v| (v >> 8) as u8).collect(),
+    };
+    sl_calib::image::GrayImage::from_raw(img.width, img.height, px)
+        .ok_or_else(|| stage_err("calibrate", format!("{what}: bad image buffer")))
+}
+
+fn frames_u8(images: Vec<GreyImage>) -> Result<Frames, ScanError> {
+    let frames = images
+        .into_iter()
+        .map(|img| {
+            let (w, h) = (img.width as usize, img.height as usize);
+            let g = grey_image(img, "frame")?;
+            Ok(Frame::new(w, h, g.into_raw())?)
+        })
+        .collect::<Result<Vec<_>, ScanError>>()?;
+    Ok(Frames::U8(frames))
+}
+
+/// Calibrates the rig from simulated board captures: camera, projector and `T_cam_proj` by
+/// `sl_calib::calibrate_procam`, the turntable axis by `sl_calib::calibrate_turntable`.
+pub fn calibrate_virtual(
+    rig: &VirtualRig,
+    cfg: &VirtualScanConfig,
+    mut progress: impl FnMut(ScanProgress<'_>),
+) -> Result<(Calibration, CalibrationSummary), ScanError> {
+    let config = rig.config();
+    let board = Checkerboard::default();
+    let poses = random_board_poses(
+        config,
+        &board,
+        &BoardPoseConfig {
+            count: cfg.calibration_poses,
+            seed: cfg.seed,
+            ..BoardPoseConfig::default()
+        },
+    )?;
+    let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
+    // Both axes coded (the projector needs rows and columns), ~30 projector px per period,
+    // 4 phase steps (8 halve the phase noise but double the rendering time of this stage).
+    let sequence = PatternSequence::new(p)
+        .with(Pattern::Hybrid(HybridSpec::complementary(
+            Axis::Column,
+            p,
+            4,
+            f64::from(p.width) / 30.0,
+        )))
+        .with(Pattern::Hybrid(HybridSpec::complementary(
+            Axis::Row,
+            p,
+            4,
+            f64::from(p.height) / 30.0,
+        )));
+    let manifest = sequence.manifest(BitDepth::Eight);
+    let total = poses.len() + cfg.table_angles_deg.len();
+    let mut views = Vec::with_capacity(poses.len());
+    for (k, pose) in poses.iter().enumerate() {
+        let cap = capture_board(rig, &board, pose, Some(&sequence), k as u64)?;
+        let set = CaptureSet::from_frames(manifest.clone(), frames_u8(cap.frames)?)?;
+        views.push(ProcamView {
+            name: format!("board pose {k}"),
+            lit: grey_image(cap.white, "white")?,
+            map: decode(&set, &DecodeConfig::default())?,
+        });
+        progress(ScanProgress {
+            stage: "calibrate",
+            done: k + 1,
+            total,
+        });
+    }
+    let size = BoardSize::new(board.inner_cols, board.inner_rows);
+    let procam = calibrate_procam(
+        &views,
+        &ProcamConfig::new(size, board.square_mm, config.projector.size),
+    )?;
+    drop(views);
+    let mut table_views = Vec::new();
+    for (k, &angle) in cfg.table_angles_deg.iter().enumerate() {
+        let index = (poses.len() + k) as u64;
+        let cap = capture_board_on_table(rig, &board, angle, None, index)?;
+        let label = format!("board on the turntable at {angle} degrees");
+        table_views.push(TurntableView::detect(
+            &grey_image(cap.white, &label)?,
+            &label,
+            angle,
+            size,
+            board.square_mm,
+            &sl_calib::DetectorConfig::default(),
+        )?);
+        progress(ScanProgress {
+            stage: "calibrate",
+            done: poses.len() + k + 1,
+            total,
+        });
+    }
+    let table = calibrate_turntable(
+        &procam.camera.camera,
+        &table_views,
+        &TurntableConfig::default(),
+    )?;
+    let mut calibration = procam.to_calibration();
+    calibration.turntable = Some(table.axis);
+    calibration.metadata.notes = "estimated by slscan scan from simulated board captures of the virtual rig (sl_calib::calibrate_procam, sl_calib::calibrate_turntable)".to_owned();
+
+    let truth_axis = config.turntable_axis();
+    let d_est = table.axis.direction.normalize();
+    let d_true = truth_axis.direction.normalize();
+    let direction_error = d_est
+        .dot(&d_true)
+        .abs()
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    // Distance from the true axis point (on the table, under the object) to the fitted line.
+    let off = truth_axis.point_mm - table.axis.point_mm;
+    let position_error = (off - d_est * off.dot(&d_est)).norm();
+    let rel = |a: f64, b: f64| 100.0 * (a - b) / b;
+    let summary = CalibrationSummary {
+        sources: vec![
+            "camera, projector, T_cam_proj: sl_calib::calibrate_procam on simulated board captures"
+                .to_owned(),
+            "turntable axis: sl_calib::calibrate_turntable on the board standing on the simulated turntable".to_owned(),
+        ],
+        poses_used: procam.views.len(),
+        rms_camera_px: procam.rms_camera,
+        rms_projector_px: procam.rms_projector,
+        rms_stereo_px: procam.rms_stereo,
+        rms_turntable_px: table.rms,
+        camera_fx_error_percent: rel(
+            procam.camera.camera.intrinsics.fx,
+            config.camera.intrinsics.fx,
+        ),
+        projector_fx_error_percent: rel(
+            procam.projector.camera.intrinsics.fx,
+            config.projector.intrinsics.fx,
+        ),
+        baseline_error_mm: (procam.t_cam_proj.translation.vector
+            - config.t_cam_proj.translation.vector)
+            .norm(),
+        axis_direction_error_deg: direction_error,
+        axis_position_error_mm: position_error,
+    };
+    Ok((calibration, summary))
+}
+
+/// The rig's exact calibration, as [`calibrate_virtual`] would return it (diagnostic runs).
+pub(crate) fn true_calibration(rig: &VirtualRig) -> (Calibration, CalibrationSummary) {
+    let summary = CalibrationSummary {
+        sources: vec!["the rig's true calibration (diagnostic run, nothing estimated)".to_owned()],
+        poses_used: 0,
+        rms_camera_px: 0.0,
+        rms_projector_px: 0.0,
+        rms_stereo_px: 0.0,
+        rms_turntable_px: 0.0,
+        camera_fx_error_percent: 0.0,
+        projector_fx_error_percent: 0.0,
+        baseline_error_mm: 0.0,
+        axis_direction_error_deg: 0.0,
+        axis_position_error_mm: 0.0,
+    };
+    (rig.config().calibration(), summary)
+}
+
+/// The turntable axis of `calibration`, read from `path`; an error naming the file and the
+/// command that adds the axis when it has none.
+///
+/// # Errors
+/// [`ScanError::Stage`] (stage `calibration`) when the calibration has no turntable axis.
+pub fn require_turntable_axis(
+    calibration: &Calibration,
+    path: &Path,
+) -> Result<TurntableAxis, ScanError> {
+    calibration.turntable.ok_or_else(|| {
+        stage_err(
+            "calibration",
+            format!(
+                "{}: no turntable axis: a turntable scan needs it to place the views; add it with `slscan calibrate turntable SESSION --calib {} --out DIR` (or calibrate everything with `slscan calibrate all`)",
+                path.display(),
+                path.display()
+            ),
+        )
+    })
+}
+
+/// Loads a calibration file for a turntable scan and checks that it holds what a scan needs:
+/// the camera, the projector with its pose, and the turntable axis.
+///
+/// # Errors
+/// [`ScanError::Camera`] when the file cannot be read; [`ScanError::Stage`] naming the
+/// file and what is missing otherwise.
+pub fn load_scan_calibration(path: &Path) -> Result<Calibration, ScanError> {
+    let calibration = Calibration::load(path)?;
+    if calibration.projector.is_none() || calibration.t_cam_proj.is_none() {
+        return Err(stage_err(
+            "calibration",
+            format!(
+                "{}: no projector calibration: a scan needs the projector and its pose; calibrate them with `slscan calibrate projector` (or `slscan calibrate all`)",
+                path.display()
+            ),
+        ));
+    }
+    require_turntable_axis(&calibration, path)?;
+    Ok(calibration)
+}

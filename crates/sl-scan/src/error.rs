@@ -1,0 +1,68 @@
+//! The one error type of the scan stages.
+
+use std::path::PathBuf;
+
+/// Everything that can stop a stage of the scan: the error of the crate that failed, or a file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ScanError {
+    /// The devices or the capture session.
+    #[error(transparent)]
+    Rig(#[from] sl_rig::RigError),
+    /// The virtual rig.
+    #[error(transparent)]
+    Sim(#[from] sl_sim::SimError),
+    /// Calibration.
+    #[error("calibration: {0}")]
+    Calib(#[from] sl_calib::CalibError),
+    /// Patterns, decoding or image files.
+    #[error(transparent)]
+    Codec(#[from] sl_codec::CodecError),
+    /// Triangulation.
+    #[error(transparent)]
+    Tri(#[from] sl_tri::TriError),
+    /// Measuring the result against the truth.
+    #[error("report: {0}")]
+    Metrology(#[from] sl_metrology::MetrologyError),
+    /// Registration and merging.
+    #[error("merge: {0}")]
+    Icp(#[from] sl_icp::IcpError),
+    /// Point-cloud files and previews.
+    #[error(transparent)]
+    Cloud(#[from] sl_cloud::CloudError),
+    /// Calibration files.
+    #[error(transparent)]
+    Camera(#[from] sl_camera::CameraError),
+    /// A stage found nothing to work on (no board found, an empty view, ...).
+    #[error("{stage}: {reason}")]
+    Stage {
+        /// The stage (`calibrate`, `reconstruct`, ...).
+        stage: String,
+        /// What went wrong.
+        reason: String,
+    },
+    /// A file could not be written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+}
+
+/// Shorthand for [`ScanError::Stage`].
+pub(crate) fn stage_err(stage: &str, reason: impl Into<String>) -> ScanError {
+    ScanError::Stage {
+        stage: stage.to_owned(),
+        reason: reason.into(),
+    }
+}
+
+/// Maps an I/O error on `path` to [`ScanError::Io`].
+pub(crate) fn io(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> ScanError + '_ {
+    move |source| ScanError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}

@@ -1,0 +1,100 @@
+//! A turntable scan from a finished capture session and a calibration: the reconstruction and
+//! merge stages run in turn ([`reconstruct_session`], [`merge_scan`]). `slscan scan` runs it
+//! on the real rig once the devices have captured every view, and on the virtual rig
+//! ([`scan_virtual`](crate::scan_virtual)) after the same capture stage; any session can be
+//! reconstructed with it again.
+//!
+//! ```no_run
+//! use std::path::Path;
+//! use sl_scan::{SessionScanConfig, load_scan_calibration, scan_session, write_scan_cloud};
+//! let calib = load_scan_calibration(Path::new("calibration.json"))?;
+//! let scan = scan_session(
+//!     Path::new("scan/session"),
+//!     &calib,
+//!     &SessionScanConfig::default(),
+//!     |_| {},
+//! )?;
+//! let files = write_scan_cloud(Path::new("scan"), &scan.merged, |_| {})?;
+//! println!("{} points in {}", scan.merged.len(), files.merged);
+//! # Ok::<(), sl_scan::ScanError>(())
+//! ```
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use nalgebra::Isometry3;
+use sl_camera::Calibration;
+use sl_cloud::PointCloud;
+
+use crate::{
+    MergeStageConfig, ReconstructConfig, ScanError, ScanProgress, StageTime, merge_scan,
+    reconstruct_session,
+};
+
+/// Options of [`scan_session`].
+#[derive(Debug, Clone, Default)]
+pub struct SessionScanConfig {
+    /// The reconstruction of each view.
+    pub reconstruct: ReconstructConfig,
+    /// The registration and merge of the views.
+    pub merge: MergeStageConfig,
+    /// Initial poses of the views instead of the calibrated turntable's (diagnostic: the
+    /// virtual rig's true poses). Default `None`.
+    pub poses: Option<Vec<Isometry3<f64>>>,
+}
+
+/// A session reconstructed and merged by [`scan_session`].
+#[derive(Debug, Clone)]
+pub struct SessionScan {
+    /// The session folder.
+    pub session: PathBuf,
+    /// Motor angles of the views (degrees), as the session recorded them.
+    pub motor_angles_deg: Vec<f64>,
+    /// Platter angles of the views (degrees) through the calibrated offset and scale.
+    pub platter_angles_deg: Vec<f64>,
+    /// Points triangulated in each view.
+    pub view_points: Vec<usize>,
+    /// The first view alone, before the merge (camera frame of view 0).
+    pub first_view: PointCloud,
+    /// The merged cloud (mm, camera frame of view 0).
+    pub merged: PointCloud,
+    /// Wall time per stage (`reconstruct`, `merge`).
+    pub stages: Vec<StageTime>,
+}
+
+/// Reconstructs every view of the capture session in `session_dir` with `calibration`, then
+/// merges the views ([`reconstruct_session`], then [`merge_scan`]).
+///
+/// # Errors
+/// Those of [`reconstruct_session`] and [`merge_scan`].
+pub fn scan_session(
+    session_dir: &Path,
+    calibration: &Calibration,
+    config: &SessionScanConfig,
+    mut progress: impl FnMut(ScanProgress<'_>),
+) -> Result<SessionScan, ScanError> {
+    let t = Instant::now();
+    let views = reconstruct_session(session_dir, calibration, &config.reconstruct, &mut progress)?;
+    let mut stages = vec![StageTime::since("reconstruct", t)];
+    let t = Instant::now();
+    let merged = merge_scan(
+        &views,
+        config.poses.as_deref(),
+        &config.merge,
+        &mut progress,
+    )?;
+    stages.push(StageTime::since("merge", t));
+    Ok(SessionScan {
+        session: views.session,
+        platter_angles_deg: views
+            .motor_angles_deg
+            .iter()
+            .map(|&m| views.axis.table_angle_deg(m))
+            .collect(),
+        motor_angles_deg: views.motor_angles_deg,
+        view_points: views.clouds.iter().map(PointCloud::len).collect(),
+        first_view: views.clouds.into_iter().next().unwrap_or_default(),
+        merged,
+        stages,
+    })
+}

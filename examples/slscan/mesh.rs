@@ -1,0 +1,323 @@
+//! `slscan mesh CLOUD.ply --out DIR [--depth 9] [--trim RATIO] [--triangles N]`: a watertight
+//! surface from a cloud with normals (screened Poisson, `sl-mesh`): `mesh.ply`, `mesh.stl`,
+//! `preview.png`, `mesh.html` (an interactive 3-D view, self-contained) and `report.json`
+//! (vertices, triangles, watertight, manifold, per-stage timings). With `--truth`, the mesh is
+//! measured (`sl-metrology`) and the 3-D view colours it by its error.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use sl_cloud::{PreviewConfig, read_ply};
+use sl_codec::write_png_rgb8;
+use sl_mesh::{
+    BilateralConfig, MeshColoring, PoissonConfig, TaubinConfig, ViewerConfig, ViewerLayer,
+    check_topology, decimate, fill_holes, poisson_reconstruct, remove_small_components,
+    render_mesh, smooth_bilateral, smooth_taubin, trim_by_density, viewer_html, write_ply_mesh,
+    write_stl,
+};
+use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
+
+use crate::common::{Report, ensure_out_dir, write_atomically};
+
+/// Smoothing applied after the reconstruction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Smooth {
+    /// None.
+    None,
+    /// Bilateral: removes noise, keeps edges.
+    Bilateral,
+    /// Taubin λ|μ: removes noise, rounds edges.
+    Taubin,
+}
+
+/// Arguments of `slscan mesh`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// The cloud (PLY with normals, e.g. `merged.ply` of `slscan merge` or `slscan scan`).
+    pub(crate) cloud: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    pub(crate) out: PathBuf,
+    /// Octree depth: the finest cells are the cloud's box (×1.1) over 2^depth.
+    #[arg(long, default_value_t = PoissonConfig::default().depth)]
+    pub(crate) depth: u32,
+    /// Screening weight (0: plain Poisson).
+    #[arg(long, default_value_t = PoissonConfig::default().screening)]
+    pub(crate) screening: f64,
+    /// Remove surface whose sampling density is below this fraction of the median (e.g. 0.1):
+    /// opens the mesh where the data has no support. Off by default (watertight).
+    #[arg(long)]
+    pub(crate) trim: Option<f64>,
+    /// Decimate to at most this many triangles (quadric error).
+    #[arg(long)]
+    pub(crate) triangles: Option<usize>,
+    /// Smoothing after the reconstruction.
+    #[arg(long, value_enum, default_value_t = Smooth::None)]
+    pub(crate) smooth: Smooth,
+    /// Close holes whose rim has at most this many edges (after trimming).
+    #[arg(long)]
+    pub(crate) fill_holes: Option<usize>,
+    /// Remove pieces of fewer triangles than this.
+    #[arg(long, default_value_t = 100)]
+    pub(crate) min_piece: usize,
+    /// Truth description (JSON, docs/metrology.md): measure the mesh and colour the 3-D view
+    /// by its error.
+    #[arg(long)]
+    pub(crate) truth: Option<PathBuf>,
+}
+
+/// Runs `slscan mesh`.
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    let mut report = Report::new("mesh");
+    let out = ensure_out_dir(&args.out)?;
+    let cloud = report
+        .stage("read", || read_ply(&args.cloud))
+        .with_context(|| format!("cannot read {}", args.cloud.display()))?;
+    let cfg = PoissonConfig {
+        depth: args.depth,
+        screening: args.screening,
+        ..PoissonConfig::default()
+    };
+    let surface = report
+        .stage("reconstruct", || poisson_reconstruct(&cloud, &cfg))
+        .with_context(|| format!("cannot reconstruct a surface from {}", args.cloud.display()))?;
+    let mut mesh = surface.mesh.clone();
+    if let Some(ratio) = args.trim {
+        let t = report.stage("trim", || trim_by_density(&mesh, &surface.densities, ratio))?;
+        report.figure("trimmed_triangles", t.triangles_removed);
+        report.figure("trim_density_per_mm2", t.threshold);
+        mesh = t.mesh;
+    }
+    if let Some(max_edges) = args.fill_holes {
+        let f = report.stage("fill holes", || fill_holes(&mut mesh, max_edges))?;
+        report.figure("holes_filled", f.filled);
+        report.figure("holes_left_open", f.holes - f.filled);
+    }
+    let removed = report.stage("small pieces", || {
+        remove_small_components(&mut mesh, args.min_piece)
+    });
+    report.figure("small_pieces_removed", removed);
+    match args.smooth {
+        Smooth::None => {}
+        Smooth::Bilateral => report.stage("smooth", || {
+            smooth_bilateral(&mut mesh, &BilateralConfig::default())
+        })?,
+        Smooth::Taubin => report.stage("smooth", || {
+            smooth_taubin(&mut mesh, &TaubinConfig::default())
+        })?,
+    }
+    if let Some(n) = args.triangles {
+        let d = report.stage("decimate", || decimate(&mut mesh, n))?;
+        report.figure("decimation_max_error_mm2", d.max_error);
+    }
+    let topo = report.stage("check", || check_topology(&mesh));
+    let (ply, stl) = (out.join("mesh.ply"), out.join("mesh.stl"));
+    report.stage("write", || -> anyhow::Result<()> {
+        write_ply_mesh(&ply, &mesh)?;
+        write_stl(&stl, &mesh)?;
+        Ok(())
+    })?;
+    let mut errors: Option<Vec<f32>> = None;
+    if let Some(path) = &args.truth {
+        let truth = Truth::load(path)?;
+        let cfg = EvaluateConfig::default();
+        let by_vertex = report.stage("measure", || {
+            evaluate_mesh(&mesh, &truth, MeshSampling::Vertices, &cfg)
+        })?;
+        let by_area = evaluate_mesh(&mesh, &truth, MeshSampling::default(), &cfg)?;
+        println!("mesh measured at its vertices:");
+        for line in by_vertex.summary() {
+            println!("  {line}");
+        }
+        report.figure("rms_to_truth_vertices_mm", by_vertex.rms_to_reference_mm);
+        report.figure("rms_to_truth_area_mm", by_area.rms_to_reference_mm);
+        report.figure("metrology_vertices", serde_json::to_value(&by_vertex)?);
+        report.figure("metrology_area", serde_json::to_value(&by_area)?);
+        errors = Some(by_vertex.signed_distances_mm);
+    }
+    let view = PreviewConfig::default();
+    let png = out.join("preview.png");
+    let html = out.join("mesh.html");
+    report.stage("preview", || -> anyhow::Result<()> {
+        let img = render_mesh(&mesh, MeshColoring::Grey, &view)?;
+        write_png_rgb8(&png, img.width as usize, img.height as usize, &img.rgb)?;
+        let page = viewer_html(
+            &[ViewerLayer::Mesh {
+                name: "mesh",
+                mesh: &mesh,
+                errors_mm: errors.as_deref(),
+            }],
+            &ViewerConfig {
+                title: format!("slscan mesh {}", args.cloud.display()),
+                ..ViewerConfig::default()
+            },
+        )?;
+        write_atomically(&html, page.as_bytes())?;
+        Ok(())
+    })?;
+    report.figure("cloud", args.cloud.display().to_string());
+    report.figure("samples", surface.samples);
+    report.figure("depth", args.depth);
+    report.figure("cell_size_mm", surface.cell_size);
+    report.figure("vertices", mesh.vertices.len());
+    report.figure("triangles", mesh.triangles.len());
+    report.figure("watertight", topo.is_watertight());
+    report.figure("manifold", topo.is_manifold());
+    report.figure("oriented", topo.misoriented_edges == 0);
+    report.figure("components", topo.components);
+    report.figure("boundary_edges", topo.boundary_edges);
+    report.figure("solve_ms", surface.solve_ms);
+    report.figure("contour_ms", surface.contour_ms);
+    let path = report.write(&out)?;
+    println!(
+        "{}: {} vertices, {} triangles; watertight {}, manifold {}",
+        ply.display(),
+        mesh.vertices.len(),
+        mesh.triangles.len(),
+        topo.is_watertight(),
+        topo.is_manifold()
+    );
+    println!("report: {}; 3-D view: {}", path.display(), html.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    //! `slscan mesh` on a sampled sphere: the files, a closed surface near the sphere, the
+    //! figures; and a cloud without normals named in the error.
+
+    use clap::Parser;
+    use nalgebra::{Point3, Vector3};
+    use sl_cloud::{PointCloud, write_ply};
+
+    use crate::{Cli, Command};
+
+    fn slscan(args: &[&str]) -> anyhow::Result<()> {
+        let mut argv = vec!["slscan", "mesh"];
+        argv.extend_from_slice(args);
+        match Cli::try_parse_from(argv)?.command {
+            Command::Mesh(a) => crate::mesh::run(&a),
+            other => anyhow::bail!("parsed as {other:?}"),
+        }
+    }
+
+    fn sphere(n: usize, r: f64, c: Point3<f64>) -> (Vec<Point3<f64>>, Vec<Vector3<f64>>) {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let t = golden * i as f64;
+                let v = Vector3::new(
+                    (1.0 - z * z).sqrt() * t.cos(),
+                    (1.0 - z * z).sqrt() * t.sin(),
+                    z,
+                );
+                (c + v * r, v)
+            })
+            .unzip()
+    }
+
+    #[test]
+    fn sphere_becomes_a_closed_measured_mesh() {
+        let tmp = tempfile::tempdir().unwrap();
+        let centre = Point3::new(0.0, 0.0, 400.0);
+        let (p, n) = sphere(20_000, 25.0, centre);
+        let cloud = PointCloud::from_positions(p).with_normals(n).unwrap();
+        let ply = tmp.path().join("ball.ply");
+        write_ply(&ply, &cloud, sl_cloud::PlyFormat::default()).unwrap();
+        let truth = sl_metrology::Truth::new("ball").with(sl_metrology::Feature::Sphere(
+            sl_metrology::SphereSpec {
+                name: "ball".into(),
+                radius_mm: 25.0,
+                centre_mm: Some(centre),
+                select_mm: 2.0,
+            },
+        ));
+        let truth_path = tmp.path().join("truth.json");
+        truth.save(&truth_path).unwrap();
+        let out = tmp.path().join("out");
+        slscan(&[
+            ply.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--depth",
+            "7",
+            "--truth",
+            truth_path.to_str().unwrap(),
+        ])
+        .unwrap();
+        for f in [
+            "mesh.ply",
+            "mesh.stl",
+            "preview.png",
+            "mesh.html",
+            "report.json",
+        ] {
+            assert!(out.join(f).is_file(), "{f} missing");
+        }
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        let f = &r["figures"];
+        assert_eq!(f["watertight"], true, "{f}");
+        assert_eq!(f["manifold"], true, "{f}");
+        assert_eq!(f["components"], 1, "{f}");
+        // Depth 7 on a 55 mm box: cells of 0.47 mm; the mesh is within a tenth of one.
+        let rms = f["rms_to_truth_vertices_mm"].as_f64().unwrap();
+        assert!(rms < 0.047, "{rms}");
+        let names: Vec<&str> = r["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["name"].as_str().unwrap())
+            .collect();
+        assert!(names.contains(&"reconstruct"), "{names:?}");
+        let mesh = sl_mesh::read_mesh(&out.join("mesh.stl")).unwrap();
+        assert_eq!(
+            mesh.triangles.len() as u64,
+            f["triangles"].as_u64().unwrap()
+        );
+        // Decimated and trimmed: the triangle count is met.
+        let out2 = tmp.path().join("out2");
+        slscan(&[
+            ply.to_str().unwrap(),
+            "--out",
+            out2.to_str().unwrap(),
+            "--depth",
+            "6",
+            "--triangles",
+            "3000",
+            "--smooth",
+            "bilateral",
+        ])
+        .unwrap();
+        let mesh = sl_mesh::read_mesh(&out2.join("mesh.ply")).unwrap();
+        assert!(mesh.triangles.len() <= 3000 && mesh.triangles.len() > 2900);
+    }
+
+    #[test]
+    fn cloud_without_normals_is_named() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (p, _) = sphere(500, 10.0, Point3::origin());
+        let ply = tmp.path().join("bare.ply");
+        write_ply(
+            &ply,
+            &PointCloud::from_positions(p),
+            sl_cloud::PlyFormat::default(),
+        )
+        .unwrap();
+        let err = slscan(&[
+            ply.to_str().unwrap(),
+            "--out",
+            tmp.path().join("o").to_str().unwrap(),
+        ])
+        .unwrap_err();
+        let text = format!("{err:#}");
+        assert!(
+            text.contains("bare.ply") && text.contains("no normals"),
+            "{text}"
+        );
+        let err = slscan(&[ply.to_str().unwrap(), "--out", "x", "--depth", "12"]).unwrap_err();
+        assert!(format!("{err:#}").contains("depth"), "{err:#}");
+    }
+}
