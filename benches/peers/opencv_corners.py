@@ -7,6 +7,11 @@ image) then `cv2.cornerSubPix` with the usual 11x11 half-window (23x23 px), zero
 30 iterations or 0.001 px — the call of OpenCV's calibration tutorial and of the capture
 programs measured in issue 15. Each corner is matched to its nearest true corner. Writes
 `opencv.json` beside the manifest and prints a table.
+
+`PEERS_PYTHON benches/peers/opencv_corners.py --chessboard $SL_DATA/chessboard`: OpenCV's
+camera RMS on the real sample images (left and right, 9x6), with cornerSubPix 11x11 and 7x7,
+for comparison with ours (`SL_DATA=... cargo test -p sl-calib --test real_chessboard --
+--nocapture`).
 """
 
 import json
@@ -19,7 +24,29 @@ import cv2
 import numpy as np
 
 
+def chessboard(folder: Path) -> None:
+    """Camera RMS of cv2.calibrateCamera on OpenCV's corners of the 13 sample images a side."""
+    names = ["01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14"]
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.001)
+    obj = np.array([[i, j, 0] for j in range(6) for i in range(9)], np.float32)
+    for side in ["left", "right"]:
+        for half in [11, 7]:
+            imgp = []
+            for n in names:
+                img = cv2.imread(str(folder / f"{side}{n}.jpg"), cv2.IMREAD_GRAYSCALE)
+                ok, c = cv2.findChessboardCorners(img, (9, 6))
+                if not ok:
+                    print(f"opencv: no board in {side}{n}.jpg", file=sys.stderr)
+                    continue
+                imgp.append(cv2.cornerSubPix(img, c, (half, half), (-1, -1), criteria))
+            rms, *_ = cv2.calibrateCamera([obj] * len(imgp), imgp, (640, 480), None, None)
+            print(f"{side}: cornerSubPix {half}x{half}: {len(imgp)} images, camera RMS {rms:.4f} px")
+
+
 def main() -> None:
+    if sys.argv[1] == "--chessboard":
+        chessboard(Path(sys.argv[2]))
+        return
     manifest_path = Path(sys.argv[1])
     manifest = json.loads(manifest_path.read_text())
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.001)
@@ -51,6 +78,9 @@ def main() -> None:
         rms = float(math.sqrt((e**2).mean())) if e.size else None
         mx = float(e.max()) if e.size else None
         out["conditions"][name] = {
+            "mean": float(e.mean()) if e.size else None,
+            # Nearest rank, as the harness's p95.
+            "p95": float(np.percentile(e, 95, method="inverted_cdf")) if e.size else None,
             "rms": rms,
             "max": mx,
             "found": c["found"],

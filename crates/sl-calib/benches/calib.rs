@@ -2,7 +2,14 @@
 //!
 //! The images are OpenCV's samples in `$SL_DATA/chessboard`; without `SL_DATA` the detection
 //! bench uses a synthetic 640×480 board and the calibration bench the corners stored in
-//! `tests/data/left_corners.json`.
+//! `tests/data/left_corners.json`. The 5 MP detection runs on a board rendered by the corner
+//! harness's renderer (`tests/support/board_render.rs`): 2592×1944, 13×9 inner corners of
+//! 120 px squares, lens blur σ = 2 px, vignetting, gamma, sensor noise, tilted.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // bench set-up: a failure is the bench failing
+
+#[path = "../tests/support/board_render.rs"]
+mod board_render;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_calib::{
     BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera, detect_checkerboard,
@@ -51,6 +58,21 @@ fn bench(c: &mut Criterion) {
     let cfg = DetectorConfig::default();
     c.bench_function("detect_checkerboard 640x480 9x6", |b| {
         b.iter(|| detect_checkerboard(&img, BoardSize::new(9, 6), &cfg, "bench").is_ok())
+    });
+    let spec = board_render::RenderSpec {
+        blur_sigma: 2.0,
+        vignetting: 0.4,
+        gamma: 2.2,
+        noise: 3.0,
+        rotation_deg: 8.0,
+        tilt_x_deg: 15.0,
+        tilt_y_deg: -6.0,
+        seed: 5,
+        ..board_render::RenderSpec::new(2592, 1944, 120.0)
+    };
+    let big = board_render::render(&spec).image;
+    c.bench_function("detect_checkerboard 2592x1944 13x9 blur 2", |b| {
+        b.iter(|| detect_checkerboard(&big, BoardSize::new(13, 9), &cfg, "bench").is_ok())
     });
     let blank = image::GrayImage::from_pixel(640, 480, image::Luma([128]));
     c.bench_function("detect_checkerboard 640x480 no board", |b| {

@@ -3,6 +3,8 @@
 
 use std::path::Path;
 
+use rayon::prelude::*;
+
 use crate::CalibError;
 
 /// Loads an image file (BMP, PGM/PPM, PNG, JPEG, TIFF) as 8-bit grey, by
@@ -112,41 +114,41 @@ impl GreyF32 {
         kernel.iter_mut().for_each(|k| *k /= sum);
         let (w, h) = (self.width, self.height);
         let mut tmp = vec![0.0f32; w * h];
-        // Horizontal pass.
-        for y in 0..h {
-            let row = &self.data[y * w..(y + 1) * w];
-            let out = &mut tmp[y * w..(y + 1) * w];
-            let r = radius as usize;
-            for (x, o) in out.iter_mut().enumerate() {
-                // Interior: a plain dot product (vectorises); borders: clamped indices.
-                if x >= r && x + r < w {
-                    *o = kernel
-                        .iter()
-                        .zip(&row[x - r..=x + r])
-                        .map(|(k, v)| k * v)
-                        .sum();
-                    continue;
+        // Horizontal pass, rows in parallel.
+        let r = radius as usize;
+        tmp.par_chunks_mut(w)
+            .zip(self.data.par_chunks(w))
+            .for_each(|(out, row)| {
+                for (x, o) in out.iter_mut().enumerate() {
+                    // Interior: a plain dot product (vectorises); borders: clamped indices.
+                    if x >= r && x + r < w {
+                        *o = kernel
+                            .iter()
+                            .zip(&row[x - r..=x + r])
+                            .map(|(k, v)| k * v)
+                            .sum();
+                        continue;
+                    }
+                    let mut acc = 0.0;
+                    for (k, &kv) in kernel.iter().enumerate() {
+                        let xs =
+                            (x as isize + k as isize - radius).clamp(0, w as isize - 1) as usize;
+                        acc += kv * row[xs];
+                    }
+                    *o = acc;
                 }
-                let mut acc = 0.0;
-                for (k, &kv) in kernel.iter().enumerate() {
-                    let xs = (x as isize + k as isize - radius).clamp(0, w as isize - 1) as usize;
-                    acc += kv * row[xs];
-                }
-                *o = acc;
-            }
-        }
-        // Vertical pass.
+            });
+        // Vertical pass, output rows in parallel.
         let mut data = vec![0.0f32; w * h];
-        for y in 0..h {
+        data.par_chunks_mut(w).enumerate().for_each(|(y, dst)| {
             for (k, &kv) in kernel.iter().enumerate() {
                 let ys = (y as isize + k as isize - radius).clamp(0, h as isize - 1) as usize;
                 let src = &tmp[ys * w..(ys + 1) * w];
-                let dst = &mut data[y * w..(y + 1) * w];
                 for (d, s) in dst.iter_mut().zip(src) {
                     *d += kv * s;
                 }
             }
-        }
+        });
         Self {
             width: w,
             height: h,

@@ -93,3 +93,38 @@ fn large_defocused_image_is_found_through_the_pyramid() {
     eprintln!("defocus 3: RMS {e:.4} px");
     assert!(e < 0.06, "{e}");
 }
+
+#[test]
+fn grid_point_on_an_edge_is_recovered_from_its_neighbours() {
+    // The harness's 5 MP board under a fringe mean with 16 % ripple, first image: the
+    // detection puts corner 4's grid point 33 px down an edge, where the ripple crosses it;
+    // no saddle point there. Without the retry from the neighbours the board is not found
+    // (OpenCV finds it).
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(0xC0FFEE + 13);
+    let t = 20.0;
+    let spec = RenderSpec {
+        rotation_deg: rng.random_range(-20.0..20.0),
+        tilt_x_deg: rng.random_range(-t..t),
+        tilt_y_deg: rng.random_range(-t..t) * 0.5,
+        offset: (
+            rng.random_range(-0.03..0.03) * 2592.0,
+            rng.random_range(-0.03..0.03) * 1944.0,
+        ),
+        seed: rng.random(),
+        fringes: Some(Fringes {
+            period_px: 36.0,
+            angle_deg: 4.0,
+            ripple: 0.16,
+        }),
+        blur_sigma: 2.0,
+        vignetting: 0.4,
+        gamma: 2.2,
+        noise: 3.0,
+        ..RenderSpec::new(2592, 1944, 120.0)
+    };
+    let e = error_of(&spec, &DetectorConfig::default());
+    eprintln!("16 % ripple, 5 MP: RMS {e:.4} px");
+    // Measured 0.13 px (OpenCV 0.25 px on the same condition): the ripple's bias dominates.
+    assert!(e < 0.2, "{e}");
+}
