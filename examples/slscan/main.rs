@@ -8,6 +8,7 @@
 //! - a bad input ends with one line `slscan: error: …` naming the file or parameter, and exit
 //!   code 1 (2 for a malformed command line, as clap does).
 
+mod align;
 mod calibrate;
 mod calibrate_capture;
 mod capture;
@@ -53,6 +54,9 @@ enum Command {
     Reconstruct(reconstruct::Args),
     /// Register one cloud onto another (ICP): moved cloud, transform, preview, report.
     Register(register::Args),
+    /// Align scans given in any order with no poses (global registration): aligned cloud,
+    /// poses, preview, report.
+    Align(align::Args),
     /// Register and merge the views of a turntable scan: merged cloud, poses, preview, report.
     Merge(merge::Args),
     /// Run one capture session (virtual rig by default, or real devices); resumes when
@@ -78,6 +82,7 @@ fn main() -> std::process::ExitCode {
         Command::Reconstruct(args) => reconstruct::run(&args),
         Command::Register(args) => register::run(&args),
         Command::Merge(args) => merge::run(&args),
+        Command::Align(args) => align::run(&args),
         Command::Capture(args) => capture::run(&args),
         Command::Scan(args) => scan::run(&args),
         Command::Report(args) => report::run(&args),
