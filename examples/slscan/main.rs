@@ -8,6 +8,7 @@
 //! - a bad input ends with one line `slscan: error: …` naming the file or parameter, and exit
 //!   code 1 (2 for a malformed command line, as clap does).
 
+mod align;
 mod calibrate;
 mod calibrate_capture;
 mod capture;
@@ -54,6 +55,9 @@ enum Command {
     Reconstruct(reconstruct::Args),
     /// Register one cloud onto another (ICP): moved cloud, transform, preview, report.
     Register(register::Args),
+    /// Align scans given in any order with no poses (global registration): aligned cloud,
+    /// poses, preview, report.
+    Align(align::Args),
     /// Register and merge the views of a turntable scan: merged cloud, poses, preview, report.
     Merge(merge::Args),
     /// A watertight mesh from a cloud with normals (screened Poisson): mesh.ply, mesh.stl,
@@ -83,6 +87,7 @@ fn main() -> std::process::ExitCode {
         Command::Register(args) => register::run(&args),
         Command::Merge(args) => merge::run(&args),
         Command::Mesh(args) => mesh::run(&args),
+        Command::Align(args) => align::run(&args),
         Command::Capture(args) => capture::run(&args),
         Command::Scan(args) => scan::run(&args),
         Command::Report(args) => report::run(&args),

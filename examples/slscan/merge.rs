@@ -9,10 +9,13 @@ use anyhow::Context;
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_camera::{Calibration, TurntableAxis};
 use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
-use sl_icp::{MergeConfig, PoseModel, TurntablePrior, align_views, merge_aligned, turntable_poses};
+use sl_icp::{
+    IcpError, MergeConfig, PairRegistration, PoseModel, TurntablePrior, align_views, merge_aligned,
+    turntable_poses,
+};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
-use crate::register::{matrix_rows, read_scaled, write_preview};
+use crate::register::{check_units, matrix_rows, read_scaled, write_preview};
 
 /// Arguments of `slscan merge`.
 #[derive(Debug, clap::Args)]
@@ -42,7 +45,7 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) step: Option<f64>,
     /// Voxel size the views are downsampled to for registration (mm).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = DEFAULT_REGISTRATION_VOXEL_MM)]
     pub(crate) registration_voxel: f64,
     /// Voxel size of the merged cloud (mm; 0 keeps every point).
     #[arg(long, default_value_t = 0.5)]
@@ -137,6 +140,35 @@ fn initial_poses(args: &Args, n: usize) -> anyhow::Result<(Vec<Isometry3<f64>>, 
     }
 }
 
+/// Default `--registration-voxel` (mm), also the scale below which a cloud is taken for one
+/// in metres.
+const DEFAULT_REGISTRATION_VOXEL_MM: f64 = 1.0;
+
+/// Every pair's figures for `report.json`: views by index and file, fitness, RMSE, whether
+/// used, whether the global-registration fallback gave the pose, and why it failed.
+fn pair_figures(
+    pairs: &[PairRegistration],
+    name: &dyn Fn(usize) -> String,
+) -> Vec<serde_json::Value> {
+    pairs
+        .iter()
+        .map(|p| {
+            serde_json::json!({
+                "target": p.target,
+                "source": p.source,
+                "target_view": name(p.target),
+                "source_view": name(p.source),
+                "used": p.used,
+                "global_registration": p.global,
+                "rmse_mm": p.registration.as_ref().map(|r| r.rmse),
+                "fitness": p.registration.as_ref().map(|r| r.fitness),
+                "iterations": p.registration.as_ref().map(|r| r.iterations),
+                "failure": p.failure,
+            })
+        })
+        .collect()
+}
+
 /// Runs `slscan merge`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("merge");
@@ -174,11 +206,53 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let views: Vec<PointCloud> = report.stage("read", || {
         args.views
             .iter()
-            .map(|v| read_scaled(&view_file(v), args.scale))
+            .map(|v| {
+                let path = view_file(v);
+                let c = read_scaled(&path, args.scale)?;
+                check_units(&c, &path, DEFAULT_REGISTRATION_VOXEL_MM)?;
+                Ok(c)
+            })
             .collect::<anyhow::Result<_>>()
     })?;
     bar.inc(1);
-    let alignment = report.stage("register views", || align_views(&views, &initial, &config))?;
+    let name = |i: usize| {
+        args.views
+            .get(i)
+            .map_or_else(|| format!("view {i}"), |p| p.display().to_string())
+    };
+    let alignment = match report.stage("register views", || align_views(&views, &initial, &config))
+    {
+        Ok(a) => a,
+        Err(IcpError::ViewsNotPlaced {
+            views: lost,
+            why,
+            pairs,
+        }) => {
+            bar.finish_and_clear();
+            // A failed merge still says what every pair measured.
+            report.figure("views", n);
+            report.figure("initial_poses_from", source_of_poses);
+            report.figure(
+                "pairs",
+                serde_json::Value::Array(pair_figures(&pairs, &name)),
+            );
+            report.figure("pairs_used", pairs.iter().filter(|p| p.used).count());
+            report.figure(
+                "unplaced",
+                serde_json::Value::Array(lost.iter().map(|&v| name(v).into()).collect()),
+            );
+            report.figure("unplaced_because", why.clone());
+            let path = report.write(&dir)?;
+            let names: Vec<String> = lost.iter().map(|&v| name(v)).collect();
+            anyhow::bail!(
+                "{} of {n} views could not be placed: {} ({why}); every pair's fitness, RMSE and reason are in {}",
+                lost.len(),
+                names.join(", "),
+                path.display()
+            );
+        }
+        Err(e) => return Err(e.into()),
+    };
     bar.inc(1);
     let merged = report.stage("merge", || merge_aligned(&views, &alignment.poses, &config))?;
     bar.inc(1);
@@ -203,21 +277,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     })?;
     bar.finish_and_clear();
 
-    let pairs: Vec<serde_json::Value> = alignment
+    let pairs = pair_figures(&alignment.pairs, &name);
+    let global = alignment
         .pairs
         .iter()
-        .map(|p| {
-            serde_json::json!({
-                "target": p.target,
-                "source": p.source,
-                "used": p.used,
-                "rmse_mm": p.registration.as_ref().map(|r| r.rmse),
-                "fitness": p.registration.as_ref().map(|r| r.fitness),
-                "iterations": p.registration.as_ref().map(|r| r.iterations),
-                "failure": p.failure,
-            })
-        })
-        .collect();
+        .filter(|p| p.used && p.global)
+        .count();
     let used = alignment.pairs.iter().filter(|p| p.used).count();
     let moved_deg: f64 = initial
         .iter()
@@ -233,6 +298,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("initial_poses_from", source_of_poses);
     report.figure("pairs", serde_json::Value::Array(pairs));
     report.figure("pairs_used", used);
+    report.figure("pairs_from_global_registration", global);
     report.figure("pose_graph_initial_cost", alignment.pose_graph.initial_cost);
     report.figure("pose_graph_final_cost", alignment.pose_graph.final_cost);
     report.figure("pose_graph_iterations", alignment.pose_graph.iterations);
@@ -258,11 +324,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     }
     let path = report.write(&dir)?;
     println!(
-        "{}: {} views ({} pairs used of {}), {} points; largest pose correction {:.3} deg",
+        "{}: {} views ({} pairs used of {}, {} by global registration), {} points; largest pose correction {:.3} deg",
         ply.display(),
         n,
         used,
         alignment.pairs.len(),
+        global,
         merged.len(),
         moved_deg
     );

@@ -15,6 +15,9 @@ use sl_icp::{
 
 use crate::common::{Report, ensure_out_dir, write_atomically};
 
+/// Default voxel size of `register` (mm): a 100 mm object keeps ~10k points.
+const DEFAULT_VOXEL_MM: f64 = 1.0;
+
 /// Error metric on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum MetricArg {
@@ -50,7 +53,7 @@ pub(crate) struct Args {
     #[arg(long, value_enum, default_value_t = MetricArg::PointToPlane)]
     pub(crate) metric: MetricArg,
     /// Voxel size for downsampling both clouds first (mm; 0 keeps every point).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = DEFAULT_VOXEL_MM)]
     pub(crate) voxel: f64,
     /// Correspondences farther apart than this are ignored (mm).
     #[arg(long, default_value_t = 5.0)]
@@ -90,6 +93,24 @@ pub(crate) fn read_scaled(path: &Path, scale: f64) -> anyhow::Result<PointCloud>
         anyhow::bail!("{}: the cloud has no point", path.display());
     }
     Ok(cloud)
+}
+
+/// A cloud whose bounding-box diagonal is below this many default voxels is taken for one in
+/// metres (the workspace works in mm): any object worth scanning spans tens of voxels
+/// (a 100 mm object, 100 voxels of 1 mm), while the same object in metres spans 0.1 "mm".
+const METRES_EXTENT_VOXELS: f64 = 1.0;
+
+/// Fails with a hint when `cloud` (read from `path`) spans only a fraction of `voxel` mm (the
+/// command's default voxel size): it is almost surely in metres and needs `--scale 1000`.
+pub(crate) fn check_units(cloud: &PointCloud, path: &Path, voxel: f64) -> anyhow::Result<()> {
+    let extent = cloud.bounding_box().map_or(0.0, |b| b.extent().norm());
+    if extent < METRES_EXTENT_VOXELS * voxel {
+        anyhow::bail!(
+            "{}: the cloud spans {extent:.4} units, a fraction of the {voxel} mm voxel size: its coordinates are probably metres; read it with --scale 1000",
+            path.display()
+        );
+    }
+    Ok(())
 }
 
 /// A pose as a row-major 4x4 matrix.
@@ -188,6 +209,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             read_scaled(&args.target, args.scale)?,
         ))
     })?;
+    check_units(&source, &args.source, DEFAULT_VOXEL_MM)?;
+    check_units(&target, &args.target, DEFAULT_VOXEL_MM)?;
     let voxel = (args.voxel > 0.0).then_some(args.voxel);
     let needs = |side_needs: bool| {
         if side_needs {

@@ -83,7 +83,8 @@ pub use config::{Association, IcpConfig, Metric, RobustKernel, Trimming};
 pub use error::IcpError;
 pub use global::{
     Correspondence, FPFH_BINS, FeatureIndex, Fpfh, FpfhConfig, GlobalCloud, GlobalConfig,
-    GlobalRegistration, MatchConfig, RansacConfig, RansacResult, compute_fpfh, match_features,
+    GlobalRegistration, MatchConfig, MultiwayAlignment, MultiwayConfig, MultiwayPair, RansacConfig,
+    RansacResult, UnplacedView, align_unordered, compute_fpfh, match_features,
     orient_normals_outward, ransac_pose, register_global, register_global_prepared,
 };
 pub use icp::{Evaluation, Icp, IcpStep, Registration, register};

@@ -6,6 +6,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 use sl_cloud::{KdIndex, MergePolicy, NormalConfig, PointCloud, VoxelGridConfig, voxel_downsample};
 
+use crate::global::{GlobalCloud, GlobalConfig, register_global_prepared};
 use crate::normals::{local_planes, quadric_projection};
 use crate::pose_graph::unreachable;
 use crate::turntable_model::{Turntable, fit_turntable_gated};
@@ -59,6 +60,11 @@ pub struct MergeConfig {
     /// flattening curved parts or shrinking the surface sideways). Needs normals. Default
     /// false.
     pub average_overlaps: bool,
+    /// Global registration (descriptors and RANSAC, no initial pose) for a pair whose ICP
+    /// from the initial poses fails or stays below `min_fitness`, as when a turntable view
+    /// sits far from its nominal angle; its pose is then refined by `icp`. `None` turns the
+    /// fallback off. Default: [`GlobalConfig::default`] (2 mm voxels).
+    pub global_fallback: Option<GlobalConfig>,
 }
 
 impl Default for MergeConfig {
@@ -87,6 +93,7 @@ impl Default for MergeConfig {
             output_voxel_size: Some(0.5),
             output_normal_neighbours: 16,
             average_overlaps: false,
+            global_fallback: Some(GlobalConfig::default()),
         }
     }
 }
@@ -94,6 +101,9 @@ impl Default for MergeConfig {
 impl MergeConfig {
     fn validate(&self) -> Result<(), IcpError> {
         self.icp.validate()?;
+        if let Some(g) = &self.global_fallback {
+            g.validate()?;
+        }
         if let Some(c) = &self.coarse_icp {
             c.validate()?;
         }
@@ -159,6 +169,10 @@ pub struct PairRegistration {
     pub failure: Option<String>,
     /// Whether it entered the pose graph (succeeded with enough fitness).
     pub used: bool,
+    /// Whether the pose came from the global-registration fallback
+    /// ([`MergeConfig::global_fallback`]) because ICP from the initial poses failed; `failure`
+    /// then still says why that ICP failed when the fallback failed too.
+    pub global: bool,
 }
 
 /// Result of [`align_views`].
@@ -259,6 +273,7 @@ pub fn align_views(
                         registration: None,
                         failure: Some("view index out of range".into()),
                         used: false,
+                        global: false,
                     };
                 };
                 let start = pt.inverse() * ps;
@@ -274,6 +289,7 @@ pub fn align_views(
                             )
                         }),
                         registration: Some(r),
+                        global: false,
                     },
                     Err(e) => PairRegistration {
                         target: t,
@@ -281,11 +297,24 @@ pub fn align_views(
                         registration: None,
                         failure: Some(e.to_string()),
                         used: false,
+                        global: false,
                     },
                 }
             })
             .collect();
-    let edges = pairs
+    let pairs = match &config.global_fallback {
+        Some(global) => with_global_fallback(views, &prepared, pairs, global, config),
+        None => pairs,
+    };
+    if !pairs.iter().any(|p| p.used) {
+        return Err(IcpError::ViewsNotPlaced {
+            views: (1..views.len()).collect(),
+            why: "no pair of views registered (every pair failed or stayed below min_fitness)"
+                .to_owned(),
+            pairs,
+        });
+    }
+    let edges: Vec<PoseGraphEdge> = pairs
         .iter()
         .filter(|p| p.used)
         .filter_map(|p| {
@@ -297,10 +326,33 @@ pub fn align_views(
             })
         })
         .collect();
-    let graph = PoseGraph {
-        nodes: initial.to_vec(),
-        edges,
+    let free_or_unanchored = match &config.pose_model {
+        PoseModel::Free => true,
+        PoseModel::Turntable(prior) => prior.angle_sigma_deg.is_none(),
     };
+    if free_or_unanchored {
+        let lost = unreachable_all(views.len(), &edges);
+        if !lost.is_empty() {
+            let why = lost
+                .iter()
+                .map(|&v| format!("view {v}: {}", why_not_placed(v, &pairs)))
+                .collect::<Vec<_>>()
+                .join("; ");
+            return Err(IcpError::ViewsNotPlaced {
+                views: lost,
+                why,
+                pairs,
+            });
+        }
+    }
+    // A pose from the fallback contradicts the initial poses: start the graph from the
+    // registrations themselves (along a spanning tree), or it may not reach them.
+    let nodes = if pairs.iter().any(|p| p.used && p.global) {
+        chained_poses(initial, &pairs)
+    } else {
+        initial.to_vec()
+    };
+    let graph = PoseGraph { nodes, edges };
     let calibrated = match &config.pose_model {
         PoseModel::Turntable(prior) => {
             let centre = prepared
@@ -353,6 +405,169 @@ pub fn align_views(
                 .collect(),
         }),
     })
+}
+
+/// Retries the failed pairs by global registration (each view described once, in parallel),
+/// refining the global pose with `config.icp` on the merge's prepared clouds.
+fn with_global_fallback(
+    views: &[PointCloud],
+    prepared: &[PreparedCloud],
+    mut pairs: Vec<PairRegistration>,
+    global: &GlobalConfig,
+    config: &MergeConfig,
+) -> Vec<PairRegistration> {
+    let failed: Vec<usize> = (0..pairs.len()).filter(|&k| !pairs[k].used).collect();
+    if failed.is_empty() {
+        return pairs;
+    }
+    let mut needed: Vec<usize> = failed
+        .iter()
+        .flat_map(|&k| [pairs[k].source, pairs[k].target])
+        .collect();
+    needed.sort_unstable();
+    needed.dedup();
+    let described: Vec<(usize, Result<GlobalCloud, IcpError>)> = needed
+        .par_iter()
+        .filter_map(|&v| {
+            let cloud = views.get(v)?;
+            Some((v, GlobalCloud::new(cloud, global, &format!("view {v}"))))
+        })
+        .collect();
+    let cloud_of = |v: usize| -> Result<&GlobalCloud, String> {
+        match described.iter().find(|(i, _)| *i == v) {
+            Some((_, Ok(g))) => Ok(g),
+            Some((_, Err(e))) => Err(e.to_string()),
+            None => Err(format!("view {v} does not exist")),
+        }
+    };
+    let retried: Vec<(usize, Result<Registration, String>)> = failed
+        .par_iter()
+        .map(|&k| {
+            let (s, t) = (pairs[k].source, pairs[k].target);
+            let attempt = || -> Result<Registration, String> {
+                let (gs, gt) = (cloud_of(s)?, cloud_of(t)?);
+                let (sn, tn) = (format!("view {s}"), format!("view {t}"));
+                let g = register_global_prepared(gs, gt, global, (&sn, &tn))
+                    .map_err(|e| e.to_string())?;
+                let (Some(ps), Some(pt)) = (prepared.get(s), prepared.get(t)) else {
+                    return Err("view index out of range".to_owned());
+                };
+                register(ps, pt, &g.pose, &config.icp).map_err(|e| e.to_string())
+            };
+            (k, attempt())
+        })
+        .collect();
+    for (k, result) in retried {
+        let p = &mut pairs[k];
+        let before = p.failure.clone().unwrap_or_default();
+        match result {
+            Ok(r) if r.fitness >= config.min_fitness => {
+                p.used = true;
+                p.global = true;
+                p.failure = None;
+                p.registration = Some(r);
+            }
+            Ok(r) => {
+                p.failure = Some(format!(
+                    "{before}; global registration: fitness {:.3} below min_fitness {:.3}",
+                    r.fitness, config.min_fitness
+                ));
+                if p.registration
+                    .as_ref()
+                    .is_none_or(|old| old.fitness < r.fitness)
+                {
+                    p.registration = Some(r);
+                    p.global = true;
+                }
+            }
+            Err(e) => p.failure = Some(format!("{before}; global registration: {e}")),
+        }
+    }
+    pairs
+}
+
+/// Every node that no chain of `edges` ties to node 0, in order.
+fn unreachable_all(n: usize, edges: &[PoseGraphEdge]) -> Vec<usize> {
+    let mut seen = vec![false; n];
+    let mut stack = vec![0usize];
+    if let Some(s) = seen.get_mut(0) {
+        *s = true;
+    }
+    while let Some(k) = stack.pop() {
+        for e in edges {
+            let other = match (e.from == k, e.to == k) {
+                (true, _) => e.to,
+                (_, true) => e.from,
+                _ => continue,
+            };
+            if let Some(s) = seen.get_mut(other)
+                && !*s
+            {
+                *s = true;
+                stack.push(other);
+            }
+        }
+    }
+    (0..n).filter(|&i| !seen[i]).collect()
+}
+
+/// Why view `v` is not placed: the failures of its pairs.
+fn why_not_placed(v: usize, pairs: &[PairRegistration]) -> String {
+    let mine: Vec<String> = pairs
+        .iter()
+        .filter(|p| p.source == v || p.target == v)
+        .map(|p| {
+            let other = if p.source == v { p.target } else { p.source };
+            match (&p.failure, p.used) {
+                (Some(f), _) => format!("with view {other}: {f}"),
+                (None, true) => format!("with view {other}: registered, but not tied to view 0"),
+                (None, false) => format!("with view {other}: not used"),
+            }
+        })
+        .collect();
+    if mine.is_empty() {
+        "no pair was tried".to_owned()
+    } else {
+        mine.join(", ")
+    }
+}
+
+/// Initial poses along the used pairs (a maximum-fitness spanning tree from view 0); views
+/// they do not reach keep `initial`.
+fn chained_poses(initial: &[Isometry3<f64>], pairs: &[PairRegistration]) -> Vec<Isometry3<f64>> {
+    let n = initial.len();
+    let mut placed: Vec<Option<Isometry3<f64>>> = vec![None; n];
+    if let Some(p) = placed.first_mut() {
+        *p = initial.first().copied();
+    }
+    loop {
+        let mut best: Option<(f64, usize, Isometry3<f64>)> = None;
+        for p in pairs.iter().filter(|p| p.used) {
+            let Some(r) = &p.registration else { continue };
+            let (Some(&tt), Some(&ts)) = (placed.get(p.target), placed.get(p.source)) else {
+                continue;
+            };
+            let step = match (tt, ts) {
+                (Some(tt), None) => Some((p.source, tt * r.pose)),
+                (None, Some(ts)) => Some((p.target, ts * r.pose.inverse())),
+                _ => None,
+            };
+            if let Some((v, pose)) = step
+                && best.as_ref().is_none_or(|b| r.fitness > b.0)
+            {
+                best = Some((r.fitness, v, pose));
+            }
+        }
+        match best {
+            Some((_, v, pose)) => placed[v] = Some(pose),
+            None => break,
+        }
+    }
+    placed
+        .iter()
+        .zip(initial)
+        .map(|(p, i)| p.unwrap_or(*i))
+        .collect()
 }
 
 /// Merges views already aligned by `poses` (`T_world_view`): moves them into the world frame,

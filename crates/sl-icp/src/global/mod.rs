@@ -8,12 +8,16 @@
 
 pub(crate) mod correspondences;
 pub(crate) mod fpfh;
+pub(crate) mod multiway;
 pub(crate) mod orientation;
 pub(crate) mod pairwise;
 pub(crate) mod ransac;
 
 pub use correspondences::{Correspondence, FeatureIndex, MatchConfig, match_features};
 pub use fpfh::{FPFH_BINS, Fpfh, FpfhConfig, compute_fpfh};
+pub use multiway::{
+    MultiwayAlignment, MultiwayConfig, MultiwayPair, UnplacedView, align_unordered,
+};
 pub use orientation::orient_normals_outward;
 pub use pairwise::{
     GlobalCloud, GlobalConfig, GlobalRegistration, register_global, register_global_prepared,
