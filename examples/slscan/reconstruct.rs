@@ -285,8 +285,8 @@ mod tests {
 
     use clap::Parser;
     use sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
-    use sl_sim::{Scene, VirtualRig, simulate_scan};
     use sl_scan::scaled_rig_config;
+    use sl_sim::{Scene, VirtualRig, simulate_scan};
 
     use crate::{Cli, Command};
 
