@@ -113,6 +113,7 @@ pub fn mesh_stage(
         ],
         &ViewerConfig {
             title: "slscan scan: merged cloud and mesh".into(),
+            error_range_mm: sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM,
             ..ViewerConfig::default()
         },
     )?;

@@ -60,12 +60,13 @@ pub fn write_heat_map(path: &Path, cloud: &PointCloud, report: &Report) -> Resul
         elevation_deg: 20.0,
         ..PreviewConfig::default()
     };
-    let img = heat_map(
+    let mut img = heat_map(
         cloud,
         &report.signed_distances_mm,
         DEFAULT_HEAT_MAP_RANGE_MM,
         &view,
     )?;
+    sl_metrology::draw_legend(&mut img, DEFAULT_HEAT_MAP_RANGE_MM);
     write_png_rgb8(path, img.width as usize, img.height as usize, &img.rgb)?;
     Ok(())
 }
@@ -134,7 +135,7 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Sc
                 })
             };
             format!(
-                "<h2>Mesh and 3-D view</h2>\n<p>Screened Poisson surface of the merged cloud (depth {depth}, cells of {cell:.3} mm): <a href=\"{ply}\">{ply}</a>, <a href=\"{stl}\">{stl}</a>; {v} vertices, {t} triangles, watertight {wt}, manifold {mf}. RMS distance to the true surface: {rv} at its vertices, {ra} over its area.</p>\n<p><iframe src=\"{view}\" width=\"960\" height=\"540\" style=\"border:0\"></iframe><br>Drag to rotate, wheel to zoom; the buttons switch the mesh and the cloud and colour them by their signed error (blue −0.2 mm, red +0.2 mm). <a href=\"{view}\">Open the 3-D view alone</a>; <a href=\"{pre}\">still picture</a>.</p>\n",
+                "<h2>Mesh and 3-D view</h2>\n<p>Screened Poisson surface of the merged cloud (depth {depth}, cells of {cell:.3} mm): <a href=\"{ply}\">{ply}</a>, <a href=\"{stl}\">{stl}</a>; {v} vertices, {t} triangles, watertight {wt}, manifold {mf}. RMS distance to the true surface: {rv} at its vertices, {ra} over its area.</p>\n<p><iframe src=\"{view}\" width=\"960\" height=\"540\" style=\"border:0\"></iframe><br>Drag to rotate, wheel to zoom; the buttons switch the mesh and the cloud and colour them by their signed error (blue −{range} mm, red +{range} mm). <a href=\"{view}\">Open the 3-D view alone</a>; <a href=\"{pre}\">still picture</a>.</p>\n",
                 depth = m.depth,
                 cell = m.cell_size_mm,
                 ply = f.ply,
@@ -147,6 +148,7 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Sc
                 ra = acc(&m.accuracy_area),
                 view = f.view3d,
                 pre = f.preview,
+                range = DEFAULT_HEAT_MAP_RANGE_MM,
             )
         }
         _ => String::new(),
