@@ -97,12 +97,13 @@ def main():
             r = json.load(open(os.path.join(out, "report.json")))
             if wall < best_wall:
                 best_wall, report = wall, r
-        t = report["timings_ms"]
+        t = {s["name"]: s["ms"] for s in report["stages"]}
         print(f"ours       slscan mesh: best of {args.repeat}: {best_wall:.3f} s wall "
               f"(reconstruction {t['reconstruct'] / 1e3:.3f} s)")
         ours = o3d.io.read_triangle_mesh(os.path.join(out, "mesh.ply"))
         mesh_checks("ours", ours)
-        print(f"ours       report.json: watertight {report['watertight']}, manifold {report['manifold']}")
+        f = report["figures"]
+        print(f"ours       report.json: watertight {f['watertight']}, manifold {f['manifold']}")
         describe("ours", np.asarray(ours.vertices), truth)
 
 

@@ -57,7 +57,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     };
     let png = out.join("error_map.png");
     report.stage("heat map", || -> anyhow::Result<()> {
-        let img = heat_map(&cloud, &figures.signed_distances_mm, args.range, &view)?;
+        let mut img = heat_map(&cloud, &figures.signed_distances_mm, args.range, &view)?;
+        sl_metrology::draw_legend(&mut img, args.range);
         write_png_rgb8(&png, img.width as usize, img.height as usize, &img.rgb)?;
         Ok(())
     })?;

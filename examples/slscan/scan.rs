@@ -103,6 +103,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("accuracy", serde_json::to_value(&result.accuracy)?);
     report.figure("flatness", serde_json::to_value(&result.flatness)?);
     report.figure("first_view", serde_json::to_value(&result.first_view)?);
+    report.figure("mesh", serde_json::to_value(&result.mesh)?);
     report.figure("files", serde_json::to_value(&result.files)?);
     report.add_stages(&result.stages);
     report.write(&out)?;

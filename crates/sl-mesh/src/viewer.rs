@@ -58,8 +58,8 @@ impl Default for ViewerConfig {
     fn default() -> Self {
         Self {
             title: "structured-light 3-D view".into(),
-            // As `sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM`.
-            error_range_mm: 0.2,
+            // As `sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM` (twice the 0.05 mm probing target).
+            error_range_mm: 0.1,
             max_cloud_points: 300_000,
         }
     }

@@ -58,6 +58,7 @@ mod error;
 mod evaluate;
 mod find;
 mod heat_map;
+mod legend;
 mod mesh;
 mod truth;
 
@@ -67,6 +68,7 @@ pub use evaluate::{
     SphereReport, VDI_TRIM_FRACTION, evaluate, evaluate_with,
 };
 pub use heat_map::{DEFAULT_HEAT_MAP_RANGE_MM, heat_map};
+pub use legend::draw_legend;
 pub use mesh::{MeshSampling, evaluate_mesh, mesh_samples};
 pub use sl_cloud::TriangleMesh;
 pub use truth::{

@@ -25,6 +25,9 @@ pub enum ScanError {
     #[error("report: {0}")]
     Metrology(#[from] sl_metrology::MetrologyError),
     /// Registration and merging.
+    #[error("mesh: {0}")]
+    Mesh(#[from] sl_mesh::MeshError),
+    /// An error of the merge (`sl-icp`).
     #[error("merge: {0}")]
     Icp(#[from] sl_icp::IcpError),
     /// Point-cloud files and previews.

@@ -34,6 +34,7 @@ mod capture;
 mod error;
 mod measure;
 mod merge;
+mod mesh;
 mod progress;
 mod reconstruct;
 mod report;
@@ -77,6 +78,7 @@ pub use measure::{
     plate_truth, scene_truth,
 };
 pub use merge::{MergeStageConfig, merge_scan};
+pub use mesh::{MeshFiles, MeshSummary, mesh_stage};
 pub use progress::{ScanProgress, StageTime};
 pub use reconstruct::{
     ReconstructConfig, ReconstructedViews, drop_grazing, reconstruct_session, reconstruct_view,

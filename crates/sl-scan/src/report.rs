@@ -60,12 +60,13 @@ pub fn write_heat_map(path: &Path, cloud: &PointCloud, report: &Report) -> Resul
         elevation_deg: 20.0,
         ..PreviewConfig::default()
     };
-    let img = heat_map(
+    let mut img = heat_map(
         cloud,
         &report.signed_distances_mm,
         DEFAULT_HEAT_MAP_RANGE_MM,
         &view,
     )?;
+    sl_metrology::draw_legend(&mut img, DEFAULT_HEAT_MAP_RANGE_MM);
     write_png_rgb8(path, img.width as usize, img.height as usize, &img.rgb)?;
     Ok(())
 }
@@ -126,6 +127,32 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Sc
             .collect(),
         _ => String::new(),
     };
+    let mesh = match (&result.mesh, &result.files.mesh) {
+        (Some(m), Some(f)) => {
+            let acc = |r: &Option<sl_metrology::Report>| {
+                r.as_ref().map_or("not measured".to_owned(), |r| {
+                    format!("{:.4} mm", r.rms_to_reference_mm)
+                })
+            };
+            format!(
+                "<h2>Mesh and 3-D view</h2>\n<p>Screened Poisson surface of the merged cloud (depth {depth}, cells of {cell:.3} mm): <a href=\"{ply}\">{ply}</a>, <a href=\"{stl}\">{stl}</a>; {v} vertices, {t} triangles, watertight {wt}, manifold {mf}. RMS distance to the true surface: {rv} at its vertices, {ra} over its area.</p>\n<p><iframe src=\"{view}\" width=\"960\" height=\"540\" style=\"border:0\"></iframe><br>Drag to rotate, wheel to zoom; the buttons switch the mesh and the cloud and colour them by their signed error (blue −{range} mm, red +{range} mm). <a href=\"{view}\">Open the 3-D view alone</a>; <a href=\"{pre}\">still picture</a>.</p>\n",
+                depth = m.depth,
+                cell = m.cell_size_mm,
+                ply = f.ply,
+                stl = f.stl,
+                v = m.vertices,
+                t = m.triangles,
+                wt = m.watertight,
+                mf = m.manifold,
+                rv = acc(&m.accuracy_vertices),
+                ra = acc(&m.accuracy_area),
+                view = f.view3d,
+                pre = f.preview,
+                range = DEFAULT_HEAT_MAP_RANGE_MM,
+            )
+        }
+        _ => String::new(),
+    };
     let stages: String = result
         .stages
         .iter()
@@ -151,7 +178,7 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Sc
 {rows}</table>
 <p>Probing form: range of the radial residuals of the least-squares sphere over all its points, and with the 0.3 % farthest left out as VDI/VDE 2634 part 2 allows.</p>
 <p><a href="{heat}"><img src="{heat}" width="480"></a><br>Signed distance to the true surface, blue −{range} mm to red +{range} mm.</p>
-{flatness}<h2>Calibration (estimated from simulated board captures)</h2>
+{mesh}{flatness}<h2>Calibration (estimated from simulated board captures)</h2>
 <p>RMS camera {rc:.3} px, projector {rp:.3} px, stereo {rs:.3} px, turntable {rt:.3} px; camera fx error {fxc:+.4} %, projector fx error {fxp:+.4} %, baseline error {base:.3} mm; axis direction error {ad:.4}°, position error {ap:.3} mm.</p>
 <h2>Stages</h2>
 <table>{stages}</table>

@@ -1,0 +1,137 @@
+//! The mesh stage: a watertight surface of the merged cloud (screened Poisson, `sl-mesh`),
+//! written beside it (`mesh.ply`, `mesh.stl`), pictured (`mesh_preview.png`), measured against
+//! the truth when there is one, and shown with the cloud in an interactive 3-D page
+//! (`view3d.html`, self-contained) that `index.html` embeds.
+
+use std::path::Path;
+
+use serde::Serialize;
+use sl_cloud::{PointCloud, PreviewConfig};
+use sl_codec::write_png_rgb8;
+use sl_mesh::{
+    MeshColoring, PoissonConfig, ViewerConfig, ViewerLayer, check_topology, poisson_reconstruct,
+    render_mesh, viewer_html, write_ply_mesh, write_stl,
+};
+use sl_metrology::{EvaluateConfig, MeshSampling, Report, Truth, evaluate_mesh};
+
+use crate::ScanError;
+use crate::error::io;
+
+/// What the mesh stage made and measured.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshSummary {
+    /// Vertices of the mesh.
+    pub vertices: usize,
+    /// Triangles of the mesh.
+    pub triangles: usize,
+    /// Closed: every edge shared by two triangles.
+    pub watertight: bool,
+    /// Every edge of at most two triangles, every vertex one fan.
+    pub manifold: bool,
+    /// Octree depth of the reconstruction.
+    pub depth: u32,
+    /// Edge of a finest cell (mm).
+    pub cell_size_mm: f64,
+    /// Wall time of the solve and of the surface extraction (ms).
+    pub solve_ms: f64,
+    /// See `solve_ms`.
+    pub contour_ms: f64,
+    /// The mesh measured against the truth at its vertices (RMS, probing errors).
+    pub accuracy_vertices: Option<Report>,
+    /// The mesh measured against the truth over area-weighted samples.
+    pub accuracy_area: Option<Report>,
+}
+
+/// The files of the mesh stage, relative to the output folder.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MeshFiles {
+    /// The mesh as PLY (with vertex normals).
+    pub ply: String,
+    /// The mesh as binary STL.
+    pub stl: String,
+    /// A shaded picture of the mesh.
+    pub preview: String,
+    /// The interactive 3-D page of the merged cloud and the mesh.
+    pub view3d: String,
+}
+
+/// Runs the mesh stage on `merged` into `out`.
+///
+/// # Errors
+/// [`ScanError::Mesh`] when the cloud cannot be meshed (no normals, too few points),
+/// [`ScanError::Metrology`] when the mesh cannot be measured, [`ScanError::Io`] naming a file
+/// that cannot be written.
+pub fn mesh_stage(
+    merged: &PointCloud,
+    merged_errors_mm: Option<&[f32]>,
+    truth: Option<&Truth>,
+    cfg: &PoissonConfig,
+    out: &Path,
+) -> Result<(MeshSummary, MeshFiles), ScanError> {
+    let surface = poisson_reconstruct(merged, cfg)?;
+    let mesh = &surface.mesh;
+    let topo = check_topology(mesh);
+    let files = MeshFiles {
+        ply: "mesh.ply".into(),
+        stl: "mesh.stl".into(),
+        preview: "mesh_preview.png".into(),
+        view3d: "view3d.html".into(),
+    };
+    write_ply_mesh(&out.join(&files.ply), mesh)?;
+    write_stl(&out.join(&files.stl), mesh)?;
+    let (accuracy_vertices, accuracy_area) = match truth {
+        Some(t) => {
+            let e = EvaluateConfig::default();
+            (
+                Some(evaluate_mesh(mesh, t, MeshSampling::Vertices, &e)?),
+                Some(evaluate_mesh(mesh, t, MeshSampling::default(), &e)?),
+            )
+        }
+        None => (None, None),
+    };
+    let img = render_mesh(mesh, MeshColoring::Grey, &PreviewConfig::default())?;
+    write_png_rgb8(
+        &out.join(&files.preview),
+        img.width as usize,
+        img.height as usize,
+        &img.rgb,
+    )?;
+    let page = viewer_html(
+        &[
+            ViewerLayer::Mesh {
+                name: "mesh",
+                mesh,
+                errors_mm: accuracy_vertices
+                    .as_ref()
+                    .map(|r| r.signed_distances_mm.as_slice()),
+            },
+            ViewerLayer::Cloud {
+                name: "merged cloud",
+                cloud: merged,
+                errors_mm: merged_errors_mm,
+            },
+        ],
+        &ViewerConfig {
+            title: "slscan scan: merged cloud and mesh".into(),
+            error_range_mm: sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM,
+            ..ViewerConfig::default()
+        },
+    )?;
+    let view = out.join(&files.view3d);
+    std::fs::write(&view, page).map_err(io(&view))?;
+    Ok((
+        MeshSummary {
+            vertices: mesh.vertices.len(),
+            triangles: mesh.triangles.len(),
+            watertight: topo.is_watertight(),
+            manifold: topo.is_manifold(),
+            depth: cfg.depth,
+            cell_size_mm: surface.cell_size,
+            solve_ms: surface.solve_ms,
+            contour_ms: surface.contour_ms,
+            accuracy_vertices,
+            accuracy_area,
+        },
+        files,
+    ))
+}
