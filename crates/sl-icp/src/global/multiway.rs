@@ -172,7 +172,7 @@ pub struct MultiwayAlignment {
     pub pruned_edges: usize,
 }
 
-/// Aligns clouds given in any order with no pose hints (see the [module docs](self) for the
+/// Aligns clouds given in any order with no pose hints (see the module docs of `sl_icp::global` for the
 /// steps). The world frame is view 0's. Views that cannot be tied to view 0 are listed in
 /// [`MultiwayAlignment::unplaced`] with why; view 0 itself must be describable.
 ///
