@@ -3,15 +3,17 @@
 //! devices with the code of `slscan capture` (into `DIR/session/`, resumed when interrupted),
 //! then reconstructs every view and merges them with the turntable poses of the calibrated axis
 //! (`sl_scan::scan_session`: the same stage functions as the virtual scan), and writes
-//! `merged.ply`, previews and `report.json`.
+//! `merged.ply`, previews, the watertight mesh (`mesh.ply`, `mesh.stl`, `view3d.html`: the mesh
+//! stage of the virtual scan) and `report.json`.
 //! A real object has no known truth here: check the result with `slscan report` against a
 //! known sphere or plane.
 
 use std::path::{Path, PathBuf};
 
+use structured_light::mesh::PoissonConfig;
 use structured_light::scan::{
-    MergeStageConfig, ReconstructConfig, SessionScanConfig, load_scan_calibration, scan_session,
-    write_scan_cloud,
+    MergeStageConfig, ReconstructConfig, SessionScanConfig, load_scan_calibration, mesh_stage,
+    scan_session, write_scan_cloud,
 };
 
 use crate::capture;
@@ -132,6 +134,11 @@ fn reconstruct(
     bars.clear();
     let files = report.stage("write", || write_scan_cloud(&out, &scan.merged, |_| {}))?;
     report.add_stages(&scan.stages);
+    // The same mesh stage as the virtual scan, without a truth to measure it against. The
+    // merged cloud is on disk already; a cloud that cannot be meshed keeps it and its report.
+    let meshed = report.stage("mesh", || {
+        mesh_stage(&scan.merged, None, None, &PoissonConfig::default(), &out)
+    });
     report.figure("rig", "hardware");
     report.figure("calibration", calib_path.display().to_string());
     report.figure("views", scan.view_points.len());
@@ -146,6 +153,19 @@ fn reconstruct(
     );
     report.figure("files", serde_json::to_value(&files)?);
     report.figure("session", SESSION_DIR);
+    let (mesh, mesh_files) = match meshed {
+        Ok(m) => m,
+        Err(e) => {
+            report.figure("mesh_error", e.to_string());
+            report.write(&out)?;
+            return Err(anyhow::Error::new(e).context(format!(
+                "{} and its report are written; the mesh stage failed",
+                out.join(&files.merged).display()
+            )));
+        }
+    };
+    report.figure("mesh", serde_json::to_value(&mesh)?);
+    report.figure("mesh_files", serde_json::to_value(&mesh_files)?);
     report.write(&out)?;
     println!(
         "{}: {} points merged from {} views (calibration {})",
@@ -153,6 +173,16 @@ fn reconstruct(
         scan.merged.len(),
         scan.view_points.len(),
         calib_path.display()
+    );
+    println!(
+        "{}: {} triangles, {}",
+        out.join(&mesh_files.ply).display(),
+        mesh.triangles,
+        if mesh.watertight {
+            "watertight"
+        } else {
+            "NOT watertight"
+        }
     );
     for s in &report.stages {
         println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
