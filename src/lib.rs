@@ -10,14 +10,14 @@
 //! | [`codec`] | `sl-codec` | pattern sequences and decoders |
 //! | [`calib`] | `sl-calib` | checkerboards, Zhang's camera calibration, projector calibration by local homographies, stereo, turntable axis |
 //! | [`tri`] | `sl-tri` | triangulation into metric clouds |
-//! | [`icp`] | `sl-icp` | ICP and turntable merging |
+//! | [`icp`] | `sl-icp` | ICP, turntable merging, global registration with no initial pose |
 //! | [`rig`] | `sl-rig` | device traits, drivers (V4L2 camera, projector window, Dynamixel turntable), capture sessions |
 //! | [`sim`] | `sl-sim` | the virtual rig: scenes, rendering, ground truth, virtual devices behind `sl-rig`'s traits |
-//! | [`metrology`] | `sl-metrology` | VDI/VDE 2634 part 2 figures against a truth description |
+//! | [`metrology`] | `sl-metrology` | VDI/VDE 2634 part 2 figures of a cloud or mesh against a truth description |
 //! | [`mesh`] | `sl-mesh` | screened Poisson surfaces, mesh clean-up, STL/OBJ/PLY, 3-D viewer page |
-//! | [`scan`] | `sl-scan` | the scan pipeline: calibration capture, calibrate, capture, reconstruct, merge, measure, report |
+//! | [`scan`] | `sl-scan` | the scan pipeline: calibration capture, calibrate, capture, reconstruct, merge, mesh, measure, report |
 //!
-//! [`scan`] holds the scan pipeline (calibrate, capture, reconstruct, merge, measure, report)
+//! [`scan`] holds the scan pipeline (calibrate, capture, reconstruct, merge, mesh, measure, report)
 //! that `slscan scan` runs on the virtual rig and on real devices.
 //!
 //! The command line `slscan` (in `examples/slscan`) composes them; run
