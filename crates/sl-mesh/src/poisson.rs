@@ -50,6 +50,17 @@ const COARSEST_LEVEL: u32 = 2;
 /// default `full_depth`, so they are cheap); they start the cascade and must converge.
 const FULL_LEVEL_ITERATIONS: usize = 200;
 
+/// The level that bridges gaps in the data lies this many levels above the finest (cells of
+/// 2.2 mm on the default scan's 140 mm cube at depth 9).
+const BRIDGE_LEVELS_UP: u32 = 3;
+
+/// The bridging level holds the nodes within this many of its cells of the samples (plus the
+/// cell holding them), so that a gap of up to twice as many cells (13 mm on the default scan,
+/// the unseen lower back of a sphere) is solved at that level, where the gap is a few cells
+/// wide and the solution keeps the curvature around it, rather than only at the coarse full
+/// levels.
+const BRIDGE_CELLS: i64 = 6;
+
 /// Relative residual at which a level's conjugate gradients stop early.
 const CG_TOLERANCE: f64 = 1e-7;
 
@@ -116,6 +127,8 @@ struct Level {
     x: Vec<f64>,
     /// Right-hand side `∫ ∇B_i · V` at each node slot.
     b: Vec<f64>,
+    /// Iso-value of this level's own `χ`: the area-weighted mean of it over the samples.
+    iso: f64,
 }
 
 impl Level {
@@ -262,6 +275,7 @@ pub fn poisson_reconstruct(
     }
 
     // Node sets of every level.
+    let bridge_level = depth.saturating_sub(BRIDGE_LEVELS_UP);
     let mut levels: Vec<Level> = (0..=depth)
         .map(|d| {
             let n = (1usize << d) + 1;
@@ -281,15 +295,16 @@ pub fn poisson_reconstruct(
                 cells.sort_unstable();
                 cells.dedup();
                 let last = n as i64 - 1;
+                let r = if d == bridge_level { BRIDGE_CELLS } else { 1 };
                 for key in cells {
                     let c = [
                         (key & 0x1F_FFFF) as i64,
                         ((key >> 21) & 0x1F_FFFF) as i64,
                         (key >> 42) as i64,
                     ];
-                    for z in (c[2] - 1).max(0)..=(c[2] + 2).min(last) {
-                        for y in (c[1] - 1).max(0)..=(c[1] + 2).min(last) {
-                            for x in (c[0] - 1).max(0)..=(c[0] + 2).min(last) {
+                    for z in (c[2] - r).max(0)..=(c[2] + 1 + r).min(last) {
+                        for y in (c[1] - r).max(0)..=(c[1] + 1 + r).min(last) {
+                            for x in (c[0] - r).max(0)..=(c[0] + 1 + r).min(last) {
                                 nodes.insert(x as usize, y as usize, z as usize);
                             }
                         }
@@ -304,6 +319,7 @@ pub fn poisson_reconstruct(
                 full,
                 x: vec![0.0; len],
                 b: vec![0.0; len],
+                iso: 0.0,
             }
         })
         .collect();
@@ -333,7 +349,7 @@ pub fn poisson_reconstruct(
                 .collect();
             level.x = x;
         }
-        let iterations = if levels[d].full {
+        let iterations = if levels[d].full || d == bridge_level as usize {
             FULL_LEVEL_ITERATIONS
         } else {
             cfg.iterations
@@ -342,13 +358,17 @@ pub fn poisson_reconstruct(
         nodes_per_level.push(levels[d].nodes.len());
     }
 
-    // Iso-value: the area-weighted mean of χ over the samples.
-    let (mut num, mut den) = (0.0, 0.0);
-    for s in &supers {
-        num += s.area * eval(&levels, s.u);
-        den += s.area;
+    // Iso-values: the area-weighted mean of each level's χ over the samples.
+    for level in &mut levels[first..] {
+        let (mut num, mut den) = (0.0, 0.0);
+        for sup in &supers {
+            if let Some(v) = level_value(level, sup.u) {
+                num += sup.area * v;
+                den += sup.area;
+            }
+        }
+        level.iso = if den > 0.0 { num / den } else { 0.0 };
     }
-    let iso = num / den;
     let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     let t1 = Instant::now();
@@ -360,10 +380,10 @@ pub fn poisson_reconstruct(
             Some(s) => finest_level.x[s as usize],
             None => {
                 let h = 1.0 / finest as f64;
-                eval(coarser, [x as f64 * h, y as f64 * h, z as f64 * h])
+                return eval_above_iso(coarser, [x as f64 * h, y as f64 * h, z as f64 * h]);
             }
         };
-        v - iso
+        v - finest_level.iso
     };
     let unit_mesh = contour(&ContourInput {
         cells: finest,
@@ -497,6 +517,30 @@ fn eval(levels: &[Level], u: [f64; 3]) -> f64 {
         }
     }
     0.0
+}
+
+/// `χ` of one level at `u`, when the level's cell around `u` has all eight nodes.
+fn level_value(level: &Level, u: [f64; 3]) -> Option<f64> {
+    let (c, w) = cell_weights(u, level.cells());
+    let mut v = 0.0;
+    for (k, wk) in w.iter().enumerate() {
+        let q = corner(c, k);
+        v += wk * level.x[level.nodes.slot(q[0], q[1], q[2])? as usize];
+    }
+    Some(v)
+}
+
+/// `χ` minus the level's iso-value, from the deepest of `levels` whose cell around `u` is
+/// complete. Each level's `χ` is a blurred indicator at its own scale; measured against its own
+/// iso-value, a coarse level's zero set is where that level puts the surface, so where only a
+/// coarse level reaches (a gap in the data) the surface keeps its curvature instead of
+/// shrinking by the coarse level's blur.
+fn eval_above_iso(levels: &[Level], u: [f64; 3]) -> f64 {
+    levels
+        .iter()
+        .rev()
+        .find_map(|l| level_value(l, u).map(|v| v - l.iso))
+        .unwrap_or(0.0)
 }
 
 /// Sampling density (trilinear splat of sample counts) on a full grid.
@@ -972,5 +1016,60 @@ mod tests {
             matches!(e, MeshError::DegenerateCloud { points: 50 }),
             "{e}"
         );
+    }
+}
+
+#[cfg(test)]
+mod gap_experiment {
+    use super::*;
+
+    /// Two spheres like the default scan's, their lower back (y > 0.4 r, z > 0) unseen.
+    #[test]
+    #[ignore = "experiment"]
+    fn gap_experiment() {
+        let r = 12.5;
+        let mut pts = Vec::new();
+        let mut nrm = Vec::new();
+        let centres = [Point3::new(-60.0, 0.0, 400.0), Point3::new(60.0, 0.0, 400.0)];
+        let n = 40_000;
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        for c in centres {
+            for i in 0..n {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let rr = (1.0 - z * z).sqrt();
+                let t = golden * i as f64;
+                let nv = Vector3::new(rr * t.cos(), rr * t.sin(), z);
+                if nv.y > 0.4 && nv.z > 0.0 {
+                    continue;
+                }
+                pts.push(c + nv * r);
+                nrm.push(nv);
+            }
+        }
+        let cloud = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let depth: u32 = std::env::var("GAP_DEPTH").ok().and_then(|v| v.parse().ok()).unwrap_or(9);
+        let full_depth: u32 = std::env::var("GAP_FULL").ok().and_then(|v| v.parse().ok()).unwrap_or(5);
+        let cfg = PoissonConfig { depth, full_depth, ..PoissonConfig::default() };
+        let s = poisson_reconstruct(&cloud, &cfg).unwrap();
+        let topo = check_topology_for_experiment(&s.mesh);
+        let (mut gap, mut seen) = (Vec::new(), Vec::new());
+        for p in &s.mesh.vertices {
+            let c = if p.x < 0.0 { centres[0] } else { centres[1] };
+            let d = p - c;
+            let e = d.norm() - r;
+            let nv = d / d.norm();
+            if nv.y > 0.4 && nv.z > 0.0 { gap.push(e) } else { seen.push(e) }
+        }
+        let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len().max(1) as f64).sqrt();
+        let min = gap.iter().copied().fold(f64::INFINITY, f64::min);
+        let all: Vec<f64> = gap.iter().chain(&seen).copied().collect();
+        println!(
+            "depth {depth} cell {:.3}: {} vertices ({} gap), watertight {}; RMS all {:.4}, seen {:.4}, gap {:.4} (most inward {:.3}); solve {:.0} ms contour {:.0} ms",
+            s.cell_size, s.mesh.vertices.len(), gap.len(), topo, rms(&all), rms(&seen), rms(&gap), min, s.solve_ms, s.contour_ms
+        );
+    }
+
+    fn check_topology_for_experiment(m: &TriangleMesh) -> bool {
+        crate::check_topology(m).is_watertight_manifold()
     }
 }
