@@ -16,7 +16,11 @@
 //! nodes on the rim of the band keep that value (the finer level only corrects inside its band),
 //! and Jacobi-preconditioned conjugate gradients relax it. The surface is the level set of `χ`
 //! at the weighted mean of `χ` over the samples, extracted on the finest grid by
-//! [`contour`](crate::contour) — one value per grid node, so the mesh is watertight.
+//! [`contour`](crate::contour) — one value per grid node, so the mesh is watertight. Where a
+//! grid node lies outside the finest band (a gap in the data), its value comes from the deepest
+//! level that reaches it, measured against that level's own iso-value (the mean of that level's
+//! `χ` over the samples): a coarse level's `χ` is a more blurred indicator, and its own
+//! iso-value keeps the closing surface from shrinking by that blur.
 //!
 //! Samples carry an area `a_s` (the inverse of the local sampling density, estimated two levels
 //! above the finest), so that overlapping views of a merged scan do not weigh twice.
