@@ -264,6 +264,7 @@ mod tests {
             "mesh.ply",
             "mesh.stl",
             "preview.png",
+            "error_map.png",
             "mesh.html",
             "report.json",
         ] {
