@@ -2,7 +2,8 @@
 //! surface from a cloud with normals (screened Poisson, `sl-mesh`): `mesh.ply`, `mesh.stl`,
 //! `preview.png`, `mesh.html` (an interactive 3-D view, self-contained) and `report.json`
 //! (vertices, triangles, watertight, manifold, per-stage timings). With `--truth`, the mesh is
-//! measured (`sl-metrology`) and the 3-D view colours it by its error.
+//! measured (`sl-metrology`), the 3-D view colours it by its error and `error_map.png` shows
+//! the mesh coloured by its signed error with the colour scale.
 
 use std::path::PathBuf;
 
@@ -153,6 +154,19 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             },
         )?;
         write_atomically(&html, page.as_bytes())?;
+        if let Some(e) = errors.as_deref() {
+            // The signed error at the vertices, with the scale of the cloud's error maps.
+            let range = sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM;
+            let coloring = MeshColoring::Scalar {
+                values: e,
+                min: -range,
+                max: range,
+            };
+            let mut img = render_mesh(&mesh, coloring, &view)?;
+            sl_metrology::draw_legend(&mut img, range);
+            let map = out.join("error_map.png");
+            write_png_rgb8(&map, img.width as usize, img.height as usize, &img.rgb)?;
+        }
         Ok(())
     })?;
     report.figure("cloud", args.cloud.display().to_string());
@@ -250,6 +264,7 @@ mod tests {
             "mesh.ply",
             "mesh.stl",
             "preview.png",
+            "error_map.png",
             "mesh.html",
             "report.json",
         ] {

@@ -16,7 +16,11 @@
 //! nodes on the rim of the band keep that value (the finer level only corrects inside its band),
 //! and Jacobi-preconditioned conjugate gradients relax it. The surface is the level set of `χ`
 //! at the weighted mean of `χ` over the samples, extracted on the finest grid by
-//! [`contour`](crate::contour) — one value per grid node, so the mesh is watertight.
+//! [`contour`](crate::contour) — one value per grid node, so the mesh is watertight. Where a
+//! grid node lies outside the finest band (a gap in the data), its value comes from the deepest
+//! level that reaches it, measured against that level's own iso-value (the mean of that level's
+//! `χ` over the samples): a coarse level's `χ` is a more blurred indicator, and its own
+//! iso-value keeps the closing surface from shrinking by that blur.
 //!
 //! Samples carry an area `a_s` (the inverse of the local sampling density, estimated two levels
 //! above the finest), so that overlapping views of a merged scan do not weigh twice.
@@ -116,6 +120,8 @@ struct Level {
     x: Vec<f64>,
     /// Right-hand side `∫ ∇B_i · V` at each node slot.
     b: Vec<f64>,
+    /// Iso-value of this level's own `χ`: the area-weighted mean of it over the samples.
+    iso: f64,
 }
 
 impl Level {
@@ -304,6 +310,7 @@ pub fn poisson_reconstruct(
                 full,
                 x: vec![0.0; len],
                 b: vec![0.0; len],
+                iso: 0.0,
             }
         })
         .collect();
@@ -342,13 +349,17 @@ pub fn poisson_reconstruct(
         nodes_per_level.push(levels[d].nodes.len());
     }
 
-    // Iso-value: the area-weighted mean of χ over the samples.
-    let (mut num, mut den) = (0.0, 0.0);
-    for s in &supers {
-        num += s.area * eval(&levels, s.u);
-        den += s.area;
+    // Iso-values: the area-weighted mean of each level's χ over the samples.
+    for level in &mut levels[first..] {
+        let (mut num, mut den) = (0.0, 0.0);
+        for sup in &supers {
+            if let Some(v) = level_value(level, sup.u) {
+                num += sup.area * v;
+                den += sup.area;
+            }
+        }
+        level.iso = if den > 0.0 { num / den } else { 0.0 };
     }
-    let iso = num / den;
     let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     let t1 = Instant::now();
@@ -360,10 +371,10 @@ pub fn poisson_reconstruct(
             Some(s) => finest_level.x[s as usize],
             None => {
                 let h = 1.0 / finest as f64;
-                eval(coarser, [x as f64 * h, y as f64 * h, z as f64 * h])
+                return eval_above_iso(coarser, [x as f64 * h, y as f64 * h, z as f64 * h]);
             }
         };
-        v - iso
+        v - finest_level.iso
     };
     let unit_mesh = contour(&ContourInput {
         cells: finest,
@@ -497,6 +508,30 @@ fn eval(levels: &[Level], u: [f64; 3]) -> f64 {
         }
     }
     0.0
+}
+
+/// `χ` of one level at `u`, when the level's cell around `u` has all eight nodes.
+fn level_value(level: &Level, u: [f64; 3]) -> Option<f64> {
+    let (c, w) = cell_weights(u, level.cells());
+    let mut v = 0.0;
+    for (k, wk) in w.iter().enumerate() {
+        let q = corner(c, k);
+        v += wk * level.x[level.nodes.slot(q[0], q[1], q[2])? as usize];
+    }
+    Some(v)
+}
+
+/// `χ` minus the level's iso-value, from the deepest of `levels` whose cell around `u` is
+/// complete. Each level's `χ` is a blurred indicator at its own scale; measured against its own
+/// iso-value, a coarse level's zero set is where that level puts the surface, so where only a
+/// coarse level reaches (a gap in the data) the surface keeps its curvature instead of
+/// shrinking by the coarse level's blur.
+fn eval_above_iso(levels: &[Level], u: [f64; 3]) -> f64 {
+    levels
+        .iter()
+        .rev()
+        .find_map(|l| level_value(l, u).map(|v| v - l.iso))
+        .unwrap_or(0.0)
 }
 
 /// Sampling density (trilinear splat of sample counts) on a full grid.
@@ -944,6 +979,48 @@ mod tests {
         assert!(near.len() > 100);
         let rms = (near.iter().map(|e| e * e).sum::<f64>() / near.len() as f64).sqrt();
         assert!(rms < 0.2 * s.cell_size, "rms {rms}, cell {}", s.cell_size);
+    }
+
+    /// A sphere whose lower back (`y > 0.4 r` and `z > 0`, what the default scan never sees)
+    /// has no samples: the mesh is still closed and manifold, the vertices near the samples are
+    /// on the sphere to a tenth of a cell (measured 4 %), and the surface that closes the gap
+    /// stays within 0.35 r of the sphere (measured: 2.85 mm outwards for r = 10 mm, 0.13 mm
+    /// inwards; the closing surface is not the sphere, only a bounded guess).
+    #[test]
+    fn sphere_missing_its_lower_back_is_closed_and_bounded() {
+        let r = 10.0;
+        let full = sphere(20_000, r, Point3::origin());
+        let (pts, nrm): (Vec<_>, Vec<_>) = full
+            .positions()
+            .iter()
+            .zip(full.normals().unwrap())
+            .filter(|(_, n)| !(n.y > 0.4 && n.z > 0.0))
+            .map(|(p, n)| (*p, *n))
+            .unzip();
+        let cloud = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let cfg = PoissonConfig {
+            depth: 6,
+            ..PoissonConfig::default()
+        };
+        let s = poisson_reconstruct(&cloud, &cfg).unwrap();
+        let topo = check_topology(&s.mesh);
+        assert!(topo.is_watertight_manifold(), "{topo:?}");
+        let (mut seen, mut gap) = (Vec::new(), Vec::new());
+        for p in &s.mesh.vertices {
+            let e = p.coords.norm() - r;
+            let n = p.coords / p.coords.norm();
+            // A margin of 0.1 r around the edge of the gap, where the two meet.
+            if n.y > 0.3 && n.z > -0.1 {
+                gap.push(e);
+            } else if !(n.y > 0.4 && n.z > 0.0) {
+                seen.push(e);
+            }
+        }
+        assert!(gap.len() > 100 && seen.len() > 1000);
+        let rms = (seen.iter().map(|e| e * e).sum::<f64>() / seen.len() as f64).sqrt();
+        assert!(rms < 0.1 * s.cell_size, "rms {rms}, cell {}", s.cell_size);
+        let worst = gap.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+        assert!(worst < 0.35 * r, "gap deviates {worst} mm");
     }
 
     #[test]
