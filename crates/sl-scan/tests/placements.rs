@@ -70,10 +70,27 @@ fn two_placements_cover_the_pebble() {
         * t_cam_table.inverse();
     let a = r.placements[1].alignment.as_ref().unwrap();
     let m = nalgebra::Matrix4::from_fn(|i, j| a.pose[i][j]);
-    let rot = nalgebra::Rotation3::from_matrix(&m.fixed_view::<3, 3>(0, 0).into_owned());
-    let angle = rot.rotation_to(&truth.rotation.to_rotation_matrix()).angle().to_degrees();
-    let shift = (m.fixed_view::<3, 1>(0, 3).into_owned() - truth.translation.vector).norm();
-    assert!(angle < 0.3 && shift < 0.5, "{angle} deg, {shift} mm: {a:?}");
+    // The pose acts on the object ~450 mm from the camera's origin, where a rotation error
+    // moves it by its lever arm: compare what both poses do to the object's own surface (the
+    // true mesh of the second placement), not their translations.
+    let second = scene2.surface_mesh(&t_cam_table).unwrap();
+    let moved = |p: &nalgebra::Point3<f64>| {
+        nalgebra::Point3::from_homogeneous(m * p.to_homogeneous()).unwrap()
+    };
+    let rms_shift = (second
+        .vertices
+        .iter()
+        .map(|v| (moved(v) - truth * v).norm_squared())
+        .sum::<f64>()
+        / second.vertices.len() as f64)
+        .sqrt();
+    eprintln!("alignment: RMS displacement of the surface against the true pose {rms_shift:.4} mm");
+    // Within five times one placement's RMS to the truth (0.02 mm at half resolution): an
+    // alignment error larger than the scan's own noise would show in the merged RMS.
+    assert!(
+        rms_shift < 5.0 * single.distance.rms_mm.max(0.02),
+        "{rms_shift} mm: {a:?}"
+    );
 
     for f in [
         "calibration.json",
