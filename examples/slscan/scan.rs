@@ -242,7 +242,11 @@ fn run_placements(args: &Args) -> anyhow::Result<()> {
         println!(
             "  mesh: {} triangles, {}",
             m.triangles,
-            if m.watertight { "watertight" } else { "NOT watertight" }
+            if m.watertight {
+                "watertight"
+            } else {
+                "NOT watertight"
+            }
         );
     }
     for s in &r.stages {

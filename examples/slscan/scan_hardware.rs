@@ -144,7 +144,11 @@ struct DevicePlacements<'a, I, O> {
 
 impl<I: BufRead, O: Write> PlacementRig for DevicePlacements<'_, I, O> {
     fn capture(&mut self, placement: usize, dir: &Path) -> Result<usize, ScanError> {
-        let _ = writeln!(self.output, "placement {placement}: capturing {}", dir.display());
+        let _ = writeln!(
+            self.output,
+            "placement {placement}: capturing {}",
+            dir.display()
+        );
         capture::run_hardware(&capture_args(self.args, self.calib, dir)).map_err(|e| {
             ScanError::Stage {
                 stage: "capture".into(),
@@ -156,7 +160,13 @@ impl<I: BufRead, O: Write> PlacementRig for DevicePlacements<'_, I, O> {
     }
 
     fn replace(&mut self, next: usize, total: usize) -> Result<(), ScanError> {
-        replace_prompt(&mut self.input, &mut self.output, next, total, self.args.placement_wait)
+        replace_prompt(
+            &mut self.input,
+            &mut self.output,
+            next,
+            total,
+            self.args.placement_wait,
+        )
     }
 }
 
@@ -472,7 +482,10 @@ mod tests {
         let mut out = Vec::new();
         replace_prompt(&mut "\n".as_bytes(), &mut out, 2, 2, None).unwrap();
         let said = String::from_utf8(out).unwrap();
-        assert!(said.contains(REPLACE_PROMPT) && said.contains("placement 2 of 2"), "{said}");
+        assert!(
+            said.contains(REPLACE_PROMPT) && said.contains("placement 2 of 2"),
+            "{said}"
+        );
         let mut out = Vec::new();
         let e = replace_prompt(&mut "".as_bytes(), &mut out, 2, 2, None).unwrap_err();
         assert!(e.to_string().contains("--placement-wait"), "{e}");
@@ -489,7 +502,10 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let out = tmp.path().join("scan");
         let err = scan(&["--out", out.to_str().unwrap(), "--placements", "3"]).unwrap_err();
-        assert!(text(&err).contains("--placements") && text(&err).contains("3 placements"), "{err:#}");
+        assert!(
+            text(&err).contains("--placements") && text(&err).contains("3 placements"),
+            "{err:#}"
+        );
         let err = scan(&["--out", out.to_str().unwrap(), "--placement-wait", "5"]).unwrap_err();
         assert!(text(&err).contains("--placement-wait"), "{err:#}");
         assert!(!out.exists());

@@ -329,7 +329,11 @@ pub fn distance_to_surface(
             let d2 = (p - q).norm_squared();
             if best.is_none_or(|(b2, _)| d2 < b2) {
                 let normal: Vector3<f64> = (b - a).cross(&(c - a));
-                let sign = if normal.dot(&(p - q)) < 0.0 { -1.0 } else { 1.0 };
+                let sign = if normal.dot(&(p - q)) < 0.0 {
+                    -1.0
+                } else {
+                    1.0
+                };
                 best = Some((d2, sign * d2.sqrt()));
             }
         }
@@ -434,9 +438,9 @@ mod tests {
         assert!((c.uncovered_area_mm2 - (1.0 - c.covered_fraction) * c.area_mm2).abs() < 1e-9);
         // All six faces: everything covered.
         let mut all = five_faces(s, 0.25, 0.0).positions().to_vec();
-        all.extend(
-            (0..=80).flat_map(|i| (0..=80).map(move |j| Point3::new(i as f64 * 0.25, j as f64 * 0.25, 0.0))),
-        );
+        all.extend((0..=80).flat_map(|i| {
+            (0..=80).map(move |j| Point3::new(i as f64 * 0.25, j as f64 * 0.25, 0.0))
+        }));
         let c = surface_coverage(&cube(s), &PointCloud::from_positions(all), &cfg).unwrap();
         assert_eq!(c.covered_samples, c.samples);
     }
@@ -453,13 +457,19 @@ mod tests {
         assert_eq!(d.points, cloud.len());
         // Every point lies over its face, 0.3 mm out: its distance is 0.3 mm exactly.
         assert!((d.rms_mm - off).abs() < 1e-9, "{d:?}");
-        assert!((d.mean_signed_mm - off).abs() < 1e-9 && (d.max_mm - off).abs() < 1e-9, "{d:?}");
+        assert!(
+            (d.mean_signed_mm - off).abs() < 1e-9 && (d.max_mm - off).abs() < 1e-9,
+            "{d:?}"
+        );
         assert_eq!(d.outliers, 0);
         let mut pts = cloud.positions().to_vec();
         pts.push(Point3::new(s / 2.0, s / 2.0, s / 2.0)); // the centre: 10 mm inside
         let d = distance_to_surface(&PointCloud::from_positions(pts), &cube(s), 0.04, 2.0).unwrap();
         assert_eq!(d.outliers, 1);
-        assert!((d.max_mm - 10.0).abs() < 1e-9 && d.mean_signed_mm < 0.3, "{d:?}");
+        assert!(
+            (d.max_mm - 10.0).abs() < 1e-9 && d.mean_signed_mm < 0.3,
+            "{d:?}"
+        );
         assert!((d.rms_selected_mm - off).abs() < 1e-9, "{d:?}");
     }
 
@@ -488,9 +498,13 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("distance_mm"), "{e}");
-        let e = surface_coverage(&TriangleMesh::default(), &cloud, &CoverageConfig::for_spacing(1.0))
-            .unwrap_err()
-            .to_string();
+        let e = surface_coverage(
+            &TriangleMesh::default(),
+            &cloud,
+            &CoverageConfig::for_spacing(1.0),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("truth mesh"), "{e}");
         let e = distance_to_surface(&cloud, &cube(10.0), 0.04, -1.0)
             .unwrap_err()

@@ -92,9 +92,7 @@ pub fn capture_placements<R: PlacementRig + ?Sized>(
         if k > 1 {
             rig.replace(k, placements)?;
         }
-        let dir = out
-            .join(placement_dir_name(k))
-            .join(PLACEMENT_SESSION_DIR);
+        let dir = out.join(placement_dir_name(k)).join(PLACEMENT_SESSION_DIR);
         let captured = rig.capture(k, &dir)?;
         sessions.push((dir, captured));
     }
@@ -327,7 +325,8 @@ mod tests {
 
     impl PlacementRig for Recorder {
         fn capture(&mut self, placement: usize, dir: &Path) -> Result<usize, ScanError> {
-            self.0.push(format!("capture {placement} {}", dir.display()));
+            self.0
+                .push(format!("capture {placement} {}", dir.display()));
             Ok(3)
         }
         fn replace(&mut self, next: usize, total: usize) -> Result<(), ScanError> {
@@ -356,7 +355,10 @@ mod tests {
             let e = capture_placements(Path::new("out"), n, &mut r)
                 .unwrap_err()
                 .to_string();
-            assert!(e.contains(&format!("{n} placements")) && e.contains("2"), "{e}");
+            assert!(
+                e.contains(&format!("{n} placements")) && e.contains("2"),
+                "{e}"
+            );
             assert!(r.0.is_empty());
         }
     }

@@ -220,7 +220,12 @@ pub fn scan_virtual_placements(
     let measure = |cloud: &PointCloud, truth: &TriangleMesh| -> Result<_, ScanError> {
         Ok((
             surface_coverage(truth, cloud, &cov_cfg)?,
-            distance_to_surface(cloud, truth, DEFAULT_TRUTH_SAMPLE_AREA_MM2, DEFAULT_SELECT_MM)?,
+            distance_to_surface(
+                cloud,
+                truth,
+                DEFAULT_TRUTH_SAMPLE_AREA_MM2,
+                DEFAULT_SELECT_MM,
+            )?,
         ))
     };
     let mut figures = Vec::with_capacity(placements);

@@ -23,7 +23,10 @@ fn two_placements_cover_the_pebble() {
         eprintln!("{:<12} {:>8.0} ms", s.name, s.ms);
     }
     for p in &r.placements {
-        eprintln!("placement {}: {:?} {:?}", p.placement, p.coverage, p.distance);
+        eprintln!(
+            "placement {}: {:?} {:?}",
+            p.placement, p.coverage, p.distance
+        );
     }
     eprintln!("whole: {:?} {:?}", r.coverage, r.distance);
     assert_eq!(r.placements.len(), 2);
@@ -31,7 +34,11 @@ fn two_placements_cover_the_pebble() {
 
     // The coverage distance follows the sampling: half resolution, 0.625 mm pixels at the
     // working distance (450 mm / 720 px), twice that.
-    assert!((r.spacing_mm - 450.0 / 720.0).abs() < 1e-9, "{}", r.spacing_mm);
+    assert!(
+        (r.spacing_mm - 450.0 / 720.0).abs() < 1e-9,
+        "{}",
+        r.spacing_mm
+    );
     assert!((r.coverage.distance_mm - 2.0 * r.spacing_mm).abs() < 1e-9);
 
     // One placement cannot cover the pebble: its flat bottom (15-20 % of the area, by
@@ -41,11 +48,7 @@ fn two_placements_cover_the_pebble() {
         "{:?}",
         single.coverage
     );
-    assert!(
-        r.coverage.covered_fraction >= 0.99,
-        "{:?}",
-        r.coverage
-    );
+    assert!(r.coverage.covered_fraction >= 0.99, "{:?}", r.coverage);
     // Each placement alone lies on its own true surface, as tightly as the other.
     for p in &r.placements {
         assert!(p.distance.rms_mm < 0.3, "{:?}", p.distance);

@@ -222,7 +222,10 @@ mod tests {
         let cap = r - PEBBLE_CUT_MM;
         let cut_sphere = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3)
             - std::f64::consts::PI * cap * cap * (3.0 * r - cap) / 3.0;
-        assert!(volume > 0.8 * cut_sphere && volume < 1.2 * cut_sphere, "{volume} vs {cut_sphere}");
+        assert!(
+            volume > 0.8 * cut_sphere && volume < 1.2 * cut_sphere,
+            "{volume} vs {cut_sphere}"
+        );
         let total = area(&m);
         let bottom = area(&TriangleMesh {
             vertices: m.vertices.clone(),
@@ -230,10 +233,16 @@ mod tests {
                 .triangles
                 .iter()
                 .copied()
-                .filter(|t| t.iter().all(|&i| (m.vertices[i as usize].z + PEBBLE_CUT_MM).abs() < 1e-9))
+                .filter(|t| {
+                    t.iter()
+                        .all(|&i| (m.vertices[i as usize].z + PEBBLE_CUT_MM).abs() < 1e-9)
+                })
                 .collect(),
         });
-        assert!(bottom > 0.1 * total && bottom < 0.25 * total, "{bottom} of {total}");
+        assert!(
+            bottom > 0.1 * total && bottom < 0.25 * total,
+            "{bottom} of {total}"
+        );
     }
 
     /// Laid on its side, the pebble still rests on the platter, centred on the axis, and its
@@ -246,12 +255,20 @@ mod tests {
             let m = s.surface_mesh(&Isometry3::identity()).unwrap();
             let lo = m.vertices.iter().map(|v| v.z).fold(f64::INFINITY, f64::min);
             assert!(lo.abs() < 1e-9, "{lo}");
-            let (xl, xh) = m.vertices.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, v| (a.0.min(v.x), a.1.max(v.x)));
+            let (xl, xh) = m
+                .vertices
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |a, v| {
+                    (a.0.min(v.x), a.1.max(v.x))
+                });
             assert!((xl + xh).abs() < 1e-9);
         }
         let pose = side.objects[0].pose * scene.objects[0].pose.inverse();
         let down = pose.rotation * -Vector3::z();
-        assert!(down.z.abs() < 1e-12 && (down.y.abs() - 1.0).abs() < 1e-12, "{down}");
+        assert!(
+            down.z.abs() < 1e-12 && (down.y.abs() - 1.0).abs() < 1e-12,
+            "{down}"
+        );
         assert!(Scene::dumbbell().laid_on_side().is_err());
     }
 }
