@@ -42,7 +42,7 @@ fn pebble_radius(d: &Vector3<f64>) -> f64 {
 
 /// The pebble's mesh in its own frame (mm, centre at the origin, `z` up, flat bottom at
 /// `z = -`[`PEBBLE_CUT_MM`]): a latitude–longitude grid over the unit sphere, each vertex at
-/// [`pebble_radius`] (star-shaped from the centre, so it never intersects itself), triangles
+/// the pebble's bumpy radius (star-shaped from the centre, so it never intersects itself), triangles
 /// wound counter-clockwise seen from outside.
 pub fn pebble_mesh() -> TriangleMesh {
     let (rings, segs) = (PEBBLE_RINGS, PEBBLE_SEGMENTS);
