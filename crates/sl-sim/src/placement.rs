@@ -15,7 +15,7 @@ use crate::{DEFAULT_ALBEDO, Mount, Scene, SceneObject, Shape, SimError, Texture}
 pub const PEBBLE_RADIUS_MM: f64 = 40.0;
 
 /// Depth of the pebble's flat bottom below its centre (mm): a cut at 0.55 radius leaves a
-/// bottom about 33 mm across, 15–20 % of the surface, that a single placement never sees.
+/// bottom about 33 mm across, 15.5 % of the surface, that a single placement never sees.
 pub const PEBBLE_CUT_MM: f64 = 22.0;
 
 /// Latitude rings and longitude segments of the pebble's mesh: triangles about 2 mm across
