@@ -4,10 +4,15 @@
 //! measures the result against the truth (sl-metrology; `truth.json` beside `merged.ply`, so
 //! `slscan report` reproduces the figures), captures a tilted flat plate for the flatness,
 //! and writes the merged PLY, previews, error heat maps, `report.json` and `index.html`.
+//! `--placements 2` scans an object with a top and a bottom twice — standing, then laid on its
+//! side — and merges both placements into one complete model (`placement_1/`, `placement_2/`;
+//! on the virtual rig the pebble, measured by the coverage of its true surface).
 
 use std::path::PathBuf;
 
-use structured_light::scan::{VirtualScanConfig, scan_virtual, write_summary_html};
+use structured_light::scan::{
+    VirtualScanConfig, check_placements, scan_virtual, scan_virtual_placements, write_summary_html,
+};
 
 use crate::capture::HardwareArgs;
 use crate::common::{Report, StageBars, ensure_out_dir};
@@ -58,6 +63,16 @@ pub(crate) struct Args {
     /// Do not capture the flat plate (no flatness figure).
     #[arg(long)]
     pub(crate) no_plate: bool,
+    /// Turntable sessions of the object, re-placed in between: 1, or 2 to scan it standing
+    /// and then laid on its side and merge both into one complete model (on the virtual rig:
+    /// the pebble, an object with a flat bottom; on real devices the command waits for you to
+    /// lay the object on its side).
+    #[arg(long, default_value_t = 1)]
+    pub(crate) placements: usize,
+    /// Between two placements on real devices, wait this many seconds instead of asking to
+    /// press Enter (for scripts).
+    #[arg(long)]
+    pub(crate) placement_wait: Option<f64>,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
     #[command(flatten)]
@@ -66,26 +81,27 @@ pub(crate) struct Args {
 
 /// Runs `slscan scan`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check_placements(args.placements).map_err(|e| anyhow::anyhow!("--placements: {e}"))?;
     if crate::scan_hardware::wanted(args)? {
         return crate::scan_hardware::run(args);
+    }
+    anyhow::ensure!(
+        args.placement_wait.is_none(),
+        "--placement-wait is for a scan on hardware: the virtual rig re-places its object itself"
+    );
+    if args.placements > 1 {
+        anyhow::ensure!(
+            !args.true_poses,
+            "--true-poses is a diagnostic of the single-placement scan"
+        );
+        return run_placements(args);
     }
     let mut report = Report::new("scan");
     let out = ensure_out_dir(&args.out)?;
     anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
     let cfg = VirtualScanConfig {
-        views: args.views,
-        calibration_poses: args.calibration_poses,
-        resolution_divisor: args.downscale,
-        seed: args.seed,
-        overwrite: args.overwrite,
-        average_overlaps: !args.no_average,
-        max_view_angle_deg: args.max_view_angle,
-        true_calibration: args.true_calibration,
-        true_poses: args.true_poses,
         flatness_plate: !args.no_plate,
-        smoothing_neighbours: args.smoothing_neighbours,
-        edge_erosion_px: args.edge_erosion,
-        ..VirtualScanConfig::default()
+        ..virtual_config(args)
     };
     let mut bars = StageBars::new();
     let result = scan_virtual(&cfg, &out, |p| bars.update(p))?;
@@ -141,5 +157,100 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
     }
     println!("summary: {}", html.display());
+    Ok(())
+}
+
+/// The options of the virtual scan common to one and several placements.
+fn virtual_config(args: &Args) -> VirtualScanConfig {
+    VirtualScanConfig {
+        views: args.views,
+        calibration_poses: args.calibration_poses,
+        resolution_divisor: args.downscale,
+        seed: args.seed,
+        overwrite: args.overwrite,
+        average_overlaps: !args.no_average,
+        max_view_angle_deg: args.max_view_angle,
+        true_calibration: args.true_calibration,
+        true_poses: args.true_poses,
+        flatness_plate: false,
+        smoothing_neighbours: args.smoothing_neighbours,
+        edge_erosion_px: args.edge_erosion,
+        ..VirtualScanConfig::default()
+    }
+}
+
+/// `slscan scan --placements 2` on the virtual rig: the pebble standing, then laid on its side.
+fn run_placements(args: &Args) -> anyhow::Result<()> {
+    let mut report = Report::new("scan");
+    let out = ensure_out_dir(&args.out)?;
+    anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
+    let cfg = virtual_config(args);
+    let mut bars = StageBars::new();
+    let r = scan_virtual_placements(&cfg, args.placements, &out, |p| bars.update(p))?;
+    bars.clear();
+    report.figure(
+        "scene",
+        "pebble: a bumpy body about 80 mm across with a flat bottom, standing, then laid on its side",
+    );
+    report.figure("placements", args.placements);
+    report.figure("views", args.views);
+    report.figure("calibration", serde_json::to_value(&r.calibration_summary)?);
+    report.figure("per_placement", serde_json::to_value(&r.placements)?);
+    report.figure("merged_points", r.merged.len());
+    report.figure("coverage_spacing_mm", r.spacing_mm);
+    report.figure("coverage", serde_json::to_value(&r.coverage)?);
+    report.figure("distance_to_truth", serde_json::to_value(&r.distance)?);
+    report.figure("mesh", serde_json::to_value(&r.mesh)?);
+    report.figure(
+        "files",
+        serde_json::json!({
+            "merged": r.merged_file,
+            "previews": r.previews,
+            "truth_mesh": structured_light::scan::TRUTH_MESH_FILE,
+            "mesh": r.mesh_files,
+        }),
+    );
+    report.add_stages(&r.stages);
+    report.write(&out)?;
+    for p in &r.placements {
+        let aligned = p.alignment.as_ref().map_or(String::new(), |a| {
+            format!(
+                "; aligned onto placement 1 with no pose hint: fitness {:.3}, RMSE {:.3} mm",
+                a.fitness, a.rmse_mm
+            )
+        });
+        println!(
+            "placement {}: {} points, covers {:.2} % of the true surface, RMS {:.4} mm to it{aligned}",
+            p.placement,
+            p.merged_points,
+            100.0 * p.coverage.covered_fraction,
+            p.distance.rms_mm
+        );
+    }
+    println!(
+        "{}: {} points merged from {} placements: covers {:.2} % of the true surface (within {:.2} mm), RMS {:.4} mm to it ({} points beyond {} mm)",
+        out.join(&r.merged_file).display(),
+        r.merged.len(),
+        args.placements,
+        100.0 * r.coverage.covered_fraction,
+        r.coverage.distance_mm,
+        r.distance.rms_mm,
+        r.distance.outliers,
+        r.distance.select_mm
+    );
+    if let Some(m) = &r.mesh {
+        println!(
+            "  mesh: {} triangles, {}",
+            m.triangles,
+            if m.watertight {
+                "watertight"
+            } else {
+                "NOT watertight"
+            }
+        );
+    }
+    for s in &r.stages {
+        println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
+    }
     Ok(())
 }

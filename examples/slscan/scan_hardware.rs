@@ -7,13 +7,22 @@
 //! stage of the virtual scan) and `report.json`.
 //! A real object has no known truth here: check the result with `slscan report` against a
 //! known sphere or plane.
+//!
+//! With `--placements 2` it captures `DIR/placement_1/session/`, then asks the user to lay the
+//! object on its side and press Enter (or waits `--placement-wait` seconds, for scripts),
+//! captures `DIR/placement_2/session/`, and merges both placements into one model
+//! (`sl_scan::capture_placements`, `sl_scan::scan_placements`: the stages of the virtual rig's
+//! `--placements 2`).
 
+use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use structured_light::mesh::PoissonConfig;
 use structured_light::scan::{
-    MergeStageConfig, ReconstructConfig, SessionScanConfig, load_scan_calibration, mesh_stage,
-    scan_session, write_scan_cloud,
+    MergeStageConfig, PlacementConfig, PlacementRig, ReconstructConfig, ScanError,
+    SessionScanConfig, capture_placements, load_scan_calibration, mesh_stage, placement_dir_name,
+    scan_placements, scan_session, write_scan_cloud,
 };
 
 use crate::capture;
@@ -89,23 +98,217 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     );
     // Everything the reconstruction needs is checked before a device moves.
     let calibration = load_scan_calibration(calib_path)?;
+    if args.placements > 1 {
+        return run_placements(args, calib_path, &calibration);
+    }
+    anyhow::ensure!(
+        args.placement_wait.is_none(),
+        "--placement-wait is for a scan of several placements (--placements 2)"
+    );
 
     let mut report = Report::new("scan");
     let session_dir = args.out.join(SESSION_DIR);
-    let capture_args = capture::Args {
-        out: session_dir.clone(),
+    let capture_args = capture_args(args, calib_path, &session_dir);
+    report.stage("capture", || capture::run_hardware(&capture_args))?;
+    reconstruct(args, calib_path, &calibration, &session_dir, report)
+}
+
+/// The arguments of `slscan capture` for a session of this scan in `session_dir`.
+fn capture_args(args: &Args, calib_path: &Path, session_dir: &Path) -> capture::Args {
+    capture::Args {
+        out: session_dir.to_path_buf(),
         views: args.views,
         patterns: args.rig.patterns.clone(),
         scene: String::new(),
         downscale: 1,
         latency_ms: args.rig.latency_ms,
         measure_latency: args.rig.measure_latency,
-        calib: Some(calib_path.clone()),
+        calib: Some(calib_path.to_path_buf()),
         overwrite: args.overwrite,
         hardware: args.hardware.clone(),
+    }
+}
+
+/// What the user is asked to do between two placements.
+pub(crate) const REPLACE_PROMPT: &str = "lay the object on its side and press Enter";
+
+/// The real devices' placements: each session captured with the code of `slscan capture`,
+/// the user asked to re-place the object in between (`input` and `output`: the terminal, or
+/// a test's buffers).
+struct DevicePlacements<'a, I, O> {
+    args: &'a Args,
+    calib: &'a Path,
+    input: I,
+    output: O,
+}
+
+impl<I: BufRead, O: Write> PlacementRig for DevicePlacements<'_, I, O> {
+    fn capture(&mut self, placement: usize, dir: &Path) -> Result<usize, ScanError> {
+        let _ = writeln!(
+            self.output,
+            "placement {placement}: capturing {}",
+            dir.display()
+        );
+        capture::run_hardware(&capture_args(self.args, self.calib, dir)).map_err(|e| {
+            ScanError::Stage {
+                stage: "capture".into(),
+                reason: format!("placement {placement}: {e:#}"),
+            }
+        })?;
+        // `slscan capture` reports what it captured itself; the count is not needed here.
+        Ok(0)
+    }
+
+    fn replace(&mut self, next: usize, total: usize) -> Result<(), ScanError> {
+        replace_prompt(
+            &mut self.input,
+            &mut self.output,
+            next,
+            total,
+            self.args.placement_wait,
+        )
+    }
+}
+
+/// Asks the user to re-place the object before placement `next`, then waits for Enter on
+/// `input` — or, with `wait_s`, waits that many seconds without reading anything.
+fn replace_prompt(
+    input: &mut impl BufRead,
+    output: &mut impl Write,
+    next: usize,
+    total: usize,
+    wait_s: Option<f64>,
+) -> Result<(), ScanError> {
+    let failed = |reason: String| ScanError::Stage {
+        stage: "placements".into(),
+        reason,
     };
-    report.stage("capture", || capture::run_hardware(&capture_args))?;
-    reconstruct(args, calib_path, &calibration, &session_dir, report)
+    match wait_s {
+        Some(s) => {
+            let wait = Duration::try_from_secs_f64(s)
+                .map_err(|_| failed(format!("--placement-wait {s}: not a number of seconds")))?;
+            let _ = writeln!(
+                output,
+                "placement {next} of {total}: lay the object on its side; scanning again in {s} s (--placement-wait)"
+            );
+            let _ = output.flush();
+            std::thread::sleep(wait);
+        }
+        None => {
+            let _ = write!(output, "placement {next} of {total}: {REPLACE_PROMPT} ");
+            let _ = output.flush();
+            let mut line = String::new();
+            let read = input
+                .read_line(&mut line)
+                .map_err(|e| failed(format!("reading the answer from stdin: {e}")))?;
+            if read == 0 {
+                return Err(failed(format!(
+                    "stdin closed before placement {next} was confirmed: press Enter in a terminal, or pass --placement-wait SECONDS"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `slscan scan --placements 2` on the devices: the placement loop, then each placement
+/// reconstructed and merged, aligned and merged into one cloud, the mesh and the report.
+fn run_placements(
+    args: &Args,
+    calib_path: &Path,
+    calibration: &sl_camera::Calibration,
+) -> anyhow::Result<()> {
+    let mut report = Report::new("scan");
+    let mut rig = DevicePlacements {
+        args,
+        calib: calib_path,
+        input: std::io::stdin().lock(),
+        output: std::io::stdout(),
+    };
+    let sessions = report.stage("capture", || {
+        capture_placements(&args.out, args.placements, &mut rig)
+    })?;
+    let out = ensure_out_dir(&args.out)?;
+    let dirs: Vec<PathBuf> = sessions.into_iter().map(|(d, _)| d).collect();
+    let config = session_config(args);
+    let mut placement_cfg = PlacementConfig::default();
+    placement_cfg.merge.average_overlaps = !args.no_average;
+    placement_cfg.merge.output_normal_neighbours = args.smoothing_neighbours;
+    let mut bars = StageBars::new();
+    let scan = scan_placements(&dirs, calibration, &config, &placement_cfg, |p| {
+        bars.update(p)
+    })?;
+    bars.clear();
+    report.add_stages(&scan.stages);
+    let mut per_placement = Vec::new();
+    for (k, s) in scan.sessions.iter().enumerate() {
+        let dir = out.join(placement_dir_name(k + 1));
+        let files = write_scan_cloud(&dir, &s.merged, |_| {})?;
+        per_placement.push(serde_json::json!({
+            "placement": k + 1,
+            "views": s.view_points.len(),
+            "view_points": s.view_points,
+            "merged_points": s.merged.len(),
+            "merged": format!("{}/{}", placement_dir_name(k + 1), files.merged),
+            "alignment": k.checked_sub(1).and_then(|i| scan.merge.alignments.get(i)),
+        }));
+    }
+    let merged = &scan.merge.merged;
+    let files = report.stage("write", || write_scan_cloud(&out, merged, |_| {}))?;
+    let meshed = report.stage("mesh", || {
+        mesh_stage(merged, None, None, &PoissonConfig::default(), &out)
+    });
+    report.figure("rig", "hardware");
+    report.figure("calibration", calib_path.display().to_string());
+    report.figure("placements", args.placements);
+    report.figure("per_placement", serde_json::Value::Array(per_placement));
+    report.figure("merged_points", merged.len());
+    report.figure("files", serde_json::to_value(&files)?);
+    for a in &scan.merge.alignments {
+        println!(
+            "placement {} aligned onto placement 1 with no pose hint: fitness {:.3}, RMSE {:.3} mm",
+            a.placement, a.fitness, a.rmse_mm
+        );
+    }
+    println!(
+        "{}: {} points merged from {} placements (calibration {})",
+        out.join(&files.merged).display(),
+        merged.len(),
+        args.placements,
+        calib_path.display()
+    );
+    match meshed {
+        Ok((mesh, mesh_files)) => {
+            report.figure("mesh", serde_json::to_value(&mesh)?);
+            report.figure("mesh_files", serde_json::to_value(&mesh_files)?);
+            report.write(&out)?;
+        }
+        Err(e) => {
+            report.figure("mesh_error", e.to_string());
+            report.write(&out)?;
+            return Err(anyhow::Error::new(e).context(format!(
+                "{} and its report are written; the mesh stage failed",
+                out.join(&files.merged).display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The reconstruction and turntable merge of one session, from the options.
+fn session_config(args: &Args) -> SessionScanConfig {
+    SessionScanConfig {
+        reconstruct: ReconstructConfig {
+            edge_erosion_px: args.edge_erosion,
+            max_view_angle_deg: args.max_view_angle,
+        },
+        merge: MergeStageConfig::scan(
+            !args.no_average,
+            args.smoothing_neighbours,
+            !args.rig.no_refine,
+        ),
+        poses: None,
+    }
 }
 
 /// Reconstructs and merges the captured session, writes the files and the report.
@@ -117,18 +320,7 @@ fn reconstruct(
     mut report: Report,
 ) -> anyhow::Result<()> {
     let out = ensure_out_dir(&args.out)?;
-    let config = SessionScanConfig {
-        reconstruct: ReconstructConfig {
-            edge_erosion_px: args.edge_erosion,
-            max_view_angle_deg: args.max_view_angle,
-        },
-        merge: MergeStageConfig::scan(
-            !args.no_average,
-            args.smoothing_neighbours,
-            !args.rig.no_refine,
-        ),
-        poses: None,
-    };
+    let config = session_config(args);
     let mut bars = StageBars::new();
     let scan = scan_session(session_dir, calibration, &config, |p| bars.update(p))?;
     bars.clear();
@@ -279,6 +471,44 @@ mod tests {
             "{t}"
         );
         assert!(!out.exists(), "nothing is written before the checks");
+    }
+
+    /// Between two placements the user is asked to lay the object on its side and press
+    /// Enter; a closed stdin names the non-interactive option; `--placement-wait` reads
+    /// nothing.
+    #[test]
+    fn the_replace_prompt_waits_for_enter_or_the_given_time() {
+        use super::{REPLACE_PROMPT, replace_prompt};
+        let mut out = Vec::new();
+        replace_prompt(&mut "\n".as_bytes(), &mut out, 2, 2, None).unwrap();
+        let said = String::from_utf8(out).unwrap();
+        assert!(
+            said.contains(REPLACE_PROMPT) && said.contains("placement 2 of 2"),
+            "{said}"
+        );
+        let mut out = Vec::new();
+        let e = replace_prompt(&mut "".as_bytes(), &mut out, 2, 2, None).unwrap_err();
+        assert!(e.to_string().contains("--placement-wait"), "{e}");
+        let mut out = Vec::new();
+        let mut input = "not read\n".as_bytes();
+        replace_prompt(&mut input, &mut out, 2, 2, Some(0.0)).unwrap();
+        assert_eq!(input, b"not read\n");
+        let e = replace_prompt(&mut input, &mut Vec::new(), 2, 2, Some(-1.0)).unwrap_err();
+        assert!(e.to_string().contains("--placement-wait -1"), "{e}");
+    }
+
+    #[test]
+    fn placements_beyond_two_are_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("scan");
+        let err = scan(&["--out", out.to_str().unwrap(), "--placements", "3"]).unwrap_err();
+        assert!(
+            text(&err).contains("--placements") && text(&err).contains("3 placements"),
+            "{err:#}"
+        );
+        let err = scan(&["--out", out.to_str().unwrap(), "--placement-wait", "5"]).unwrap_err();
+        assert!(text(&err).contains("--placement-wait"), "{err:#}");
+        assert!(!out.exists());
     }
 
     #[test]

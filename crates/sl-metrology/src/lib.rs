@@ -12,6 +12,8 @@
 //! - [`heat_map`] renders the cloud coloured by those signed distances.
 //! - [`evaluate_mesh`] measures a triangle mesh (`sl-mesh`'s surfaces) the same way, over its
 //!   vertices or over points spread evenly over its area ([`MeshSampling`]).
+//! - [`surface_coverage`] measures how much of a true surface (a triangle mesh) a scan
+//!   covers, and [`distance_to_surface`] how far the scan lies from it.
 //!
 //! ```
 //! use nalgebra::{Point3, Vector3};
@@ -54,6 +56,7 @@
 
 #![deny(missing_docs)]
 
+mod coverage;
 mod error;
 mod evaluate;
 mod find;
@@ -62,6 +65,10 @@ mod legend;
 mod mesh;
 mod truth;
 
+pub use coverage::{
+    COVERAGE_SPACINGS, CoverageConfig, DEFAULT_TRUTH_SAMPLE_AREA_MM2, SurfaceCoverage,
+    SurfaceDistance, distance_to_surface, surface_coverage,
+};
 pub use error::MetrologyError;
 pub use evaluate::{
     EvaluateConfig, Located, MIN_FEATURE_POINTS, PlaneReport, Report, SpherePairReport,

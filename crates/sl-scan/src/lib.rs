@@ -9,6 +9,7 @@
 //! | capture a scan session | `capture.rs` | [`capture_session`], [`scan_patterns`], [`full_turn_motor_angles`] |
 //! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`drop_grazing`] |
 //! | merge | `merge.rs` | [`merge_scan`] |
+//! | several placements | `placements.rs`, `virtual_placements.rs` | [`capture_placements`], [`scan_placements`], [`merge_placements`], [`scan_virtual_placements`] |
 //! | measure (where a truth exists) | `measure.rs` | [`measure_scan`], [`scene_truth`], [`plate_truth`] |
 //! | report | `report.rs` | [`write_scan_cloud`], [`write_heat_map`], [`write_summary_html`] |
 //!
@@ -35,10 +36,12 @@ mod error;
 mod measure;
 mod merge;
 mod mesh;
+mod placements;
 mod progress;
 mod reconstruct;
 mod report;
 mod session_scan;
+mod virtual_placements;
 mod virtual_scan;
 
 mod calibration_auto;
@@ -79,6 +82,11 @@ pub use measure::{
 };
 pub use merge::{MergeStageConfig, merge_scan};
 pub use mesh::{MeshFiles, MeshSummary, mesh_stage};
+pub use placements::{
+    MAX_PLACEMENTS, PLACEMENT_SESSION_DIR, PlacementAlignment, PlacementConfig, PlacementRig,
+    PlacementsMerge, PlacementsScan, align_placement, capture_placements, check_placements,
+    merge_placements, placement_dir_name, scan_placements,
+};
 pub use progress::{ScanProgress, StageTime};
 pub use reconstruct::{
     ReconstructConfig, ReconstructedViews, drop_grazing, reconstruct_session, reconstruct_view,
@@ -86,4 +94,7 @@ pub use reconstruct::{
 };
 pub use report::{SessionScanFiles, write_heat_map, write_scan_cloud, write_summary_html};
 pub use session_scan::{SessionScan, SessionScanConfig, scan_session};
+pub use virtual_placements::{
+    PlacementFigures, PlacementsResult, TRUTH_MESH_FILE, scan_virtual_placements,
+};
 pub use virtual_scan::{ScanFiles, ScanResult, VirtualScanConfig, scaled_rig_config, scan_virtual};

@@ -191,7 +191,7 @@ pub fn scaled_rig_config(d: u32) -> RigConfig {
 /// patterns, through the device traits ([`capture_session`], as on real devices), with the
 /// virtual rig's session settings: no display latency, nothing to flush. `turntable` names
 /// the turntable in the session's devices.
-fn capture_virtual(
+pub(crate) fn capture_virtual(
     rig: &VirtualRig,
     dir: &Path,
     angles_deg: Vec<f64>,

@@ -5,7 +5,8 @@
 //! truth. This crate holds:
 //!
 //! - **scenes** ([`Scene`]): planes, spheres, boxes, cylinders, two spheres at a known
-//!   distance, triangle meshes and printed checkerboards ([`Checkerboard`]), with uniform or
+//!   distance, triangle meshes (the [`Scene::pebble`], whose flat bottom one turntable
+//!   placement never sees; [`Scene::laid_on_side`] re-places it) and printed checkerboards ([`Checkerboard`]), with uniform or
 //!   textured Lambertian albedo ([`Texture`]), standing on the turntable or fixed in front of
 //!   the camera ([`Mount`]);
 //! - the **virtual rig** ([`VirtualRig`], configured by [`RigConfig`]): `sl-camera` models for
@@ -76,6 +77,7 @@ mod config;
 mod error;
 mod files;
 mod geometry;
+mod placement;
 mod raycast;
 mod render;
 mod scene;
@@ -96,6 +98,7 @@ pub use config::{
 pub use error::SimError;
 pub use files::{TRUTH_DIR, VIEW_JSON, pose_matrix, write_view_truth};
 pub use geometry::{CameraRays, ViewGeometry};
+pub use placement::{PEBBLE_CUT_MM, PEBBLE_RADIUS_MM, pebble_mesh, pebble_object};
 pub use raycast::{Hit, PlacedScene};
 pub use render::{Illumination, ProjectorSampling};
 pub use scene::{
