@@ -149,6 +149,11 @@ impl Layout {
         let n = self.len();
         for j0 in (0..n).step_by(TILE) {
             let bounds = self.tile_bounds(q, j0);
+            // Most tiles hold nothing near: one vectorised minimum rules them out.
+            let nearest_bound = bounds.iter().fold(f32::INFINITY, |m, &b| m.min(b));
+            if nearest_bound >= best.last().map_or(f32::INFINITY, |b| b.1) {
+                continue;
+            }
             let valid = (n - j0).min(TILE);
             for (dj, &bound) in bounds.iter().take(valid).enumerate() {
                 let worst = best.last().map_or(f32::INFINITY, |b| b.1);
