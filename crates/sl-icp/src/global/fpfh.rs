@@ -141,7 +141,8 @@ fn atan2_approx(y: f64, x: f64) -> f64 {
     let mut a = r
         * (0.999_977_26
             + r2 * (-0.332_623_47
-                + r2 * (0.193_543_46 + r2 * (-0.116_432_87 + r2 * (0.052_653_32 - r2 * 0.011_721_20)))));
+                + r2 * (0.193_543_46
+                    + r2 * (-0.116_432_87 + r2 * (0.052_653_32 - r2 * 0.011_721_20)))));
     if ay > ax {
         a = FRAC_PI_2 - a;
     }
@@ -339,10 +340,11 @@ pub(crate) fn fpfh_of_neighbourhoods(
     hoods: &Neighbourhoods,
 ) -> Vec<Fpfh> {
     let n = points.len();
-    let code = |i: usize, j: usize| match (points.get(i), normals.get(i), points.get(j), normals.get(j)) {
-        (Some(p), Some(np), Some(q), Some(nq)) => pair_code(p, np, q, nq),
-        _ => NO_PAIR,
-    };
+    let code =
+        |i: usize, j: usize| match (points.get(i), normals.get(i), points.get(j), normals.get(j)) {
+            (Some(p), Some(np), Some(q), Some(nq)) => pair_code(p, np, q, nq),
+            _ => NO_PAIR,
+        };
     // Codes of the edges to larger points, row by row.
     let forward: Vec<Vec<PairCode>> = (0..n)
         .into_par_iter()
@@ -350,7 +352,13 @@ pub(crate) fn fpfh_of_neighbourhoods(
         .map(|i| {
             let (idx, _) = hoods.of(i);
             idx.iter()
-                .map(|&j| if j as usize > i { code(i, j as usize) } else { NO_PAIR })
+                .map(|&j| {
+                    if j as usize > i {
+                        code(i, j as usize)
+                    } else {
+                        NO_PAIR
+                    }
+                })
                 .collect()
         })
         .collect();
