@@ -282,7 +282,7 @@ fn place(
     let mut pruned_edges = 0;
     let (poses, solution) = loop {
         let (poses, solution) = solve_graph(&pairs, n, config)?;
-        let Some((k, disagreement)) = worst_edge(&views, &pairs, &poses) else {
+        let Some((k, disagreement)) = worst_edge(views, &pairs, &poses) else {
             break (poses, solution);
         };
         if disagreement <= config.max_edge_disagreement {
