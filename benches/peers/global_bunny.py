@@ -17,8 +17,10 @@ What it measures (one table per side, medians over RUNS runs per pair):
     normals and FPFH), RANSAC (matching included: Open3D matches inside that call), ICP;
   * ours: `target/release/examples/global_bunny` (sl-icp's `GlobalConfig::default()`: the same
     voxel, FPFH radius and neighbour cap, inlier distance, edge-length ratio, iteration cap and
-    confidence), run from this script so that both sides see the same machine load. Build it
-    first: `cargo build --release -p sl-icp --example global_bunny`.
+    confidence), run from this script pair by pair right after Open3D's runs of the same pair,
+    so that both sides see the same machine load; its rows are printed under Open3D's, and a
+    last table puts the two totals side by side. Build it first:
+    `cargo build --release -p sl-icp --example global_bunny`.
 
 Conventions, identical to sl-icp's tests, benches and examples:
   * scans converted from metres to millimetres (x1000); every length below is in mm;
@@ -110,41 +112,46 @@ def ms(t0):
     return (time.perf_counter() - t0) * 1e3
 
 
-def open3d_table(scans, runs):
-    print("open3d %s FPFH + RANSAC + ICP, threads: %d, runs: %d" % (o3d.__version__,
-                                                                    os.cpu_count(), runs))
-    print("%-16s %9s %8s %8s %9s %10s %8s %8s %8s %7s %7s" % (
-        "pair", "describe", "ransac", "icp", "total med", "ransac rms", "rot deg", "trans mm",
-        "rms mm", "success", "fitness"))
-    for s, t in PAIRS:
-        (src, Ts), (tgt, Tt) = scans[s], scans[t]
-        T_ref = np.linalg.inv(Tt) @ Ts
-        t_desc, t_ransac, t_icp, t_total = [], [], [], []
-        successes, last = 0, None
-        for run in range(runs):
-            o3d.utility.random.seed(run)
-            t0 = time.perf_counter()
-            (ds, fs), (dt, ft) = describe(src), describe(tgt)
-            t_desc.append(ms(t0))
-            t1 = time.perf_counter()
-            r = ransac(ds, dt, fs, ft)
-            t_ransac.append(ms(t1))
-            t2 = time.perf_counter()
-            refined = icp(ds, dt, r.transformation)
-            t_icp.append(ms(t2))
-            t_total.append(ms(t0))
-            e = pose_error(refined.transformation, T_ref, src)
-            e_ransac = pose_error(r.transformation, T_ref, src)
-            if e[2] <= SUCCESS_MM:
-                successes += 1
-            last = (e_ransac[2], *e, refined.fitness)
-        print("%-16s %9.1f %8.1f %8.1f %9.1f %10.3f %8.3f %8.3f %8.3f %7s %7.3f" % (
-            "%s->%s" % (NAMES[s], NAMES[t]), statistics.median(t_desc),
-            statistics.median(t_ransac), statistics.median(t_icp), statistics.median(t_total),
-            last[0], last[1], last[2], last[3], "%d/%d" % (successes, runs), last[4]))
+def open3d_pair(scans, s, t, runs):
+    """Open3D's row for the pair (s, t) and its median total (ms)."""
+    (src, Ts), (tgt, Tt) = scans[s], scans[t]
+    T_ref = np.linalg.inv(Tt) @ Ts
+    t_desc, t_ransac, t_icp, t_total = [], [], [], []
+    successes, last = 0, None
+    for run in range(runs):
+        o3d.utility.random.seed(run)
+        t0 = time.perf_counter()
+        (ds, fs), (dt, ft) = describe(src), describe(tgt)
+        t_desc.append(ms(t0))
+        t1 = time.perf_counter()
+        r = ransac(ds, dt, fs, ft)
+        t_ransac.append(ms(t1))
+        t2 = time.perf_counter()
+        refined = icp(ds, dt, r.transformation)
+        t_icp.append(ms(t2))
+        t_total.append(ms(t0))
+        e = pose_error(refined.transformation, T_ref, src)
+        e_ransac = pose_error(r.transformation, T_ref, src)
+        if e[2] <= SUCCESS_MM:
+            successes += 1
+        last = (e_ransac[2], *e, refined.fitness)
+    row = "%-16s %9.1f %8.1f %8.1f %9.1f %10.3f %8.3f %8.3f %8.3f %7s %7.3f" % (
+        "%s->%s" % (NAMES[s], NAMES[t]), statistics.median(t_desc),
+        statistics.median(t_ransac), statistics.median(t_icp), statistics.median(t_total),
+        last[0], last[1], last[2], last[3], "%d/%d" % (successes, runs), last[4])
+    return row, statistics.median(t_total), successes
 
 
-def main():
+def ours_pair(binary, s, t, runs):
+    """Our example's header and row for the pair (s, t), its median total and successes."""
+    out = subprocess.run([binary, str(runs), NAMES[s], NAMES[t]], check=True,
+                         capture_output=True, text=True).stdout.splitlines()
+    header, row = out[:2], out[-1]
+    w = row.split()
+    return header, row, float(w[5]), int(w[9].split("/")[0])
+
+
+def main():def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=5, help="runs per pair (median reported)")
     ap.add_argument("--ours", default=OURS, help="our example binary (skipped if missing)")
@@ -155,15 +162,34 @@ def main():
         return
     d = os.path.join(data, "bunny")
     scans = [load(d, n) for n in NAMES]
-    open3d_table(scans, args.runs)
-    sys.stdout.flush()
-    if os.path.exists(args.ours):
-        print()
-        subprocess.run([args.ours, str(args.runs)], check=True)
-    else:
-        print("\n%s not built: `cargo build --release -p sl-icp --example global_bunny`"
-              % args.ours)
-
+    ours = args.ours if os.path.exists(args.ours) else None
+    if not ours:
+        print("%s not built (`cargo build --release -p sl-icp --example global_bunny`): "
+              "Open3D only\n" % args.ours)
+    o3d_rows, our_rows, header, summary = [], [], None, []
+    for s, t in PAIRS:
+        row, o3d_total, o3d_ok = open3d_pair(scans, s, t, args.runs)
+        o3d_rows.append(row)
+        if ours:
+            header, our_row, our_total, our_ok = ours_pair(ours, s, t, args.runs)
+            our_rows.append(our_row)
+            summary.append((s, t, o3d_total, o3d_ok, our_total, our_ok))
+    print("open3d %s FPFH + RANSAC + ICP, threads: %d, runs: %d" % (o3d.__version__,
+                                                                    os.cpu_count(), args.runs))
+    print("%-16s %9s %8s %8s %9s %10s %8s %8s %8s %7s %7s" % (
+        "pair", "describe", "ransac", "icp", "total med", "ransac rms", "rot deg", "trans mm",
+        "rms mm", "success", "fitness"))
+    print("\n".join(o3d_rows))
+    if not ours:
+        return
+    print()
+    print("\n".join(header))
+    print("\n".join(our_rows))
+    print()
+    print("%-16s %14s %14s %8s" % ("pair", "open3d ms/ok", "ours ms/ok", "speed-up"))
+    for s, t, ot, ook, ut, uok in summary:
+        print("%-16s %8.1f %2d/%d %8.1f %2d/%d %7.1fx" % (
+            "%s->%s" % (NAMES[s], NAMES[t]), ot, ook, args.runs, ut, uok, args.runs, ot / ut))
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -4,8 +4,10 @@
 //!
 //! ```sh
 //! cargo build --release -p sl-icp --example global_bunny
-//! SL_DATA=/work/shared/data target/release/examples/global_bunny [RUNS]
+//! SL_DATA=/work/shared/data target/release/examples/global_bunny [RUNS [SOURCE TARGET]]
 //! ```
+//! With `SOURCE TARGET` (e.g. `bun045 bun000`) only that pair is run (the peer script
+//! interleaves the pairs with Open3D's so that both see the same machine load).
 //! Times are medians over `RUNS` (default 11) runs on the global rayon pool (all cores):
 //! `describe` is both clouds' voxel grid, normals, orientation, FPFH and descriptor tree
 //! ([`GlobalCloud::new`], the two in parallel), then matching, RANSAC and the final ICP
@@ -68,8 +70,13 @@ fn main() -> Result<(), IcpError> {
         "matches",
         "inliers"
     );
+    let position = |name: Option<String>| name.and_then(|n| names.iter().position(|&m| m == n));
+    let only = position(std::env::args().nth(2)).zip(position(std::env::args().nth(3)));
     let pairs = [(1, 0), (2, 0), (2, 1), (0, 1), (0, 2), (1, 2)];
     for (s, t) in pairs {
+        if only.is_some_and(|o| o != (s, t)) {
+            continue;
+        }
         let reference = bunny::reference(&scans[t], &scans[s]);
         let (mut describe, mut matching, mut ransac_ms, mut icp, mut total) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
