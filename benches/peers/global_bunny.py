@@ -151,7 +151,7 @@ def ours_pair(binary, s, t, runs):
     return header, row, float(w[5]), int(w[9].split("/")[0])
 
 
-def main():def main():
+def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=5, help="runs per pair (median reported)")
     ap.add_argument("--ours", default=OURS, help="our example binary (skipped if missing)")
