@@ -80,7 +80,7 @@ pub struct Correspondence {
 }
 
 /// The descriptors of one cloud made ready for matching: the principal axes of the set, the
-/// descriptors rotated onto them, and the first [`BOUND_DIMS`] rotated coordinates laid out
+/// descriptors rotated onto them, and the first eight rotated coordinates laid out
 /// dimension by dimension. Built once per cloud and matched with every other cloud.
 #[derive(Debug, Clone)]
 pub struct FeatureIndex {
