@@ -85,7 +85,7 @@ pub use global::{
     Correspondence, FPFH_BINS, FeatureIndex, Fpfh, FpfhConfig, GlobalCloud, GlobalConfig,
     GlobalRegistration, MatchConfig, MultiwayAlignment, MultiwayConfig, MultiwayPair, RansacConfig,
     RansacResult, UnplacedView, align_unordered, compute_fpfh, match_features,
-    orient_normals_outward, ransac_pose, register_global, register_global_prepared,
+    orient_normals_outward, place_views, ransac_pose, register_global, register_global_prepared,
 };
 pub use icp::{Evaluation, Icp, IcpStep, Registration, register};
 pub use merge::{

@@ -10,7 +10,7 @@
 
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
-use sl_cloud::KdIndex;
+use sl_cloud::{KdIndex, fit_local_plane};
 
 use crate::IcpError;
 
@@ -76,13 +76,25 @@ impl FpfhConfig {
 /// `α = v·nt` in [-1, 1], `φ = u·d` in [-1, 1], `θ = atan2(w·nt, u·nt)` in [-π, π], with
 /// `u = ns`, `v = u × d / |u × d|`, `w = u × v`, `d` the unit vector from source to target.
 /// `None` when the points coincide or the normal lies along the line.
-#[inline]
+#[cfg(test)]
 fn pair_angles(
     pa: &Point3<f64>,
     na: &Vector3<f64>,
     pb: &Point3<f64>,
     nb: &Vector3<f64>,
 ) -> Option<(f64, f64, f64)> {
+    pair_angles_raw(pa, na, pb, nb).map(|(a, p, (s, c))| (a, p, s.atan2(c)))
+}
+
+/// [`pair_angles`] with θ left as `(w·nt, u·nt)`, the sine and cosine (unnormalised) the angle
+/// is taken from.
+#[inline]
+fn pair_angles_raw(
+    pa: &Point3<f64>,
+    na: &Vector3<f64>,
+    pb: &Point3<f64>,
+    nb: &Vector3<f64>,
+) -> Option<(f64, f64, (f64, f64))> {
     let d = pb - pa;
     let len = d.norm();
     if len <= 0.0 {
@@ -102,77 +114,166 @@ fn pair_angles(
     }
     let v = v / vn;
     let w = ns.cross(&v);
-    Some((v.dot(nt), ns.dot(&d), w.dot(nt).atan2(ns.dot(nt))))
+    Some((v.dot(nt), ns.dot(&d), (w.dot(nt), ns.dot(nt))))
 }
 
-/// Bin of `x` in `[lo, hi]` among [`BINS_PER_FEATURE`] (clamped).
+/// Bin of `x` in `[lo, hi]` among [`BINS_PER_FEATURE`] (clamped; NaN goes to the first).
 #[inline]
 fn bin(x: f64, lo: f64, hi: f64) -> usize {
-    let b = ((x - lo) / (hi - lo) * BINS_PER_FEATURE as f64).floor();
-    if b.is_nan() || b < 0.0 {
-        0
-    } else {
-        (b as usize).min(BINS_PER_FEATURE - 1)
+    // `as usize` saturates: negatives and NaN give 0.
+    (((x - lo) / (hi - lo) * BINS_PER_FEATURE as f64) as usize).min(BINS_PER_FEATURE - 1)
+}
+
+/// `atan2(y, x)` to within 1e-5 rad (a minimax polynomial for atan on [0, 1] and the
+/// octant fix-ups), for binning θ: an angle that close to one of the ten bin edges may fall
+/// in the neighbouring bin, a change far below the noise of the normals; libm's exact atan2
+/// was a sixth of the descriptors' time.
+#[inline]
+fn atan2_approx(y: f64, x: f64) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    let (ax, ay) = (x.abs(), y.abs());
+    let (lo, hi) = if ax < ay { (ax, ay) } else { (ay, ax) };
+    if hi == 0.0 {
+        return 0.0;
     }
+    let r = lo / hi;
+    let r2 = r * r;
+    let mut a = r
+        * (0.999_977_26
+            + r2 * (-0.332_623_47
+                + r2 * (0.193_543_46
+                    + r2 * (-0.116_432_87 + r2 * (0.052_653_32 - r2 * 0.011_721_20)))));
+    if ay > ax {
+        a = FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = PI - a;
+    }
+    if y < 0.0 { -a } else { a }
+}
+
+/// The three bins of a pair packed in one code (`α + 11 φ + 121 θ`), or [`NO_PAIR`].
+type PairCode = u16;
+
+/// Code of a pair that gives no angles (coincident points, a normal along the line, a zero
+/// normal).
+const NO_PAIR: PairCode = PairCode::MAX;
+
+/// The code of the pair `(pa, na)`, `(pb, nb)`; the same for both orders.
+#[inline]
+fn pair_code(pa: &Point3<f64>, na: &Vector3<f64>, pb: &Point3<f64>, nb: &Vector3<f64>) -> PairCode {
+    if na.norm_squared() == 0.0 || nb.norm_squared() == 0.0 {
+        return NO_PAIR;
+    }
+    let Some((alpha, phi, (sin_theta, cos_theta))) = pair_angles_raw(pa, na, pb, nb) else {
+        return NO_PAIR;
+    };
+    let theta = atan2_approx(sin_theta, cos_theta);
+    let (a, p, t) = (
+        bin(alpha, -1.0, 1.0),
+        bin(phi, -1.0, 1.0),
+        bin(theta, -std::f64::consts::PI, std::f64::consts::PI),
+    );
+    (a + BINS_PER_FEATURE * (p + BINS_PER_FEATURE * t)) as PairCode
 }
 
 /// Neighbours of every point within the radius (at most `max_neighbours`, the nearest, the
-/// point itself excluded), in compressed rows.
-struct Neighbourhoods {
+/// point itself excluded), in compressed rows, each row ordered by point index. Shared by the
+/// normals ([`Neighbourhoods::nearest_normals`]) and the descriptors, so the cloud is searched
+/// once.
+pub(crate) struct Neighbourhoods {
     start: Vec<u32>,
     index: Vec<u32>,
     distance: Vec<f32>,
 }
 
 impl Neighbourhoods {
+    /// Searches `index` (built over `points`) around every point.
+    pub(crate) fn new(points: &[Point3<f64>], index: &KdIndex, config: &FpfhConfig) -> Self {
+        let lists: Vec<Vec<(u32, f32)>> = points
+            .par_iter()
+            .enumerate()
+            .with_min_len(256)
+            .map(|(i, p)| {
+                let mut found = index.radius_unsorted(p, config.radius);
+                found.retain(|n| n.index != i && n.distance_squared > 0.0);
+                if found.len() > config.max_neighbours {
+                    found.select_nth_unstable_by(config.max_neighbours, |a, b| {
+                        a.distance_squared
+                            .total_cmp(&b.distance_squared)
+                            .then(a.index.cmp(&b.index))
+                    });
+                    found.truncate(config.max_neighbours);
+                }
+                let mut row: Vec<(u32, f32)> = found
+                    .iter()
+                    .map(|n| (n.index as u32, n.distance_squared.sqrt() as f32))
+                    .collect();
+                row.sort_unstable_by_key(|x| x.0);
+                row
+            })
+            .collect();
+        let total: usize = lists.iter().map(Vec::len).sum();
+        let mut start = Vec::with_capacity(points.len() + 1);
+        let mut idx = Vec::with_capacity(total);
+        let mut distance = Vec::with_capacity(total);
+        start.push(0);
+        for list in lists {
+            for (j, d) in list {
+                idx.push(j);
+                distance.push(d);
+            }
+            start.push(idx.len() as u32);
+        }
+        Self {
+            start,
+            index: idx,
+            distance,
+        }
+    }
+
+    fn range(&self, i: usize) -> std::ops::Range<usize> {
+        self.start.get(i).copied().unwrap_or(0) as usize
+            ..self.start.get(i + 1).copied().unwrap_or(0) as usize
+    }
+
     fn of(&self, i: usize) -> (&[u32], &[f32]) {
-        let (a, b) = (
-            self.start.get(i).copied().unwrap_or(0) as usize,
-            self.start.get(i + 1).copied().unwrap_or(0) as usize,
-        );
+        let r = self.range(i);
         (
-            self.index.get(a..b).unwrap_or(&[]),
-            self.distance.get(a..b).unwrap_or(&[]),
+            self.index.get(r.clone()).unwrap_or(&[]),
+            self.distance.get(r).unwrap_or(&[]),
         )
     }
-}
 
-fn neighbourhoods(points: &[Point3<f64>], index: &KdIndex, config: &FpfhConfig) -> Neighbourhoods {
-    let lists: Vec<Vec<(u32, f32)>> = points
-        .par_iter()
-        .enumerate()
-        .with_min_len(256)
-        .map(|(i, p)| {
-            let mut found = index.radius_unsorted(p, config.radius);
-            found.retain(|n| n.index != i && n.distance_squared > 0.0);
-            if found.len() > config.max_neighbours {
-                found.select_nth_unstable_by(config.max_neighbours, |a, b| {
-                    a.distance_squared.total_cmp(&b.distance_squared)
-                });
-                found.truncate(config.max_neighbours);
-            }
-            found
-                .iter()
-                .map(|n| (n.index as u32, n.distance_squared.sqrt() as f32))
-                .collect()
-        })
-        .collect();
-    let total: usize = lists.iter().map(Vec::len).sum();
-    let mut start = Vec::with_capacity(points.len() + 1);
-    let mut idx = Vec::with_capacity(total);
-    let mut distance = Vec::with_capacity(total);
-    start.push(0);
-    for list in lists {
-        for (j, d) in list {
-            idx.push(j);
-            distance.push(d);
-        }
-        start.push(idx.len() as u32);
+    /// Position of the edge `i → j` in the rows, if `j` is a neighbour of `i`.
+    fn edge(&self, i: usize, j: u32) -> Option<usize> {
+        let r = self.range(i);
+        let row = self.index.get(r.clone())?;
+        row.binary_search(&j).ok().map(|k| r.start + k)
     }
-    Neighbourhoods {
-        start,
-        index: idx,
-        distance,
+
+    /// Unit normals (unoriented) from the PCA of each point and its `k - 1` nearest
+    /// neighbours in its row ([`fit_local_plane`], as `sl_cloud::estimate_normals` with `k`
+    /// neighbours including the point); zero where no plane fits.
+    pub(crate) fn nearest_normals(&self, points: &[Point3<f64>], k: usize) -> Vec<Vector3<f64>> {
+        (0..points.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map_init(Vec::new, |buf: &mut Vec<(f32, u32)>, i| {
+                let (idx, dist) = self.of(i);
+                buf.clear();
+                buf.extend(dist.iter().copied().zip(idx.iter().copied()));
+                let keep = k.saturating_sub(1);
+                if buf.len() > keep && keep > 0 {
+                    buf.select_nth_unstable_by(keep - 1, |a, b| {
+                        a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
+                    });
+                }
+                buf.truncate(keep);
+                let around = std::iter::once(i).chain(buf.iter().map(|x| x.1 as usize));
+                fit_local_plane(points, around).map_or_else(Vector3::zeros, |p| p.normal)
+            })
+            .collect()
     }
 }
 
@@ -224,44 +325,74 @@ pub fn compute_fpfh(
             "the index must be built over the same points",
         ));
     }
-    let hoods = neighbourhoods(points, index, config);
+    let hoods = Neighbourhoods::new(points, index, config);
+    Ok(fpfh_of_neighbourhoods(points, normals, &hoods))
+}
+
+/// [`compute_fpfh`] over neighbourhoods already found (`normals` one per point).
+///
+/// The pair angles do not depend on the order of the pair, so each pair is binned once: first
+/// every edge `i → j` with `j > i`, then each point's histogram reads its edges to smaller
+/// points from their reverse edges (computing the few that the neighbour cap left one-way).
+pub(crate) fn fpfh_of_neighbourhoods(
+    points: &[Point3<f64>],
+    normals: &[Vector3<f64>],
+    hoods: &Neighbourhoods,
+) -> Vec<Fpfh> {
+    let n = points.len();
+    let code =
+        |i: usize, j: usize| match (points.get(i), normals.get(i), points.get(j), normals.get(j)) {
+            (Some(p), Some(np), Some(q), Some(nq)) => pair_code(p, np, q, nq),
+            _ => NO_PAIR,
+        };
+    // Codes of the edges to larger points, row by row.
+    let forward: Vec<Vec<PairCode>> = (0..n)
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|i| {
+            let (idx, _) = hoods.of(i);
+            idx.iter()
+                .map(|&j| {
+                    if j as usize > i {
+                        code(i, j as usize)
+                    } else {
+                        NO_PAIR
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let codes: Vec<PairCode> = forward.into_iter().flatten().collect();
     // SPFH of every point, in f64 while summing.
-    let spfh: Vec<[f64; FPFH_BINS]> = (0..points.len())
+    let spfh: Vec<[f64; FPFH_BINS]> = (0..n)
         .into_par_iter()
         .with_min_len(256)
         .map(|i| {
             let mut h = [0.0; FPFH_BINS];
-            let (Some(p), Some(n)) = (points.get(i), normals.get(i)) else {
-                return h;
-            };
-            if n.norm_squared() == 0.0 {
-                return h;
-            }
-            let (idx, _) = hoods.of(i);
             let mut count = 0usize;
-            let add = |h: &mut [f64; FPFH_BINS], b: [usize; 3]| {
-                for (k, b) in b.iter().enumerate() {
-                    if let Some(v) = h.get_mut(k * BINS_PER_FEATURE + b) {
+            let range = hoods.range(i);
+            let idx = hoods.index.get(range.clone()).unwrap_or(&[]);
+            for (e, &j) in range.zip(idx) {
+                let c = if j as usize > i {
+                    codes.get(e).copied().unwrap_or(NO_PAIR)
+                } else {
+                    match hoods.edge(j as usize, i as u32) {
+                        Some(back) => codes.get(back).copied().unwrap_or(NO_PAIR),
+                        None => code(i, j as usize),
+                    }
+                };
+                if c == NO_PAIR {
+                    continue;
+                }
+                let c = usize::from(c);
+                let (a, rest) = (c % BINS_PER_FEATURE, c / BINS_PER_FEATURE);
+                let (p, t) = (rest % BINS_PER_FEATURE, rest / BINS_PER_FEATURE);
+                for b in [a, BINS_PER_FEATURE + p, 2 * BINS_PER_FEATURE + t] {
+                    if let Some(v) = h.get_mut(b) {
                         *v += 1.0;
                     }
                 }
-            };
-            for &j in idx {
-                let (Some(q), Some(m)) = (points.get(j as usize), normals.get(j as usize)) else {
-                    continue;
-                };
-                if m.norm_squared() == 0.0 {
-                    continue;
-                }
-                if let Some((alpha, phi, theta)) = pair_angles(p, n, q, m) {
-                    let bins = [
-                        bin(alpha, -1.0, 1.0),
-                        bin(phi, -1.0, 1.0),
-                        bin(theta, -std::f64::consts::PI, std::f64::consts::PI),
-                    ];
-                    add(&mut h, bins);
-                    count += 1;
-                }
+                count += 1;
             }
             if count > 0 {
                 let scale = HISTOGRAM_MASS / count as f64;
@@ -273,7 +404,7 @@ pub fn compute_fpfh(
         })
         .collect();
     // FPFH: own SPFH plus the 1/distance-weighted neighbours' SPFHs, renormalised.
-    let out = (0..points.len())
+    (0..n)
         .into_par_iter()
         .with_min_len(256)
         .map(|i| {
@@ -306,8 +437,7 @@ pub fn compute_fpfh(
             }
             f
         })
-        .collect();
-    Ok(out)
+        .collect()
 }
 
 #[cfg(test)]
@@ -328,6 +458,17 @@ mod tests {
         assert_eq!(bin(-1.0, -1.0, 1.0), 0);
         assert_eq!(bin(1.0, -1.0, 1.0), BINS_PER_FEATURE - 1);
         assert_eq!(bin(0.01, -1.0, 1.0), 5);
+        assert_eq!(bin(f64::NAN, -1.0, 1.0), 0);
+        assert_eq!(bin(-3.0, -1.0, 1.0), 0);
+        // The fast atan2 against libm's, all around the circle.
+        for k in 0..3600 {
+            let t = (k as f64 / 10.0 - 180.0).to_radians();
+            for r in [1e-3, 1.0, 50.0] {
+                let (y, x) = (r * t.sin(), r * t.cos());
+                assert!((atan2_approx(y, x) - y.atan2(x)).abs() < 1e-5, "{t}");
+            }
+        }
+        assert_eq!(atan2_approx(0.0, 0.0), 0.0);
     }
 
     #[test]

@@ -16,7 +16,7 @@ pub(crate) mod ransac;
 pub use correspondences::{Correspondence, FeatureIndex, MatchConfig, match_features};
 pub use fpfh::{FPFH_BINS, Fpfh, FpfhConfig, compute_fpfh};
 pub use multiway::{
-    MultiwayAlignment, MultiwayConfig, MultiwayPair, UnplacedView, align_unordered,
+    MultiwayAlignment, MultiwayConfig, MultiwayPair, UnplacedView, align_unordered, place_views,
 };
 pub use orientation::orient_normals_outward;
 pub use pairwise::{

@@ -8,10 +8,13 @@
 //!    parallel), each **verified** by its overlap (ICP fitness) and residual (ICP RMSE).
 //! 4. **Pose graph** over the verified edges: initial poses along a maximum-fitness spanning
 //!    tree from view 0, then [`optimize_pose_graph`]. **Outlier edges are pruned** one at a
-//!    time: while the edge that disagrees most with the optimised poses (RMS displacement of
-//!    its source points between its measurement and the graph) exceeds
-//!    [`MultiwayConfig::max_edge_disagreement`], it is removed and the graph rebuilt and
-//!    solved again (a greedy form of switchable constraints: a switch is either on or off).
+//!    time: while some edge disagrees with the optimised poses (RMS displacement of its
+//!    source points between its measurement and the graph) by more than
+//!    [`MultiwayConfig::max_edge_disagreement`], the edge whose removal leaves the most
+//!    consistent graph (solved without each used edge in turn: most views placed, then the
+//!    smallest worst disagreement) is removed and the graph solved again (a greedy form of
+//!    switchable constraints: a switch is either on or off). A view held by exactly one right
+//!    and one wrong edge is a tie no pruning can settle; it needs a third edge.
 //! 5. **Joint refinement**: every surviving edge is re-registered by ICP from the graph's
 //!    relative pose, and the graph solved once more with the new measurements.
 //!
@@ -214,24 +217,82 @@ pub fn align_unordered(
     }
 
     let candidates = candidate_pairs(&views, config.candidates_per_view);
-    let mut pairs: Vec<MultiwayPair> = candidates
+    let pairs: Vec<MultiwayPair> = candidates
         .par_iter()
         .map(|&(t, s, distance)| register_pair(&views, t, s, distance, config))
         .collect();
+    let refs: Vec<Option<&GlobalCloud>> = views.iter().map(Option::as_ref).collect();
+    place(&refs, pairs, &unplaced_why, config)
+}
 
+/// Places described views from pairs already registered: steps 4 and 5 of
+/// [`align_unordered`] (the pose graph over the verified pairs with outlier-edge pruning, then
+/// the joint refinement). `views` are the described clouds, view 0 the world frame; `pairs`
+/// are what [`MultiwayAlignment::pairs`] holds — from an earlier run, or edited, dropped or
+/// added (a pair is an edge when `verified`; its `registration` is the measurement; the
+/// `pruned` flags are recomputed here).
+///
+/// # Errors
+/// [`IcpError::InvalidParameter`] for a bad configuration, fewer than two views, or a pair
+/// naming a view out of range or the same view twice; the pose-graph errors.
+pub fn place_views(
+    views: &[GlobalCloud],
+    mut pairs: Vec<MultiwayPair>,
+    config: &MultiwayConfig,
+) -> Result<MultiwayAlignment, IcpError> {
+    config.validate()?;
+    let n = views.len();
+    if n < 2 {
+        return Err(IcpError::invalid(
+            "views",
+            n,
+            "multiway alignment needs at least two views",
+        ));
+    }
+    if let Some(p) = pairs
+        .iter()
+        .find(|p| p.source >= n || p.target >= n || p.source == p.target)
+    {
+        return Err(IcpError::invalid(
+            "pairs",
+            format!("view {} onto view {}", p.source, p.target),
+            "each pair must join two different views among those given",
+        ));
+    }
+    for p in &mut pairs {
+        if p.pruned {
+            p.pruned = false;
+            p.reason = None;
+        }
+    }
+    let refs: Vec<Option<&GlobalCloud>> = views.iter().map(Some).collect();
+    place(&refs, pairs, &vec![None; n], config)
+}
+
+/// Steps 4 and 5 over validated pairs; `unplaced_why` names the views that could not be
+/// described.
+fn place(
+    views: &[Option<&GlobalCloud>],
+    mut pairs: Vec<MultiwayPair>,
+    unplaced_why: &[Option<String>],
+    config: &MultiwayConfig,
+) -> Result<MultiwayAlignment, IcpError> {
+    let n = views.len();
     // Pose graph with pruning of outlier edges.
     let mut pruned_edges = 0;
     let (poses, solution) = loop {
         let (poses, solution) = solve_graph(&pairs, n, config)?;
-        let Some((k, disagreement)) = worst_edge(&views, &pairs, &poses) else {
+        let Some((k, disagreement)) = worst_edge(views, &pairs, &poses) else {
             break (poses, solution);
         };
         if disagreement <= config.max_edge_disagreement {
             break (poses, solution);
         }
+        let k = edge_to_prune(views, &pairs, n, config)?.unwrap_or(k);
         pairs[k].pruned = true;
         pairs[k].reason = Some(format!(
-            "pruned: disagrees with the pose graph by {disagreement:.2} mm RMS (limit {} mm)",
+            "pruned: the graph without it agrees best ({disagreement:.2} mm RMS worst \
+             disagreement with it, limit {} mm)",
             config.max_edge_disagreement
         ));
         pruned_edges += 1;
@@ -249,7 +310,7 @@ pub fn align_unordered(
                     if !p.used() {
                         return None;
                     }
-                    let (vs, vt) = (views[p.source].as_ref()?, views[p.target].as_ref()?);
+                    let (vs, vt) = (views[p.source]?, views[p.target]?);
                     register(vs.prepared(), vt.prepared(), &(tt.inverse() * ts), icp).ok()
                 })
                 .collect();
@@ -265,8 +326,10 @@ pub fn align_unordered(
         if pose.is_some() {
             continue;
         }
-        let why = unplaced_why[i]
-            .clone()
+        let why = unplaced_why
+            .get(i)
+            .cloned()
+            .flatten()
             .unwrap_or_else(|| why_unplaced(i, &pairs));
         unplaced.push(UnplacedView { view: i, why });
     }
@@ -477,10 +540,46 @@ fn finish_graph(
     Ok((out, Some(solution)))
 }
 
+/// The used edge whose removal leaves the most consistent graph (leave-one-out): for each
+/// used edge, the graph is solved without it and scored by the views it still places (more is
+/// better: an edge that alone ties a view is not removed while another will do) and then by
+/// the worst disagreement of the remaining edges (smaller is better; ties to the earlier
+/// pair). The edge that disagrees most with a solve that includes it is not always the wrong
+/// one: a wrong edge pulls the least-squares poses so far that a right edge can disagree more.
+/// `None` when no edge is used.
+fn edge_to_prune(
+    views: &[Option<&GlobalCloud>],
+    pairs: &[MultiwayPair],
+    n: usize,
+    config: &MultiwayConfig,
+) -> Result<Option<usize>, IcpError> {
+    let used: Vec<usize> = (0..pairs.len()).filter(|&k| pairs[k].used()).collect();
+    let scores: Vec<Result<(usize, usize, f64), IcpError>> = used
+        .par_iter()
+        .map(|&k| {
+            let mut without = pairs.to_vec();
+            without[k].pruned = true;
+            let (poses, _) = solve_graph(&without, n, config)?;
+            let placed = poses.iter().filter(|p| p.is_some()).count();
+            let worst = worst_edge(views, &without, &poses).map_or(0.0, |w| w.1);
+            Ok((k, placed, worst))
+        })
+        .collect();
+    let mut best: Option<(usize, usize, f64)> = None;
+    for score in scores {
+        let (k, placed, worst) = score?;
+        let better = best.is_none_or(|(_, p, w)| placed > p || (placed == p && worst < w));
+        if better {
+            best = Some((k, placed, worst));
+        }
+    }
+    Ok(best.map(|b| b.0))
+}
+
 /// The used edge that disagrees most with `poses`: RMS displacement of its source's
 /// downsampled points between its measurement and the graph's relative pose.
 fn worst_edge(
-    views: &[Option<GlobalCloud>],
+    views: &[Option<&GlobalCloud>],
     pairs: &[MultiwayPair],
     poses: &[Option<Isometry3<f64>>],
 ) -> Option<(usize, f64)> {
@@ -491,7 +590,7 @@ fn worst_edge(
         .filter_map(|(k, p)| {
             let (ts, tt) = (poses[p.source]?, poses[p.target]?);
             let r = p.registration.as_ref()?;
-            let points = views[p.source].as_ref()?.prepared().points();
+            let points = views[p.source]?.prepared().points();
             let e = PoseError::between(&(tt.inverse() * ts), &r.pose, points);
             Some((k, e.rms_displacement_mm))
         })

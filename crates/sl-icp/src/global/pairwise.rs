@@ -1,10 +1,10 @@
 //! Global registration of one pair: descriptors, matches, RANSAC, then ICP.
 
-use nalgebra::{Isometry3, Vector3};
-use sl_cloud::{NormalConfig, NormalOrientation, PointCloud, estimate_normals_with_index};
+use nalgebra::Isometry3;
+use sl_cloud::PointCloud;
 
 use crate::global::correspondences::{FeatureIndex, MatchConfig, match_features};
-use crate::global::fpfh::{Fpfh, FpfhConfig, compute_fpfh};
+use crate::global::fpfh::{Fpfh, FpfhConfig, Neighbourhoods, fpfh_of_neighbourhoods};
 use crate::global::orientation::orient_normals_outward;
 use crate::global::ransac::{RansacConfig, RansacResult, ransac_pose};
 use crate::{
@@ -26,7 +26,8 @@ pub struct GlobalConfig {
     /// Voxel size of the downsampling before descriptors, mm. Default 2 mm (Open3D's
     /// examples use 5 cm for rooms; 2 mm keeps a 100 mm object's shape in ~5,000 points).
     pub voxel_size: f64,
-    /// Neighbours for the normals of the downsampled cloud. Default 16: about a 4 mm
+    /// Neighbours for the normals of the downsampled cloud (the point included), taken from
+    /// its FPFH neighbourhood (fewer where that holds fewer). Default 16: about a 4 mm
     /// neighbourhood on a 2 mm grid (Open3D's examples use a radius of 2 voxels).
     pub normal_neighbours: usize,
     /// The descriptors. Default radius 10 mm (5 voxels).
@@ -143,17 +144,12 @@ impl GlobalCloud {
                 },
             });
         }
-        let mut normals: Vec<Vector3<f64>> = estimate_normals_with_index(
-            prepared.points(),
-            prepared.index(),
-            &NormalConfig {
-                k: config.normal_neighbours,
-                orientation: NormalOrientation::Unoriented,
-            },
-        )?
-        .normals;
+        // One neighbour search serves the normals and the descriptors: the 16 nearest of a
+        // point lie well inside its 10 mm FPFH ball.
+        let hoods = Neighbourhoods::new(prepared.points(), prepared.index(), &config.fpfh);
+        let mut normals = hoods.nearest_normals(prepared.points(), config.normal_neighbours);
         let one_sided = orient_normals_outward(prepared.points(), &mut normals);
-        let features = compute_fpfh(prepared.points(), &normals, prepared.index(), &config.fpfh)?;
+        let features = fpfh_of_neighbourhoods(prepared.points(), &normals, &hoods);
         prepared.replace_normals(Some(normals));
         let index = FeatureIndex::new(&features);
         Ok(Self {
