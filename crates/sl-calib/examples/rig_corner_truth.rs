@@ -117,6 +117,15 @@ fn main() {
 
     let mut config = RigConfig::default();
     config.render.seed = seed;
+    // `SUPERSAMPLING=n` renders with n×n samples per pixel instead of the rig's default (2×2,
+    // as `slscan scan`): the renderer's point samples put an axis-aligned edge on a grid of
+    // 1/n px.
+    if let Some(n) = std::env::var("SUPERSAMPLING")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        config.render.supersampling = n;
+    }
     let board = Checkerboard::default();
     let size = BoardSize::new(board.inner_cols, board.inner_rows);
     let poses = random_board_poses(
