@@ -30,35 +30,36 @@ fn grey(img: GreyImage) -> image::GrayImage {
     image::GrayImage::from_raw(img.width, img.height, px).unwrap()
 }
 
+/// The settings compared: the default (saddle points) and those named in `CONFIGS`
+/// (comma-separated; default `junction`): `junction` ([`DetectorConfig::with_junction_fit`]),
+/// `jr8`, `jr12`, `jr16` (the junction fit with that largest radius), `jf03` (fraction 0.3).
 fn configs() -> Vec<(&'static str, DetectorConfig)> {
     let d = DetectorConfig::default();
+    let j = DetectorConfig::with_junction_fit();
     let mut out = vec![("default", d)];
     let names: Vec<String> = std::env::var("CONFIGS")
-        .unwrap_or_else(|_| "saddle,jr12,jr8".to_owned())
+        .unwrap_or_else(|_| "junction".to_owned())
         .split(',')
         .map(str::to_owned)
         .collect();
     for n in names {
         let c = match n.as_str() {
-            "saddle" => DetectorConfig {
-                junction_fraction: 0.0,
-                ..d
-            },
+            "junction" => j,
             "jr12" => DetectorConfig {
                 max_junction_radius: 12.0,
-                ..d
+                ..j
             },
             "jr8" => DetectorConfig {
                 max_junction_radius: 8.0,
-                ..d
+                ..j
             },
             "jr16" => DetectorConfig {
                 max_junction_radius: 16.0,
-                ..d
+                ..j
             },
             "jf03" => DetectorConfig {
                 junction_fraction: 0.3,
-                ..d
+                ..j
             },
             _ => continue,
         };
@@ -306,6 +307,50 @@ fn main() {
                 }
             }
         }
+        // 3-D error of the estimated rig: the true board corners of every hand-held pose seen
+        // through the true camera and projector, triangulated (midpoint of the two rays) with
+        // the estimated models and T_cam_proj.
+        let mut e3 = Acc::default();
+        let mut depth = Acc::default();
+        let (tcam, tproj) = (&config.camera, &config.projector);
+        let (ecam, eproj) = (&r.camera.camera, &r.projector.camera);
+        for t in truths.iter().take(count) {
+            for x in &t.corners_cam {
+                let (Some(u), Some(v)) = (
+                    tcam.project(x),
+                    tproj.project(&config.t_cam_proj.inverse_transform_point(x)),
+                ) else {
+                    continue;
+                };
+                let (Some(a), Some(b)) = (ecam.unproject_ray(&u), eproj.unproject_ray(&v)) else {
+                    continue;
+                };
+                let (o1, d1) = (nalgebra::Point3::origin(), a.into_inner());
+                let o2 = r.t_cam_proj * nalgebra::Point3::origin();
+                let d2 = r.t_cam_proj.rotation * b.into_inner();
+                // Closest points of the two lines.
+                let w = o1 - o2;
+                let (aa, bb, cc, dd, ee) = (
+                    d1.dot(&d1),
+                    d1.dot(&d2),
+                    d2.dot(&d2),
+                    d1.dot(&w),
+                    d2.dot(&w),
+                );
+                let den = aa * cc - bb * bb;
+                let s1 = (bb * ee - cc * dd) / den;
+                let s2 = (aa * ee - bb * dd) / den;
+                let p = nalgebra::center(&(o1 + d1 * s1), &(o2 + d2 * s2));
+                let err = p - x;
+                e3.add(Vector2::new(err.norm(), 0.0));
+                depth.add(Vector2::new(err.z, 0.0));
+            }
+        }
+        println!(
+            "{n}: 3-D error of the estimated rig on the hand-held poses' corners: RMS {:.4} mm, mean depth error {:+.4} mm",
+            e3.rms(),
+            depth.bias().x
+        );
         println!(
             "{n}: RMS {:.4}/{:.4}/{:.4} px; camera fx {:+.4} % fy {:+.4} % cx {:+.3} cy {:+.3}; projector fx {:+.4} % fy {:+.4} % cx {:+.3} cy {:+.3}; baseline error {:.4} mm; projector corners bias ({:+.4}, {:+.4}) RMS {:.4}",
             r.rms_camera,
