@@ -8,7 +8,9 @@
 //!
 //! Renders each condition (lens blur, vignetting, gamma, sensor noise, 0.3–5 MP, squares of
 //! 20–120 px, perspective tilt, boards lit by the mean of three phase-shifted fringes; see
-//! `tests/support/board_render.rs`), detects the corners with `detect_checkerboard`, writes
+//! `tests/support/board_render.rs`), detects the corners with `detect_checkerboard` (with
+//! `DetectorConfig::with_junction_fit()`; `--junction-fraction 0` for the default saddle
+//! points), writes
 //! the images and `manifest.json` (truth per image) to `--out`, runs
 //! `benches/peers/opencv_corners.py` on them with `--python` when given, and prints one table:
 //! per condition the RMS and largest corner error against truth (px), ours and OpenCV's.
@@ -173,7 +175,7 @@ fn main() {
     let mut out = std::env::temp_dir().join("sl-corner-harness");
     let mut images = 3usize;
     let mut only: Option<String> = None;
-    let mut cfg = DetectorConfig::default();
+    let mut cfg = DetectorConfig::with_junction_fit();
     // Detections per image; the fastest is the time reported (the machine is shared).
     let mut repeat = 1usize;
     while let Some(a) = args.next() {

@@ -53,10 +53,11 @@ fn left_camera_matches_opencv_on_our_corners() {
     for n in NAMES {
         let path = dir.join(format!("left{n}.jpg"));
         let img = load_grey(&path).unwrap();
+        // The fixture holds the junction fit's corners.
         let found = detect_checkerboard(
             &img,
             size,
-            &DetectorConfig::default(),
+            &DetectorConfig::with_junction_fit(),
             &path.display().to_string(),
         )
         .unwrap();
@@ -135,12 +136,9 @@ fn camera_rms(dir: &std::path::Path, side: &str, config: &DetectorConfig) -> f64
 #[test]
 fn junction_fit_does_not_worsen_either_camera() {
     let Some(dir) = data_dir() else { return };
-    let saddle_only = DetectorConfig {
-        junction_fraction: 0.0,
-        ..DetectorConfig::default()
-    };
+    let saddle_only = DetectorConfig::default();
     for side in ["left", "right"] {
-        let with = camera_rms(&dir, side, &DetectorConfig::default());
+        let with = camera_rms(&dir, side, &DetectorConfig::with_junction_fit());
         let without = camera_rms(&dir, side, &saddle_only);
         eprintln!(
             "{side}: RMS {with:.4} px with the junction fit, {without:.4} px saddle points only"

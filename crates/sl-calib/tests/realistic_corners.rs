@@ -41,12 +41,12 @@ fn defocused() -> RenderSpec {
 #[test]
 fn junction_fit_beats_saddle_points_on_a_defocused_board() {
     let spec = defocused();
-    let with = error_of(&spec, &DetectorConfig::default());
+    let with = error_of(&spec, &DetectorConfig::with_junction_fit());
     let without = error_of(
         &spec,
         &DetectorConfig {
             junction_fraction: 0.0,
-            ..DetectorConfig::default()
+            ..DetectorConfig::with_junction_fit()
         },
     );
     eprintln!("defocused: RMS {with:.4} px with the junction fit, {without:.4} px without");
@@ -68,7 +68,7 @@ fn board_lit_by_the_mean_of_three_fringes() {
         noise: 3.0,
         ..defocused()
     };
-    let e = error_of(&spec, &DetectorConfig::default());
+    let e = error_of(&spec, &DetectorConfig::with_junction_fit());
     eprintln!("fringe mean: RMS {e:.4} px");
     // Measured ~0.04 px on such images (OpenCV: 0.08 px): the ripple of the fringe mean is
     // the largest error left; 0.06 px fails if the refiner stops absorbing the uneven light.
@@ -89,7 +89,7 @@ fn large_defocused_image_is_found_through_the_pyramid() {
         rows: 6,
         ..spec
     };
-    let e = error_of(&spec, &DetectorConfig::default());
+    let e = error_of(&spec, &DetectorConfig::with_junction_fit());
     eprintln!("defocus 3: RMS {e:.4} px");
     assert!(e < 0.06, "{e}");
 }
@@ -123,7 +123,7 @@ fn grid_point_on_an_edge_is_recovered_from_its_neighbours() {
         noise: 3.0,
         ..RenderSpec::new(2592, 1944, 120.0)
     };
-    let e = error_of(&spec, &DetectorConfig::default());
+    let e = error_of(&spec, &DetectorConfig::with_junction_fit());
     eprintln!("16 % ripple, 5 MP: RMS {e:.4} px");
     // Measured 0.13 px (OpenCV 0.25 px on the same condition): the ripple's bias dominates.
     assert!(e < 0.2, "{e}");
