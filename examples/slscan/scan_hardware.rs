@@ -22,7 +22,7 @@ use structured_light::mesh::PoissonConfig;
 use structured_light::scan::{
     MergeStageConfig, PlacementConfig, PlacementRig, ReconstructConfig, ScanError,
     SessionScanConfig, capture_placements, load_scan_calibration, mesh_stage, placement_dir_name,
-    scan_placements, scan_session, write_scan_cloud,
+    scan_placements, scan_poisson_config, scan_session, write_scan_cloud,
 };
 
 use crate::capture;
@@ -256,7 +256,12 @@ fn run_placements(
     let merged = &scan.merge.merged;
     let files = report.stage("write", || write_scan_cloud(&out, merged, |_| {}))?;
     let meshed = report.stage("mesh", || {
-        mesh_stage(merged, None, None, &PoissonConfig::default(), &out)
+        let poisson = scan_poisson_config(
+            merged,
+            config.merge.merge.output_voxel_size,
+            PoissonConfig::default().depth,
+        );
+        mesh_stage(merged, None, None, &poisson, &out)
     });
     report.figure("rig", "hardware");
     report.figure("calibration", calib_path.display().to_string());
@@ -329,7 +334,12 @@ fn reconstruct(
     // The same mesh stage as the virtual scan, without a truth to measure it against. The
     // merged cloud is on disk already; a cloud that cannot be meshed keeps it and its report.
     let meshed = report.stage("mesh", || {
-        mesh_stage(&scan.merged, None, None, &PoissonConfig::default(), &out)
+        let poisson = scan_poisson_config(
+            &scan.merged,
+            config.merge.merge.output_voxel_size,
+            PoissonConfig::default().depth,
+        );
+        mesh_stage(&scan.merged, None, None, &poisson, &out)
     });
     report.figure("rig", "hardware");
     report.figure("calibration", calib_path.display().to_string());

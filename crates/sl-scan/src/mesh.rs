@@ -55,6 +55,52 @@ pub struct MeshFiles {
     pub view3d: String,
 }
 
+/// Largest finest-cell edge of a scan's mesh as a fraction of the merged cloud's sample
+/// spacing. A cell finer than the samples adds triangles but no detail (the surface between
+/// samples is interpolated either way); at most three quarters of the spacing keeps every
+/// sample in a cell of its own.
+pub const MESH_CELL_PER_SPACING: f64 = 0.75;
+
+/// The screened-Poisson settings of a scan's mesh: depth `max_depth`, or the shallowest depth
+/// below it whose finest cell (the cloud's bounding cube, times the reconstruction's margin,
+/// over `2^depth`) is at most [`MESH_CELL_PER_SPACING`] of `spacing_mm`, the merged cloud's
+/// sample spacing (the merge's output voxel; `None` keeps `max_depth`). The default dumbbell
+/// scan (≈ 170 mm, 0.5 mm voxels) keeps depth 9 (0.37 mm cells); an 80 mm object gets depth 8
+/// instead of 9: a quarter of the triangles, the same detail.
+///
+/// ```
+/// use nalgebra::Point3;
+/// use sl_cloud::PointCloud;
+/// use sl_scan::scan_poisson_config;
+/// let corners = |e: f64| PointCloud::from_positions(vec![Point3::origin(), Point3::new(e, e / 2.0, e / 3.0)]);
+/// assert_eq!(scan_poisson_config(&corners(170.0), Some(0.5), 9).depth, 9);
+/// assert_eq!(scan_poisson_config(&corners(85.0), Some(0.5), 9).depth, 8);
+/// assert_eq!(scan_poisson_config(&corners(85.0), None, 9).depth, 9);
+/// assert_eq!(scan_poisson_config(&corners(400.0), Some(0.5), 9).depth, 9);
+/// ```
+pub fn scan_poisson_config(
+    cloud: &PointCloud,
+    spacing_mm: Option<f64>,
+    max_depth: u32,
+) -> PoissonConfig {
+    let base = PoissonConfig {
+        depth: max_depth,
+        ..PoissonConfig::default()
+    };
+    let (Some(spacing), Some(b)) = (spacing_mm, cloud.bounding_box()) else {
+        return base;
+    };
+    let cube = (b.max - b.min).max() * base.scale;
+    if !(spacing.is_finite() && spacing > 0.0 && cube.is_finite() && cube > 0.0) {
+        return base;
+    }
+    let target = MESH_CELL_PER_SPACING * spacing;
+    let depth = (1..=max_depth)
+        .find(|&d| cube / f64::from(1u32 << d) <= target)
+        .unwrap_or(max_depth);
+    PoissonConfig { depth, ..base }
+}
+
 /// Runs the mesh stage on `merged` into `out`.
 ///
 /// # Errors

@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use sl_cloud::PointCloud;
-use sl_mesh::{PoissonConfig, write_ply_mesh};
+use sl_mesh::write_ply_mesh;
 use sl_metrology::{
     CoverageConfig, DEFAULT_SELECT_MM, DEFAULT_TRUTH_SAMPLE_AREA_MM2, SurfaceCoverage,
     SurfaceDistance, TriangleMesh, distance_to_surface, surface_coverage,
@@ -21,7 +21,7 @@ use sl_sim::{DEFAULT_WORKING_DISTANCE_MM, Scene, VirtualRig};
 
 use crate::calibrate::true_calibration;
 use crate::error::{io, stage_err};
-use crate::mesh::{MeshFiles, MeshSummary, mesh_stage};
+use crate::mesh::{MeshFiles, MeshSummary, mesh_stage, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::virtual_scan::capture_virtual;
 use crate::{
@@ -264,10 +264,8 @@ pub fn scan_virtual_placements(
     let (mesh, mesh_files) = match cfg.mesh_depth {
         Some(depth) => {
             let t = Instant::now();
-            let poisson = PoissonConfig {
-                depth,
-                ..PoissonConfig::default()
-            };
+            let poisson =
+                scan_poisson_config(&merged, session_cfg.merge.merge.output_voxel_size, depth);
             let (summary, files) = mesh_stage(&merged, None, None, &poisson, out)?;
             stages.push(StageTime::since("mesh", t));
             (Some(summary), Some(files))

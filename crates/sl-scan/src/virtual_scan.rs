@@ -14,7 +14,6 @@ use serde::Serialize;
 use sl_camera::{Calibration, ImageSize, Intrinsics};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::{BitDepth, ProjectorSize};
-use sl_mesh::PoissonConfig;
 use sl_metrology::{Report, Truth};
 use sl_rig::{
     SessionConfig, SessionDevices, SessionPlan, SessionSummary, turntable_angles, view_dir_name,
@@ -24,7 +23,7 @@ use sl_tri::Triangulator;
 
 use crate::calibrate::true_calibration;
 use crate::error::{io, stage_err};
-use crate::mesh::{MeshFiles, MeshSummary, mesh_stage};
+use crate::mesh::{MeshFiles, MeshSummary, mesh_stage, scan_poisson_config};
 use crate::{
     CalibrationSummary, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX, ScanError,
     ScanProgress, SessionScanConfig, StageTime, calibrate_virtual, capture_session, measure_scan,
@@ -84,8 +83,10 @@ pub struct VirtualScanConfig {
     /// 0.22 to 0.15 mm (0.15 to 0.12 mm with 0.3 % left out) and the plate's flatness from
     /// 0.41 to 0.22 mm, for 5 % of the points (`docs/user-guide.md`).
     pub edge_erosion_px: usize,
-    /// Octree depth of the mesh of the merged cloud (`sl_mesh::PoissonConfig::depth`); `None`
-    /// makes no mesh. Default 9 (cells of 0.36 mm on the dumbbell).
+    /// Largest octree depth of the mesh of the merged cloud (`sl_mesh::PoissonConfig::depth`;
+    /// [`scan_poisson_config`](crate::scan_poisson_config) takes a shallower one where its cells
+    /// would be much finer than the merged cloud's samples); `None` makes no mesh. Default 9
+    /// (cells of 0.37 mm on the dumbbell).
     pub mesh_depth: Option<u32>,
 }
 
@@ -371,10 +372,11 @@ pub fn scan_virtual(
     let (mesh, mesh_files) = match cfg.mesh_depth {
         Some(depth) => {
             let t = Instant::now();
-            let poisson = PoissonConfig {
+            let poisson = scan_poisson_config(
+                &scan.merged,
+                scan_config.merge.merge.output_voxel_size,
                 depth,
-                ..PoissonConfig::default()
-            };
+            );
             let (summary, files) = mesh_stage(
                 &scan.merged,
                 Some(&measured.accuracy.signed_distances_mm),
