@@ -3,7 +3,8 @@
 //! `sl_calib::calibrate_turntable`), and the checks a calibration file passes before a scan
 //! starts.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use serde::Serialize;
 use sl_calib::{
@@ -22,7 +23,7 @@ use sl_sim::{
 };
 
 use crate::error::stage_err;
-use crate::{ScanError, ScanProgress, VirtualScanConfig};
+use crate::{ScanError, ScanProgress, StageTime, VirtualScanConfig};
 
 /// How the calibration was obtained and how far it is from the rig's truth.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -196,6 +197,28 @@ pub fn calibrate_virtual(
         axis_position_error_mm: position_error,
     };
     Ok((calibration, summary))
+}
+
+/// Stage 1 of a scan on the virtual rig: the calibration estimated from simulated board
+/// captures ([`calibrate_virtual`]), or the rig's truth with `cfg.true_calibration`, saved as
+/// `calibration.json` in `out` (its path returned) and timed into `stages`.
+pub(crate) fn calibrate_virtual_stage(
+    rig: &VirtualRig,
+    cfg: &VirtualScanConfig,
+    out: &Path,
+    stages: &mut Vec<StageTime>,
+    progress: impl FnMut(ScanProgress<'_>),
+) -> Result<(Calibration, CalibrationSummary, PathBuf), ScanError> {
+    let t = Instant::now();
+    let (calibration, summary) = if cfg.true_calibration {
+        true_calibration(rig)
+    } else {
+        calibrate_virtual(rig, cfg, progress)?
+    };
+    let calib_path = out.join("calibration.json");
+    calibration.save(&calib_path)?;
+    stages.push(StageTime::since("calibrate", t));
+    Ok((calibration, summary, calib_path))
 }
 
 /// The rig's exact calibration, as [`calibrate_virtual`] would return it (diagnostic runs).

@@ -19,15 +19,15 @@ use sl_metrology::{
 use sl_rig::turntable_angles;
 use sl_sim::{DEFAULT_WORKING_DISTANCE_MM, Scene, VirtualRig};
 
-use crate::calibrate::true_calibration;
+use crate::calibrate::calibrate_virtual_stage;
 use crate::error::{io, stage_err};
 use crate::mesh::{MeshFiles, MeshSummary, mesh_stage, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::virtual_scan::capture_virtual;
 use crate::{
     CalibrationSummary, MergeStageConfig, ReconstructConfig, ScanError, ScanProgress,
-    SessionScanConfig, StageTime, VirtualScanConfig, calibrate_virtual, capture_placements,
-    placement_dir_name, scaled_rig_config, scan_placements, write_scan_cloud,
+    SessionScanConfig, StageTime, VirtualScanConfig, capture_placements, placement_dir_name,
+    scaled_rig_config, scan_placements, write_scan_cloud,
 };
 
 /// The virtual rig's placements: captures each session of the current scene, and lays the
@@ -152,15 +152,8 @@ pub fn scan_virtual_placements(
     let rig = VirtualRig::new(config, scene.clone())?;
 
     // 1. Calibrate.
-    let t = Instant::now();
-    let (calibration, calibration_summary) = if cfg.true_calibration {
-        true_calibration(&rig)
-    } else {
-        calibrate_virtual(&rig, cfg, &mut progress)?
-    };
-    let calib_path = out.join("calibration.json");
-    calibration.save(&calib_path)?;
-    stages.push(StageTime::since("calibrate", t));
+    let (calibration, calibration_summary, calib_path) =
+        calibrate_virtual_stage(&rig, cfg, out, &mut stages, &mut progress)?;
 
     // 2. The placement loop: capture, lay the object on its side, capture.
     let t = Instant::now();

@@ -21,14 +21,14 @@ use sl_rig::{
 use sl_sim::{RigConfig, Scene, VirtualRig};
 use sl_tri::Triangulator;
 
-use crate::calibrate::true_calibration;
+use crate::calibrate::calibrate_virtual_stage;
 use crate::error::{io, stage_err};
 use crate::mesh::{MeshFiles, MeshSummary, mesh_stage, scan_poisson_config};
 use crate::{
     CalibrationSummary, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX, ScanError,
-    ScanProgress, SessionScanConfig, StageTime, calibrate_virtual, capture_session, measure_scan,
-    plate_scene, plate_truth, reconstruct_view_eroded, scan_patterns, scan_session, scene_truth,
-    write_heat_map, write_scan_cloud,
+    ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan, plate_scene,
+    plate_truth, reconstruct_view_eroded, scan_patterns, scan_session, scene_truth, write_heat_map,
+    write_scan_cloud,
 };
 
 /// Options of [`scan_virtual`].
@@ -255,15 +255,8 @@ pub fn scan_virtual(
     let rig = VirtualRig::new(config, Scene::dumbbell())?;
 
     // 1. Calibrate.
-    let t = Instant::now();
-    let (calibration, calibration_summary) = if cfg.true_calibration {
-        true_calibration(&rig)
-    } else {
-        calibrate_virtual(&rig, cfg, &mut progress)?
-    };
-    let calib_path = out.join("calibration.json");
-    calibration.save(&calib_path)?;
-    stages.push(StageTime::since("calibrate", t));
+    let (calibration, calibration_summary, calib_path) =
+        calibrate_virtual_stage(&rig, cfg, out, &mut stages, &mut progress)?;
 
     // 2. Capture the turntable session through the device traits.
     let t = Instant::now();
