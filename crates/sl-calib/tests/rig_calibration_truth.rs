@@ -10,78 +10,26 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test helpers: a failure is the test failing
 
 use nalgebra::Point3;
-use sl_calib::sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
-    ProjectorSize, decode,
-};
 use sl_calib::{
     BoardSize, DetectorConfig, ProcamCalibration, ProcamConfig, ProcamView, calibrate_procam,
     sl_camera::ImageSize,
 };
-use sl_sim::{
-    BoardPoseConfig, BoardTruth, Checkerboard, GreyImage, Pixels, RigConfig, Scene, VirtualRig,
-    capture_board, random_board_poses,
-};
+use sl_sim::{BoardTruth, Checkerboard, RigConfig, Scene};
 
-fn grey(img: GreyImage) -> image::GrayImage {
-    let Pixels::U8(px) = img.pixels else {
-        panic!("8-bit sensor expected")
-    };
-    image::GrayImage::from_raw(img.width, img.height, px).unwrap()
-}
+#[path = "support/procam_render.rs"]
+mod procam_render;
 
-/// The scan's hand-held calibration views (seed 0) with their truth.
+/// The scan's hand-held calibration views (seed 0: 12 poses, 4-step hybrid code with 30 px
+/// periods on both axes, the dumbbell scene) with their truth.
 fn scan_views() -> (RigConfig, Vec<ProcamView>, Vec<BoardTruth>) {
     let mut config = RigConfig::default();
     config.render.seed = 0;
-    let board = Checkerboard::default();
-    let poses = random_board_poses(
-        &config,
-        &board,
-        &BoardPoseConfig {
-            count: 12,
-            seed: 0,
-            ..BoardPoseConfig::default()
-        },
-    )
-    .unwrap();
-    let rig = VirtualRig::new(config.clone(), Scene::dumbbell()).unwrap();
-    let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
-    let sequence = PatternSequence::new(p)
-        .with(Pattern::Hybrid(HybridSpec::complementary(
-            Axis::Column,
-            p,
-            4,
-            f64::from(p.width) / 30.0,
-        )))
-        .with(Pattern::Hybrid(HybridSpec::complementary(
-            Axis::Row,
-            p,
-            4,
-            f64::from(p.height) / 30.0,
-        )));
-    let manifest = sequence.manifest(BitDepth::Eight);
-    let mut views = Vec::new();
-    let mut truth = Vec::new();
-    for (k, pose) in poses.iter().enumerate() {
-        let cap = capture_board(&rig, &board, pose, Some(&sequence), k as u64).unwrap();
-        let frames: Vec<Frame<u8>> = cap
-            .frames
-            .into_iter()
-            .map(|img| {
-                let g = grey(img);
-                Frame::new(g.width() as usize, g.height() as usize, g.into_raw()).unwrap()
-            })
-            .collect();
-        let set = CaptureSet::from_frames(manifest.clone(), Frames::U8(frames)).unwrap();
-        views.push(ProcamView {
-            name: format!("board pose {k}"),
-            lit: grey(cap.white),
-            map: decode(&set, &DecodeConfig::default()).unwrap(),
-        });
-        truth.push(cap.board);
-    }
-    (config, views, truth)
+    let periods = (
+        f64::from(config.projector.size.width) / 30.0,
+        f64::from(config.projector.size.height) / 30.0,
+    );
+    let r = procam_render::render_with(config, Scene::dumbbell(), 4, periods, 12, 0);
+    (r.config, r.views, r.truth)
 }
 
 /// RMS (mm) of the 3-D error of the estimated rig `c` on the true corners of `truth`: each

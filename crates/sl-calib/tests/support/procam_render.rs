@@ -1,6 +1,7 @@
 //! Board poses rendered by the virtual rig with the hybrid code on both projector axes, and
 //! decoded: the input of a projector–camera calibration, with the rig's truth. Shared by
-//! `tests/procam.rs` and `benches/procam.rs` (included with `#[path]`).
+//! `tests/procam.rs`, `tests/rig_calibration_truth.rs` and `benches/procam.rs` (included with
+//! `#[path]`).
 
 // The bench reads the views only; the truth is for the tests.
 #![allow(dead_code)]
@@ -21,7 +22,7 @@ use sl_sim::{
 /// read noise of this many electrons is 1 grey level, as in `tests/virtual_rig.rs`.
 const ONE_GREY_LEVEL_E: f64 = 10_000.0 / 255.0;
 
-fn grey(img: GreyImage) -> image::GrayImage {
+pub(crate) fn grey(img: GreyImage) -> image::GrayImage {
     let Pixels::U8(px) = img.pixels else {
         panic!("8-bit sensor expected")
     };
@@ -41,6 +42,22 @@ pub(crate) fn render(count: usize, seed: u64) -> Rendered {
     let mut config = RigConfig::default();
     config.render.effects.sensor.photon_noise = false;
     config.render.effects.sensor.read_noise_electrons = ONE_GREY_LEVEL_E;
+    // ~30 projector px per period on both axes.
+    render_with(config, Scene::sphere(), 8, (64.0, 36.0), count, seed)
+}
+
+/// `count` board poses (seeded) of the rig `config` with `scene` on the turntable, the hybrid
+/// code (`steps`-step phase shift + complementary Gray code, `periods` across the projector's
+/// columns and rows) on both projector axes, decoded; the captures' noise keys are the pose
+/// numbers, as `sl_scan::calibrate_virtual`'s.
+pub(crate) fn render_with(
+    config: RigConfig,
+    scene: Scene,
+    steps: u32,
+    periods: (f64, f64),
+    count: usize,
+    seed: u64,
+) -> Rendered {
     let board = Checkerboard::default();
     let poses = random_board_poses(
         &config,
@@ -53,22 +70,21 @@ pub(crate) fn render(count: usize, seed: u64) -> Rendered {
     )
     .unwrap();
     let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
-    // ~30 projector px per period on both axes.
     let sequence = PatternSequence::new(p)
         .with(Pattern::Hybrid(HybridSpec::complementary(
             Axis::Column,
             p,
-            8,
-            64.0,
+            steps,
+            periods.0,
         )))
         .with(Pattern::Hybrid(HybridSpec::complementary(
             Axis::Row,
             p,
-            8,
-            36.0,
+            steps,
+            periods.1,
         )));
     let manifest = sequence.manifest(BitDepth::Eight);
-    let rig = VirtualRig::new(config.clone(), Scene::sphere()).unwrap();
+    let rig = VirtualRig::new(config.clone(), scene).unwrap();
     let mut views = Vec::new();
     let mut truth = Vec::new();
     let t = Instant::now();
