@@ -22,12 +22,10 @@ What it measures (one table per side, medians over RUNS runs per pair):
     last table puts the two totals side by side. Build it first:
     `cargo build --release -p sl-icp --example global_bunny`.
 
-Conventions, identical to sl-icp's tests, benches and examples:
-  * scans converted from metres to millimetres (x1000); every length below is in mm;
-  * bun.conf: p_world = R(q)^T p + t (quaternion scalar-last), so T_world_scan = (R^T, 1000 t)
-    and the reference T_target_source = T_world_target^-1 T_world_source;
-  * error of an estimate T against T_ref: rotation angle of R_ref^T R (deg); translation
-    |t - t_ref| (mm); RMS displacement sqrt(mean |T p - T_ref p|^2) over the source's points;
+Conventions, identical to sl-icp's tests, benches and examples (scans in mm with their
+bun.conf poses, the pose error: `common.py`):
+  * the reference T_target_source = T_world_target^-1 T_world_source;
+  * the error's RMS displacement is over the source's points;
   * success: RMS displacement <= 1 mm after the final ICP (the issue's target; a wrong
     alignment is off by tens of mm, a right one by a few tenths). The RANSAC pose alone is
     reported too ("ransac rms"): it is what Open3D's call returns.
@@ -46,9 +44,9 @@ import time
 
 import numpy as np
 import open3d as o3d
-from scipy.spatial.transform import Rotation
 
-MM_PER_M = 1000.0
+from common import bunny_dir, load, pose_error
+
 VOXEL = 2.0
 NAMES = ["bun000", "bun045", "bun090"]
 # (source, target), in the order of the Rust example's table.
@@ -56,30 +54,6 @@ PAIRS = [(1, 0), (2, 0), (2, 1), (0, 1), (0, 2), (1, 2)]
 SUCCESS_MM = 1.0
 OURS = os.path.join(os.path.dirname(__file__), "..", "..", "target", "release", "examples",
                     "global_bunny")
-
-
-def load(directory, name):
-    pcd = o3d.io.read_point_cloud(os.path.join(directory, name + ".ply"))
-    pts = np.asarray(pcd.points) * MM_PER_M
-    with open(os.path.join(directory, "bun.conf")) as f:
-        for line in f:
-            w = line.split()
-            if w and w[0] == "bmesh" and w[1] == name + ".ply":
-                t = np.array([float(v) for v in w[2:5]]) * MM_PER_M
-                q = [float(v) for v in w[5:9]]  # qx qy qz qw (scalar last)
-                T = np.eye(4)
-                T[:3, :3] = Rotation.from_quat(q).as_matrix().T
-                T[:3, 3] = t
-                return pts, T
-    raise SystemExit(f"{name} not in bun.conf")
-
-
-def pose_error(T, T_ref, pts):
-    dR = T_ref[:3, :3].T @ T[:3, :3]
-    angle = np.degrees(np.arccos(np.clip((np.trace(dR) - 1) / 2, -1, 1)))
-    trans = np.linalg.norm(T[:3, 3] - T_ref[:3, 3])
-    d = (pts @ T[:3, :3].T + T[:3, 3]) - (pts @ T_ref[:3, :3].T + T_ref[:3, 3])
-    return angle, trans, np.sqrt((d ** 2).sum(1).mean())
 
 
 def describe(pts):
@@ -156,11 +130,9 @@ def main():
     ap.add_argument("--runs", type=int, default=5, help="runs per pair (median reported)")
     ap.add_argument("--ours", default=OURS, help="our example binary (skipped if missing)")
     args = ap.parse_args()
-    data = os.environ.get("SL_DATA")
-    if not data:
-        print("SL_DATA not set: skipping the global bunny peer figures")
+    d = bunny_dir("the global bunny peer figures")
+    if d is None:
         return
-    d = os.path.join(data, "bunny")
     scans = [load(d, n) for n in NAMES]
     ours = args.ours if os.path.exists(args.ours) else None
     if not ours:

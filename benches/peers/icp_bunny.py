@@ -11,15 +11,13 @@ What it measures (printed as one table, medians and minima over RUNS runs):
   * Open3D point-to-point ICP, 1 mm voxels, from the raw scan poses (34 deg / 53 mm off),
     with 5 mm and with 20 mm max distance.
 
-Conventions, identical to sl-icp's tests, bench and `examples/bunny.rs`:
-  * scans converted from metres to millimetres (x1000); every length below is in mm;
-  * bun.conf: p_world = R(q)^T p + t (quaternion scalar-last), so T_world_scan = (R^T, 1000 t)
-    and the reference T_000_045 = T_world_000^-1 T_world_045;
+Conventions, identical to sl-icp's tests, bench and `examples/bunny.rs` (scans in mm with
+their bun.conf poses, the pose error: `common.py`):
+  * the reference T_000_045 = T_world_000^-1 T_world_045;
   * start "5 deg off" = T_ref * P, P a 5 deg rotation about the +y axis of bun045 through the
     centroid of its (full-resolution) points: 5.00 deg / 5.36 mm by the definition below;
-  * error of an estimate T against T_ref: rotation angle of R_ref^T R (deg); translation
-    |t - t_ref| (mm, the translation of T_ref^-1 T: how far the origin of bun045's frame is
-    misplaced); and the RMS displacement sqrt(mean |T p - T_ref p|^2) over bun045's points.
+  * the error's translation |t - t_ref| tells how far the origin of bun045's frame is
+    misplaced; its RMS displacement is over bun045's points.
 
 Run (not in CI; needs open3d and small_gicp, e.g. `pip install open3d small_gicp`):
     SL_DATA=/work/shared/data /tmp/peers/bin/python benches/peers/icp_bunny.py
@@ -36,32 +34,9 @@ import open3d as o3d
 import small_gicp
 from scipy.spatial.transform import Rotation
 
+from common import bunny_dir, load, pose_error
+
 RUNS = 21
-MM_PER_M = 1000.0
-
-
-def load(directory, name):
-    pcd = o3d.io.read_point_cloud(os.path.join(directory, name + ".ply"))
-    pts = np.asarray(pcd.points) * MM_PER_M
-    with open(os.path.join(directory, "bun.conf")) as f:
-        for line in f:
-            w = line.split()
-            if w and w[0] == "bmesh" and w[1] == name + ".ply":
-                t = np.array([float(v) for v in w[2:5]]) * MM_PER_M
-                q = [float(v) for v in w[5:9]]  # qx qy qz qw (scalar last)
-                T = np.eye(4)
-                T[:3, :3] = Rotation.from_quat(q).as_matrix().T
-                T[:3, 3] = t
-                return pts, T
-    raise SystemExit(f"{name} not in bun.conf")
-
-
-def pose_error(T, T_ref, pts):
-    dR = T_ref[:3, :3].T @ T[:3, :3]
-    angle = np.degrees(np.arccos(np.clip((np.trace(dR) - 1) / 2, -1, 1)))
-    trans = np.linalg.norm(T[:3, 3] - T_ref[:3, 3])
-    d = (pts @ T[:3, :3].T + T[:3, 3]) - (pts @ T_ref[:3, :3].T + T_ref[:3, 3])
-    return angle, trans, np.sqrt((d ** 2).sum(1).mean())
 
 
 def cloud(pts):
@@ -77,11 +52,9 @@ def timed(f):
 
 
 def main():
-    data = os.environ.get("SL_DATA")
-    if not data:
-        print("SL_DATA not set: skipping the bunny peer figures")
+    d = bunny_dir("the bunny peer figures")
+    if d is None:
         return
-    d = os.path.join(data, "bunny")
     tgt, T0 = load(d, "bun000")
     src, T45 = load(d, "bun045")
     T_ref = np.linalg.inv(T0) @ T45

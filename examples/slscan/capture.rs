@@ -105,7 +105,7 @@ fn manifest(args: &Args, projector: (u32, u32)) -> anyhow::Result<Manifest> {
 }
 
 /// Runs one session on any devices, with progress and report.
-fn run_session<C, P, T>(
+pub(crate) fn run_session<C, P, T>(
     args: &Args,
     devices: SessionDevices,
     camera: &mut C,

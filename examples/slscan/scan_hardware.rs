@@ -13,6 +13,11 @@
 //! captures `DIR/placement_2/session/`, and merges both placements into one model
 //! (`sl_scan::capture_placements`, `sl_scan::scan_placements`: the stages of the virtual rig's
 //! `--placements 2`).
+//!
+//! The devices are reached through one seam, [`CaptureSession`]: `slscan` passes
+//! `capture::run_hardware` (the V4L2 camera, the projector window and the Dynamixel turntable
+//! of the options), the test of the whole loop (`scan_hardware_placements.rs`) the virtual
+//! rig's devices behind the same `sl-rig` traits; everything else runs unchanged.
 
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -76,8 +81,29 @@ pub(crate) fn wanted(args: &Args) -> anyhow::Result<bool> {
     Ok(false)
 }
 
-/// Runs `slscan scan` on the devices.
+/// Captures one turntable session on the devices, given the arguments `slscan capture` would
+/// get: `capture::run_hardware` on real devices.
+pub(crate) type CaptureSession<'a> = dyn FnMut(&capture::Args) -> anyhow::Result<()> + 'a;
+
+/// Runs `slscan scan` on the devices of the options, talking to the user on the terminal.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    let mut on_devices = capture::run_hardware;
+    run_on(
+        args,
+        &mut on_devices,
+        std::io::stdin().lock(),
+        std::io::stdout(),
+    )
+}
+
+/// Runs `slscan scan` on hardware with `capture` as the devices; between two placements the
+/// user is asked on `output` and answers on `input`.
+pub(crate) fn run_on(
+    args: &Args,
+    capture: &mut CaptureSession<'_>,
+    input: impl BufRead,
+    output: impl Write,
+) -> anyhow::Result<()> {
     let Some(calib_path) = &args.rig.calib else {
         anyhow::bail!(
             "a scan on hardware needs --calib FILE: a calibration.json with camera, projector and turntable axis, as `slscan calibrate all` (or `slscan calibrate projector` then `slscan calibrate turntable`) writes it"
@@ -99,7 +125,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     // Everything the reconstruction needs is checked before a device moves.
     let calibration = load_scan_calibration(calib_path)?;
     if args.placements > 1 {
-        return run_placements(args, calib_path, &calibration);
+        return run_placements(args, calib_path, &calibration, capture, input, output);
     }
     anyhow::ensure!(
         args.placement_wait.is_none(),
@@ -109,7 +135,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("scan");
     let session_dir = args.out.join(SESSION_DIR);
     let capture_args = capture_args(args, calib_path, &session_dir);
-    report.stage("capture", || capture::run_hardware(&capture_args))?;
+    report.stage("capture", || capture(&capture_args))?;
     reconstruct(args, calib_path, &calibration, &session_dir, report)
 }
 
@@ -135,21 +161,22 @@ pub(crate) const REPLACE_PROMPT: &str = "lay the object on its side and press En
 /// The real devices' placements: each session captured with the code of `slscan capture`,
 /// the user asked to re-place the object in between (`input` and `output`: the terminal, or
 /// a test's buffers).
-struct DevicePlacements<'a, I, O> {
+struct DevicePlacements<'a, 'c, I, O> {
     args: &'a Args,
     calib: &'a Path,
+    capture: &'a mut CaptureSession<'c>,
     input: I,
     output: O,
 }
 
-impl<I: BufRead, O: Write> PlacementRig for DevicePlacements<'_, I, O> {
+impl<I: BufRead, O: Write> PlacementRig for DevicePlacements<'_, '_, I, O> {
     fn capture(&mut self, placement: usize, dir: &Path) -> Result<usize, ScanError> {
         let _ = writeln!(
             self.output,
             "placement {placement}: capturing {}",
             dir.display()
         );
-        capture::run_hardware(&capture_args(self.args, self.calib, dir)).map_err(|e| {
+        (self.capture)(&capture_args(self.args, self.calib, dir)).map_err(|e| {
             ScanError::Stage {
                 stage: "capture".into(),
                 reason: format!("placement {placement}: {e:#}"),
@@ -217,13 +244,17 @@ fn run_placements(
     args: &Args,
     calib_path: &Path,
     calibration: &sl_camera::Calibration,
+    capture: &mut CaptureSession<'_>,
+    input: impl BufRead,
+    output: impl Write,
 ) -> anyhow::Result<()> {
     let mut report = Report::new("scan");
     let mut rig = DevicePlacements {
         args,
         calib: calib_path,
-        input: std::io::stdin().lock(),
-        output: std::io::stdout(),
+        capture,
+        input,
+        output,
     };
     let sessions = report.stage("capture", || {
         capture_placements(&args.out, args.placements, &mut rig)
@@ -391,6 +422,10 @@ fn reconstruct(
     }
     Ok(())
 }
+
+#[cfg(test)]
+#[path = "scan_hardware_placements.rs"]
+mod placements_loop;
 
 #[cfg(test)]
 mod tests {

@@ -8,7 +8,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_calib::{BoardSize, DetectorConfig, TurntableConfig, TurntableView, calibrate_turntable};
-use sl_sim::{Checkerboard, Pixels, RigConfig, Scene, VirtualRig, capture_board_on_table};
+use sl_sim::{Checkerboard, RigConfig, Scene, VirtualRig, capture_board_on_table};
 
 fn bench(c: &mut Criterion) {
     let config = RigConfig::default();
@@ -18,10 +18,7 @@ fn bench(c: &mut Criterion) {
     let mut images = Vec::new();
     for (k, m) in (-3..=3).map(|k| f64::from(k) * 15.0).enumerate() {
         let cap = capture_board_on_table(&rig, &board, m, None, k as u64).unwrap();
-        let Pixels::U8(px) = cap.white.pixels else {
-            panic!("8-bit sensor expected")
-        };
-        let img = image::GrayImage::from_raw(cap.white.width, cap.white.height, px).unwrap();
+        let img = cap.white.into_gray8().unwrap();
         images.push((m, img));
     }
     let detect = |(m, img): &(f64, image::GrayImage)| {

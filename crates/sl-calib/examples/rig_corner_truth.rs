@@ -19,16 +19,9 @@ use sl_calib::{
     sl_camera::ImageSize,
 };
 use sl_sim::{
-    BoardPoseConfig, BoardTruth, Checkerboard, GreyImage, Pixels, RigConfig, Scene, VirtualRig,
-    capture_board, capture_board_on_table, random_board_poses,
+    BoardPoseConfig, BoardTruth, Checkerboard, RigConfig, Scene, VirtualRig, capture_board,
+    capture_board_on_table, random_board_poses,
 };
-
-fn grey(img: GreyImage) -> image::GrayImage {
-    let Pixels::U8(px) = img.pixels else {
-        panic!("8-bit sensor expected")
-    };
-    image::GrayImage::from_raw(img.width, img.height, px).unwrap()
-}
 
 /// The settings compared: the default (saddle points) and those named in `CONFIGS`
 /// (comma-separated; default `junction`): `junction` ([`DetectorConfig::with_junction_fit`]),
@@ -166,20 +159,20 @@ fn main() {
                 .frames
                 .into_iter()
                 .map(|img| {
-                    let g = grey(img);
+                    let g = img.into_gray8().unwrap();
                     Frame::new(g.width() as usize, g.height() as usize, g.into_raw()).unwrap()
                 })
                 .collect();
             let set = CaptureSet::from_frames(manifest.clone(), Frames::U8(frames)).unwrap();
             maps.push(decode(&set, &DecodeConfig::default()).unwrap());
         }
-        whites.push((format!("pose {k}"), grey(cap.white)));
+        whites.push((format!("pose {k}"), cap.white.into_gray8().unwrap()));
         truths.push(cap.board);
     }
     let angles: Vec<f64> = (-3..=3).map(|k| f64::from(k) * 15.0).collect();
     for (k, &a) in angles.iter().enumerate() {
         let cap = capture_board_on_table(&rig, &board, a, None, (count + k) as u64).unwrap();
-        whites.push((format!("table {a:+.0}"), grey(cap.white)));
+        whites.push((format!("table {a:+.0}"), cap.white.into_gray8().unwrap()));
         truths.push(cap.board);
     }
 

@@ -10,16 +10,9 @@
 use nalgebra::{Point2, Vector2};
 use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
 use sl_sim::{
-    BoardPoseConfig, Checkerboard, GreyImage, Pixels, RigConfig, Scene, VirtualRig, capture_board,
+    BoardPoseConfig, Checkerboard, RigConfig, Scene, VirtualRig, capture_board,
     capture_board_on_table, random_board_poses,
 };
-
-fn grey(img: GreyImage) -> image::GrayImage {
-    let Pixels::U8(px) = img.pixels else {
-        panic!("8-bit sensor expected")
-    };
-    image::GrayImage::from_raw(img.width, img.height, px).unwrap()
-}
 
 /// The white frames of `slscan scan`'s calibration stage (seed 0: 12 hand-held poses, then
 /// the board on the turntable at −45° to 45° in 15° steps) with their true corner pixels.
@@ -42,14 +35,22 @@ fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>
     let mut out = Vec::new();
     for (k, pose) in poses.iter().enumerate() {
         let cap = capture_board(&rig, &board, pose, None, k as u64).unwrap();
-        out.push((format!("pose {k}"), grey(cap.white), truth(&cap.board)));
+        out.push((
+            format!("pose {k}"),
+            cap.white.into_gray8().unwrap(),
+            truth(&cap.board),
+        ));
     }
     for k in 0..7 {
         let angle = f64::from(k - 3) * 15.0;
         let cap =
             capture_board_on_table(&rig, &board, angle, None, (poses.len() + k as usize) as u64)
                 .unwrap();
-        out.push((format!("table {angle}"), grey(cap.white), truth(&cap.board)));
+        out.push((
+            format!("table {angle}"),
+            cap.white.into_gray8().unwrap(),
+            truth(&cap.board),
+        ));
     }
     out
 }

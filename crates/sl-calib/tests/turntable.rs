@@ -11,7 +11,7 @@ use sl_calib::{
     BoardSize, CalibError, CalibrationView, DetectorConfig, PoseAtAngle, TurntableConfig,
     TurntableView, calibrate_turntable, fit_turntable_axis,
 };
-use sl_sim::{Checkerboard, Pixels, RigConfig, Scene, VirtualRig, capture_board_on_table};
+use sl_sim::{Checkerboard, RigConfig, Scene, VirtualRig, capture_board_on_table};
 
 /// Electrons per grey level of the default sensor (10 000 e⁻ full well over 255 levels).
 const ONE_GREY_LEVEL_E: f64 = 10_000.0 / 255.0;
@@ -165,10 +165,7 @@ fn rendered_board_on_the_turntable_meets_the_targets() {
     let mut views = Vec::new();
     for (k, m) in (-3..=3).map(|k| f64::from(k) * 15.0).enumerate() {
         let cap = capture_board_on_table(&rig, &board, m, None, k as u64).unwrap();
-        let Pixels::U8(px) = cap.white.pixels else {
-            panic!("8-bit sensor expected")
-        };
-        let img = image::GrayImage::from_raw(cap.white.width, cap.white.height, px).unwrap();
+        let img = cap.white.into_gray8().unwrap();
         views.push(
             TurntableView::detect(
                 &img,

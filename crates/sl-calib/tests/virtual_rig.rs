@@ -7,8 +7,7 @@ use sl_calib::{
     BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera, detect_checkerboard,
 };
 use sl_sim::{
-    BoardPoseConfig, Checkerboard, Pixels, RigConfig, Scene, VirtualRig, capture_board,
-    random_board_poses,
+    BoardPoseConfig, Checkerboard, RigConfig, Scene, VirtualRig, capture_board, random_board_poses,
 };
 
 /// Electrons per grey level of the default sensor (10 000 e⁻ full well over 255 levels):
@@ -41,10 +40,7 @@ fn render(count: usize, seed: u64) -> Rendered {
     let mut truth = Vec::new();
     for (k, pose) in poses.iter().enumerate() {
         let cap = capture_board(&rig, &board, pose, None, k as u64).unwrap();
-        let Pixels::U8(px) = cap.white.pixels else {
-            panic!("8-bit sensor expected")
-        };
-        images.push(image::GrayImage::from_raw(cap.white.width, cap.white.height, px).unwrap());
+        images.push(cap.white.into_gray8().unwrap());
         truth.push(cap.board.corners_px.iter().map(|c| c.unwrap()).collect());
     }
     Rendered {

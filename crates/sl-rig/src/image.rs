@@ -88,6 +88,38 @@ impl GreyImage {
         }
     }
 
+    /// The image as an 8-bit `image::GrayImage`, the input of `sl-calib`'s checkerboard
+    /// detector: 8-bit pixels as they are (no copy), 16-bit pixels by their high byte
+    /// (`v >> 8`).
+    ///
+    /// ```
+    /// use sl_rig::{GreyImage, Pixels};
+    /// # fn main() -> Result<(), sl_rig::RigError> {
+    /// let frame = GreyImage::new(2, 1, Pixels::U16(vec![0x1234, 0xff00]))?;
+    /// assert_eq!(frame.into_gray8()?.into_raw(), [0x12, 0xff]);
+    /// # Ok(())
+    /// # }
+    /// ```
+    ///
+    /// # Errors
+    /// [`RigError::BufferLength`] when the pixels are not `width × height` values (the
+    /// fields are public, so the image may have been built without [`GreyImage::new`]).
+    pub fn into_gray8(self) -> Result<::image::GrayImage, RigError> {
+        let len = self.pixels.len();
+        let px = match self.pixels {
+            Pixels::U8(p) => p,
+            Pixels::U16(p) => p.into_iter().map(|v| (v >> 8) as u8).collect(),
+        };
+        ::image::GrayImage::from_raw(self.width, self.height, px).ok_or_else(|| {
+            RigError::BufferLength {
+                what: "grey image".to_owned(),
+                len,
+                width: self.width,
+                height: self.height,
+            }
+        })
+    }
+
     /// The value of pixel `(x, y)` in the image's own units (0–255 or 0–65535), or `None`
     /// outside the image.
     pub fn get(&self, x: u32, y: u32) -> Option<u16> {
@@ -99,5 +131,36 @@ impl GreyImage {
             Pixels::U8(v) => v.get(i).map(|&p| u16::from(p)),
             Pixels::U16(v) => v.get(i).copied(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn into_gray8_keeps_8_bit_pixels_and_names_a_wrong_length() {
+        let img = GreyImage::new(3, 1, Pixels::U8(vec![0, 128, 255])).unwrap();
+        let g = img.into_gray8().unwrap();
+        assert_eq!((g.width(), g.height()), (3, 1));
+        assert_eq!(g.into_raw(), [0, 128, 255]);
+        let bad = GreyImage {
+            width: 2,
+            height: 2,
+            pixels: Pixels::U16(vec![0; 3]),
+        };
+        let e = bad.into_gray8().unwrap_err();
+        assert!(
+            matches!(
+                e,
+                RigError::BufferLength {
+                    len: 3,
+                    width: 2,
+                    height: 2,
+                    ..
+                }
+            ),
+            "{e}"
+        );
     }
 }

@@ -16,7 +16,7 @@ use sl_codec::{
     Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
     ProjectorSize, decode,
 };
-use sl_rig::{GreyImage, Pixels};
+use sl_rig::GreyImage;
 use sl_sim::{
     BoardPoseConfig, Checkerboard, VirtualRig, capture_board, capture_board_on_table,
     random_board_poses,
@@ -53,12 +53,8 @@ pub struct CalibrationSummary {
 }
 
 fn grey_image(img: GreyImage, what: &str) -> Result<sl_calib::image::GrayImage, ScanError> {
-    let px = match img.pixels {
-        Pixels::U8(p) => p,
-        Pixels::U16(p) => p.into_iter().map(|v| (v >> 8) as u8).collect(),
-    };
-    sl_calib::image::GrayImage::from_raw(img.width, img.height, px)
-        .ok_or_else(|| stage_err("calibrate", format!("{what}: bad image buffer")))
+    img.into_gray8()
+        .map_err(|e| stage_err("calibrate", format!("{what}: {e}")))
 }
 
 fn frames_u8(images: Vec<GreyImage>) -> Result<Frames, ScanError> {

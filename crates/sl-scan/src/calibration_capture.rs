@@ -34,7 +34,7 @@ use sl_calib::{
     BoardCorners, BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera,
     detect_checkerboard,
 };
-use sl_rig::{Camera, GreyImage, Pixels, Projector, RigError, Turntable, write_capture_set};
+use sl_rig::{Camera, GreyImage, Projector, RigError, Turntable, write_capture_set};
 use sl_sim::Checkerboard;
 
 use crate::calibration_coverage::Coverage;
@@ -930,12 +930,9 @@ fn remove_partials(dir: &Path) -> Result<(), CaptureError> {
 
 /// A camera frame as an 8-bit image for the detector (16-bit frames keep their high byte).
 fn to_gray8(img: &GreyImage) -> Result<sl_calib::image::GrayImage, CaptureError> {
-    let px = match &img.pixels {
-        Pixels::U8(p) => p.clone(),
-        Pixels::U16(p) => p.iter().map(|&v| (v >> 8) as u8).collect(),
-    };
-    sl_calib::image::GrayImage::from_raw(img.width, img.height, px)
-        .ok_or_else(|| CaptureError::param("frame", "pixel buffer of the wrong length"))
+    img.clone()
+        .into_gray8()
+        .map_err(|e| CaptureError::param("frame", e.to_string()))
 }
 
 #[cfg(test)]

@@ -14,20 +14,13 @@ use sl_codec::{
     ProjectorSize, decode,
 };
 use sl_sim::{
-    BoardPoseConfig, BoardTruth, Checkerboard, GreyImage, Pixels, RigConfig, Scene, VirtualRig,
-    capture_board, random_board_poses,
+    BoardPoseConfig, BoardTruth, Checkerboard, RigConfig, Scene, VirtualRig, capture_board,
+    random_board_poses,
 };
 
 /// Electrons per grey level of the default sensor (10 000 e⁻ full well over 255 levels):
 /// read noise of this many electrons is 1 grey level, as in `tests/virtual_rig.rs`.
 const ONE_GREY_LEVEL_E: f64 = 10_000.0 / 255.0;
-
-pub(crate) fn grey(img: GreyImage) -> image::GrayImage {
-    let Pixels::U8(px) = img.pixels else {
-        panic!("8-bit sensor expected")
-    };
-    image::GrayImage::from_raw(img.width, img.height, px).unwrap()
-}
 
 /// Views, their truth and the rig.
 pub(crate) struct Rendered {
@@ -94,7 +87,7 @@ pub(crate) fn render_with(
             .frames
             .into_iter()
             .map(|img| {
-                let g = grey(img);
+                let g = img.into_gray8().unwrap();
                 Frame::new(g.width() as usize, g.height() as usize, g.into_raw()).unwrap()
             })
             .collect();
@@ -102,7 +95,7 @@ pub(crate) fn render_with(
         let map = decode(&set, &DecodeConfig::default()).unwrap();
         views.push(ProcamView {
             name: format!("pose {k}"),
-            lit: grey(cap.white),
+            lit: cap.white.into_gray8().unwrap(),
             map,
         });
         truth.push(cap.board);

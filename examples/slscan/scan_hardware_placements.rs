@@ -1,0 +1,257 @@
+//! `slscan scan --placements 2` on devices, run as a user runs it — the options of a real rig,
+//! the prompt between the placements answered with Enter — with the virtual rig's camera,
+//! projector and turntable (`sl_sim::VirtualRig::devices`, behind `sl-rig`'s traits) in place
+//! of the V4L2 camera, the projector window and the Dynamixel table. The person at the rig is
+//! simulated too: it lays the pebble on its side when the screen asks for it, not before.
+//!
+//! Small, as `crates/sl-scan/tests/placements.rs`: half resolution, 8 views per placement,
+//! the rig's true calibration as `--calib` (the calibration is tested elsewhere). The truth is
+//! the pebble's own mesh: the merged model must cover it (`sl_metrology::surface_coverage`).
+
+use std::cell::RefCell;
+use std::io::Write;
+use std::path::Path;
+use std::rc::Rc;
+use std::time::Duration;
+
+use clap::Parser;
+use sl_cloud::{PointCloud, read_ply};
+use sl_metrology::{
+    CoverageConfig, DEFAULT_SELECT_MM, DEFAULT_TRUTH_SAMPLE_AREA_MM2, SurfaceCoverage,
+    SurfaceDistance, TriangleMesh, distance_to_surface, surface_coverage,
+};
+use sl_rig::SessionDevices;
+use sl_sim::{DEFAULT_WORKING_DISTANCE_MM, Scene, VirtualRig};
+use structured_light::scan::{MergeStageConfig, full_turn_motor_angles, scaled_rig_config};
+
+use crate::{Cli, Command};
+
+/// Resolution divisor of the virtual rig: half resolution, as the library's placements test.
+const DOWNSCALE: u32 = 2;
+
+/// What the person at the rig reacts to on the screen: both the Enter prompt and the message
+/// of `--placement-wait` say it.
+const LAY_ON_SIDE: &str = "lay the object on its side";
+
+/// The person at the rig and the rig on its turntable: the object stands as the person left
+/// it; the screen is what the command printed to them.
+struct Person {
+    rig: RefCell<VirtualRig>,
+    screen: RefCell<String>,
+    replaced: RefCell<usize>,
+}
+
+impl Person {
+    /// Reads the screen: for each request to lay the object on its side not yet done, lays
+    /// the object on its side.
+    fn look(&self) -> anyhow::Result<()> {
+        let asked = self.screen.borrow().matches(LAY_ON_SIDE).count();
+        while *self.replaced.borrow() < asked {
+            let laid = self.rig.borrow().scene().laid_on_side()?;
+            let moved = self.rig.borrow().with_scene(laid)?;
+            *self.rig.borrow_mut() = moved;
+            *self.replaced.borrow_mut() += 1;
+        }
+        Ok(())
+    }
+}
+
+/// The terminal the command writes its questions to: the person reads it as it is written.
+struct Screen(Rc<Person>);
+
+impl Write for Screen {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0
+            .screen
+            .borrow_mut()
+            .push_str(&String::from_utf8_lossy(buf));
+        self.0.look().map_err(std::io::Error::other)?;
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+fn scan_args(args: &[&str]) -> crate::scan::Args {
+    let mut argv = vec!["slscan", "scan"];
+    argv.extend_from_slice(args);
+    match Cli::try_parse_from(argv).map(|c| c.command) {
+        Ok(Command::Scan(a)) => a,
+        other => panic!("parsed as {other:?}"),
+    }
+}
+
+/// Coverage of the true surface and distance to it.
+fn measure(
+    cloud: &PointCloud,
+    truth: &TriangleMesh,
+    cfg: &CoverageConfig,
+) -> (SurfaceCoverage, SurfaceDistance) {
+    (
+        surface_coverage(truth, cloud, cfg).unwrap(),
+        distance_to_surface(
+            cloud,
+            truth,
+            DEFAULT_TRUTH_SAMPLE_AREA_MM2,
+            DEFAULT_SELECT_MM,
+        )
+        .unwrap(),
+    )
+}
+
+fn figures(out: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(out.join("report.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["figures"].clone()
+}
+
+/// The hardware placements loop end to end: two sessions, the person lays the pebble on its
+/// side when asked and presses Enter, the placements are reconstructed, aligned with no pose
+/// hint and merged, and the merged model covers the pebble where one placement cannot.
+#[test]
+fn two_placements_on_devices_with_enter_between() {
+    let mut keys: &[u8] = b"\n";
+    let screen = two_placements(&[], &mut keys);
+    assert!(
+        screen.contains(&format!("placement 2 of 2: {}", super::REPLACE_PROMPT)),
+        "{screen}"
+    );
+    assert!(keys.is_empty(), "Enter was not read");
+}
+
+/// The same with `--placement-wait` (for scripts): the command says what to do and waits
+/// instead of reading the keyboard; the person re-places the object in that time.
+#[test]
+fn two_placements_on_devices_with_placement_wait() {
+    let mut keys: &[u8] = b"not read\n";
+    let screen = two_placements(&["--placement-wait", "0.5"], &mut keys);
+    assert!(
+        screen.contains("placement 2 of 2: lay the object on its side; scanning again in 0.5 s"),
+        "{screen}"
+    );
+    assert_eq!(keys, b"not read\n");
+}
+
+/// Runs `slscan scan --placements 2` on the virtual devices with the options of a real rig
+/// and `extra`, `keys` as the keyboard; checks the files, the report and the merged model
+/// against the truth; returns what the screen showed.
+fn two_placements(extra: &[&str], keys: &mut &[u8]) -> String {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = scaled_rig_config(DOWNSCALE);
+    let calib = tmp.path().join("calibration.json");
+    let calibration = config.calibration();
+    calibration.save(&calib).unwrap();
+    let out = tmp.path().join("scan");
+    // The options a user gives on a real rig; the device paths are not opened here: the
+    // virtual devices stand in for them.
+    let args = scan_args(
+        &[
+            "--out",
+            out.to_str().unwrap(),
+            "--camera",
+            "/dev/video0",
+            "--projector-monitor",
+            "1",
+            "--turntable",
+            "/dev/ttyUSB0",
+            "--calib",
+            calib.to_str().unwrap(),
+            "--views",
+            "8",
+            "--placements",
+            "2",
+        ]
+        .iter()
+        .chain(extra)
+        .copied()
+        .collect::<Vec<_>>(),
+    );
+    let standing = Scene::pebble().unwrap();
+    let person = Rc::new(Person {
+        rig: RefCell::new(VirtualRig::new(config.clone(), standing.clone()).unwrap()),
+        screen: RefCell::new(String::new()),
+        replaced: RefCell::new(0),
+    });
+    let mut sessions = 0;
+    let mut on_virtual_devices = |a: &crate::capture::Args| -> anyhow::Result<()> {
+        sessions += 1;
+        // Opened per session, as `capture::run_hardware` opens the real devices.
+        let (mut camera, mut projector, mut table) = person.rig.borrow().devices();
+        let devices = SessionDevices {
+            camera: "virtual camera".to_owned(),
+            projector: "virtual projector".to_owned(),
+            turntable: "virtual turntable".to_owned(),
+        };
+        crate::capture::run_session(
+            a,
+            devices,
+            &mut camera,
+            &mut projector,
+            &mut table,
+            Duration::ZERO,
+        )
+    };
+    super::run_on(&args, &mut on_virtual_devices, keys, Screen(person.clone())).unwrap();
+
+    // Asked once, between the two sessions; the object was laid on its side once.
+    assert_eq!(sessions, 2);
+    let screen = person.screen.borrow().clone();
+    println!("{screen}");
+    assert_eq!(screen.matches(LAY_ON_SIDE).count(), 1, "{screen}");
+    assert_eq!(*person.replaced.borrow(), 1);
+
+    for f in [
+        "placement_1/session/session.json",
+        "placement_2/session/view_007/manifest.json",
+        "placement_1/merged.ply",
+        "placement_2/merged.ply",
+        "merged.ply",
+        "mesh.ply",
+        "mesh.stl",
+        "report.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let fig = figures(&out);
+    assert_eq!(fig["rig"], "hardware");
+    assert_eq!(fig["placements"], 2);
+    let fitness = fig["per_placement"][1]["alignment"]["fitness"]
+        .as_f64()
+        .unwrap();
+    assert!(fitness >= 0.3, "{fitness}");
+    assert!(fig["mesh"]["triangles"].as_u64().unwrap() > 1000);
+
+    // The truth: the standing pebble's surface in the camera frame of the first view, the
+    // frame of the merged cloud.
+    let angles = full_turn_motor_angles(calibration.turntable.as_ref(), 8).unwrap();
+    let truth = standing
+        .surface_mesh(&config.t_cam_table_at(angles[0]))
+        .unwrap();
+    // Coverage distance: twice the sample spacing, the larger of the camera pixel's
+    // footprint at the working distance and the merge voxel (as the virtual scan's).
+    let footprint = DEFAULT_WORKING_DISTANCE_MM / calibration.camera.intrinsics.fx;
+    let voxel = MergeStageConfig::scan(true, args.smoothing_neighbours, true)
+        .merge
+        .output_voxel_size
+        .unwrap_or(0.0);
+    let cov = CoverageConfig::for_spacing(footprint.max(voxel));
+    let (single, single_d) = measure(
+        &read_ply(&out.join("placement_1/merged.ply")).unwrap(),
+        &truth,
+        &cov,
+    );
+    let (whole, whole_d) = measure(&read_ply(&out.join("merged.ply")).unwrap(), &truth, &cov);
+    println!("placement 1: {single:?} {single_d:?}\nmerged: {whole:?} {whole_d:?}");
+    // One placement misses the flat bottom (15.5 % of the area); the two merged cover 99 %
+    // or more, the target of issue 16, and lie as close to the truth: within 1.5 times the
+    // single placement's RMS.
+    assert!(single.covered_fraction < 0.9, "{single:?}");
+    assert!(whole.covered_fraction >= 0.99, "{whole:?}");
+    assert!(
+        whole_d.rms_mm <= 1.5 * single_d.rms_mm,
+        "merged {whole_d:?} vs single {single_d:?}"
+    );
+    screen
+}
