@@ -11,16 +11,15 @@
 
 use nalgebra::{Point2, Vector2};
 use sl_calib::sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
-    ProjectorSize, decode,
+    BitDepth, CaptureSet, DecodeConfig, Frame, Frames, ProjectorSize, decode,
 };
 use sl_calib::{
     BoardSize, DetectorConfig, ProcamConfig, ProcamView, calibrate_procam, detect_checkerboard,
     sl_camera::ImageSize,
 };
 use sl_sim::{
-    BoardPoseConfig, BoardTruth, Checkerboard, RigConfig, Scene, VirtualRig, capture_board,
-    capture_board_on_table, random_board_poses,
+    BoardPoseConfig, BoardTruth, CalibrationCaptures, CalibrationSession, RigConfig, Scene,
+    VirtualRig, calibration_sequence,
 };
 
 /// The settings compared: the default (saddle points) and those named in `CONFIGS`
@@ -120,40 +119,28 @@ fn main() {
     {
         config.render.supersampling = n;
     }
-    let board = Checkerboard::default();
-    let size = BoardSize::new(board.inner_cols, board.inner_rows);
-    let poses = random_board_poses(
-        &config,
-        &board,
-        &BoardPoseConfig {
+    // The captures of `sl_scan::calibrate_virtual`: its session, board, patterns and noise keys.
+    let session = CalibrationSession {
+        poses: BoardPoseConfig {
             count,
             seed,
             ..BoardPoseConfig::default()
         },
-    )
-    .unwrap();
+        ..CalibrationSession::default()
+    };
+    let board = session.board;
+    let size = BoardSize::new(board.inner_cols, board.inner_rows);
     let rig = VirtualRig::new(config.clone(), Scene::dumbbell()).unwrap();
+    let captures = CalibrationCaptures::new(&rig, &session).unwrap();
     let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
-    let sequence = PatternSequence::new(p)
-        .with(Pattern::Hybrid(HybridSpec::complementary(
-            Axis::Column,
-            p,
-            4,
-            f64::from(p.width) / 30.0,
-        )))
-        .with(Pattern::Hybrid(HybridSpec::complementary(
-            Axis::Row,
-            p,
-            4,
-            f64::from(p.height) / 30.0,
-        )));
+    let sequence = calibration_sequence(p);
     let manifest = sequence.manifest(BitDepth::Eight);
     let cfgs = configs();
     let mut whites = Vec::new();
     let mut truths = Vec::new();
     let mut maps = Vec::new();
-    for (k, pose) in poses.iter().enumerate() {
-        let cap = capture_board(&rig, &board, pose, procam.then_some(&sequence), k as u64).unwrap();
+    for k in 0..captures.poses().len() {
+        let cap = captures.hand_held(k, procam.then_some(&sequence)).unwrap();
         if procam {
             let frames: Vec<Frame<u8>> = cap
                 .frames
@@ -169,9 +156,8 @@ fn main() {
         whites.push((format!("pose {k}"), cap.white.into_gray8().unwrap()));
         truths.push(cap.board);
     }
-    let angles: Vec<f64> = (-3..=3).map(|k| f64::from(k) * 15.0).collect();
-    for (k, &a) in angles.iter().enumerate() {
-        let cap = capture_board_on_table(&rig, &board, a, None, (count + k) as u64).unwrap();
+    for (k, &a) in session.turntable_angles_deg.iter().enumerate() {
+        let cap = captures.on_table(k, None).unwrap();
         whites.push((format!("table {a:+.0}"), cap.white.into_gray8().unwrap()));
         truths.push(cap.board);
     }

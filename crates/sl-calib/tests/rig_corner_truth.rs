@@ -10,8 +10,7 @@
 use nalgebra::{Point2, Vector2};
 use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
 use sl_sim::{
-    BoardPoseConfig, Checkerboard, RigConfig, Scene, VirtualRig, capture_board,
-    capture_board_on_table, random_board_poses,
+    BoardPoseConfig, CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig,
 };
 
 /// The white frames of `slscan scan`'s calibration stage (seed 0: 12 hand-held poses, then
@@ -19,33 +18,28 @@ use sl_sim::{
 fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>>)> {
     let mut config = RigConfig::default();
     config.render.seed = 0;
-    let board = Checkerboard::default();
-    let poses = random_board_poses(
-        &config,
-        &board,
-        &BoardPoseConfig {
+    let session = CalibrationSession {
+        poses: BoardPoseConfig {
             count: 12,
             seed: 0,
             ..BoardPoseConfig::default()
         },
-    )
-    .unwrap();
+        ..CalibrationSession::default()
+    };
     let rig = VirtualRig::new(config, Scene::dumbbell()).unwrap();
+    let captures = CalibrationCaptures::new(&rig, &session).unwrap();
     let truth = |c: &sl_sim::BoardTruth| c.corners_px.iter().map(|q| q.unwrap()).collect();
     let mut out = Vec::new();
-    for (k, pose) in poses.iter().enumerate() {
-        let cap = capture_board(&rig, &board, pose, None, k as u64).unwrap();
+    for k in 0..captures.poses().len() {
+        let cap = captures.hand_held(k, None).unwrap();
         out.push((
             format!("pose {k}"),
             cap.white.into_gray8().unwrap(),
             truth(&cap.board),
         ));
     }
-    for k in 0..7 {
-        let angle = f64::from(k - 3) * 15.0;
-        let cap =
-            capture_board_on_table(&rig, &board, angle, None, (poses.len() + k as usize) as u64)
-                .unwrap();
+    for (k, angle) in session.turntable_angles_deg.iter().enumerate() {
+        let cap = captures.on_table(k, None).unwrap();
         out.push((
             format!("table {angle}"),
             cap.white.into_gray8().unwrap(),

@@ -12,14 +12,10 @@ use sl_calib::{
     calibrate_turntable,
 };
 use sl_camera::{Calibration, TurntableAxis};
-use sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
-    ProjectorSize, decode,
-};
+use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frame, Frames, ProjectorSize, decode};
 use sl_rig::GreyImage;
 use sl_sim::{
-    BoardPoseConfig, Checkerboard, VirtualRig, capture_board, capture_board_on_table,
-    random_board_poses,
+    BoardPoseConfig, CalibrationCaptures, CalibrationSession, VirtualRig, calibration_sequence,
 };
 
 use crate::error::stage_err;
@@ -77,37 +73,25 @@ pub fn calibrate_virtual(
     mut progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<(Calibration, CalibrationSummary), ScanError> {
     let config = rig.config();
-    let board = Checkerboard::default();
-    let poses = random_board_poses(
-        config,
-        &board,
-        &BoardPoseConfig {
+    let session = CalibrationSession {
+        poses: BoardPoseConfig {
             count: cfg.calibration_poses,
             seed: cfg.seed,
             ..BoardPoseConfig::default()
         },
-    )?;
+        turntable_angles_deg: cfg.table_angles_deg.clone(),
+        ..CalibrationSession::default()
+    };
+    let board = session.board;
+    let captures = CalibrationCaptures::new(rig, &session)?;
+    let poses = captures.poses().len();
     let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
-    // Both axes coded (the projector needs rows and columns), ~30 projector px per period,
-    // 4 phase steps (8 halve the phase noise but double the rendering time of this stage).
-    let sequence = PatternSequence::new(p)
-        .with(Pattern::Hybrid(HybridSpec::complementary(
-            Axis::Column,
-            p,
-            4,
-            f64::from(p.width) / 30.0,
-        )))
-        .with(Pattern::Hybrid(HybridSpec::complementary(
-            Axis::Row,
-            p,
-            4,
-            f64::from(p.height) / 30.0,
-        )));
+    let sequence = calibration_sequence(p);
     let manifest = sequence.manifest(BitDepth::Eight);
-    let total = poses.len() + cfg.table_angles_deg.len();
-    let mut views = Vec::with_capacity(poses.len());
-    for (k, pose) in poses.iter().enumerate() {
-        let cap = capture_board(rig, &board, pose, Some(&sequence), k as u64)?;
+    let total = poses + cfg.table_angles_deg.len();
+    let mut views = Vec::with_capacity(poses);
+    for k in 0..poses {
+        let cap = captures.hand_held(k, Some(&sequence))?;
         let set = CaptureSet::from_frames(manifest.clone(), frames_u8(cap.frames)?)?;
         views.push(ProcamView {
             name: format!("board pose {k}"),
@@ -128,8 +112,7 @@ pub fn calibrate_virtual(
     drop(views);
     let mut table_views = Vec::new();
     for (k, &angle) in cfg.table_angles_deg.iter().enumerate() {
-        let index = (poses.len() + k) as u64;
-        let cap = capture_board_on_table(rig, &board, angle, None, index)?;
+        let cap = captures.on_table(k, None)?;
         let label = format!("board on the turntable at {angle} degrees");
         table_views.push(TurntableView::detect(
             &grey_image(cap.white, &label)?,
@@ -141,7 +124,7 @@ pub fn calibrate_virtual(
         )?);
         progress(ScanProgress {
             stage: "calibrate",
-            done: poses.len() + k + 1,
+            done: poses + k + 1,
             total,
         });
     }

@@ -22,7 +22,9 @@
 //! - **ground truth** ([`ViewTruth`], [`BoardTruth`]): depth, 3-D points, the exact projector
 //!   coordinate of every camera pixel, masks and poses, the rig's exact calibration
 //!   ([`RigConfig::calibration`]), and calibration captures ([`capture_board`],
-//!   [`capture_board_on_table`], [`simulate_calibration`]);
+//!   [`capture_board_on_table`], [`simulate_calibration`]; a session's captures one at a
+//!   time with its noise keys, [`CalibrationCaptures`], and the patterns of a projector
+//!   calibration, [`calibration_sequence`]);
 //! - **files**: capture sets in `sl-codec`'s format with their truth ([`simulate_scan`],
 //!   [`write_view_truth`]). `docs/virtual-rig.md` describes scenes, parameters and files.
 //!
@@ -73,6 +75,7 @@
 mod blur;
 mod board;
 mod calib;
+mod calibration_captures;
 mod config;
 mod error;
 mod files;
@@ -90,6 +93,9 @@ pub use board::{BOARD_DARK_ALBEDO, BOARD_LIGHT_ALBEDO, Checkerboard};
 pub use calib::{
     BoardCapture, BoardPoseConfig, BoardTruth, capture_board, capture_board_on_table,
     random_board_poses,
+};
+pub use calibration_captures::{
+    CALIBRATION_PERIOD_PX, CALIBRATION_PHASE_STEPS, CalibrationCaptures, calibration_sequence,
 };
 pub use config::{
     DEFAULT_AIM_HEIGHT_MM, DEFAULT_BASELINE_MM, DEFAULT_TILT_DEG, DEFAULT_WORKING_DISTANCE_MM,

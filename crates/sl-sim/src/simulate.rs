@@ -10,8 +10,8 @@ use sl_rig::write_capture_set;
 
 use crate::files::write_json;
 use crate::{
-    BoardCapture, BoardPoseConfig, Checkerboard, GreyImage, SimError, TRUTH_DIR, VirtualRig,
-    capture_board, capture_board_on_table, random_board_poses, write_view_truth,
+    BoardCapture, BoardPoseConfig, CalibrationCaptures, Checkerboard, GreyImage, SimError,
+    TRUTH_DIR, VirtualRig, write_view_truth,
 };
 
 /// What one simulated capture wrote, and how long it took.
@@ -137,12 +137,12 @@ pub fn simulate_calibration(
 ) -> Result<Vec<SimulatedCapture>, SimError> {
     let sequence = manifest.sequence();
     projector_images(rig, manifest)?; // checks the projector size
-    let poses = random_board_poses(rig.config(), &session.board, &session.poses)?;
+    let captures = CalibrationCaptures::new(rig, session)?;
     let mut done = Vec::new();
-    for (k, pose) in poses.iter().enumerate() {
+    for k in 0..captures.poses().len() {
         let dir = out.join("board").join(format!("pose_{k:03}"));
         let t = Instant::now();
-        let cap = capture_board(rig, &session.board, pose, Some(&sequence), k as u64)?;
+        let cap = captures.hand_held(k, Some(&sequence))?;
         let c = write_board_capture(
             &session.board,
             &cap,
@@ -158,8 +158,7 @@ pub fn simulate_calibration(
     for (k, &angle) in session.turntable_angles_deg.iter().enumerate() {
         let dir = out.join("turntable").join(format!("angle_{k:03}"));
         let t = Instant::now();
-        let index = (poses.len() + k) as u64;
-        let cap = capture_board_on_table(rig, &session.board, angle, Some(&sequence), index)?;
+        let cap = captures.on_table(k, Some(&sequence))?;
         let c = write_board_capture(
             &session.board,
             &cap,
