@@ -136,3 +136,70 @@ impl<'a> CalibrationCaptures<'a> {
         capture_board_on_table(self.rig, &self.session.board, angle, sequence, index)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{BoardPoseConfig, RigConfig, Scene};
+
+    /// Each capture is the one `capture_board` / `capture_board_on_table` render with the
+    /// session's noise key (`k`, then `poses + k`); another key gives other noise.
+    #[test]
+    fn captures_carry_the_sessions_noise_keys() {
+        let mut config = RigConfig::default();
+        config.render.supersampling = 1;
+        let rig = VirtualRig::new(config, Scene::sphere()).unwrap();
+        let session = CalibrationSession {
+            poses: BoardPoseConfig {
+                count: 2,
+                ..BoardPoseConfig::default()
+            },
+            turntable_angles_deg: vec![15.0],
+            ..CalibrationSession::default()
+        };
+        let c = CalibrationCaptures::new(&rig, &session).unwrap();
+        let held = c.hand_held(1, None).unwrap();
+        let direct = capture_board(&rig, &session.board, &c.poses()[1], None, 1).unwrap();
+        assert_eq!(held.white, direct.white);
+        let table = c.on_table(0, None).unwrap();
+        let direct = capture_board_on_table(&rig, &session.board, 15.0, None, 2).unwrap();
+        assert_eq!(table.white, direct.white);
+        let other_key = capture_board_on_table(&rig, &session.board, 15.0, None, 0).unwrap();
+        assert_ne!(table.white, other_key.white);
+
+        let e = c.hand_held(2, None).unwrap_err().to_string();
+        assert!(e.contains("board pose") && e.contains("2 poses"), "{e}");
+        let e = c.on_table(1, None).unwrap_err().to_string();
+        assert!(
+            e.contains("turntable angle") && e.contains("1 angles"),
+            "{e}"
+        );
+    }
+
+    /// Both projector axes are coded, with the documented steps and periods.
+    #[test]
+    fn the_sequence_codes_both_axes() {
+        let p = ProjectorSize::new(1920, 1080);
+        let s = calibration_sequence(p);
+        let hybrid: Vec<&HybridSpec> = s
+            .blocks
+            .iter()
+            .filter_map(|x| match x {
+                Pattern::Hybrid(h) => Some(h),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(hybrid.len(), 2);
+        for (h, axis, extent) in [
+            (hybrid[0], Axis::Column, 1920),
+            (hybrid[1], Axis::Row, 1080),
+        ] {
+            assert_eq!(
+                (h.axis, h.extent, h.steps),
+                (axis, extent, CALIBRATION_PHASE_STEPS)
+            );
+            // Periods of 30 projector pixels.
+            assert!((f64::from(extent) / h.periods - CALIBRATION_PERIOD_PX).abs() < 1e-9);
+        }
+    }
+}
