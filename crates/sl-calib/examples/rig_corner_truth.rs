@@ -18,8 +18,8 @@ use sl_calib::{
     sl_camera::ImageSize,
 };
 use sl_sim::{
-    BoardPoseConfig, BoardTruth, CalibrationCaptures, CalibrationSession, RigConfig, Scene,
-    VirtualRig, calibration_sequence,
+    BoardTruth, CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig,
+    calibration_sequence,
 };
 
 /// The settings compared: the default (saddle points) and those named in `CONFIGS`
@@ -120,14 +120,7 @@ fn main() {
         config.render.supersampling = n;
     }
     // The captures of `sl_scan::calibrate_virtual`: its session, board, patterns and noise keys.
-    let session = CalibrationSession {
-        poses: BoardPoseConfig {
-            count,
-            seed,
-            ..BoardPoseConfig::default()
-        },
-        ..CalibrationSession::default()
-    };
+    let session = CalibrationSession::with_poses(count, seed);
     let board = session.board;
     let size = BoardSize::new(board.inner_cols, board.inner_rows);
     let rig = VirtualRig::new(config.clone(), Scene::dumbbell()).unwrap();

@@ -14,7 +14,8 @@ use sl_calib::{
     BoardSize, DetectorConfig, ProcamCalibration, ProcamConfig, ProcamView, calibrate_procam,
     sl_camera::ImageSize,
 };
-use sl_sim::{BoardTruth, Checkerboard, RigConfig, Scene};
+use sl_codec::ProjectorSize;
+use sl_sim::{BoardTruth, Checkerboard, RigConfig, Scene, calibration_sequence};
 
 #[path = "support/procam_render.rs"]
 mod procam_render;
@@ -24,11 +25,9 @@ mod procam_render;
 fn scan_views() -> (RigConfig, Vec<ProcamView>, Vec<BoardTruth>) {
     let mut config = RigConfig::default();
     config.render.seed = 0;
-    let periods = (
-        f64::from(config.projector.size.width) / 30.0,
-        f64::from(config.projector.size.height) / 30.0,
-    );
-    let r = procam_render::render_with(config, Scene::dumbbell(), 4, periods, 12, 0);
+    let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
+    let sequence = calibration_sequence(p);
+    let r = procam_render::render_with(config, Scene::dumbbell(), &sequence, 12, 0);
     (r.config, r.views, r.truth)
 }
 

@@ -9,23 +9,14 @@
 
 use nalgebra::{Point2, Vector2};
 use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
-use sl_sim::{
-    BoardPoseConfig, CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig,
-};
+use sl_sim::{CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig};
 
 /// The white frames of `slscan scan`'s calibration stage (seed 0: 12 hand-held poses, then
 /// the board on the turntable at −45° to 45° in 15° steps) with their true corner pixels.
 fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>>)> {
     let mut config = RigConfig::default();
     config.render.seed = 0;
-    let session = CalibrationSession {
-        poses: BoardPoseConfig {
-            count: 12,
-            seed: 0,
-            ..BoardPoseConfig::default()
-        },
-        ..CalibrationSession::default()
-    };
+    let session = CalibrationSession::with_poses(12, 0);
     let rig = VirtualRig::new(config, Scene::dumbbell()).unwrap();
     let captures = CalibrationCaptures::new(&rig, &session).unwrap();
     let truth = |c: &sl_sim::BoardTruth| c.corners_px.iter().map(|q| q.unwrap()).collect();

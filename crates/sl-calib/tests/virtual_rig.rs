@@ -6,9 +6,7 @@ use nalgebra::Point2;
 use sl_calib::{
     BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera, detect_checkerboard,
 };
-use sl_sim::{
-    BoardPoseConfig, Checkerboard, RigConfig, Scene, VirtualRig, capture_board, random_board_poses,
-};
+use sl_sim::{CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig};
 
 /// Electrons per grey level of the default sensor (10 000 e⁻ full well over 255 levels):
 /// read noise of this many electrons is 1 grey level, the noise the target names.
@@ -24,22 +22,13 @@ fn render(count: usize, seed: u64) -> Rendered {
     let mut config = RigConfig::default();
     config.render.effects.sensor.photon_noise = false;
     config.render.effects.sensor.read_noise_electrons = ONE_GREY_LEVEL_E;
-    let board = Checkerboard::default();
-    let poses = random_board_poses(
-        &config,
-        &board,
-        &BoardPoseConfig {
-            count,
-            seed,
-            ..BoardPoseConfig::default()
-        },
-    )
-    .unwrap();
     let rig = VirtualRig::new(config.clone(), Scene::sphere()).unwrap();
+    let session = CalibrationSession::with_poses(count, seed);
+    let captures = CalibrationCaptures::new(&rig, &session).unwrap();
     let mut images = Vec::new();
     let mut truth = Vec::new();
-    for (k, pose) in poses.iter().enumerate() {
-        let cap = capture_board(&rig, &board, pose, None, k as u64).unwrap();
+    for k in 0..captures.poses().len() {
+        let cap = captures.hand_held(k, None).unwrap();
         images.push(cap.white.into_gray8().unwrap());
         truth.push(cap.board.corners_px.iter().map(|c| c.unwrap()).collect());
     }

@@ -14,9 +14,7 @@ use sl_calib::{
 use sl_camera::{Calibration, TurntableAxis};
 use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frame, Frames, ProjectorSize, decode};
 use sl_rig::GreyImage;
-use sl_sim::{
-    BoardPoseConfig, CalibrationCaptures, CalibrationSession, VirtualRig, calibration_sequence,
-};
+use sl_sim::{CalibrationCaptures, CalibrationSession, VirtualRig, calibration_sequence};
 
 use crate::error::stage_err;
 use crate::{ScanError, ScanProgress, StageTime, VirtualScanConfig};
@@ -74,13 +72,8 @@ pub fn calibrate_virtual(
 ) -> Result<(Calibration, CalibrationSummary), ScanError> {
     let config = rig.config();
     let session = CalibrationSession {
-        poses: BoardPoseConfig {
-            count: cfg.calibration_poses,
-            seed: cfg.seed,
-            ..BoardPoseConfig::default()
-        },
         turntable_angles_deg: cfg.table_angles_deg.clone(),
-        ..CalibrationSession::default()
+        ..CalibrationSession::with_poses(cfg.calibration_poses, cfg.seed)
     };
     let board = session.board;
     let captures = CalibrationCaptures::new(rig, &session)?;

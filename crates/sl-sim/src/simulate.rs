@@ -123,6 +123,21 @@ impl Default for CalibrationSession {
     }
 }
 
+impl CalibrationSession {
+    /// The default board and turntable angles, with `count` hand-held board poses drawn with
+    /// `seed` (the other settings of [`BoardPoseConfig::default`]).
+    pub fn with_poses(count: usize, seed: u64) -> Self {
+        Self {
+            poses: BoardPoseConfig {
+                count,
+                seed,
+                ..BoardPoseConfig::default()
+            },
+            ..Self::default()
+        }
+    }
+}
+
 /// Simulates a calibration session: the board at random poses in `out/board/pose_NNN/` and on
 /// the turntable in `out/turntable/angle_NNN/`. Each folder holds `white.png` (the board under
 /// full white), the capture set of the sequence (`manifest.json` and frames), `board.json`

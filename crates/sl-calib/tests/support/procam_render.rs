@@ -13,10 +13,7 @@ use sl_codec::{
     Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
     ProjectorSize, decode,
 };
-use sl_sim::{
-    BoardPoseConfig, BoardTruth, Checkerboard, RigConfig, Scene, VirtualRig, capture_board,
-    random_board_poses,
-};
+use sl_sim::{BoardTruth, CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig};
 
 /// Electrons per grey level of the default sensor (10 000 e⁻ full well over 255 levels):
 /// read noise of this many electrons is 1 grey level, as in `tests/virtual_rig.rs`.
@@ -35,54 +32,43 @@ pub(crate) fn render(count: usize, seed: u64) -> Rendered {
     let mut config = RigConfig::default();
     config.render.effects.sensor.photon_noise = false;
     config.render.effects.sensor.read_noise_electrons = ONE_GREY_LEVEL_E;
-    // ~30 projector px per period on both axes.
-    render_with(config, Scene::sphere(), 8, (64.0, 36.0), count, seed)
-}
-
-/// `count` board poses (seeded) of the rig `config` with `scene` on the turntable, the hybrid
-/// code (`steps`-step phase shift + complementary Gray code, `periods` across the projector's
-/// columns and rows) on both projector axes, decoded; the captures' noise keys are the pose
-/// numbers, as `sl_scan::calibrate_virtual`'s.
-pub(crate) fn render_with(
-    config: RigConfig,
-    scene: Scene,
-    steps: u32,
-    periods: (f64, f64),
-    count: usize,
-    seed: u64,
-) -> Rendered {
-    let board = Checkerboard::default();
-    let poses = random_board_poses(
-        &config,
-        &board,
-        &BoardPoseConfig {
-            count,
-            seed,
-            ..BoardPoseConfig::default()
-        },
-    )
-    .unwrap();
+    // 8 phase steps, ~30 projector px per period on both axes.
     let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
     let sequence = PatternSequence::new(p)
         .with(Pattern::Hybrid(HybridSpec::complementary(
             Axis::Column,
             p,
-            steps,
-            periods.0,
+            8,
+            64.0,
         )))
         .with(Pattern::Hybrid(HybridSpec::complementary(
             Axis::Row,
             p,
-            steps,
-            periods.1,
+            8,
+            36.0,
         )));
+    render_with(config, Scene::sphere(), &sequence, count, seed)
+}
+
+/// `count` board poses (seeded) of the rig `config` with `scene` on the turntable under
+/// `sequence`, decoded; the captures are those of `sl_sim::CalibrationCaptures` (noise key =
+/// pose number), as `sl_scan::calibrate_virtual`'s.
+pub(crate) fn render_with(
+    config: RigConfig,
+    scene: Scene,
+    sequence: &PatternSequence,
+    count: usize,
+    seed: u64,
+) -> Rendered {
     let manifest = sequence.manifest(BitDepth::Eight);
     let rig = VirtualRig::new(config.clone(), scene).unwrap();
+    let session = CalibrationSession::with_poses(count, seed);
+    let captures = CalibrationCaptures::new(&rig, &session).unwrap();
     let mut views = Vec::new();
     let mut truth = Vec::new();
     let t = Instant::now();
-    for (k, pose) in poses.iter().enumerate() {
-        let cap = capture_board(&rig, &board, pose, Some(&sequence), k as u64).unwrap();
+    for k in 0..captures.poses().len() {
+        let cap = captures.hand_held(k, Some(sequence)).unwrap();
         let frames: Vec<Frame<u8>> = cap
             .frames
             .into_iter()
