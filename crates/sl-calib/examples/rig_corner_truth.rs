@@ -138,10 +138,7 @@ fn main() {
             let frames: Vec<Frame<u8>> = cap
                 .frames
                 .into_iter()
-                .map(|img| {
-                    let g = img.into_gray8().unwrap();
-                    Frame::new(g.width() as usize, g.height() as usize, g.into_raw()).unwrap()
-                })
+                .map(|img| img.into_frame8().unwrap())
                 .collect();
             let set = CaptureSet::from_frames(manifest.clone(), Frames::U8(frames)).unwrap();
             maps.push(decode(&set, &DecodeConfig::default()).unwrap());

@@ -120,6 +120,17 @@ impl GreyImage {
         })
     }
 
+    /// The image as an 8-bit `sl_codec::Frame`, the decoder's input, by the rule of
+    /// [`GreyImage::into_gray8`] (16-bit pixels by their high byte).
+    ///
+    /// # Errors
+    /// Those of [`GreyImage::into_gray8`]; [`RigError::Codec`] for an image without pixels.
+    pub fn into_frame8(self) -> Result<sl_codec::Frame<u8>, RigError> {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let grey = self.into_gray8()?;
+        Ok(sl_codec::Frame::new(w, h, grey.into_raw())?)
+    }
+
     /// The value of pixel `(x, y)` in the image's own units (0–255 or 0–65535), or `None`
     /// outside the image.
     pub fn get(&self, x: u32, y: u32) -> Option<u16> {
@@ -149,7 +160,7 @@ mod tests {
             height: 2,
             pixels: Pixels::U16(vec![0; 3]),
         };
-        let e = bad.into_gray8().unwrap_err();
+        let e = bad.clone().into_gray8().unwrap_err();
         assert!(
             matches!(
                 e,
@@ -162,5 +173,23 @@ mod tests {
             ),
             "{e}"
         );
+        assert!(matches!(
+            bad.into_frame8(),
+            Err(RigError::BufferLength { len: 3, .. })
+        ));
+    }
+
+    #[test]
+    fn into_frame8_keeps_size_and_values() {
+        let img = GreyImage::new(2, 2, Pixels::U16(vec![0, 0x0100, 0x8000, 0xffff])).unwrap();
+        let f = img.into_frame8().unwrap();
+        assert_eq!((f.width(), f.height()), (2, 2));
+        assert_eq!(f.into_data(), [0, 1, 0x80, 0xff]);
+        assert!(matches!(
+            GreyImage::new(0, 0, Pixels::U8(Vec::new()))
+                .unwrap()
+                .into_frame8(),
+            Err(RigError::Codec(_))
+        ));
     }
 }

@@ -12,7 +12,7 @@ use sl_calib::{
     calibrate_turntable,
 };
 use sl_camera::{Calibration, TurntableAxis};
-use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frame, Frames, ProjectorSize, decode};
+use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frames, ProjectorSize, decode};
 use sl_rig::GreyImage;
 use sl_sim::{CalibrationCaptures, CalibrationSession, VirtualRig, calibration_sequence};
 
@@ -54,12 +54,8 @@ fn grey_image(img: GreyImage, what: &str) -> Result<sl_calib::image::GrayImage, 
 fn frames_u8(images: Vec<GreyImage>) -> Result<Frames, ScanError> {
     let frames = images
         .into_iter()
-        .map(|img| {
-            let (w, h) = (img.width as usize, img.height as usize);
-            let g = grey_image(img, "frame")?;
-            Ok(Frame::new(w, h, g.into_raw())?)
-        })
-        .collect::<Result<Vec<_>, ScanError>>()?;
+        .map(GreyImage::into_frame8)
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(Frames::U8(frames))
 }
 
