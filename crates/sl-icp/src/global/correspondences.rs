@@ -13,7 +13,7 @@
 //! looked at, ~80 beyond three coordinates). The mutual check then searches back from each
 //! matched target, the same way.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{DMatrix, SMatrix, SVector};
 use rayon::prelude::*;
 
 use crate::IcpError;
@@ -24,6 +24,9 @@ use crate::global::fpfh::{FPFH_BINS, Fpfh};
 /// 7,000 descriptors give ~55 strips, a query's search window (± the second-nearest
 /// distance, ~17 against a spread of ~60) a handful of them and a fifth of each.
 const STRIP: usize = 128;
+
+/// Leading coordinates kept beside the rows ([`Layout::lead`]).
+const LEAD: usize = 4;
 
 /// Queries per parallel task.
 const ROWS_PER_TASK: usize = 64;
@@ -98,8 +101,9 @@ struct Layout {
     /// The descriptors in search order: strip by strip ([`STRIP`]), each strip by its second
     /// coordinate.
     rows: Vec<Fpfh>,
-    /// The second coordinate of `rows`, contiguous for the scans.
-    second: Vec<f32>,
+    /// The first [`LEAD`] coordinates of `rows`, packed: most targets a query looks at are
+    /// ruled out by these, four to a cache line.
+    lead: Vec<[f32; LEAD]>,
     /// Original index of each row.
     ids: Vec<u32>,
     /// Position in `rows` of each original index.
@@ -148,7 +152,10 @@ impl Layout {
             }
         }
         Self {
-            second: ordered.iter().map(|r| r[1]).collect(),
+            lead: ordered
+                .iter()
+                .map(|r| std::array::from_fn(|k| r.get(k).copied().unwrap_or(0.0)))
+                .collect(),
             rows: ordered,
             ids,
             position,
@@ -235,39 +242,54 @@ impl Layout {
         let Some(s) = self.strips.get(k) else {
             return;
         };
-        let Some(second) = self.second.get(s.start..s.end) else {
+        let Some(lead) = self.lead.get(s.start..s.end) else {
             return;
         };
         let q1 = q[1];
-        let mid = second.partition_point(|&v| v < q1);
-        for (j, &v) in second.iter().enumerate().skip(mid) {
-            let x = q1 - v;
+        let mid = lead.partition_point(|v| v[1] < q1);
+        for (j, v) in lead.iter().enumerate().skip(mid) {
+            let x = q1 - v[1];
             if g2 + x * x > best[N - 1].1 {
                 break;
             }
-            self.visit(s.start + j, q, best);
+            self.visit(s.start + j, v, q, best);
         }
-        for (j, &v) in second.iter().enumerate().take(mid).rev() {
-            let x = q1 - v;
+        for (j, v) in lead.iter().enumerate().take(mid).rev() {
+            let x = q1 - v[1];
             if g2 + x * x > best[N - 1].1 {
                 break;
             }
-            self.visit(s.start + j, q, best);
+            self.visit(s.start + j, v, q, best);
         }
     }
 
-    /// The squared distance of `q` to row `at`, summed in order and given up as soon as it
-    /// exceeds the `N`-th best; kept if it beats that.
+    /// The squared distance of `q` to row `at` (whose leading coordinates are `lead`), summed
+    /// in order and given up as soon as it exceeds the `N`-th best; kept if it beats that.
     #[inline]
-    fn visit<const N: usize>(&self, at: usize, q: &Fpfh, best: &mut [(u32, f32); N]) {
-        let (Some(r), Some(&id)) = (self.rows.get(at), self.ids.get(at)) else {
-            return;
-        };
+    fn visit<const N: usize>(
+        &self,
+        at: usize,
+        lead: &[f32; LEAD],
+        q: &Fpfh,
+        best: &mut [(u32, f32); N],
+    ) {
         let worst = best[N - 1];
         let mut d = 0.0f32;
         // Checkpoints: after the first two coordinates (most of the variance), then in
         // growing blocks.
-        for (lo, hi) in [(0, 2), (2, 4), (4, 8), (8, 16), (16, FPFH_BINS)] {
+        for (lo, hi) in [(0, 2), (2, LEAD)] {
+            for k in lo..hi {
+                let x = q[k] - lead[k];
+                d += x * x;
+            }
+            if d > worst.1 {
+                return;
+            }
+        }
+        let (Some(r), Some(&id)) = (self.rows.get(at), self.ids.get(at)) else {
+            return;
+        };
+        for (lo, hi) in [(LEAD, 8), (8, 16), (16, FPFH_BINS)] {
             for k in lo..hi {
                 let x = q[k] - r[k];
                 d += x * x;
@@ -325,42 +347,40 @@ impl FeatureIndex {
     }
 }
 
-/// `features`, minus `mean`, rotated by `basis` (in f64, rounded to f32).
+/// `features`, minus `mean`, rotated by `basis`: one matrix product in f32 (matrixmultiply's
+/// kernels; the rotated coordinates are compared with each other only).
 fn rotate_all(mean: &SVector<f64, FPFH_BINS>, basis: &Basis, features: &[Fpfh]) -> Vec<Fpfh> {
-    features
-        .par_iter()
-        .with_min_len(256)
-        .map(|q| {
-            let v = SVector::<f64, FPFH_BINS>::from_iterator(q.iter().map(|&x| f64::from(x)));
-            let r = basis * (v - mean);
-            let mut out = [0.0f32; FPFH_BINS];
-            for (o, x) in out.iter_mut().zip(r.iter()) {
-                *o = *x as f32;
-            }
-            out
-        })
+    let n = features.len();
+    let centred = DMatrix::<f32>::from_fn(n, FPFH_BINS, |i, k| {
+        features.get(i).map_or(0.0, |f| f[k]) - mean[k] as f32
+    });
+    let basis_t = DMatrix::<f32>::from_fn(FPFH_BINS, FPFH_BINS, |k, r| basis[(r, k)] as f32);
+    let rotated = centred * basis_t;
+    (0..n)
+        .map(|i| std::array::from_fn(|k| rotated[(i, k)]))
         .collect()
 }
 
 /// The mean of `features` and the rotation onto their principal axes (eigenvectors of the
-/// covariance as rows, by decreasing eigenvalue). Sums run in f64 in a fixed order; an empty
-/// set gets the identity.
+/// covariance as rows, by decreasing eigenvalue). Sums run in f64 in a fixed order (the
+/// scatter matrix as one matrix product); an empty set gets the identity.
 fn principal_axes(features: &[Fpfh]) -> (SVector<f64, FPFH_BINS>, Basis) {
     let n = features.len();
     if n == 0 {
         return (SVector::zeros(), Basis::identity());
     }
-    let as_vector =
-        |f: &Fpfh| SVector::<f64, FPFH_BINS>::from_iterator(f.iter().map(|&x| f64::from(x)));
-    let mean = features
-        .iter()
-        .fold(SVector::<f64, FPFH_BINS>::zeros(), |s, f| s + as_vector(f))
-        / n as f64;
-    let mut cov = Basis::zeros();
+    let mut sum = SVector::<f64, FPFH_BINS>::zeros();
     for f in features {
-        let d = as_vector(f) - mean;
-        cov.ger(1.0, &d, &d, 1.0);
+        for (s, &x) in sum.iter_mut().zip(f) {
+            *s += f64::from(x);
+        }
     }
+    let mean = sum / n as f64;
+    let centred = DMatrix::<f64>::from_fn(n, FPFH_BINS, |i, k| {
+        features.get(i).map_or(0.0, |f| f64::from(f[k])) - mean[k]
+    });
+    let scatter = centred.transpose() * &centred;
+    let cov = Basis::from_iterator(scatter.iter().copied());
     let eigen = cov.symmetric_eigen();
     let mut order: Vec<usize> = (0..FPFH_BINS).collect();
     order.sort_by(|&a, &b| {
