@@ -153,6 +153,9 @@ type PairCode = u16;
 /// normal).
 const NO_PAIR: PairCode = PairCode::MAX;
 
+/// Placeholder of a reverse edge's code until its pair's is copied in.
+const UNSET: PairCode = PairCode::MAX - 1;
+
 /// The code of the pair `(pa, na)`, `(pb, nb)`; the same for both orders.
 ///
 /// The angles of [`pair_angles`] without building the frame: with unit `d`, `ca = na·d`,
@@ -182,6 +185,59 @@ fn pair_code(pa: &V3, na: &V3, pb: &V3, nb: &V3) -> PairCode {
         bin(theta, -std::f32::consts::PI, std::f32::consts::PI),
     );
     (a + BINS_PER_FEATURE * (p + BINS_PER_FEATURE * t)) as PairCode
+}
+
+/// Edges binned together by [`pair_codes`]: one SIMD register of f32 (or two).
+const LANES: usize = 8;
+
+/// [`pair_code`] of `(p, n)` with each of `(ps[l], ns[l])`, lane by lane in straight-line
+/// code (selects instead of branches) so that the compiler vectorises it; `out` gets one code
+/// per lane. Gives the codes of [`pair_code`] (tested) but for rounding at a bin edge.
+#[inline]
+fn pair_codes(p: &V3, n: &V3, ps: &[V3; LANES], ns: &[V3; LANES], out: &mut [PairCode; LANES]) {
+    use std::f32::consts::{FRAC_PI_2, PI};
+    let zero_n = n.norm_squared() == 0.0;
+    let bins = BINS_PER_FEATURE as f32;
+    let last = bins - 1.0;
+    for l in 0..LANES {
+        let (q, m) = (ps[l], ns[l]);
+        let (dx, dy, dz) = (q.x - p.x, q.y - p.y, q.z - p.z);
+        let len2 = dx * dx + dy * dy + dz * dz;
+        let inv = 1.0 / len2.sqrt();
+        let (dx, dy, dz) = (dx * inv, dy * inv, dz * inv);
+        let ca = n.x * dx + n.y * dy + n.z * dz;
+        let cb = m.x * dx + m.y * dy + m.z * dz;
+        let swap = ca < -cb;
+        let phi = if swap { -cb } else { ca };
+        let d_nt = if swap { -ca } else { cb };
+        let vn = (1.0 - phi * phi).max(0.0).sqrt();
+        let c = n.x * m.x + n.y * m.y + n.z * m.z;
+        // (n × d)·m
+        let triple =
+            (n.y * dz - n.z * dy) * m.x + (n.z * dx - n.x * dz) * m.y + (n.x * dy - n.y * dx) * m.z;
+        let alpha = triple / vn;
+        let (y, x) = ((phi * c - d_nt) / vn, c);
+        // atan2_approx, with selects.
+        let (ax, ay) = (x.abs(), y.abs());
+        let (lo, hi) = (ax.min(ay), ax.max(ay));
+        let r = if hi > 0.0 { lo / hi } else { 0.0 };
+        let r2 = r * r;
+        let a = r
+            * (0.999_977_26
+                + r2 * (-0.332_623_47
+                    + r2 * (0.193_543_46
+                        + r2 * (-0.116_432_87 + r2 * (0.052_653_32 - r2 * 0.011_721_2)))));
+        let a = if ay > ax { FRAC_PI_2 - a } else { a };
+        let a = if x < 0.0 { PI - a } else { a };
+        let theta = if y < 0.0 { -a } else { a };
+        // Bins, clamped in float (NaN goes to 0 through `max`), truncated.
+        let ba = ((alpha + 1.0) * (bins / 2.0)).max(0.0).min(last) as u16;
+        let bp = ((phi + 1.0) * (bins / 2.0)).max(0.0).min(last) as u16;
+        let bt = ((theta + PI) * (bins / (2.0 * PI))).max(0.0).min(last) as u16;
+        let code = ba + BINS_PER_FEATURE as u16 * (bp + BINS_PER_FEATURE as u16 * bt);
+        let bad = !(len2 > 0.0) || vn <= f32::EPSILON || m.norm_squared() == 0.0 || zero_n;
+        out[l] = if bad { NO_PAIR } else { code };
+    }
 }
 
 /// Rows (points) per parallel task.
@@ -366,13 +422,6 @@ impl Neighbourhoods {
         )
     }
 
-    /// Position of the edge `i → j` in the rows, if `j` is a neighbour of `i`.
-    fn edge(&self, i: usize, j: u32) -> Option<usize> {
-        let r = self.range(i);
-        let row = self.index.get(r.clone())?;
-        row.binary_search(&j).ok().map(|k| r.start + k)
-    }
-
     /// Values given in sorted order, put back in the original order of the points.
     fn unsort<T: Copy>(&self, sorted: &[T], fill: T) -> Vec<T> {
         let mut out = vec![fill; self.len()];
@@ -471,8 +520,8 @@ pub fn compute_fpfh(
 /// points' order; so is the result).
 ///
 /// The pair angles do not depend on the order of the pair, so each pair is binned once: first
-/// every edge `i → j` with `j > i`, then each point's histogram reads its edges to smaller
-/// points from their reverse edges (computing the few that the neighbour cap left one-way).
+/// every edge `i → j` with `j > i`, then their codes are copied to the reverse edges `j → i`
+/// (the few that the neighbour cap left one-way get their own).
 pub(crate) fn fpfh_of_neighbourhoods(
     normals: &[Vector3<f64>],
     hoods: &Neighbourhoods,
@@ -511,13 +560,56 @@ pub(crate) fn fpfh_of_neighbourhoods(
             for i in i0..end {
                 let (idx, _) = hoods.of(i);
                 let split = idx.partition_point(|&j| j as usize <= i);
-                out.extend(std::iter::repeat_n(NO_PAIR, split));
-                out.extend(idx.iter().skip(split).map(|&j| code(i, j as usize)));
+                out.extend(std::iter::repeat_n(UNSET, split));
+                let (Some(p), Some(np)) = (hoods.local.get(i), normal.get(i)) else {
+                    continue;
+                };
+                let mut ps = [V3::zeros(); LANES];
+                let mut ns = [V3::zeros(); LANES];
+                let mut lane_codes = [NO_PAIR; LANES];
+                for chunk in idx.get(split..).unwrap_or(&[]).chunks(LANES) {
+                    for ((q, m), &j) in ps.iter_mut().zip(ns.iter_mut()).zip(chunk) {
+                        *q = hoods
+                            .local
+                            .get(j as usize)
+                            .copied()
+                            .unwrap_or_else(V3::zeros);
+                        *m = normal.get(j as usize).copied().unwrap_or_else(V3::zeros);
+                    }
+                    pair_codes(p, np, &ps, &ns, &mut lane_codes);
+                    out.extend(lane_codes.iter().take(chunk.len()));
+                }
             }
             out
         })
         .collect();
-    let codes: Vec<PairCode> = forward.concat();
+    let mut codes: Vec<PairCode> = forward.concat();
+    // The reverse edges get their pair's code: row `j` lists its smaller neighbours in
+    // ascending order, and the forward edges `i → j` come by ascending `i`, so one cursor per
+    // row finds each `i` in row `j` in a single pass (no search).
+    let mut cursor: Vec<u32> = hoods.start.iter().take(n).copied().collect();
+    for i in 0..n {
+        let range = hoods.range(i);
+        let idx = hoods.index.get(range.clone()).unwrap_or(&[]);
+        let split = idx.partition_point(|&j| j as usize <= i);
+        for (e, &j) in range.zip(idx).skip(split) {
+            let end = hoods.range(j as usize).end;
+            let Some(c) = cursor.get_mut(j as usize) else {
+                continue;
+            };
+            while (*c as usize) < end && hoods.index.get(*c as usize).is_some_and(|&k| k < i as u32)
+            {
+                *c += 1;
+            }
+            if hoods.index.get(*c as usize) == Some(&(i as u32)) && (*c as usize) < end {
+                let code = codes.get(e).copied().unwrap_or(NO_PAIR);
+                if let Some(slot) = codes.get_mut(*c as usize) {
+                    *slot = code;
+                }
+                *c += 1;
+            }
+        }
+    }
     // SPFH of every point.
     let spfh: Vec<Fpfh> = (0..n)
         .into_par_iter()
@@ -527,15 +619,9 @@ pub(crate) fn fpfh_of_neighbourhoods(
             let mut count = 0u32;
             let range = hoods.range(i);
             let idx = hoods.index.get(range.clone()).unwrap_or(&[]);
-            for (e, &j) in range.zip(idx) {
-                let c = if j as usize > i {
-                    codes.get(e).copied().unwrap_or(NO_PAIR)
-                } else {
-                    match hoods.edge(j as usize, i as u32) {
-                        Some(back) => codes.get(back).copied().unwrap_or(NO_PAIR),
-                        None => code(i, j as usize),
-                    }
-                };
+            for (&c, &j) in codes.get(range).unwrap_or(&[]).iter().zip(idx) {
+                // A reverse edge left one-way by the neighbour cap: its own code.
+                let c = if c == UNSET { code(i, j as usize) } else { c };
                 if c == NO_PAIR {
                     continue;
                 }
@@ -653,6 +739,8 @@ mod tests {
             let pb = V3::new(next(), next(), next()) * 5.0;
             let code = pair_code(&pa, &na, &pb, &nb);
             assert_eq!(code, pair_code(&pb, &nb, &pa, &na));
+            let mut lanes = [0; LANES];
+            pair_codes(&pa, &na, &[pb; LANES], &[nb; LANES], &mut lanes);
             let Some((alpha, phi, theta)) = pair_angles(&pa, &na, &pb, &nb) else {
                 continue;
             };
@@ -663,6 +751,7 @@ mod tests {
             let expected = bin(alpha, -1.0, 1.0)
                 + BINS_PER_FEATURE * (bin(phi, -1.0, 1.0) + BINS_PER_FEATURE * bin(theta, -pi, pi));
             assert_eq!(usize::from(code), expected, "{alpha} {phi} {theta}");
+            assert_eq!(lanes, [code; LANES], "{alpha} {phi} {theta}");
             checked += 1;
         }
         assert!(checked > 19_000, "{checked}");
