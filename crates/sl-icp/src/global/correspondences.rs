@@ -21,12 +21,16 @@ use crate::global::fpfh::{FPFH_BINS, Fpfh};
 
 /// Descriptors per strip of the search order: the strips cut the order of the first principal
 /// coordinate into runs this long, each run sorted by the second coordinate. A bunny scan's
-/// 7,000 descriptors give ~55 strips, a query's search window (± the second-nearest
-/// distance, ~17 against a spread of ~60) a handful of them and a fifth of each.
-const STRIP: usize = 128;
+/// 7,000 descriptors give ~28 strips, and a query's search window (± the second-nearest
+/// distance, ~17 against a spread of ~60) a few of them and a fifth of each. 64 and 128 were
+/// slower (more strips to step through).
+const STRIP: usize = 256;
 
 /// Leading coordinates kept beside the rows ([`Layout::lead`]).
-const LEAD: usize = 4;
+const LEAD: usize = 6;
+
+/// Targets whose leading distances are summed side by side (two SIMD registers of f32).
+const BLOCK: usize = 8;
 
 /// Queries per parallel task.
 const ROWS_PER_TASK: usize = 64;
@@ -101,9 +105,9 @@ struct Layout {
     /// The descriptors in search order: strip by strip ([`STRIP`]), each strip by its second
     /// coordinate.
     rows: Vec<Fpfh>,
-    /// The first [`LEAD`] coordinates of `rows`, packed: most targets a query looks at are
-    /// ruled out by these, four to a cache line.
-    lead: Vec<[f32; LEAD]>,
+    /// The first [`LEAD`] coordinates of `rows`, coordinate by coordinate: most targets a
+    /// query looks at are ruled out by these, [`BLOCK`] at a time.
+    lead: [Vec<f32>; LEAD],
     /// Original index of each row.
     ids: Vec<u32>,
     /// Position in `rows` of each original index.
@@ -152,10 +156,7 @@ impl Layout {
             }
         }
         Self {
-            lead: ordered
-                .iter()
-                .map(|r| std::array::from_fn(|k| r.get(k).copied().unwrap_or(0.0)))
-                .collect(),
+            lead: std::array::from_fn(|k| ordered.iter().map(|r| r[k]).collect()),
             rows: ordered,
             ids,
             position,
@@ -184,8 +185,18 @@ impl Layout {
     /// gap in that coordinate exceeds the `N`-th distance; inside a strip the scan runs
     /// outward from `q`'s second coordinate until the gap plus the second coordinate's term
     /// does.
-    fn nearest<const N: usize>(&self, q: &Fpfh) -> [(u32, f32); N] {
+    ///
+    /// `seeds` (original indices) are measured first: a good guess (the match of the point
+    /// before, which lies beside it on the surface and has a similar descriptor) makes the
+    /// bound tight from the start. The answer does not depend on them.
+    fn nearest<const N: usize>(&self, q: &Fpfh, seeds: &[u32]) -> [(u32, f32); N] {
         let mut best = [(u32::MAX, f32::INFINITY); N];
+        for &seed in seeds {
+            let Some(&at) = self.position.get(seed as usize) else {
+                continue;
+            };
+            self.visit(at as usize, q, &mut best);
+        }
         let q0 = q[0];
         let count = self.strips.len();
         if count == 0 {
@@ -242,54 +253,85 @@ impl Layout {
         let Some(s) = self.strips.get(k) else {
             return;
         };
-        let Some(lead) = self.lead.get(s.start..s.end) else {
+        let [_, second, ..] = &self.lead;
+        let Some(run) = second.get(s.start..s.end) else {
             return;
         };
         let q1 = q[1];
-        let mid = lead.partition_point(|v| v[1] < q1);
-        for (j, v) in lead.iter().enumerate().skip(mid) {
-            let x = q1 - v[1];
-            if g2 + x * x > best[N - 1].1 {
-                break;
-            }
-            self.visit(s.start + j, v, q, best);
+        let mid = s.start + run.partition_point(|&v| v < q1);
+        let outside = |j: usize, best: &[(u32, f32); N]| {
+            let x = q1 - second.get(j).copied().unwrap_or(f32::INFINITY);
+            g2 + x * x > best[N - 1].1
+        };
+        let mut j = mid;
+        while j < s.end && !outside(j, best) {
+            let len = (s.end - j).min(BLOCK);
+            self.block(j, len, q, best);
+            j += len;
         }
-        for (j, v) in lead.iter().enumerate().take(mid).rev() {
-            let x = q1 - v[1];
-            if g2 + x * x > best[N - 1].1 {
-                break;
-            }
-            self.visit(s.start + j, v, q, best);
+        let mut j = mid;
+        while j > s.start && !outside(j - 1, best) {
+            let len = (j - s.start).min(BLOCK);
+            self.block(j - len, len, q, best);
+            j -= len;
         }
     }
 
-    /// The squared distance of `q` to row `at` (whose leading coordinates are `lead`), summed
-    /// in order and given up as soon as it exceeds the `N`-th best; kept if it beats that.
+    /// Visits rows `at..at + len` (`len ≤ BLOCK`): the leading part of their distances to
+    /// `q` side by side (vectorised), then the rest for those still under the `N`-th best.
     #[inline]
-    fn visit<const N: usize>(
-        &self,
-        at: usize,
-        lead: &[f32; LEAD],
-        q: &Fpfh,
-        best: &mut [(u32, f32); N],
-    ) {
-        let worst = best[N - 1];
+    fn block<const N: usize>(&self, at: usize, len: usize, q: &Fpfh, best: &mut [(u32, f32); N]) {
+        let mut d = [0.0f32; BLOCK];
+        for (k, column) in self.lead.iter().enumerate() {
+            let qk = q[k];
+            if let Some(c) = column.get(at..at + BLOCK) {
+                for (dl, &cl) in d.iter_mut().zip(c) {
+                    let x = qk - cl;
+                    *dl += x * x;
+                }
+            } else {
+                for (dl, &cl) in d.iter_mut().zip(column.get(at..at + len).unwrap_or(&[])) {
+                    let x = qk - cl;
+                    *dl += x * x;
+                }
+            }
+        }
+        let worst = best[N - 1].1;
+        let mut under = 0u32;
+        for (l, &dl) in d.iter().enumerate().take(len) {
+            under |= u32::from(dl <= worst) << l;
+        }
+        while under != 0 {
+            let l = under.trailing_zeros() as usize;
+            under &= under - 1;
+            self.finish(at + l, d[l], q, best);
+        }
+    }
+
+    /// The squared distance of `q` to row `at`, summed in order (a seed's).
+    #[inline]
+    fn visit<const N: usize>(&self, at: usize, q: &Fpfh, best: &mut [(u32, f32); N]) {
         let mut d = 0.0f32;
-        // Checkpoints: after the first two coordinates (most of the variance), then in
-        // growing blocks.
-        for (lo, hi) in [(0, 2), (2, LEAD)] {
-            for k in lo..hi {
-                let x = q[k] - lead[k];
-                d += x * x;
-            }
-            if d > worst.1 {
-                return;
-            }
+        for (k, column) in self.lead.iter().enumerate() {
+            let x = q[k] - column.get(at).copied().unwrap_or(f32::INFINITY);
+            d += x * x;
+        }
+        self.finish(at, d, q, best);
+    }
+
+    /// Row `at` given the sum `d` over its leading coordinates: the rest summed in order and
+    /// given up as soon as it exceeds the `N`-th best; kept if it beats that (and is not there
+    /// already, as a seed).
+    #[inline]
+    fn finish<const N: usize>(&self, at: usize, mut d: f32, q: &Fpfh, best: &mut [(u32, f32); N]) {
+        let worst = best[N - 1];
+        if d > worst.1 {
+            return;
         }
         let (Some(r), Some(&id)) = (self.rows.get(at), self.ids.get(at)) else {
             return;
         };
-        for (lo, hi) in [(LEAD, 8), (8, 16), (16, FPFH_BINS)] {
+        for (lo, hi) in [(LEAD, 16), (16, FPFH_BINS)] {
             for k in lo..hi {
                 let x = q[k] - r[k];
                 d += x * x;
@@ -298,7 +340,7 @@ impl Layout {
                 return;
             }
         }
-        if d < worst.1 || id < worst.0 {
+        if (d < worst.1 || id < worst.0) && best.iter().all(|b| b.0 != id) {
             insert(best, (id, d));
         }
     }
@@ -445,12 +487,19 @@ pub fn match_features(
     let targets = &target_index.layout;
     let queries = rotate_all(&target_index.mean, &target_index.basis, source);
     let ratio2 = (config.ratio * config.ratio) as f32;
+    // Fixed runs of queries, each seeded with the matches of the query before it.
     let forward: Vec<Option<Correspondence>> = queries
-        .par_iter()
+        .par_chunks(ROWS_PER_TASK)
         .enumerate()
-        .with_min_len(ROWS_PER_TASK)
-        .map(|(i, q)| {
-            let [(j, d1), (second, d2)] = targets.nearest::<2>(q);
+        .flat_map_iter(|(c, run)| {
+            let mut seeds = [u32::MAX; 2];
+            run.iter().enumerate().map(move |(k, q)| {
+                let best = targets.nearest::<2>(q, &seeds);
+                seeds = [best[0].0, best[1].0];
+                (c * ROWS_PER_TASK + k, best)
+            })
+        })
+        .map(|(i, [(j, d1), (second, d2)])| {
             if j == u32::MAX {
                 return None;
             }
@@ -472,17 +521,19 @@ pub fn match_features(
     if config.mutual {
         // The nearest source of every matched target, searched back in the same frame (the
         // same squared distances, bit for bit).
-        let mut wanted: Vec<u32> = found.iter().map(|c| c.target).collect();
-        wanted.sort_unstable();
-        wanted.dedup();
+        // Each seeded with a source that chose it (most often the answer).
+        let mut chosen: Vec<(u32, u32)> = found.iter().map(|c| (c.target, c.source)).collect();
+        chosen.sort_unstable();
+        chosen.dedup_by_key(|x| x.0);
+        let wanted: Vec<u32> = chosen.iter().map(|x| x.0).collect();
         let sources = Layout::new(&queries);
-        let back: Vec<u32> = wanted
+        let back: Vec<u32> = chosen
             .par_iter()
             .with_min_len(ROWS_PER_TASK)
-            .map(|&j| {
+            .map(|&(j, seed)| {
                 targets
                     .row(j)
-                    .map_or(u32::MAX, |t| sources.nearest::<1>(t)[0].0)
+                    .map_or(u32::MAX, |t| sources.nearest::<1>(t, &[seed])[0].0)
             })
             .collect();
         found.retain(|c| {
