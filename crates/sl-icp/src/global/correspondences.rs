@@ -127,17 +127,27 @@ struct Strip {
 
 impl Layout {
     fn new(rows: &[Fpfh]) -> Self {
+        // Sorted as integers: (the coordinate's bits in an order-preserving form, index).
+        let key = |i: usize, k: usize| {
+            let b = rows.get(i).map_or(0.0f32, |r| r[k]).to_bits();
+            let ordered = if b >> 31 == 1 { !b } else { b | (1 << 31) };
+            (u64::from(ordered) << 32) | i as u64
+        };
+        let mut keyed: Vec<u64> = (0..rows.len()).map(|i| key(i, 0)).collect();
+        keyed.sort_unstable();
+        let mut ids: Vec<u32> = keyed.iter().map(|&k| k as u32).collect();
         let first = |i: u32| rows.get(i as usize).map_or(0.0, |r| r[0]);
-        let second_of = |i: u32| rows.get(i as usize).map_or(0.0, |r| r[1]);
-        let mut ids: Vec<u32> = (0..rows.len() as u32).collect();
-        ids.sort_unstable_by(|&a, &b| first(a).total_cmp(&first(b)).then(a.cmp(&b)));
         let mut strips = Vec::with_capacity(rows.len().div_ceil(STRIP));
         for (k, run) in ids.chunks_mut(STRIP).enumerate() {
             let (lo, hi) = (
                 run.first().map_or(0.0, |&i| first(i)),
                 run.last().map_or(0.0, |&i| first(i)),
             );
-            run.sort_unstable_by(|&a, &b| second_of(a).total_cmp(&second_of(b)).then(a.cmp(&b)));
+            let mut by_second: Vec<u64> = run.iter().map(|&i| key(i as usize, 1)).collect();
+            by_second.sort_unstable();
+            for (slot, k) in run.iter_mut().zip(by_second) {
+                *slot = k as u32;
+            }
             strips.push(Strip {
                 start: k * STRIP,
                 end: k * STRIP + run.len(),

@@ -235,8 +235,12 @@ fn pair_codes(p: &V3, n: &V3, ps: &[V3; LANES], ns: &[V3; LANES], out: &mut [Pai
         let bp = ((phi + 1.0) * (bins / 2.0)).max(0.0).min(last) as u16;
         let bt = ((theta + PI) * (bins / (2.0 * PI))).max(0.0).min(last) as u16;
         let code = ba + BINS_PER_FEATURE as u16 * (bp + BINS_PER_FEATURE as u16 * bt);
-        let bad =
-            len2.is_nan() || len2 <= 0.0 || vn <= f32::EPSILON || m.norm_squared() == 0.0 || zero_n;
+        // `|`, not `||`: no branch in the lane loop.
+        let bad = len2.is_nan()
+            | (len2 <= 0.0)
+            | (vn <= f32::EPSILON)
+            | (m.norm_squared() == 0.0)
+            | zero_n;
         out[l] = if bad { NO_PAIR } else { code };
     }
 }
