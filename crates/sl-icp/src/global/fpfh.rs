@@ -20,14 +20,14 @@ const BINS_PER_FEATURE: usize = 11;
 /// Length of an FPFH descriptor: three angles, 11 bins each.
 pub const FPFH_BINS: usize = 3 * BINS_PER_FEATURE;
 
-/// One FPFH descriptor (f32: it is compared in a k-d tree of 33 dimensions, where halving the
-/// bandwidth matters more than precision; each sub-histogram sums to about 200).
+/// One FPFH descriptor (f32: matching compares thousands of them, where halving the bandwidth
+/// matters more than precision; each sub-histogram sums to about 200).
 pub type Fpfh = [f32; FPFH_BINS];
 
 /// Every sub-histogram of an SPFH (and of the weighted neighbour part of an FPFH) sums to this,
 /// as in Rusu's PCL code and Open3D, so that descriptors of points with few or many
 /// neighbours compare on the same scale.
-const HISTOGRAM_MASS: f64 = 100.0;
+const HISTOGRAM_MASS: f32 = 100.0;
 
 /// Settings of [`compute_fpfh`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -77,24 +77,18 @@ impl FpfhConfig {
 /// `u = ns`, `v = u × d / |u × d|`, `w = u × v`, `d` the unit vector from source to target.
 /// `None` when the points coincide or the normal lies along the line.
 #[cfg(test)]
-fn pair_angles(
-    pa: &Point3<f64>,
-    na: &Vector3<f64>,
-    pb: &Point3<f64>,
-    nb: &Vector3<f64>,
-) -> Option<(f64, f64, f64)> {
+fn pair_angles(pa: &V3, na: &V3, pb: &V3, nb: &V3) -> Option<(f32, f32, f32)> {
     pair_angles_raw(pa, na, pb, nb).map(|(a, p, (s, c))| (a, p, s.atan2(c)))
 }
 
+/// A position or normal in f32 (the angles are binned into 11 bins: f32 is ample, and halves
+/// the memory traffic of the hot loops).
+type V3 = Vector3<f32>;
+
 /// [`pair_angles`] with θ left as `(w·nt, u·nt)`, the sine and cosine (unnormalised) the angle
-/// is taken from.
-#[inline]
-fn pair_angles_raw(
-    pa: &Point3<f64>,
-    na: &Vector3<f64>,
-    pb: &Point3<f64>,
-    nb: &Vector3<f64>,
-) -> Option<(f64, f64, (f64, f64))> {
+/// is taken from: Rusu's construction, the reference [`pair_code`] is tested against.
+#[cfg(test)]
+fn pair_angles_raw(pa: &V3, na: &V3, pb: &V3, nb: &V3) -> Option<(f32, f32, (f32, f32))> {
     let d = pb - pa;
     let len = d.norm();
     if len <= 0.0 {
@@ -109,7 +103,7 @@ fn pair_angles_raw(
     };
     let v = ns.cross(&d);
     let vn = v.norm();
-    if vn <= f64::EPSILON {
+    if vn <= f32::EPSILON {
         return None;
     }
     let v = v / vn;
@@ -119,18 +113,18 @@ fn pair_angles_raw(
 
 /// Bin of `x` in `[lo, hi]` among [`BINS_PER_FEATURE`] (clamped; NaN goes to the first).
 #[inline]
-fn bin(x: f64, lo: f64, hi: f64) -> usize {
+fn bin(x: f32, lo: f32, hi: f32) -> usize {
     // `as usize` saturates: negatives and NaN give 0.
-    (((x - lo) / (hi - lo) * BINS_PER_FEATURE as f64) as usize).min(BINS_PER_FEATURE - 1)
+    (((x - lo) / (hi - lo) * BINS_PER_FEATURE as f32) as usize).min(BINS_PER_FEATURE - 1)
 }
 
-/// `atan2(y, x)` to within 1e-5 rad (a minimax polynomial for atan on [0, 1] and the
+/// `atan2(y, x)` to within 2e-5 rad (a minimax polynomial for atan on [0, 1] and the
 /// octant fix-ups), for binning θ: an angle that close to one of the ten bin edges may fall
 /// in the neighbouring bin, a change far below the noise of the normals; libm's exact atan2
 /// was a sixth of the descriptors' time.
 #[inline]
-fn atan2_approx(y: f64, x: f64) -> f64 {
-    use std::f64::consts::{FRAC_PI_2, PI};
+fn atan2_approx(y: f32, x: f32) -> f32 {
+    use std::f32::consts::{FRAC_PI_2, PI};
     let (ax, ay) = (x.abs(), y.abs());
     let (lo, hi) = if ax < ay { (ax, ay) } else { (ay, ax) };
     if hi == 0.0 {
@@ -142,7 +136,7 @@ fn atan2_approx(y: f64, x: f64) -> f64 {
         * (0.999_977_26
             + r2 * (-0.332_623_47
                 + r2 * (0.193_543_46
-                    + r2 * (-0.116_432_87 + r2 * (0.052_653_32 - r2 * 0.011_721_20)))));
+                    + r2 * (-0.116_432_87 + r2 * (0.052_653_32 - r2 * 0.011_721_2)))));
     if ay > ax {
         a = FRAC_PI_2 - a;
     }
@@ -159,77 +153,265 @@ type PairCode = u16;
 /// normal).
 const NO_PAIR: PairCode = PairCode::MAX;
 
+/// Placeholder of a reverse edge's code until its pair's is copied in.
+const UNSET: PairCode = PairCode::MAX - 1;
+
 /// The code of the pair `(pa, na)`, `(pb, nb)`; the same for both orders.
+///
+/// The angles of [`pair_angles`] without building the frame: with unit `d`, `ca = na·d`,
+/// `cb = nb·d`, the source is `a` when `ca ≥ -cb`, so `φ = max(ca, -cb)`; `|v| = |ns × d| =
+/// √(1 - φ²)`; `α = (ns × d')·nt / |v|`, which is `(na × d)·nb / |v|` for either source; and
+/// `w·nt = (φ ns·nt - d'·nt) / |v|` (as `w = ns × v = (φ ns - d') / |v|`), `ns·nt = na·nb`.
 #[inline]
-fn pair_code(pa: &Point3<f64>, na: &Vector3<f64>, pb: &Point3<f64>, nb: &Vector3<f64>) -> PairCode {
-    if na.norm_squared() == 0.0 || nb.norm_squared() == 0.0 {
+fn pair_code(pa: &V3, na: &V3, pb: &V3, nb: &V3) -> PairCode {
+    let d = pb - pa;
+    let len2 = d.norm_squared();
+    if len2.is_nan() || len2 <= 0.0 || na.norm_squared() == 0.0 || nb.norm_squared() == 0.0 {
         return NO_PAIR;
     }
-    let Some((alpha, phi, (sin_theta, cos_theta))) = pair_angles_raw(pa, na, pb, nb) else {
+    let d = d / len2.sqrt();
+    let (ca, cb) = (na.dot(&d), nb.dot(&d));
+    let (phi, d_nt) = if ca >= -cb { (ca, cb) } else { (-cb, -ca) };
+    let vn = (1.0 - phi * phi).max(0.0).sqrt();
+    if vn <= f32::EPSILON {
         return NO_PAIR;
-    };
-    let theta = atan2_approx(sin_theta, cos_theta);
+    }
+    let c = na.dot(nb);
+    let alpha = na.cross(&d).dot(nb) / vn;
+    let theta = atan2_approx((phi * c - d_nt) / vn, c);
     let (a, p, t) = (
         bin(alpha, -1.0, 1.0),
         bin(phi, -1.0, 1.0),
-        bin(theta, -std::f64::consts::PI, std::f64::consts::PI),
+        bin(theta, -std::f32::consts::PI, std::f32::consts::PI),
     );
     (a + BINS_PER_FEATURE * (p + BINS_PER_FEATURE * t)) as PairCode
 }
 
+/// Edges binned together by [`pair_codes`]: one SIMD register of f32 (or two).
+const LANES: usize = 8;
+
+/// [`pair_code`] of `(p, n)` with each of `(ps[l], ns[l])`, lane by lane in straight-line
+/// code (selects instead of branches) so that the compiler vectorises it; `out` gets one code
+/// per lane. Gives the codes of [`pair_code`] (tested) but for rounding at a bin edge.
+#[inline]
+fn pair_codes(p: &V3, n: &V3, ps: &[V3; LANES], ns: &[V3; LANES], out: &mut [PairCode; LANES]) {
+    use std::f32::consts::{FRAC_PI_2, PI};
+    let zero_n = n.norm_squared() == 0.0;
+    let bins = BINS_PER_FEATURE as f32;
+    let last = bins - 1.0;
+    for l in 0..LANES {
+        let (q, m) = (ps[l], ns[l]);
+        let (dx, dy, dz) = (q.x - p.x, q.y - p.y, q.z - p.z);
+        let len2 = dx * dx + dy * dy + dz * dz;
+        let inv = 1.0 / len2.sqrt();
+        let (dx, dy, dz) = (dx * inv, dy * inv, dz * inv);
+        let ca = n.x * dx + n.y * dy + n.z * dz;
+        let cb = m.x * dx + m.y * dy + m.z * dz;
+        let swap = ca < -cb;
+        let phi = if swap { -cb } else { ca };
+        let d_nt = if swap { -ca } else { cb };
+        let vn = (1.0 - phi * phi).max(0.0).sqrt();
+        let c = n.x * m.x + n.y * m.y + n.z * m.z;
+        // (n × d)·m
+        let triple =
+            (n.y * dz - n.z * dy) * m.x + (n.z * dx - n.x * dz) * m.y + (n.x * dy - n.y * dx) * m.z;
+        let alpha = triple / vn;
+        let (y, x) = ((phi * c - d_nt) / vn, c);
+        // atan2_approx, with selects.
+        let (ax, ay) = (x.abs(), y.abs());
+        let (lo, hi) = (ax.min(ay), ax.max(ay));
+        let r = if hi > 0.0 { lo / hi } else { 0.0 };
+        let r2 = r * r;
+        let a = r
+            * (0.999_977_26
+                + r2 * (-0.332_623_47
+                    + r2 * (0.193_543_46
+                        + r2 * (-0.116_432_87 + r2 * (0.052_653_32 - r2 * 0.011_721_2)))));
+        let a = if ay > ax { FRAC_PI_2 - a } else { a };
+        let a = if x < 0.0 { PI - a } else { a };
+        let theta = if y < 0.0 { -a } else { a };
+        // Bins, clamped in float (NaN goes to 0 through `max`), truncated.
+        let ba = ((alpha + 1.0) * (bins / 2.0)).max(0.0).min(last) as u16;
+        let bp = ((phi + 1.0) * (bins / 2.0)).max(0.0).min(last) as u16;
+        let bt = ((theta + PI) * (bins / (2.0 * PI))).max(0.0).min(last) as u16;
+        let code = ba + BINS_PER_FEATURE as u16 * (bp + BINS_PER_FEATURE as u16 * bt);
+        // `|`, not `||`: no branch in the lane loop.
+        let bad = len2.is_nan()
+            | (len2 <= 0.0)
+            | (vn <= f32::EPSILON)
+            | (m.norm_squared() == 0.0)
+            | zero_n;
+        out[l] = if bad { NO_PAIR } else { code };
+    }
+}
+
+/// Rows (points) per parallel task.
+const ROWS_PER_TASK: usize = 256;
+
 /// Neighbours of every point within the radius (at most `max_neighbours`, the nearest, the
-/// point itself excluded), in compressed rows, each row ordered by point index. Shared by the
-/// normals ([`Neighbourhoods::nearest_normals`]) and the descriptors, so the cloud is searched
-/// once.
+/// point itself excluded), in compressed rows. Shared by the normals
+/// ([`Neighbourhoods::nearest_normals`]) and the descriptors, so the cloud is searched once.
+///
+/// The search runs on a uniform grid of cubes one radius wide: the points are sorted by cube
+/// (z, y, x), so the three cubes along x of each of a cube's nine (z, y) neighbour columns are
+/// one run of the sorted points, and a point's ball lies inside those nine runs. Rows,
+/// neighbours and everything built from them live in that sorted order (`order` maps back),
+/// which makes each row ascending without a sort and keeps neighbours close in memory.
 pub(crate) struct Neighbourhoods {
+    /// Original index of each sorted position.
+    order: Vec<u32>,
+    /// The points in sorted order, relative to the grid's corner, in f32.
+    local: Vec<V3>,
     start: Vec<u32>,
+    /// Neighbours as sorted positions, ascending in each row.
     index: Vec<u32>,
     distance: Vec<f32>,
 }
 
+/// A grid cube: its (z, y, x) coordinates and its run of sorted points.
+#[derive(Clone, Copy)]
+struct Cube {
+    key: (i32, i32, i32),
+    start: usize,
+    end: usize,
+}
+
 impl Neighbourhoods {
-    /// Searches `index` (built over `points`) around every point.
-    pub(crate) fn new(points: &[Point3<f64>], index: &KdIndex, config: &FpfhConfig) -> Self {
-        let lists: Vec<Vec<(u32, f32)>> = points
-            .par_iter()
-            .enumerate()
-            .with_min_len(256)
-            .map(|(i, p)| {
-                let mut found = index.radius_unsorted(p, config.radius);
-                found.retain(|n| n.index != i && n.distance_squared > 0.0);
-                if found.len() > config.max_neighbours {
-                    found.select_nth_unstable_by(config.max_neighbours, |a, b| {
-                        a.distance_squared
-                            .total_cmp(&b.distance_squared)
-                            .then(a.index.cmp(&b.index))
-                    });
-                    found.truncate(config.max_neighbours);
-                }
-                let mut row: Vec<(u32, f32)> = found
-                    .iter()
-                    .map(|n| (n.index as u32, n.distance_squared.sqrt() as f32))
-                    .collect();
-                row.sort_unstable_by_key(|x| x.0);
-                row
+    /// Finds the neighbours of every point of `points` (finite).
+    pub(crate) fn new(points: &[Point3<f64>], config: &FpfhConfig) -> Self {
+        let n = points.len();
+        let corner = points
+            .iter()
+            .fold(Vector3::repeat(f64::INFINITY), |m: Vector3<f64>, p| {
+                m.inf(&p.coords)
+            });
+        let corner = if corner.iter().all(|v| v.is_finite()) {
+            corner
+        } else {
+            Vector3::zeros()
+        };
+        let cell = config.radius;
+        // Saturating casts: a non-finite point lands in an extreme cube and finds no one.
+        let key_of = |p: &Point3<f64>| {
+            let c = (p.coords - corner) / cell;
+            (c.z.floor() as i32, c.y.floor() as i32, c.x.floor() as i32)
+        };
+        let keys: Vec<(i32, i32, i32)> = points.iter().map(key_of).collect();
+        let mut order: Vec<u32> = (0..n as u32).collect();
+        order.par_sort_unstable_by_key(|&i| (keys.get(i as usize).copied(), i));
+        let local: Vec<V3> = order
+            .iter()
+            .map(|&i| {
+                points
+                    .get(i as usize)
+                    .map_or_else(V3::zeros, |p| (p.coords - corner).cast::<f32>())
             })
             .collect();
-        let total: usize = lists.iter().map(Vec::len).sum();
-        let mut start = Vec::with_capacity(points.len() + 1);
-        let mut idx = Vec::with_capacity(total);
-        let mut distance = Vec::with_capacity(total);
-        start.push(0);
-        for list in lists {
-            for (j, d) in list {
-                idx.push(j);
-                distance.push(d);
+        let mut cubes: Vec<Cube> = Vec::new();
+        for (at, &i) in order.iter().enumerate() {
+            let key = keys.get(i as usize).copied().unwrap_or_default();
+            match cubes.last_mut() {
+                Some(c) if c.key == key => c.end = at + 1,
+                _ => cubes.push(Cube {
+                    key,
+                    start: at,
+                    end: at + 1,
+                }),
             }
-            start.push(idx.len() as u32);
+        }
+        let r2 = (config.radius * config.radius) as f32;
+        let max = config.max_neighbours;
+        // The nine runs of a cube's neighbourhood, in ascending order.
+        let runs = |c: &Cube| {
+            let (z, y, x) = c.key;
+            let mut out = [(0usize, 0usize); 9];
+            for (slot, (dz, dy)) in out
+                .iter_mut()
+                .zip((-1..=1).flat_map(|dz| (-1..=1).map(move |dy| (dz, dy))))
+            {
+                let (kz, ky) = (z.saturating_add(dz), y.saturating_add(dy));
+                let lo = cubes.partition_point(|d| d.key < (kz, ky, x.saturating_sub(1)));
+                let hi = cubes.partition_point(|d| d.key <= (kz, ky, x.saturating_add(1)));
+                if lo < hi
+                    && let (Some(a), Some(b)) = (cubes.get(lo), cubes.get(hi - 1))
+                {
+                    *slot = (a.start, b.end);
+                }
+            }
+            out
+        };
+        // One task per run of cubes; each gives its rows' lengths, neighbours and distances.
+        let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)> = cubes
+            .par_chunks(4)
+            .map(|chunk| {
+                let mut lengths = Vec::new();
+                let mut index = Vec::new();
+                let mut distance = Vec::new();
+                let mut row: Vec<(f32, u32)> = Vec::new();
+                for c in chunk {
+                    let runs = runs(c);
+                    let candidates: usize = runs.iter().map(|r| r.1 - r.0).sum();
+                    row.resize(candidates.max(row.len()), (0.0, 0));
+                    for i in c.start..c.end {
+                        let p = local.get(i).copied().unwrap_or_else(V3::zeros);
+                        // Every candidate written, the count advanced only for those inside
+                        // (no branch to mispredict on the ~1/3 that are).
+                        let mut len = 0;
+                        for &(a, b) in &runs {
+                            let Some(run) = local.get(a..b) else {
+                                continue;
+                            };
+                            for (j, q) in (a..b).zip(run) {
+                                let d2 = (q - p).norm_squared();
+                                if let Some(slot) = row.get_mut(len) {
+                                    *slot = (d2, j as u32);
+                                }
+                                len += usize::from(d2 <= r2 && d2 > 0.0);
+                            }
+                        }
+                        let found = row.get_mut(..len).unwrap_or_default();
+                        let found = if found.len() > max {
+                            found.select_nth_unstable_by(max, |a, b| {
+                                a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
+                            });
+                            let nearest = found.get_mut(..max).unwrap_or_default();
+                            nearest.sort_unstable_by_key(|x| x.1);
+                            nearest
+                        } else {
+                            found
+                        };
+                        lengths.push(found.len() as u32);
+                        index.extend(found.iter().map(|x| x.1));
+                        distance.extend(found.iter().map(|x| x.0.sqrt()));
+                    }
+                }
+                (lengths, index, distance)
+            })
+            .collect();
+        let total: usize = chunks.iter().map(|c| c.1.len()).sum();
+        let mut start = Vec::with_capacity(n + 1);
+        let mut index = Vec::with_capacity(total);
+        let mut distance = Vec::with_capacity(total);
+        start.push(0u32);
+        for (lengths, idx, dist) in chunks {
+            for l in lengths {
+                let last = start.last().copied().unwrap_or(0);
+                start.push(last + l);
+            }
+            index.extend(idx);
+            distance.extend(dist);
         }
         Self {
+            order,
+            local,
             start,
-            index: idx,
+            index,
             distance,
         }
+    }
+
+    fn len(&self) -> usize {
+        self.order.len()
     }
 
     fn range(&self, i: usize) -> std::ops::Range<usize> {
@@ -245,20 +427,25 @@ impl Neighbourhoods {
         )
     }
 
-    /// Position of the edge `i → j` in the rows, if `j` is a neighbour of `i`.
-    fn edge(&self, i: usize, j: u32) -> Option<usize> {
-        let r = self.range(i);
-        let row = self.index.get(r.clone())?;
-        row.binary_search(&j).ok().map(|k| r.start + k)
+    /// Values given in sorted order, put back in the original order of the points.
+    fn unsort<T: Copy>(&self, sorted: &[T], fill: T) -> Vec<T> {
+        let mut out = vec![fill; self.len()];
+        for (&i, v) in self.order.iter().zip(sorted) {
+            if let Some(o) = out.get_mut(i as usize) {
+                *o = *v;
+            }
+        }
+        out
     }
 
-    /// Unit normals (unoriented) from the PCA of each point and its `k - 1` nearest
-    /// neighbours in its row ([`fit_local_plane`], as `sl_cloud::estimate_normals` with `k`
-    /// neighbours including the point); zero where no plane fits.
+    /// Unit normals (unoriented, in the points' original order) from the PCA of each point and
+    /// its `k - 1` nearest neighbours in its row ([`fit_local_plane`], as
+    /// `sl_cloud::estimate_normals` with `k` neighbours including the point); zero where no
+    /// plane fits.
     pub(crate) fn nearest_normals(&self, points: &[Point3<f64>], k: usize) -> Vec<Vector3<f64>> {
-        (0..points.len())
+        let sorted: Vec<Vector3<f64>> = (0..self.len())
             .into_par_iter()
-            .with_min_len(256)
+            .with_min_len(ROWS_PER_TASK)
             .map_init(Vec::new, |buf: &mut Vec<(f32, u32)>, i| {
                 let (idx, dist) = self.of(i);
                 buf.clear();
@@ -270,10 +457,13 @@ impl Neighbourhoods {
                     });
                 }
                 buf.truncate(keep);
-                let around = std::iter::once(i).chain(buf.iter().map(|x| x.1 as usize));
+                let original = |j: usize| self.order.get(j).map_or(usize::MAX, |&o| o as usize);
+                let around =
+                    std::iter::once(original(i)).chain(buf.iter().map(|x| original(x.1 as usize)));
                 fit_local_plane(points, around).map_or_else(Vector3::zeros, |p| p.normal)
             })
-            .collect()
+            .collect();
+        self.unsort(&sorted, Vector3::zeros())
     }
 }
 
@@ -281,7 +471,9 @@ impl Neighbourhoods {
 ///
 /// `normals` must be unit vectors (zero where unknown: such pairs are skipped) with a sign
 /// that is consistent over the cloud (see [`orient_normals_outward`](crate::orient_normals_outward));
-/// `index` must be built over `points`. A point with no usable neighbour gets an all-zero
+/// `index` must be built over `points` (it is checked, and kept in the signature for
+/// compatibility: the neighbours are found on a uniform grid, see `Neighbourhoods`, which is
+/// several times faster than the tree for one fixed radius). A point with no usable neighbour gets an all-zero
 /// descriptor. Runs in parallel on the rayon pool; the result does not depend on the number
 /// of threads.
 ///
@@ -325,62 +517,116 @@ pub fn compute_fpfh(
             "the index must be built over the same points",
         ));
     }
-    let hoods = Neighbourhoods::new(points, index, config);
-    Ok(fpfh_of_neighbourhoods(points, normals, &hoods))
+    let hoods = Neighbourhoods::new(points, config);
+    Ok(fpfh_of_neighbourhoods(normals, &hoods))
 }
 
-/// [`compute_fpfh`] over neighbourhoods already found (`normals` one per point).
+/// [`compute_fpfh`] over neighbourhoods already found (`normals` one per point, in the
+/// points' order; so is the result).
 ///
 /// The pair angles do not depend on the order of the pair, so each pair is binned once: first
-/// every edge `i → j` with `j > i`, then each point's histogram reads its edges to smaller
-/// points from their reverse edges (computing the few that the neighbour cap left one-way).
+/// every edge `i → j` with `j > i`, then their codes are copied to the reverse edges `j → i`
+/// (the few that the neighbour cap left one-way get their own).
 pub(crate) fn fpfh_of_neighbourhoods(
-    points: &[Point3<f64>],
     normals: &[Vector3<f64>],
     hoods: &Neighbourhoods,
 ) -> Vec<Fpfh> {
-    let n = points.len();
-    let code =
-        |i: usize, j: usize| match (points.get(i), normals.get(i), points.get(j), normals.get(j)) {
-            (Some(p), Some(np), Some(q), Some(nq)) => pair_code(p, np, q, nq),
-            _ => NO_PAIR,
-        };
+    let n = hoods.len();
+    let normal: Vec<V3> = hoods
+        .order
+        .iter()
+        .map(|&i| {
+            normals
+                .get(i as usize)
+                .map_or_else(V3::zeros, |v| v.cast::<f32>())
+        })
+        .collect();
+    let code = |i: usize, j: usize| match (
+        hoods.local.get(i),
+        normal.get(i),
+        hoods.local.get(j),
+        normal.get(j),
+    ) {
+        (Some(p), Some(np), Some(q), Some(nq)) => pair_code(p, np, q, nq),
+        _ => NO_PAIR,
+    };
     // Codes of the edges to larger points, row by row.
     let forward: Vec<Vec<PairCode>> = (0..n)
         .into_par_iter()
-        .with_min_len(256)
-        .map(|i| {
-            let (idx, _) = hoods.of(i);
-            idx.iter()
-                .map(|&j| {
-                    if j as usize > i {
-                        code(i, j as usize)
-                    } else {
-                        NO_PAIR
+        .step_by(ROWS_PER_TASK)
+        .map(|i0| {
+            let end = (i0 + ROWS_PER_TASK).min(n);
+            let mut out = Vec::with_capacity(
+                hoods
+                    .range(i0)
+                    .start
+                    .abs_diff(hoods.range(end.saturating_sub(1)).end),
+            );
+            for i in i0..end {
+                let (idx, _) = hoods.of(i);
+                let split = idx.partition_point(|&j| j as usize <= i);
+                out.extend(std::iter::repeat_n(UNSET, split));
+                let (Some(p), Some(np)) = (hoods.local.get(i), normal.get(i)) else {
+                    continue;
+                };
+                let mut ps = [V3::zeros(); LANES];
+                let mut ns = [V3::zeros(); LANES];
+                let mut lane_codes = [NO_PAIR; LANES];
+                for chunk in idx.get(split..).unwrap_or(&[]).chunks(LANES) {
+                    for ((q, m), &j) in ps.iter_mut().zip(ns.iter_mut()).zip(chunk) {
+                        *q = hoods
+                            .local
+                            .get(j as usize)
+                            .copied()
+                            .unwrap_or_else(V3::zeros);
+                        *m = normal.get(j as usize).copied().unwrap_or_else(V3::zeros);
                     }
-                })
-                .collect()
+                    pair_codes(p, np, &ps, &ns, &mut lane_codes);
+                    out.extend(lane_codes.iter().take(chunk.len()));
+                }
+            }
+            out
         })
         .collect();
-    let codes: Vec<PairCode> = forward.into_iter().flatten().collect();
-    // SPFH of every point, in f64 while summing.
-    let spfh: Vec<[f64; FPFH_BINS]> = (0..n)
+    let mut codes: Vec<PairCode> = forward.concat();
+    // The reverse edges get their pair's code: row `j` lists its smaller neighbours in
+    // ascending order, and the forward edges `i → j` come by ascending `i`, so one cursor per
+    // row finds each `i` in row `j` in a single pass (no search).
+    let mut cursor: Vec<u32> = hoods.start.iter().take(n).copied().collect();
+    for i in 0..n {
+        let range = hoods.range(i);
+        let idx = hoods.index.get(range.clone()).unwrap_or(&[]);
+        let split = idx.partition_point(|&j| j as usize <= i);
+        for (e, &j) in range.zip(idx).skip(split) {
+            let end = hoods.range(j as usize).end;
+            let Some(c) = cursor.get_mut(j as usize) else {
+                continue;
+            };
+            while (*c as usize) < end && hoods.index.get(*c as usize).is_some_and(|&k| k < i as u32)
+            {
+                *c += 1;
+            }
+            if hoods.index.get(*c as usize) == Some(&(i as u32)) && (*c as usize) < end {
+                let code = codes.get(e).copied().unwrap_or(NO_PAIR);
+                if let Some(slot) = codes.get_mut(*c as usize) {
+                    *slot = code;
+                }
+                *c += 1;
+            }
+        }
+    }
+    // SPFH of every point.
+    let spfh: Vec<Fpfh> = (0..n)
         .into_par_iter()
-        .with_min_len(256)
+        .with_min_len(ROWS_PER_TASK)
         .map(|i| {
-            let mut h = [0.0; FPFH_BINS];
-            let mut count = 0usize;
+            let mut counts = [0u32; FPFH_BINS];
+            let mut count = 0u32;
             let range = hoods.range(i);
             let idx = hoods.index.get(range.clone()).unwrap_or(&[]);
-            for (e, &j) in range.zip(idx) {
-                let c = if j as usize > i {
-                    codes.get(e).copied().unwrap_or(NO_PAIR)
-                } else {
-                    match hoods.edge(j as usize, i as u32) {
-                        Some(back) => codes.get(back).copied().unwrap_or(NO_PAIR),
-                        None => code(i, j as usize),
-                    }
-                };
+            for (&c, &j) in codes.get(range).unwrap_or(&[]).iter().zip(idx) {
+                // A reverse edge left one-way by the neighbour cap: its own code.
+                let c = if c == UNSET { code(i, j as usize) } else { c };
                 if c == NO_PAIR {
                     continue;
                 }
@@ -388,33 +634,32 @@ pub(crate) fn fpfh_of_neighbourhoods(
                 let (a, rest) = (c % BINS_PER_FEATURE, c / BINS_PER_FEATURE);
                 let (p, t) = (rest % BINS_PER_FEATURE, rest / BINS_PER_FEATURE);
                 for b in [a, BINS_PER_FEATURE + p, 2 * BINS_PER_FEATURE + t] {
-                    if let Some(v) = h.get_mut(b) {
-                        *v += 1.0;
+                    if let Some(v) = counts.get_mut(b) {
+                        *v += 1;
                     }
                 }
                 count += 1;
             }
-            if count > 0 {
-                let scale = HISTOGRAM_MASS / count as f64;
-                for v in &mut h {
-                    *v *= scale;
-                }
-            }
-            h
+            let scale = if count > 0 {
+                HISTOGRAM_MASS / count as f32
+            } else {
+                0.0
+            };
+            counts.map(|c| c as f32 * scale)
         })
         .collect();
     // FPFH: own SPFH plus the 1/distance-weighted neighbours' SPFHs, renormalised.
-    (0..n)
+    let sorted: Vec<Fpfh> = (0..n)
         .into_par_iter()
-        .with_min_len(256)
+        .with_min_len(ROWS_PER_TASK)
         .map(|i| {
-            let mut acc = [0.0f64; FPFH_BINS];
+            let mut acc = [0.0f32; FPFH_BINS];
             let (idx, dist) = hoods.of(i);
             for (&j, &d) in idx.iter().zip(dist) {
                 let Some(s) = spfh.get(j as usize) else {
                     continue;
                 };
-                let w = 1.0 / f64::from(d);
+                let w = 1.0 / d;
                 for (a, v) in acc.iter_mut().zip(s) {
                     *a += w * v;
                 }
@@ -423,7 +668,7 @@ pub(crate) fn fpfh_of_neighbourhoods(
             let mut f = [0.0f32; FPFH_BINS];
             for k in 0..3 {
                 let range = k * BINS_PER_FEATURE..(k + 1) * BINS_PER_FEATURE;
-                let mass: f64 = acc.get(range.clone()).map_or(0.0, |s| s.iter().sum());
+                let mass: f32 = acc.get(range.clone()).map_or(0.0, |s| s.iter().sum());
                 let scale = if mass > 0.0 {
                     HISTOGRAM_MASS / mass
                 } else {
@@ -431,13 +676,14 @@ pub(crate) fn fpfh_of_neighbourhoods(
                 };
                 for b in range {
                     if let (Some(o), Some(a), Some(s)) = (f.get_mut(b), acc.get(b), own.get(b)) {
-                        *o = (s + a * scale) as f32;
+                        *o = s + a * scale;
                     }
                 }
             }
             f
         })
-        .collect()
+        .collect();
+    hoods.unsort(&sorted, [0.0; FPFH_BINS])
 }
 
 #[cfg(test)]
@@ -447,28 +693,80 @@ mod tests {
 
     #[test]
     fn pair_angles_do_not_depend_on_the_order_of_the_pair() {
-        let (pa, pb) = (Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.2, 0.1));
-        let na = Vector3::new(0.1, 0.0, 1.0).normalize();
-        let nb = Vector3::new(-0.3, 0.2, 1.0).normalize();
+        let (pa, pb) = (V3::new(0.0, 0.0, 0.0), V3::new(1.0, 0.2, 0.1));
+        let na = V3::new(0.1, 0.0, 1.0).normalize();
+        let nb = V3::new(-0.3, 0.2, 1.0).normalize();
         let a = pair_angles(&pa, &na, &pb, &nb).unwrap();
         let b = pair_angles(&pb, &nb, &pa, &na).unwrap();
-        assert!((a.0 - b.0).abs() < 1e-12 && (a.1 - b.1).abs() < 1e-12);
-        assert!((a.2 - b.2).abs() < 1e-12);
+        assert!((a.0 - b.0).abs() < 1e-6 && (a.1 - b.1).abs() < 1e-6);
+        assert!((a.2 - b.2).abs() < 1e-6);
         assert!(pair_angles(&pa, &na, &pa, &nb).is_none());
         assert_eq!(bin(-1.0, -1.0, 1.0), 0);
         assert_eq!(bin(1.0, -1.0, 1.0), BINS_PER_FEATURE - 1);
         assert_eq!(bin(0.01, -1.0, 1.0), 5);
-        assert_eq!(bin(f64::NAN, -1.0, 1.0), 0);
+        assert_eq!(bin(f32::NAN, -1.0, 1.0), 0);
         assert_eq!(bin(-3.0, -1.0, 1.0), 0);
         // The fast atan2 against libm's, all around the circle.
         for k in 0..3600 {
             let t = (k as f64 / 10.0 - 180.0).to_radians();
             for r in [1e-3, 1.0, 50.0] {
-                let (y, x) = (r * t.sin(), r * t.cos());
-                assert!((atan2_approx(y, x) - y.atan2(x)).abs() < 1e-5, "{t}");
+                let (y, x) = ((r * t.sin()) as f32, (r * t.cos()) as f32);
+                assert!((atan2_approx(y, x) - y.atan2(x)).abs() < 2e-5, "{t}");
             }
         }
         assert_eq!(atan2_approx(0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn pair_codes_agree_with_the_darboux_frame_construction() {
+        // Pseudo-random unit normals and offsets; the shortcut formulas of `pair_code` give
+        // the bins of Rusu's frame, except for an angle within rounding of a bin edge.
+        let mut s = 0x2545_f491_u32;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            (s % 20_001) as f32 / 10_000.0 - 1.0
+        };
+        let unit = |next: &mut dyn FnMut() -> f32| {
+            V3::new(next(), next(), next())
+                .try_normalize(1e-3)
+                .unwrap_or_else(V3::z)
+        };
+        let edge = |x: f32, lo: f32, hi: f32| {
+            let t = (x - lo) / (hi - lo) * BINS_PER_FEATURE as f32;
+            (t - t.round()).abs() < 1e-3
+        };
+        let mut checked = 0;
+        for _ in 0..20_000 {
+            let (na, nb) = (unit(&mut next), unit(&mut next));
+            let pa = V3::new(next(), next(), next()) * 5.0;
+            let pb = V3::new(next(), next(), next()) * 5.0;
+            let code = pair_code(&pa, &na, &pb, &nb);
+            assert_eq!(code, pair_code(&pb, &nb, &pa, &na));
+            let mut lanes = [0; LANES];
+            pair_codes(&pa, &na, &[pb; LANES], &[nb; LANES], &mut lanes);
+            let Some((alpha, phi, theta)) = pair_angles(&pa, &na, &pb, &nb) else {
+                continue;
+            };
+            let pi = std::f32::consts::PI;
+            if edge(alpha, -1.0, 1.0) || edge(phi, -1.0, 1.0) || edge(theta, -pi, pi) {
+                continue;
+            }
+            let expected = bin(alpha, -1.0, 1.0)
+                + BINS_PER_FEATURE * (bin(phi, -1.0, 1.0) + BINS_PER_FEATURE * bin(theta, -pi, pi));
+            assert_eq!(usize::from(code), expected, "{alpha} {phi} {theta}");
+            assert_eq!(lanes, [code; LANES], "{alpha} {phi} {theta}");
+            checked += 1;
+        }
+        assert!(checked > 19_000, "{checked}");
+        let z = V3::z();
+        assert_eq!(pair_code(&V3::zeros(), &z, &V3::zeros(), &z), NO_PAIR);
+        assert_eq!(
+            pair_code(&V3::zeros(), &z, &z, &z),
+            NO_PAIR,
+            "normal along the line"
+        );
     }
 
     #[test]

@@ -146,10 +146,10 @@ impl GlobalCloud {
         }
         // One neighbour search serves the normals and the descriptors: the 16 nearest of a
         // point lie well inside its 10 mm FPFH ball.
-        let hoods = Neighbourhoods::new(prepared.points(), prepared.index(), &config.fpfh);
+        let hoods = Neighbourhoods::new(prepared.points(), &config.fpfh);
         let mut normals = hoods.nearest_normals(prepared.points(), config.normal_neighbours);
         let one_sided = orient_normals_outward(prepared.points(), &mut normals);
-        let features = fpfh_of_neighbourhoods(prepared.points(), &normals, &hoods);
+        let features = fpfh_of_neighbourhoods(&normals, &hoods);
         prepared.replace_normals(Some(normals));
         let index = FeatureIndex::new(&features);
         Ok(Self {
