@@ -63,6 +63,7 @@ mod holes;
 mod measure;
 mod poisson;
 mod render;
+mod simplify;
 mod taubin;
 #[cfg(test)]
 mod test_shapes;
@@ -81,6 +82,7 @@ pub use holes::{HoleFilling, fill_holes};
 pub use measure::{sample_surface, signed_volume, surface_area, vertex_normals};
 pub use poisson::{MIN_POISSON_POINTS, PoissonConfig, PoissonSurface, poisson_reconstruct};
 pub use render::{MeshColoring, render_mesh};
+pub use simplify::{Simplification, SimplifyConfig, simplify};
 pub use sl_cloud::{TriangleMesh, read_ply_mesh};
 pub use taubin::{TaubinConfig, smooth_taubin};
 pub use topology::{Topology, check_topology, compact_vertices, remove_small_components};
