@@ -232,6 +232,7 @@ struct Incidence {
 }
 
 impl Incidence {
+    #[inline(never)]
     fn new(tris: &[[u32; 3]], nv: usize) -> Self {
         let mut start = vec![0u32; nv + 1];
         for t in tris {
@@ -261,6 +262,7 @@ impl Incidence {
 
 /// Whether the triangles around `v` form one closed fan: every corner of its link is left once
 /// and entered once, and following the link from one corner visits all of them.
+#[inline(never)]
 fn closed_fan(tris: &[[u32; 3]], star: &[u32], v: u32, next: &mut Vec<(u32, u32)>) -> bool {
     if star.len() < 3 {
         return false;
@@ -297,7 +299,8 @@ fn closed_fan(tris: &[[u32; 3]], star: &[u32], v: u32, next: &mut Vec<(u32, u32)
     false
 }
 
-/// A candidate collapse of the edge `a`–`b` (`a < b`) with its mean squared error.
+/// A candidate collapse of the edge `a`–`b` (`a < b`) with its mean squared error relative to
+/// its bound.
 #[derive(Debug, Clone, Copy)]
 struct Candidate {
     cost: f64,
@@ -359,6 +362,7 @@ pub fn simplify(
         )));
     }
     check_indices(mesh)?;
+    let t_setup = std::time::Instant::now();
     let nv = mesh.vertices.len();
     let mut dens: Vec<f64> = densities.to_vec();
     let support_threshold = if dens.is_empty() {
@@ -409,73 +413,236 @@ pub fn simplify(
         .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
         .collect();
     let mut pos = std::mem::take(&mut mesh.vertices);
-    let mut quad = vec![Quadric::default(); nv];
-    for t in &tris {
-        let [a, b, c] = t.map(|i| pos[i as usize]);
-        let n = (b - a).cross(&(c - a));
-        let area2 = n.norm();
-        if area2 > 0.0 {
-            let plane = Quadric::plane(n / area2, &a, area2 * 0.5);
-            for &v in t {
-                quad[v as usize].add(&plane);
-            }
-        }
+    // Vertices in Morton order and triangles by their first vertex: neighbours close in
+    // memory, which is most of the speed of the passes below.
+    let order = morton_order(&pos);
+    let mut new_id = vec![0u32; nv];
+    for (i, &o) in order.iter().enumerate() {
+        new_id[o as usize] = i as u32;
     }
-    // Vertices that never move: not one closed fan.
-    let fixed: Vec<bool> = {
-        let inc = Incidence::new(&tris, nv);
-        (0..nv)
-            .into_par_iter()
-            .map_init(Vec::new, |buf, v| {
-                !closed_fan(&tris, inc.of(v), v as u32, buf)
-            })
-            .collect()
+    pos = order.iter().map(|&o| pos[o as usize]).collect();
+    if !dens.is_empty() {
+        dens = order.iter().map(|&o| dens[o as usize]).collect();
+    }
+    unsupported = order.iter().map(|&o| unsupported[o as usize]).collect();
+    for t in &mut tris {
+        *t = t.map(|i| new_id[i as usize]);
+    }
+    // Triangles by their smallest vertex (a stable counting sort).
+    let mut first = vec![0u32; nv + 1];
+    for t in &tris {
+        first[t[0].min(t[1]).min(t[2]) as usize + 1] += 1;
+    }
+    for i in 0..nv {
+        first[i + 1] += first[i];
+    }
+    let mut sorted = vec![[0u32; 3]; tris.len()];
+    for t in &tris {
+        let k = &mut first[t[0].min(t[1]).min(t[2]) as usize];
+        sorted[*k as usize] = *t;
+        *k += 1;
+    }
+    let tris = sorted;
+    // Each vertex's quadric (the planes of its triangles, by area) and whether it never moves
+    // (not one closed fan).
+    let inc = Incidence::new(&tris, nv);
+    let (quad, fixed): (Vec<Quadric>, Vec<bool>) = (0..nv)
+        .into_par_iter()
+        .map_init(Vec::new, |buf, v| {
+            let mut q = Quadric::default();
+            for &t in inc.of(v) {
+                let [a, b, c] = tris[t as usize].map(|i| pos[i as usize]);
+                let n = (b - a).cross(&(c - a));
+                let area2 = n.norm();
+                if area2 > 0.0 {
+                    q.add(&Quadric::plane(n / area2, &a, area2 * 0.5));
+                }
+            }
+            (q, !closed_fan(&tris, inc.of(v), v as u32, buf))
+        })
+        .unzip();
+    if std::env::var_os("SL_TRACE").is_some() { eprintln!("setup {:?}", t_setup.elapsed()); }
+    let mut work = Work {
+        tris,
+        pos,
+        quad,
+        unsupported,
+        dens,
+        fixed,
+        bound_s,
+        bound_u,
+        changed: vec![true; nv],
+        quiet: vec![false; nv],
+        touched: vec![true; nv],
     };
-    let mut changed = vec![true; nv];
-    let mut quiet = vec![false; nv];
-    let mut locked = vec![false; nv];
-    let mut ring_a: Vec<u32> = Vec::new();
-    let mut ring_b: Vec<u32> = Vec::new();
+    let mut scratch = Scratch {
+        locked: vec![false; nv],
+        best: vec![(f64::INFINITY, u32::MAX); nv],
+        mark: vec![0; nv],
+        stamp: 0,
+        star_a: Vec::new(),
+        star_b: Vec::new(),
+    };
     loop {
         done.passes += 1;
-        let inc = Incidence::new(&tris, nv);
-        let mut deg: Vec<u32> = (0..nv).map(|v| inc.start[v + 1] - inc.start[v]).collect();
-        // Costs of the edges, each at its smaller vertex, in parallel chunks.
-        let chunks: Vec<Vec<Candidate>> = (0..nv.div_ceil(CHUNK))
+        let t0 = std::time::Instant::now();
+        let pass = work.pass(&mut scratch);
+        if std::env::var_os("SL_TRACE").is_some() { eprintln!("pass {} {:?} collapses {} tris {}", done.passes, t0.elapsed(), pass.collapses, work.tris.len()); }
+        done.largest_error = done.largest_error.max(pass.largest);
+        done.largest_unsupported_error = done.largest_unsupported_error.max(pass.largest_unsupported);
+        if pass.collapses == 0 {
+            break;
+        }
+    }
+    done.largest_error = done.largest_error.sqrt();
+    done.largest_unsupported_error = done.largest_unsupported_error.sqrt();
+    mesh.vertices = work.pos;
+    mesh.triangles = work.tris;
+    let old = compact_vertices(mesh);
+    done.unsupported_after = old
+        .iter()
+        .filter(|&&i| work.unsupported[i as usize])
+        .count();
+    if !work.dens.is_empty() {
+        done.densities = old.iter().map(|&i| work.dens[i as usize]).collect();
+    }
+    done.vertices_after = mesh.vertices.len();
+    done.triangles_after = mesh.triangles.len();
+    Ok(done)
+}
+
+/// The state of a simplification between passes.
+struct Work {
+    /// The current triangles (none degenerate).
+    tris: Vec<[u32; 3]>,
+    /// Vertex positions (removed vertices keep theirs, unused).
+    pos: Vec<Point3<f64>>,
+    /// Each vertex's quadric: the planes of the input triangles merged into it.
+    quad: Vec<Quadric>,
+    /// Below the support density (for a merged vertex: both were).
+    unsupported: Vec<bool>,
+    /// Densities (the larger at each merge), or empty.
+    dens: Vec<f64>,
+    /// Vertices that never move (not one closed fan).
+    fixed: Vec<bool>,
+    /// The squared bounds where supported and where not.
+    bound_s: f64,
+    bound_u: f64,
+    /// Vertices whose quadric and position changed in the last pass (all before the first).
+    changed: Vec<bool>,
+    /// Vertices none of whose edges was under its bound in the last pass.
+    quiet: Vec<bool>,
+    /// Vertices that changed or are neighbours of one that did.
+    touched: Vec<bool>,
+}
+
+/// Buffers of the sweep, reused across passes.
+struct Scratch {
+    /// Vertices already part of a collapse in this pass.
+    locked: Vec<bool>,
+    /// Each vertex's cheapest candidate: (relative cost, other vertex).
+    best: Vec<(f64, u32)>,
+    /// Stamps for the link condition.
+    mark: Vec<u32>,
+    stamp: u32,
+    /// The living triangles around the two vertices of a collapse.
+    star_a: Vec<(u32, [u32; 3])>,
+    star_b: Vec<(u32, [u32; 3])>,
+}
+
+/// What one pass did.
+struct Pass {
+    collapses: usize,
+    /// Largest mean squared error of a collapse made where supported, and where not.
+    largest: f64,
+    largest_unsupported: f64,
+}
+
+impl Work {
+    /// One pass: costs, candidates, sweep; the triangles compacted after it.
+    fn pass(&mut self, scratch: &mut Scratch) -> Pass {
+        let nv = self.pos.len();
+        let inc = Incidence::new(&self.tris, nv);
+        let mut blocks = self.edge_costs(&inc);
+        // A vertex with a candidate is not quiet; one without stays so until it or a
+        // neighbour changes. Each vertex's cheapest candidate (ties: the smaller other vertex).
+        self.quiet.fill(true);
+        scratch
+            .best
+            .iter_mut()
+            .for_each(|b| *b = (f64::INFINITY, u32::MAX));
+        for c in blocks.iter().flatten() {
+            for (v, other) in [(c.a, c.b), (c.b, c.a)] {
+                let v = v as usize;
+                self.quiet[v] = false;
+                let b = &mut scratch.best[v];
+                if (c.cost, other) < *b {
+                    *b = (c.cost, other);
+                }
+            }
+        }
+        // The candidates cheapest for one of their vertices, cheapest first within each block
+        // of vertices: a greedy order that keeps the sweep's memory accesses local.
+        let best = &scratch.best;
+        blocks.par_iter_mut().for_each(|block| {
+            block.retain(|c| best[c.a as usize].1 == c.b || best[c.b as usize].1 == c.a);
+            block.sort_unstable_by(|x, y| {
+                x.cost
+                    .total_cmp(&y.cost)
+                    .then(x.a.cmp(&y.a))
+                    .then(x.b.cmp(&y.b))
+            });
+        });
+        self.sweep(&inc, blocks.iter().flatten(), scratch)
+    }
+
+    /// The relative cost of every edge under its bound, each at its smaller vertex, in blocks
+    /// of [`CHUNK`] vertices computed in parallel. An edge between two vertices that did not
+    /// change, one of them quiet, is known to be above its bound and skipped, and so is a quiet
+    /// vertex no neighbour of which changed.
+    #[inline(never)]
+    fn edge_costs(&self, inc: &Incidence) -> Vec<Vec<Candidate>> {
+        let nv = self.pos.len();
+        (0..nv.div_ceil(CHUNK))
             .into_par_iter()
             .map(|c| {
                 let mut out = Vec::new();
                 let mut ring: Vec<u32> = Vec::new();
                 for v in c * CHUNK..((c + 1) * CHUNK).min(nv) {
-                    if fixed[v] || deg[v] == 0 {
+                    if self.fixed[v] || (self.quiet[v] && !self.touched[v]) {
                         continue;
                     }
+                    // Each edge v → u of v's closed fan once, from the triangle that runs
+                    // along it in that direction (the other one runs u → v).
                     ring.clear();
                     for &t in inc.of(v) {
-                        for &u in &tris[t as usize] {
-                            if u as usize > v {
-                                ring.push(u);
-                            }
+                        let tri = self.tris[t as usize];
+                        let k = tri.iter().position(|&i| i as usize == v).unwrap_or(0);
+                        let u = tri[(k + 1) % 3];
+                        if u as usize > v {
+                            ring.push(u);
                         }
                     }
-                    ring.sort_unstable();
-                    ring.dedup();
                     for &u in &ring {
                         let u = u as usize;
-                        if fixed[u]
-                            || (!changed[u] && !changed[v] && (quiet[u] || quiet[v]))
+                        if self.fixed[u]
+                            || (!self.changed[u]
+                                && !self.changed[v]
+                                && (self.quiet[u] || self.quiet[v]))
                         {
                             continue;
                         }
-                        let bound = if unsupported[u] && unsupported[v] {
-                            bound_u
+                        let bound = if self.unsupported[u] && self.unsupported[v] {
+                            self.bound_u
                         } else {
-                            bound_s
+                            self.bound_s
                         };
-                        let (_, cost) = quad[v].sum(&quad[u]).best(&pos[v], &pos[u]);
+                        let (_, cost) = self.quad[v]
+                            .sum(&self.quad[u])
+                            .best(&self.pos[v], &self.pos[u]);
                         if cost <= bound {
                             out.push(Candidate {
-                                cost,
+                                cost: if bound > 0.0 { cost / bound } else { 0.0 },
                                 a: v as u32,
                                 b: u as u32,
                             });
@@ -484,67 +651,94 @@ pub fn simplify(
                 }
                 out
             })
-            .collect();
-        let mut cands: Vec<Candidate> = chunks.into_iter().flatten().collect();
-        cands.par_sort_unstable_by(|x, y| {
-            x.cost
-                .total_cmp(&y.cost)
-                .then(x.a.cmp(&y.a))
-                .then(x.b.cmp(&y.b))
-        });
-        // A vertex with a candidate is not quiet; one without is until it or a neighbour moves.
-        quiet.iter_mut().for_each(|q| *q = true);
-        for c in &cands {
-            quiet[c.a as usize] = false;
-            quiet[c.b as usize] = false;
-        }
-        locked.iter_mut().for_each(|l| *l = false);
-        let mut next_changed = vec![false; nv];
-        let mut alive = vec![true; tris.len()];
-        let mut collapses = 0usize;
-        for c in &cands {
+            .collect()
+    }
+
+    /// Takes the candidates in order, each unless one of its vertices is already part of a
+    /// collapse of this pass or a check fails on the current triangles (see the module docs).
+    #[inline(never)]
+    fn sweep<'a>(
+        &mut self,
+        inc: &Incidence,
+        cands: impl Iterator<Item = &'a Candidate>,
+        s: &mut Scratch,
+    ) -> Pass {
+        let nv = self.pos.len();
+        s.locked.fill(false);
+        let mut deg: Vec<u32> = inc.start.windows(2).map(|w| w[1] - w[0]).collect();
+        let mut alive = vec![true; self.tris.len()];
+        let mut changed = vec![false; nv];
+        let mut out = Pass {
+            collapses: 0,
+            largest: 0.0,
+            largest_unsupported: 0.0,
+        };
+        for c in cands {
             let (a, b) = (c.a as usize, c.b as usize);
-            if locked[a] || locked[b] {
+            if s.locked[a] || s.locked[b] {
                 continue;
             }
-            let q = quad[a].sum(&quad[b]);
-            let (x, cost) = q.best(&pos[a], &pos[b]);
+            // The living triangles around a and b, gathered once.
+            s.star_a.clear();
+            s.star_a.extend(
+                inc.of(a)
+                    .iter()
+                    .filter(|&&t| alive[t as usize])
+                    .map(|&t| (t, self.tris[t as usize])),
+            );
+            s.star_b.clear();
+            s.star_b.extend(
+                inc.of(b)
+                    .iter()
+                    .filter(|&&t| alive[t as usize])
+                    .map(|&t| (t, self.tris[t as usize])),
+            );
             // The triangles on the edge and their opposite corners.
             let mut shared = [u32::MAX; 2];
             let mut opposite = [u32::MAX; 2];
             let mut n_shared = 0;
-            for &t in inc.of(a) {
-                let tri = tris[t as usize];
-                if alive[t as usize] && tri.contains(&c.b) {
+            for (t, tri) in &s.star_a {
+                if tri.contains(&c.b) {
                     if n_shared < 2 {
-                        shared[n_shared] = t;
-                        opposite[n_shared] = tri
-                            .iter()
-                            .copied()
-                            .find(|&i| i != c.a && i != c.b)
-                            .unwrap_or(u32::MAX);
+                        shared[n_shared] = *t;
+                        opposite[n_shared] = tri[0] ^ tri[1] ^ tri[2] ^ c.a ^ c.b;
                     }
                     n_shared += 1;
                 }
             }
-            if n_shared != 2 || opposite.contains(&u32::MAX) {
+            if n_shared != 2
+                || deg[opposite[0] as usize] <= 3
+                || deg[opposite[1] as usize] <= 3
+            {
                 continue;
             }
-            if deg[opposite[0] as usize] <= 3 || deg[opposite[1] as usize] <= 3 {
-                continue;
+            // Link condition: the only common neighbours are the two opposite corners.
+            s.stamp = s.stamp.wrapping_add(2);
+            if s.stamp < 2 {
+                s.mark.fill(0);
+                s.stamp = 2;
             }
-            // Link condition.
-            ring_into(&tris, &alive, inc.of(a), c.a, &mut ring_a);
-            ring_into(&tris, &alive, inc.of(b), c.b, &mut ring_b);
-            let common = ring_a
-                .iter()
-                .filter(|v| ring_b.binary_search(v).is_ok())
-                .count();
+            let stamp = s.stamp;
+            for (_, tri) in &s.star_a {
+                for &i in tri {
+                    s.mark[i as usize] = stamp;
+                }
+            }
+            let mut common = 0;
+            for (_, tri) in &s.star_b {
+                for &i in tri {
+                    if s.mark[i as usize] == stamp && i != c.a && i != c.b {
+                        s.mark[i as usize] = stamp + 1;
+                        common += 1;
+                    }
+                }
+            }
             if common != 2 {
                 continue;
             }
-            if folds(&tris, &alive, &pos, inc.of(a), c.a, c.b, &x)
-                || folds(&tris, &alive, &pos, inc.of(b), c.b, c.a, &x)
+            let q = self.quad[a].sum(&self.quad[b]);
+            let (x, cost) = q.best(&self.pos[a], &self.pos[b]);
+            if folds(&self.pos, &s.star_a, c.a, c.b, &x) || folds(&self.pos, &s.star_b, c.b, c.a, &x)
             {
                 continue;
             }
@@ -552,97 +746,116 @@ pub fn simplify(
             for t in shared {
                 alive[t as usize] = false;
             }
-            for &t in inc.of(b) {
-                if alive[t as usize] {
-                    for i in tris[t as usize].iter_mut() {
-                        if *i == c.b {
-                            *i = c.a;
-                        }
-                    }
+            for (t, tri) in &s.star_b {
+                if !tri.contains(&c.a) {
+                    self.tris[*t as usize] = tri.map(|i| if i == c.b { c.a } else { i });
                 }
             }
             deg[a] = deg[a] + deg[b] - 4;
             deg[b] = 0;
             deg[opposite[0] as usize] -= 1;
             deg[opposite[1] as usize] -= 1;
-            pos[a] = x;
-            quad[a] = q;
-            let both_unsupported = unsupported[a] && unsupported[b];
-            if both_unsupported {
-                done.largest_unsupported_error = done.largest_unsupported_error.max(cost);
+            self.pos[a] = x;
+            self.quad[a] = q;
+            let both = self.unsupported[a] && self.unsupported[b];
+            if both {
+                out.largest_unsupported = out.largest_unsupported.max(cost);
             } else {
-                done.largest_error = done.largest_error.max(cost);
+                out.largest = out.largest.max(cost);
             }
-            unsupported[a] = both_unsupported;
-            if !dens.is_empty() {
-                dens[a] = dens[a].max(dens[b]);
+            self.unsupported[a] = both;
+            if !self.dens.is_empty() {
+                self.dens[a] = self.dens[a].max(self.dens[b]);
             }
-            locked[a] = true;
-            locked[b] = true;
-            next_changed[a] = true;
-            collapses += 1;
+            s.locked[a] = true;
+            s.locked[b] = true;
+            changed[a] = true;
+            out.collapses += 1;
         }
         let mut k = 0;
-        tris.retain(|_| {
+        self.tris.retain(|_| {
             k += 1;
             alive[k - 1]
         });
-        changed = next_changed;
-        if collapses == 0 {
-            break;
+        self.touched.fill(false);
+        for t in &self.tris {
+            if t.iter().any(|&i| changed[i as usize]) {
+                for &i in t {
+                    self.touched[i as usize] = true;
+                }
+            }
         }
+        self.changed = changed;
+        out
     }
-    done.largest_error = done.largest_error.sqrt();
-    done.largest_unsupported_error = done.largest_unsupported_error.sqrt();
-    mesh.vertices = pos;
-    mesh.triangles = tris;
-    let old = compact_vertices(mesh);
-    let kept_unsupported: Vec<bool> = old.iter().map(|&i| unsupported[i as usize]).collect();
-    done.unsupported_after = kept_unsupported.iter().filter(|&&u| u).count();
-    if !dens.is_empty() {
-        done.densities = old.iter().map(|&i| dens[i as usize]).collect();
-    }
-    done.vertices_after = mesh.vertices.len();
-    done.triangles_after = mesh.triangles.len();
-    Ok(done)
 }
 
-/// The sorted, distinct neighbours of `v` through its living triangles `star`.
-fn ring_into(tris: &[[u32; 3]], alive: &[bool], star: &[u32], v: u32, out: &mut Vec<u32>) {
-    out.clear();
-    for &t in star {
-        if alive[t as usize] {
-            out.extend(tris[t as usize].iter().copied().filter(|&i| i != v));
-        }
+/// The vertex indices sorted by the Morton code (Z-order) of their positions quantised to
+/// 2²¹ steps per axis over the bounding box; ties and non-finite positions by index.
+#[inline(never)]
+fn morton_order(pos: &[Point3<f64>]) -> Vec<u32> {
+    let mut lo = Point3::from([f64::INFINITY; 3]);
+    let mut hi = Point3::from([f64::NEG_INFINITY; 3]);
+    for p in pos.iter().filter(|p| p.coords.iter().all(|c| c.is_finite())) {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
     }
-    out.sort_unstable();
-    out.dedup();
+    let scale = (hi - lo).max();
+    let scale = if scale > 0.0 {
+        f64::from((1u32 << 21) - 1) / scale
+    } else {
+        0.0
+    };
+    // Spreads the 21 low bits of `v` to every third bit.
+    let spread = |v: u64| {
+        let mut x = v & 0x1f_ffff;
+        x = (x | (x << 32)) & 0x1f_0000_0000_ffff;
+        x = (x | (x << 16)) & 0x1f_0000_ff00_00ff;
+        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+        x = (x | (x << 2)) & 0x1249_2492_4924_9249;
+        x
+    };
+    let mut keyed: Vec<(u64, u32)> = pos
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let q = (p - lo) * scale;
+            let key = if q.iter().all(|c| c.is_finite()) {
+                spread(q.x as u64) | (spread(q.y as u64) << 1) | (spread(q.z as u64) << 2)
+            } else {
+                u64::MAX
+            };
+            (key, i as u32)
+        })
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
 }
 
-/// Whether moving `v` to `x` flips or nearly flips one of its living triangles `star` that
-/// does not contain `other` (those disappear with the collapse), or makes one degenerate.
+/// Whether moving `v` to `x` flips or nearly flips one of the triangles `star` (around `v`)
+/// that does not contain `other` (those disappear with the collapse), or makes one degenerate.
 fn folds(
-    tris: &[[u32; 3]],
-    alive: &[bool],
     pos: &[Point3<f64>],
-    star: &[u32],
+    star: &[(u32, [u32; 3])],
     v: u32,
     other: u32,
     x: &Point3<f64>,
 ) -> bool {
-    star.iter().any(|&t| {
-        if !alive[t as usize] {
-            return false;
-        }
-        let tri = tris[t as usize];
+    star.iter().any(|(_, tri)| {
         if tri.contains(&other) {
             return false;
         }
-        let old = tri.map(|i| pos[i as usize]);
-        let new = tri.map(|i| if i == v { *x } else { pos[i as usize] });
-        let n0 = (old[1] - old[0]).cross(&(old[2] - old[0]));
-        let n1 = (new[1] - new[0]).cross(&(new[2] - new[0]));
-        let (l0, l1) = (n0.norm(), n1.norm());
-        l1 <= 0.0 || (l0 > 0.0 && n0.dot(&n1) < MIN_NORMAL_COSINE * l0 * l1)
+        // The triangle as (v, p, q) in its winding order.
+        let k = tri.iter().position(|&i| i == v).unwrap_or(0);
+        let p = pos[tri[(k + 1) % 3] as usize];
+        let q = pos[tri[(k + 2) % 3] as usize];
+        let e = q - p;
+        let n0 = (p - pos[v as usize]).cross(&e);
+        let n1 = (p - x).cross(&e);
+        let d = n0.dot(&n1);
+        let (l0, l1) = (n0.norm_squared(), n1.norm_squared());
+        l1 <= 0.0
+            || (l0 > 0.0 && (d < 0.0 || d * d < MIN_NORMAL_COSINE * MIN_NORMAL_COSINE * l0 * l1))
     })
 }
