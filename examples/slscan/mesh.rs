@@ -11,10 +11,10 @@ use anyhow::Context;
 use sl_cloud::{PreviewConfig, read_ply};
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
-    BilateralConfig, MeshColoring, PoissonConfig, SimplifyConfig, TaubinConfig, ViewerConfig, ViewerLayer,
-    check_topology, decimate, fill_holes, poisson_reconstruct, remove_small_components,
-    render_mesh, simplify, smooth_bilateral, smooth_taubin, trim_by_density, viewer_html,
-    write_ply_mesh, write_stl,
+    BilateralConfig, MeshColoring, PoissonConfig, SimplifyConfig, TaubinConfig, ViewerConfig,
+    ViewerLayer, check_topology, decimate, fill_holes, poisson_reconstruct,
+    remove_small_components, render_mesh, simplify, smooth_bilateral, smooth_taubin,
+    trim_by_density, viewer_html, write_ply_mesh, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
 

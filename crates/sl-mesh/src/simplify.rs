@@ -82,7 +82,7 @@ impl Default for SimplifyConfig {
     fn default() -> Self {
         Self {
             max_error: 0.01,
-            unsupported_max_error: 0.1,
+            unsupported_max_error: 0.05,
             support_ratio: 0.1,
         }
     }
@@ -185,19 +185,23 @@ impl Quadric {
 
     /// The position of least error for merging the vertices at `p` and `q` (the minimum of
     /// `Q` pulled weakly towards the midpoint, see [`MIDPOINT_PULL`]) and its mean squared
-    /// distance. Falls back to the best of the two ends and the midpoint when the system is
-    /// singular or its answer lies further than the edge's length from the midpoint.
-    fn best(&self, p: &Point3<f64>, q: &Point3<f64>) -> (Point3<f64>, f64) {
+    /// distance; with `plane = Some((g, h))`, the least error on the plane `g·x = h` (the
+    /// positions that keep the enclosed volume, see [`volume_plane`]). Falls back to the
+    /// unconstrained position when the constraint cannot be met near the edge, and to the best
+    /// of the two ends and the midpoint when the system is singular or its answer lies further
+    /// than the edge's length from the midpoint.
+    fn best(
+        &self,
+        p: &Point3<f64>,
+        q: &Point3<f64>,
+        plane: Option<(Vector3<f64>, f64)>,
+    ) -> (Point3<f64>, f64) {
         let m = nalgebra::center(p, q);
+        let reach = (q - p).norm_squared();
         let l = MIDPOINT_PULL * self.w;
         let [a00, a01, a02, a11, a12, a22] = self.a;
         let (a00, a11, a22) = (a00 + l, a11 + l, a22 + l);
-        let r = [
-            -self.b[0] + l * m.x,
-            -self.b[1] + l * m.y,
-            -self.b[2] + l * m.z,
-        ];
-        // Cramer's rule on the symmetric 3×3 system.
+        // The inverse of the symmetric 3×3 matrix by its cofactors.
         let c00 = a11 * a22 - a12 * a12;
         let c01 = a02 * a12 - a01 * a22;
         let c02 = a01 * a12 - a02 * a11;
@@ -206,15 +210,34 @@ impl Quadric {
             let c11 = a00 * a22 - a02 * a02;
             let c12 = a01 * a02 - a00 * a12;
             let c22 = a00 * a11 - a01 * a01;
-            let x = Point3::new(
-                (c00 * r[0] + c01 * r[1] + c02 * r[2]) / det,
-                (c01 * r[0] + c11 * r[1] + c12 * r[2]) / det,
-                (c02 * r[0] + c12 * r[1] + c22 * r[2]) / det,
-            );
-            if x.coords.iter().all(|c| c.is_finite())
-                && (x - m).norm_squared() <= (q - p).norm_squared()
-            {
-                return (x, self.mean(&x));
+            let inv = |r: [f64; 3]| {
+                Vector3::new(
+                    (c00 * r[0] + c01 * r[1] + c02 * r[2]) / det,
+                    (c01 * r[0] + c11 * r[1] + c12 * r[2]) / det,
+                    (c02 * r[0] + c12 * r[1] + c22 * r[2]) / det,
+                )
+            };
+            let x0 = Point3::from(inv([
+                -self.b[0] + l * m.x,
+                -self.b[1] + l * m.y,
+                -self.b[2] + l * m.z,
+            ]));
+            let near = |x: &Point3<f64>| {
+                x.coords.iter().all(|c| c.is_finite()) && (x - m).norm_squared() <= reach
+            };
+            if let Some((g, h)) = plane {
+                // Lagrange: x = x0 + A⁻¹g (h − g·x0) / (g·A⁻¹g).
+                let y = inv([g.x, g.y, g.z]);
+                let gy = g.dot(&y);
+                if gy > 0.0 {
+                    let x = x0 + y * ((h - g.dot(&x0.coords)) / gy);
+                    if near(&x) {
+                        return (x, self.mean(&x));
+                    }
+                }
+            }
+            if near(&x0) {
+                return (x0, self.mean(&x0));
             }
         }
         [*p, *q, m]
@@ -225,6 +248,41 @@ impl Quadric {
     }
 }
 
+/// The plane `g·x = h` of the positions `x` at which merging `a` and `b` keeps the volume the
+/// triangles around them enclose (Lindstrom & Turk 1998): a triangle `(v, p, q)` (winding
+/// order) moved from `v` to `x` changes the volume by `(x − v)·(p × q) / 6`, and the two
+/// triangles on the edge lose theirs. Computed about the edge's midpoint, where the terms are
+/// small.
+fn volume_plane(
+    pos: &[Point3<f64>],
+    star_a: &[(u32, [u32; 3])],
+    star_b: &[(u32, [u32; 3])],
+    a: u32,
+    b: u32,
+) -> (Vector3<f64>, f64) {
+    let m = nalgebra::center(&pos[a as usize], &pos[b as usize]);
+    let rel = |i: u32| pos[i as usize] - m;
+    let mut g = Vector3::zeros();
+    let mut h = 0.0;
+    for (star, v, other) in [(star_a, a, b), (star_b, b, a)] {
+        for (_, tri) in star {
+            if tri.contains(&other) {
+                if v == a {
+                    // A triangle on the edge: its volume goes.
+                    h += rel(tri[0]).dot(&rel(tri[1]).cross(&rel(tri[2])));
+                }
+                continue;
+            }
+            let k = tri.iter().position(|&i| i == v).unwrap_or(0);
+            let n = rel(tri[(k + 1) % 3]).cross(&rel(tri[(k + 2) % 3]));
+            g += n;
+            h += rel(v).dot(&n);
+        }
+    }
+    // g·(x − m) = h.
+    (g, h + g.dot(&m.coords))
+}
+
 /// The vertex → triangle incidence in compressed rows.
 struct Incidence {
     start: Vec<u32>,
@@ -232,7 +290,6 @@ struct Incidence {
 }
 
 impl Incidence {
-    #[inline(never)]
     fn new(tris: &[[u32; 3]], nv: usize) -> Self {
         let mut start = vec![0u32; nv + 1];
         for t in tris {
@@ -262,7 +319,6 @@ impl Incidence {
 
 /// Whether the triangles around `v` form one closed fan: every corner of its link is left once
 /// and entered once, and following the link from one corner visits all of them.
-#[inline(never)]
 fn closed_fan(tris: &[[u32; 3]], star: &[u32], v: u32, next: &mut Vec<(u32, u32)>) -> bool {
     if star.len() < 3 {
         return false;
@@ -362,7 +418,6 @@ pub fn simplify(
         )));
     }
     check_indices(mesh)?;
-    let t_setup = std::time::Instant::now();
     let nv = mesh.vertices.len();
     let mut dens: Vec<f64> = densities.to_vec();
     let support_threshold = if dens.is_empty() {
@@ -461,7 +516,6 @@ pub fn simplify(
             (q, !closed_fan(&tris, inc.of(v), v as u32, buf))
         })
         .unzip();
-    if std::env::var_os("SL_TRACE").is_some() { eprintln!("setup {:?}", t_setup.elapsed()); }
     let mut work = Work {
         tris,
         pos,
@@ -485,11 +539,10 @@ pub fn simplify(
     };
     loop {
         done.passes += 1;
-        let t0 = std::time::Instant::now();
         let pass = work.pass(&mut scratch);
-        if std::env::var_os("SL_TRACE").is_some() { eprintln!("pass {} {:?} collapses {} tris {}", done.passes, t0.elapsed(), pass.collapses, work.tris.len()); }
         done.largest_error = done.largest_error.max(pass.largest);
-        done.largest_unsupported_error = done.largest_unsupported_error.max(pass.largest_unsupported);
+        done.largest_unsupported_error =
+            done.largest_unsupported_error.max(pass.largest_unsupported);
         if pass.collapses == 0 {
             break;
         }
@@ -600,7 +653,6 @@ impl Work {
     /// of [`CHUNK`] vertices computed in parallel. An edge between two vertices that did not
     /// change, one of them quiet, is known to be above its bound and skipped, and so is a quiet
     /// vertex no neighbour of which changed.
-    #[inline(never)]
     fn edge_costs(&self, inc: &Incidence) -> Vec<Vec<Candidate>> {
         let nv = self.pos.len();
         (0..nv.div_ceil(CHUNK))
@@ -637,9 +689,10 @@ impl Work {
                         } else {
                             self.bound_s
                         };
-                        let (_, cost) = self.quad[v]
-                            .sum(&self.quad[u])
-                            .best(&self.pos[v], &self.pos[u]);
+                        let (_, cost) =
+                            self.quad[v]
+                                .sum(&self.quad[u])
+                                .best(&self.pos[v], &self.pos[u], None);
                         if cost <= bound {
                             out.push(Candidate {
                                 cost: if bound > 0.0 { cost / bound } else { 0.0 },
@@ -656,7 +709,6 @@ impl Work {
 
     /// Takes the candidates in order, each unless one of its vertices is already part of a
     /// collapse of this pass or a check fails on the current triangles (see the module docs).
-    #[inline(never)]
     fn sweep<'a>(
         &mut self,
         inc: &Incidence,
@@ -706,10 +758,7 @@ impl Work {
                     n_shared += 1;
                 }
             }
-            if n_shared != 2
-                || deg[opposite[0] as usize] <= 3
-                || deg[opposite[1] as usize] <= 3
-            {
+            if n_shared != 2 || deg[opposite[0] as usize] <= 3 || deg[opposite[1] as usize] <= 3 {
                 continue;
             }
             // Link condition: the only common neighbours are the two opposite corners.
@@ -737,8 +786,18 @@ impl Work {
                 continue;
             }
             let q = self.quad[a].sum(&self.quad[b]);
-            let (x, cost) = q.best(&self.pos[a], &self.pos[b]);
-            if folds(&self.pos, &s.star_a, c.a, c.b, &x) || folds(&self.pos, &s.star_b, c.b, c.a, &x)
+            let plane = volume_plane(&self.pos, &s.star_a, &s.star_b, c.a, c.b);
+            let (x, cost) = q.best(&self.pos[a], &self.pos[b], Some(plane));
+            let bound = if self.unsupported[a] && self.unsupported[b] {
+                self.bound_u
+            } else {
+                self.bound_s
+            };
+            if cost > bound {
+                continue;
+            }
+            if folds(&self.pos, &s.star_a, c.a, c.b, &x)
+                || folds(&self.pos, &s.star_b, c.b, c.a, &x)
             {
                 continue;
             }
@@ -792,11 +851,13 @@ impl Work {
 
 /// The vertex indices sorted by the Morton code (Z-order) of their positions quantised to
 /// 2²¹ steps per axis over the bounding box; ties and non-finite positions by index.
-#[inline(never)]
 fn morton_order(pos: &[Point3<f64>]) -> Vec<u32> {
     let mut lo = Point3::from([f64::INFINITY; 3]);
     let mut hi = Point3::from([f64::NEG_INFINITY; 3]);
-    for p in pos.iter().filter(|p| p.coords.iter().all(|c| c.is_finite())) {
+    for p in pos
+        .iter()
+        .filter(|p| p.coords.iter().all(|c| c.is_finite()))
+    {
         lo = lo.inf(p);
         hi = hi.sup(p);
     }
