@@ -324,6 +324,17 @@ mod tests {
         // Depth 7 on a 55 mm box: cells of 0.47 mm; the mesh is within a tenth of one.
         let rms = f["rms_to_truth_vertices_mm"].as_f64().unwrap();
         assert!(rms < 0.047, "{rms}");
+        // Simplified by default (a sphere sampled all round: every vertex supported), within
+        // its bound.
+        let s = &f["simplify"];
+        assert_eq!(s["vertices_before"], f["vertices_extracted"], "{f}");
+        assert_eq!(s["vertices_after"], f["vertices"], "{f}");
+        assert!(
+            f["vertices"].as_u64().unwrap() * 2 < f["vertices_extracted"].as_u64().unwrap(),
+            "{f}"
+        );
+        assert!(s["largest_error_mm"].as_f64().unwrap() <= 0.01, "{s}");
+        assert!(f["simplify_ms"].as_f64().unwrap() >= 0.0);
         let names: Vec<&str> = r["stages"]
             .as_array()
             .unwrap()
@@ -336,7 +347,7 @@ mod tests {
             mesh.triangles.len() as u64,
             f["triangles"].as_u64().unwrap()
         );
-        // Decimated and trimmed: the triangle count is met.
+        // Decimated (not simplified first): the triangle count is met.
         let out2 = tmp.path().join("out2");
         slscan(&[
             ply.to_str().unwrap(),
@@ -344,12 +355,17 @@ mod tests {
             out2.to_str().unwrap(),
             "--depth",
             "6",
+            "--no-simplify",
             "--triangles",
             "3000",
             "--smooth",
             "bilateral",
         ])
         .unwrap();
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out2.join("report.json")).unwrap())
+                .unwrap();
+        assert!(r["figures"]["simplify"].is_null());
         let mesh = sl_mesh::read_mesh(&out2.join("mesh.ply")).unwrap();
         assert!(mesh.triangles.len() <= 3000 && mesh.triangles.len() > 2900);
     }
