@@ -57,6 +57,11 @@ const MIDPOINT_PULL: f64 = 1e-3;
 /// summed doubled area (`|g|`): to rounding, as on a flat fan.
 const VOLUME_TOLERANCE: f64 = 1e-9;
 
+/// The vertex arrays are compacted when fewer than `NUM / DEN` (3/5) of their vertices are
+/// still in use.
+const COMPACT_BELOW_NUM: usize = 3;
+const COMPACT_BELOW_DEN: usize = 5;
+
 /// Vertices per chunk of the parallel cost pass: large enough to amortise the scheduling.
 const CHUNK: usize = 4096;
 
@@ -542,14 +547,22 @@ pub fn simplify(
         star_a: Vec::new(),
         star_b: Vec::new(),
     };
+    let mut inc = Some(inc);
+    let mut live = nv;
     loop {
         done.passes += 1;
-        let pass = work.pass(&mut scratch);
+        let pass = work.pass(inc.take(), &mut scratch);
         done.largest_error = done.largest_error.max(pass.largest);
         done.largest_unsupported_error =
             done.largest_unsupported_error.max(pass.largest_unsupported);
         if pass.collapses == 0 {
             break;
+        }
+        live -= pass.collapses;
+        // Drop the removed vertices once they are most of the arrays: every pass walks them.
+        if live * COMPACT_BELOW_DEN < work.pos.len() * COMPACT_BELOW_NUM {
+            work.compact();
+            scratch.shrink(work.pos.len());
         }
     }
     done.largest_error = done.largest_error.sqrt();
@@ -608,6 +621,15 @@ struct Scratch {
     star_b: Vec<(u32, [u32; 3])>,
 }
 
+impl Scratch {
+    /// Fits the buffers to `nv` vertices after [`Work::compact`].
+    fn shrink(&mut self, nv: usize) {
+        self.locked.truncate(nv);
+        self.best.truncate(nv);
+        self.mark.truncate(nv);
+    }
+}
+
 /// What one pass did.
 struct Pass {
     collapses: usize,
@@ -617,10 +639,51 @@ struct Pass {
 }
 
 impl Work {
-    /// One pass: costs, candidates, sweep; the triangles compacted after it.
-    fn pass(&mut self, scratch: &mut Scratch) -> Pass {
+    /// Drops the vertices no triangle uses any more, keeping the order of the others (and so
+    /// the locality of the Morton order).
+    fn compact(&mut self) {
         let nv = self.pos.len();
-        let inc = Incidence::new(&self.tris, nv);
+        let mut used = vec![false; nv];
+        for t in &self.tris {
+            for &i in t {
+                used[i as usize] = true;
+            }
+        }
+        let mut new_id = vec![u32::MAX; nv];
+        let mut n = 0u32;
+        for (v, id) in new_id.iter_mut().enumerate() {
+            if used[v] {
+                *id = n;
+                n += 1;
+            }
+        }
+        fn keep<T: Copy>(v: &mut Vec<T>, used: &[bool]) {
+            let mut k = 0;
+            v.retain(|_| {
+                k += 1;
+                used[k - 1]
+            });
+        }
+        keep(&mut self.pos, &used);
+        keep(&mut self.quad, &used);
+        keep(&mut self.unsupported, &used);
+        if !self.dens.is_empty() {
+            keep(&mut self.dens, &used);
+        }
+        keep(&mut self.fixed, &used);
+        keep(&mut self.changed, &used);
+        keep(&mut self.quiet, &used);
+        keep(&mut self.touched, &used);
+        for t in &mut self.tris {
+            *t = t.map(|i| new_id[i as usize]);
+        }
+    }
+
+    /// One pass: costs, candidates, sweep; `inc` is the incidence of the current triangles
+    /// when the caller has it.
+    fn pass(&mut self, inc: Option<Incidence>, scratch: &mut Scratch) -> Pass {
+        let nv = self.pos.len();
+        let inc = inc.unwrap_or_else(|| Incidence::new(&self.tris, nv));
         let mut blocks = self.edge_costs(&inc);
         // A vertex with a candidate is not quiet; one without stays so until it or a
         // neighbour changes. Each vertex's cheapest candidate (ties: the smaller other vertex).
