@@ -71,16 +71,17 @@ pub struct SimplifyConfig {
     /// Largest root-mean-square distance (area-weighted) of a merged vertex to the planes of the
     /// input triangles it replaces, where the surface is supported by samples. The default,
     /// 0.01 mm, is a sixth of the scanner's noise (the default scan's cloud is 0.063 mm RMS
-    /// from the truth): an independent error of 0.01 mm added to it makes
-    /// √(0.063² + 0.01²) = 0.0638 mm, 1.2 % more, while the surface between the vertices is
-    /// still interpolated by the marching-tetrahedra grid's own triangles where it curves.
+    /// from the truth): an independent error of 0.01 mm added to it would make
+    /// √(0.063² + 0.01²) = 0.0638 mm, 1.2 % more; the collapses keep the enclosed volume, so
+    /// the error they add has no mean (on the default scan the area-weighted RMS where the
+    /// data is went from 0.0662 to 0.0661 mm: docs/meshing.md).
     pub max_error: f64,
     /// The same bound where the surface is not supported by samples (both vertices of a
-    /// collapse below the support density): the surface Poisson invents to close a gap is a
-    /// smooth membrane whose position is uncertain by about a millimetre (the unseen lower
-    /// back of the scan's spheres is 1 mm RMS from the truth), so a bound ten times the
-    /// supported one changes what it says by a tenth of that and lets it coarsen as Open3D's
-    /// adaptive octree does there.
+    /// collapse below the support density). The surface Poisson invents to close a gap is a
+    /// smooth membrane about a millimetre from the truth (the unseen lower back of the scan's
+    /// spheres: 0.97 mm RMS); 0.03 mm added to that in quadrature is 0.05 % of it, and a
+    /// smooth membrane needs few triangles to stay within 0.03 mm: the patch goes from 72,738
+    /// vertices to about 1,900, as coarse as Open3D's adaptive octree makes it (2,178).
     pub unsupported_max_error: f64,
     /// A vertex is unsupported when its sampling density is below this fraction of the
     /// median density of the vertices (the rule of `trim_by_density`; 0.1: a tenth of the
@@ -92,7 +93,7 @@ impl Default for SimplifyConfig {
     fn default() -> Self {
         Self {
             max_error: 0.01,
-            unsupported_max_error: 0.05,
+            unsupported_max_error: 0.03,
             support_ratio: 0.1,
         }
     }
@@ -1114,13 +1115,13 @@ mod tests {
 
     /// A sphere of radius 10 whose top (a cap of 60° around +z) has no samples: Poisson closes
     /// it with a surface of low sampling density. Simplified with the default bounds (0.01
-    /// where supported, 0.05 where not), the cap inside the gap keeps fewer than half the
-    /// vertices of the equal cap at the bottom where the data is (before: more; measured 186
-    /// against 625 after, 6325 against 4634 before), the mesh stays closed and manifold, and
-    /// its area-weighted RMS to the true sphere does not get worse: at most 0.5 % more (a
-    /// bound of 0.05 added in quadrature to the gap's error of about 0.35 would give 1 %;
-    /// each collapse keeps the enclosed volume, so the surface does not shrink; measured
-    /// 0.3572 → 0.3556).
+    /// where supported, 0.03 where not), the cap inside the gap keeps fewer vertices than the
+    /// equal cap at the bottom where the data is (before: more; measured 439 against 627
+    /// after, 6325 against 4634 before), the unsupported vertices drop more than tenfold
+    /// (10,588 → 616), the mesh stays closed and manifold, and its area-weighted RMS to the
+    /// true sphere does not get worse by more than 0.5 % (0.03 added in quadrature to the
+    /// gap's error of about 0.35 would give 0.4 %; each collapse keeps the enclosed volume, so
+    /// the surface does not shrink; measured 0.35724 → 0.35728).
     #[test]
     fn unsupported_surface_is_coarser_and_no_worse() {
         let r = 10.0;
@@ -1154,20 +1155,24 @@ mod tests {
         assert!(check_topology(&mesh).is_watertight_manifold());
         let (top1, bottom1) = caps(&mesh);
         let (rms1, _) = sphere_deviation(&mesh, r);
-        assert!(top1 * 2 < bottom1, "after: {top1} vs {bottom1}");
+        assert!(top1 < bottom1, "after: {top1} vs {bottom1}");
         assert!(
             d.unsupported_after * 10 < d.unsupported_before,
             "{} → {}",
             d.unsupported_before,
             d.unsupported_after
         );
-        assert!(d.largest_unsupported_error <= 0.05 && d.largest_error <= 0.01);
+        assert!(d.largest_unsupported_error <= 0.03 && d.largest_error <= 0.01);
         assert!(rms1 <= 1.005 * rms0, "area-weighted RMS {rms0} → {rms1}");
-        // Without densities every vertex counts as supported: the cap keeps five times as
-        // many vertices (measured 1502 against 186; the bottom 625 either way).
+        // Without densities every vertex counts as supported: the cap keeps more than two and
+        // a half times as many vertices (measured 1502 against 439; the bottom 627 either way).
         let mut plain = s.mesh.clone();
         simplify(&mut plain, &[], &SimplifyConfig::default()).unwrap();
-        assert!(caps(&plain).0 > 5 * top1, "{:?} vs {top1}", caps(&plain));
+        assert!(
+            2 * caps(&plain).0 > 5 * top1,
+            "{:?} vs {top1}",
+            caps(&plain)
+        );
     }
 
     /// The same mesh gives the same result on one thread and on four. A second run on the
