@@ -82,6 +82,18 @@ pub(crate) struct Args {
 
 /// Runs `slscan mesh`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    for (flag, v) in [
+        ("--simplify-error", args.simplify_error),
+        (
+            "--simplify-unsupported-error",
+            args.simplify_unsupported_error,
+        ),
+    ] {
+        anyhow::ensure!(
+            args.no_simplify || (v.is_finite() && v >= 0.0),
+            "{flag} {v}: must be a distance ≥ 0 in mm"
+        );
+    }
     let mut report = Report::new("mesh");
     let out = ensure_out_dir(&args.out)?;
     let cloud = report
@@ -111,7 +123,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             ..SimplifyConfig::default()
         };
         let t = std::time::Instant::now();
-        let s = report.stage("simplify", || simplify(&mut mesh, &densities, &cfg))?;
+        let s = report
+            .stage("simplify", || simplify(&mut mesh, &densities, &cfg))
+            .context("cannot simplify the mesh (--simplify-error, --simplify-unsupported-error)")?;
         report.figure("simplify_ms", t.elapsed().as_secs_f64() * 1e3);
         report.figure(
             "simplify",
@@ -394,5 +408,8 @@ mod tests {
         );
         let err = slscan(&[ply.to_str().unwrap(), "--out", "x", "--depth", "12"]).unwrap_err();
         assert!(format!("{err:#}").contains("depth"), "{err:#}");
+        let err =
+            slscan(&[ply.to_str().unwrap(), "--out", "x", "--simplify-error=-1"]).unwrap_err();
+        assert!(format!("{err:#}").contains("--simplify-error"), "{err:#}");
     }
 }
