@@ -784,59 +784,53 @@ impl Work {
         locked: &[bool],
     ) -> Vec<Candidate> {
         let nv = self.pos.len();
-        {
-            {
-                let mut out = Vec::new();
-                let mut ring: Vec<u32> = Vec::new();
-                for v in c * CHUNK..((c + 1) * CHUNK).min(nv) {
-                    if self.fixed[v] || locked[v] || (self.quiet[v] && !self.touched[v]) {
-                        continue;
-                    }
-                    // Each edge v → u of v's closed fan once, from the triangle that runs
-                    // along it in that direction (the other one runs u → v).
-                    ring.clear();
-                    for &t in inc.of(v) {
-                        if !alive[t as usize] {
-                            continue;
-                        }
-                        let tri = self.tris[t as usize];
-                        let k = tri.iter().position(|&i| i as usize == v).unwrap_or(0);
-                        let u = tri[(k + 1) % 3];
-                        if u as usize > v {
-                            ring.push(u);
-                        }
-                    }
-                    for &u in &ring {
-                        let u = u as usize;
-                        if self.fixed[u]
-                            || locked[u]
-                            || (!self.changed[u]
-                                && !self.changed[v]
-                                && (self.quiet[u] || self.quiet[v]))
-                        {
-                            continue;
-                        }
-                        let bound = if self.unsupported[u] && self.unsupported[v] {
-                            self.bound_u
-                        } else {
-                            self.bound_s
-                        };
-                        let (_, cost) =
-                            self.quad[v]
-                                .sum(&self.quad[u])
-                                .best(&self.pos[v], &self.pos[u], None);
-                        if cost <= bound {
-                            out.push(Candidate {
-                                cost: if bound > 0.0 { cost / bound } else { 0.0 },
-                                a: v as u32,
-                                b: u as u32,
-                            });
-                        }
-                    }
+        let mut out = Vec::new();
+        let mut ring: Vec<u32> = Vec::new();
+        for v in c * CHUNK..((c + 1) * CHUNK).min(nv) {
+            if self.fixed[v] || locked[v] || (self.quiet[v] && !self.touched[v]) {
+                continue;
+            }
+            // Each edge v → u of v's closed fan once, from the triangle that runs
+            // along it in that direction (the other one runs u → v).
+            ring.clear();
+            for &t in inc.of(v) {
+                if !alive[t as usize] {
+                    continue;
                 }
-                out
+                let tri = self.tris[t as usize];
+                let k = tri.iter().position(|&i| i as usize == v).unwrap_or(0);
+                let u = tri[(k + 1) % 3];
+                if u as usize > v {
+                    ring.push(u);
+                }
+            }
+            for &u in &ring {
+                let u = u as usize;
+                if self.fixed[u]
+                    || locked[u]
+                    || (!self.changed[u] && !self.changed[v] && (self.quiet[u] || self.quiet[v]))
+                {
+                    continue;
+                }
+                let bound = if self.unsupported[u] && self.unsupported[v] {
+                    self.bound_u
+                } else {
+                    self.bound_s
+                };
+                let (_, cost) =
+                    self.quad[v]
+                        .sum(&self.quad[u])
+                        .best(&self.pos[v], &self.pos[u], None);
+                if cost <= bound {
+                    out.push(Candidate {
+                        cost: if bound > 0.0 { cost / bound } else { 0.0 },
+                        a: v as u32,
+                        b: u as u32,
+                    });
+                }
             }
         }
+        out
     }
 
     /// Takes the candidates in order, each unless one of its vertices is already part of a
