@@ -14,16 +14,21 @@
 //! distance of `x` to the planes of all the original triangles merged into it. A collapse is
 //! made only when that mean is at most `max_error²` (where the surface is supported by samples)
 //! or `unsupported_max_error²` (where both of its vertices are not). Quadrics add up over
-//! collapses, so the bound holds against the input mesh, not against the previous pass.
+//! collapses, so the bound holds against the input mesh, not against the previous pass. The
+//! point `x` is the least error on the plane of positions that keep the volume the collapsed
+//! triangles enclose (Lindstrom & Turk 1998), so that the surface does not shrink.
 //!
 //! # Passes over independent collapses
 //!
-//! Each pass computes the cost of every edge in parallel (skipping the edges whose two ends did
-//! not change since a pass found them above the bound), sorts the candidates under the bound
-//! by cost and sweeps them once: a collapse is taken when neither of its vertices was touched
-//! by a collapse of the same pass, after the checks below on the current triangles. There is no
-//! global heap; passes repeat until one finds no collapse. The order is a total order (cost,
-//! then indices), so the result does not depend on the number of threads.
+//! The vertices are put in Morton order and cut into blocks. Each pass computes the cost of
+//! every edge (skipping the edges whose two ends did not change since a pass found them above
+//! the bound), keeps each vertex's cheapest candidate under the bound, sorts them by cost
+//! within each block and sweeps them once: a collapse is taken when neither of its vertices
+//! was touched by a collapse of the same pass, after the checks below on the current
+//! triangles. The costs of a batch of blocks are computed in parallel and swept right after,
+//! while their data is in cache. There is no global heap; passes repeat until one finds no
+//! collapse. The order is a total order (block, cost, then indices), so the result does not
+//! depend on the number of threads.
 //!
 //! # What keeps a closed manifold closed and manifold
 //!
@@ -386,8 +391,8 @@ struct Candidate {
 /// by samples; empty, every vertex counts as supported.
 ///
 /// A closed manifold stays closed and manifold and keeps its orientation; rims and
-/// non-manifold places are kept as they are. Deterministic: the same mesh gives the same
-/// result on any number of threads.
+/// non-manifold places are kept as they are; triangles with a repeated vertex are dropped.
+/// Deterministic: the same mesh gives the same result on any number of threads.
 ///
 /// # Errors
 /// [`MeshError::InvalidParameter`] for a negative or non-finite bound or a support ratio
