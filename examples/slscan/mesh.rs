@@ -11,10 +11,10 @@ use anyhow::Context;
 use sl_cloud::{PreviewConfig, read_ply};
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
-    BilateralConfig, MeshColoring, PoissonConfig, TaubinConfig, ViewerConfig, ViewerLayer,
-    check_topology, decimate, fill_holes, poisson_reconstruct, remove_small_components,
-    render_mesh, smooth_bilateral, smooth_taubin, trim_by_density, viewer_html, write_ply_mesh,
-    write_stl,
+    BilateralConfig, MeshColoring, PoissonConfig, SimplifyConfig, TaubinConfig, ViewerConfig,
+    ViewerLayer, check_topology, decimate, fill_holes, poisson_reconstruct,
+    remove_small_components, render_mesh, simplify, smooth_bilateral, smooth_taubin,
+    trim_by_density, viewer_html, write_ply_mesh, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
 
@@ -49,6 +49,19 @@ pub(crate) struct Args {
     /// opens the mesh where the data has no support. Off by default (watertight).
     #[arg(long)]
     pub(crate) trim: Option<f64>,
+    /// Keep every vertex of the extraction: no error-bounded simplification (it is on by
+    /// default: it removes the vertices that change the surface by less than
+    /// `--simplify-error`, coarser where the surface is not supported by samples).
+    #[arg(long)]
+    pub(crate) no_simplify: bool,
+    /// Largest RMS distance (mm) a vertex merged by the simplification may have from the planes
+    /// of the triangles it replaces, where the surface is supported by samples.
+    #[arg(long, default_value_t = SimplifyConfig::default().max_error)]
+    pub(crate) simplify_error: f64,
+    /// The same bound (mm) where the surface is not supported by samples (the surface that
+    /// closes what the scanner never saw).
+    #[arg(long, default_value_t = SimplifyConfig::default().unsupported_max_error)]
+    pub(crate) simplify_unsupported_error: f64,
     /// Decimate to at most this many triangles (quadric error).
     #[arg(long)]
     pub(crate) triangles: Option<usize>,
@@ -69,6 +82,18 @@ pub(crate) struct Args {
 
 /// Runs `slscan mesh`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    for (flag, v) in [
+        ("--simplify-error", args.simplify_error),
+        (
+            "--simplify-unsupported-error",
+            args.simplify_unsupported_error,
+        ),
+    ] {
+        anyhow::ensure!(
+            args.no_simplify || (v.is_finite() && v >= 0.0),
+            "{flag} {v}: must be a distance ≥ 0 in mm"
+        );
+    }
     let mut report = Report::new("mesh");
     let out = ensure_out_dir(&args.out)?;
     let cloud = report
@@ -83,11 +108,42 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         .stage("reconstruct", || poisson_reconstruct(&cloud, &cfg))
         .with_context(|| format!("cannot reconstruct a surface from {}", args.cloud.display()))?;
     let mut mesh = surface.mesh.clone();
+    let mut densities = surface.densities.clone();
     if let Some(ratio) = args.trim {
-        let t = report.stage("trim", || trim_by_density(&mesh, &surface.densities, ratio))?;
+        let t = report.stage("trim", || trim_by_density(&mesh, &densities, ratio))?;
         report.figure("trimmed_triangles", t.triangles_removed);
         report.figure("trim_density_per_mm2", t.threshold);
         mesh = t.mesh;
+        densities = t.densities;
+    }
+    if !args.no_simplify {
+        let cfg = SimplifyConfig {
+            max_error: args.simplify_error,
+            unsupported_max_error: args.simplify_unsupported_error,
+            ..SimplifyConfig::default()
+        };
+        let t = std::time::Instant::now();
+        let s = report
+            .stage("simplify", || simplify(&mut mesh, &densities, &cfg))
+            .context("cannot simplify the mesh (--simplify-error, --simplify-unsupported-error)")?;
+        report.figure("simplify_ms", t.elapsed().as_secs_f64() * 1e3);
+        report.figure(
+            "simplify",
+            serde_json::json!({
+                "vertices_before": s.vertices_before,
+                "vertices_after": s.vertices_after,
+                "triangles_before": s.triangles_before,
+                "triangles_after": s.triangles_after,
+                "unsupported_vertices_before": s.unsupported_before,
+                "unsupported_vertices_after": s.unsupported_after,
+                "support_density_per_mm2": s.support_threshold,
+                "max_error_mm": cfg.max_error,
+                "unsupported_max_error_mm": cfg.unsupported_max_error,
+                "largest_error_mm": s.largest_error,
+                "largest_unsupported_error_mm": s.largest_unsupported_error,
+                "passes": s.passes,
+            }),
+        );
     }
     if let Some(max_edges) = args.fill_holes {
         let f = report.stage("fill holes", || fill_holes(&mut mesh, max_edges))?;
@@ -173,6 +229,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("samples", surface.samples);
     report.figure("depth", args.depth);
     report.figure("cell_size_mm", surface.cell_size);
+    report.figure("vertices_extracted", surface.mesh.vertices.len());
+    report.figure("triangles_extracted", surface.mesh.triangles.len());
     report.figure("vertices", mesh.vertices.len());
     report.figure("triangles", mesh.triangles.len());
     report.figure("watertight", topo.is_watertight());
@@ -280,6 +338,17 @@ mod tests {
         // Depth 7 on a 55 mm box: cells of 0.47 mm; the mesh is within a tenth of one.
         let rms = f["rms_to_truth_vertices_mm"].as_f64().unwrap();
         assert!(rms < 0.047, "{rms}");
+        // Simplified by default (a sphere sampled all round: every vertex supported), within
+        // its bound.
+        let s = &f["simplify"];
+        assert_eq!(s["vertices_before"], f["vertices_extracted"], "{f}");
+        assert_eq!(s["vertices_after"], f["vertices"], "{f}");
+        assert!(
+            f["vertices"].as_u64().unwrap() * 2 < f["vertices_extracted"].as_u64().unwrap(),
+            "{f}"
+        );
+        assert!(s["largest_error_mm"].as_f64().unwrap() <= 0.01, "{s}");
+        assert!(f["simplify_ms"].as_f64().unwrap() >= 0.0);
         let names: Vec<&str> = r["stages"]
             .as_array()
             .unwrap()
@@ -292,7 +361,7 @@ mod tests {
             mesh.triangles.len() as u64,
             f["triangles"].as_u64().unwrap()
         );
-        // Decimated and trimmed: the triangle count is met.
+        // Decimated (not simplified first): the triangle count is met.
         let out2 = tmp.path().join("out2");
         slscan(&[
             ply.to_str().unwrap(),
@@ -300,12 +369,17 @@ mod tests {
             out2.to_str().unwrap(),
             "--depth",
             "6",
+            "--no-simplify",
             "--triangles",
             "3000",
             "--smooth",
             "bilateral",
         ])
         .unwrap();
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out2.join("report.json")).unwrap())
+                .unwrap();
+        assert!(r["figures"]["simplify"].is_null());
         let mesh = sl_mesh::read_mesh(&out2.join("mesh.ply")).unwrap();
         assert!(mesh.triangles.len() <= 3000 && mesh.triangles.len() > 2900);
     }
@@ -334,5 +408,8 @@ mod tests {
         );
         let err = slscan(&[ply.to_str().unwrap(), "--out", "x", "--depth", "12"]).unwrap_err();
         assert!(format!("{err:#}").contains("depth"), "{err:#}");
+        let err =
+            slscan(&[ply.to_str().unwrap(), "--out", "x", "--simplify-error=-1"]).unwrap_err();
+        assert!(format!("{err:#}").contains("--simplify-error"), "{err:#}");
     }
 }

@@ -60,6 +60,10 @@ pub(crate) struct Args {
     /// (silhouettes, plate edges, hole rims).
     #[arg(long, default_value_t = VirtualScanConfig::default().edge_erosion_px)]
     pub(crate) edge_erosion: usize,
+    /// Keep every vertex of the mesh's extraction (no error-bounded simplification, which is
+    /// on by default: see `slscan mesh --no-simplify`).
+    #[arg(long)]
+    pub(crate) no_simplify: bool,
     /// Do not capture the flat plate (no flatness figure).
     #[arg(long)]
     pub(crate) no_plate: bool,
@@ -175,6 +179,7 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         flatness_plate: false,
         smoothing_neighbours: args.smoothing_neighbours,
         edge_erosion_px: args.edge_erosion,
+        mesh_simplify: (!args.no_simplify).then(sl_mesh::SimplifyConfig::default),
         ..VirtualScanConfig::default()
     }
 }

@@ -5,6 +5,8 @@
 //!   cloud with oriented normals on an adaptive octree, extracted by marching tetrahedra: a
 //!   watertight, manifold, consistently oriented mesh; per-vertex sampling densities for
 //!   `trim_by_density`.
+//! - [`simplify`]: error-bounded simplification of the extracted surface (0.01 mm where samples
+//!   support it, 0.03 mm where they do not), closed manifolds kept closed and manifold.
 //! - Clean-up: [`trim_by_density`] (surface the data does not support), [`smooth_bilateral`]
 //!   (feature-preserving) and [`smooth_taubin`], [`decimate`] (quadric error, to a triangle
 //!   count), [`fill_holes`], [`remove_small_components`].
@@ -63,6 +65,7 @@ mod holes;
 mod measure;
 mod poisson;
 mod render;
+mod simplify;
 mod taubin;
 #[cfg(test)]
 mod test_shapes;
@@ -81,6 +84,7 @@ pub use holes::{HoleFilling, fill_holes};
 pub use measure::{sample_surface, signed_volume, surface_area, vertex_normals};
 pub use poisson::{MIN_POISSON_POINTS, PoissonConfig, PoissonSurface, poisson_reconstruct};
 pub use render::{MeshColoring, render_mesh};
+pub use simplify::{Simplification, SimplifyConfig, simplify};
 pub use sl_cloud::{TriangleMesh, read_ply_mesh};
 pub use taubin::{TaubinConfig, smooth_taubin};
 pub use topology::{Topology, check_topology, compact_vertices, remove_small_components};

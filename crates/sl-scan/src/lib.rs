@@ -81,7 +81,9 @@ pub use measure::{
     plate_truth, scene_truth,
 };
 pub use merge::{MergeStageConfig, merge_scan};
-pub use mesh::{MESH_CELL_PER_SPACING, MeshFiles, MeshSummary, mesh_stage, scan_poisson_config};
+pub use mesh::{
+    MESH_CELL_PER_SPACING, MeshFiles, MeshSummary, mesh_stage, mesh_stage_with, scan_poisson_config,
+};
 pub use placements::{
     MAX_PLACEMENTS, PLACEMENT_SESSION_DIR, PlacementAlignment, PlacementConfig, PlacementRig,
     PlacementsMerge, PlacementsScan, align_placement, capture_placements, check_placements,

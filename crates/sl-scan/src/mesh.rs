@@ -1,4 +1,5 @@
 //! The mesh stage: a watertight surface of the merged cloud (screened Poisson, `sl-mesh`),
+//! simplified under an error bound (`sl_mesh::simplify`: coarser where no samples support it),
 //! written beside it (`mesh.ply`, `mesh.stl`), pictured (`mesh_preview.png`), measured against
 //! the truth when there is one, and shown with the cloud in an interactive 3-D page
 //! (`view3d.html`, self-contained) that `index.html` embeds.
@@ -9,8 +10,8 @@ use serde::Serialize;
 use sl_cloud::{PointCloud, PreviewConfig};
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
-    MeshColoring, PoissonConfig, ViewerConfig, ViewerLayer, check_topology, poisson_reconstruct,
-    render_mesh, viewer_html, write_ply_mesh, write_stl,
+    MeshColoring, PoissonConfig, SimplifyConfig, ViewerConfig, ViewerLayer, check_topology,
+    poisson_reconstruct, render_mesh, simplify, viewer_html, write_ply_mesh, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Report, Truth, evaluate_mesh};
 
@@ -28,6 +29,12 @@ pub struct MeshSummary {
     pub watertight: bool,
     /// Every edge of at most two triangles, every vertex one fan.
     pub manifold: bool,
+    /// Vertices of the surface as extracted, before the simplification.
+    pub vertices_extracted: usize,
+    /// Triangles of the surface as extracted.
+    pub triangles_extracted: usize,
+    /// Wall time of the simplification (ms); `None` when it was off.
+    pub simplify_ms: Option<f64>,
     /// Octree depth of the reconstruction.
     pub depth: u32,
     /// Edge of a finest cell (mm).
@@ -101,12 +108,11 @@ pub fn scan_poisson_config(
     PoissonConfig { depth, ..base }
 }
 
-/// Runs the mesh stage on `merged` into `out`.
+/// Runs the mesh stage on `merged` into `out`, simplified with the default
+/// [`SimplifyConfig`]: [`mesh_stage_with`] with `Some(&SimplifyConfig::default())`.
 ///
 /// # Errors
-/// [`ScanError::Mesh`] when the cloud cannot be meshed (no normals, too few points),
-/// [`ScanError::Metrology`] when the mesh cannot be measured, [`ScanError::Io`] naming a file
-/// that cannot be written.
+/// As [`mesh_stage_with`].
 pub fn mesh_stage(
     merged: &PointCloud,
     merged_errors_mm: Option<&[f32]>,
@@ -114,7 +120,36 @@ pub fn mesh_stage(
     cfg: &PoissonConfig,
     out: &Path,
 ) -> Result<(MeshSummary, MeshFiles), ScanError> {
-    let surface = poisson_reconstruct(merged, cfg)?;
+    let simplify = SimplifyConfig::default();
+    mesh_stage_with(merged, merged_errors_mm, truth, cfg, Some(&simplify), out)
+}
+
+/// Runs the mesh stage on `merged` into `out`: the reconstruction, then (with `simplify`) the
+/// error-bounded simplification, the files, the measures and the 3-D page.
+///
+/// # Errors
+/// [`ScanError::Mesh`] when the cloud cannot be meshed (no normals, too few points),
+/// [`ScanError::Metrology`] when the mesh cannot be measured, [`ScanError::Io`] naming a file
+/// that cannot be written.
+pub fn mesh_stage_with(
+    merged: &PointCloud,
+    merged_errors_mm: Option<&[f32]>,
+    truth: Option<&Truth>,
+    cfg: &PoissonConfig,
+    simplify_cfg: Option<&SimplifyConfig>,
+    out: &Path,
+) -> Result<(MeshSummary, MeshFiles), ScanError> {
+    let mut surface = poisson_reconstruct(merged, cfg)?;
+    let (vertices_extracted, triangles_extracted) =
+        (surface.mesh.vertices.len(), surface.mesh.triangles.len());
+    let simplify_ms = match simplify_cfg {
+        Some(s) => {
+            let t = std::time::Instant::now();
+            simplify(&mut surface.mesh, &surface.densities, s)?;
+            Some(t.elapsed().as_secs_f64() * 1e3)
+        }
+        None => None,
+    };
     let mesh = &surface.mesh;
     let topo = check_topology(mesh);
     let files = MeshFiles {
@@ -169,6 +204,9 @@ pub fn mesh_stage(
         MeshSummary {
             vertices: mesh.vertices.len(),
             triangles: mesh.triangles.len(),
+            vertices_extracted,
+            triangles_extracted,
+            simplify_ms,
             watertight: topo.is_watertight(),
             manifold: topo.is_manifold(),
             depth: cfg.depth,

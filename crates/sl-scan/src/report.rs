@@ -135,13 +135,18 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Sc
                 })
             };
             format!(
-                "<h2>Mesh and 3-D view</h2>\n<p>Screened Poisson surface of the merged cloud (depth {depth}, cells of {cell:.3} mm): <a href=\"{ply}\">{ply}</a>, <a href=\"{stl}\">{stl}</a>; {v} vertices, {t} triangles, watertight {wt}, manifold {mf}. RMS distance to the true surface: {rv} at its vertices, {ra} over its area.</p>\n<p><iframe src=\"{view}\" width=\"960\" height=\"540\" style=\"border:0\"></iframe><br>Drag to rotate, wheel to zoom; the buttons switch the mesh and the cloud and colour them by their signed error (blue −{range} mm, red +{range} mm). <a href=\"{view}\">Open the 3-D view alone</a>; <a href=\"{pre}\">still picture</a>.</p>\n",
+                "<h2>Mesh and 3-D view</h2>\n<p>Screened Poisson surface of the merged cloud (depth {depth}, cells of {cell:.3} mm): <a href=\"{ply}\">{ply}</a>, <a href=\"{stl}\">{stl}</a>; {v} vertices, {t} triangles{simplified}, watertight {wt}, manifold {mf}. RMS distance to the true surface: {rv} at its vertices, {ra} over its area.</p>\n<p><iframe src=\"{view}\" width=\"960\" height=\"540\" style=\"border:0\"></iframe><br>Drag to rotate, wheel to zoom; the buttons switch the mesh and the cloud and colour them by their signed error (blue −{range} mm, red +{range} mm). <a href=\"{view}\">Open the 3-D view alone</a>; <a href=\"{pre}\">still picture</a>.</p>\n",
                 depth = m.depth,
                 cell = m.cell_size_mm,
                 ply = f.ply,
                 stl = f.stl,
                 v = m.vertices,
                 t = m.triangles,
+                simplified = if m.simplify_ms.is_some() {
+                    format!(" (simplified from {} vertices)", m.vertices_extracted)
+                } else {
+                    String::new()
+                },
                 wt = m.watertight,
                 mf = m.manifold,
                 rv = acc(&m.accuracy_vertices),

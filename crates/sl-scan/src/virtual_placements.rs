@@ -21,7 +21,7 @@ use sl_sim::{DEFAULT_WORKING_DISTANCE_MM, Scene, VirtualRig};
 
 use crate::calibrate::calibrate_virtual_stage;
 use crate::error::{io, stage_err};
-use crate::mesh::{MeshFiles, MeshSummary, mesh_stage, scan_poisson_config};
+use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::virtual_scan::capture_virtual;
 use crate::{
@@ -259,7 +259,14 @@ pub fn scan_virtual_placements(
             let t = Instant::now();
             let poisson =
                 scan_poisson_config(&merged, session_cfg.merge.merge.output_voxel_size, depth);
-            let (summary, files) = mesh_stage(&merged, None, None, &poisson, out)?;
+            let (summary, files) = mesh_stage_with(
+                &merged,
+                None,
+                None,
+                &poisson,
+                cfg.mesh_simplify.as_ref(),
+                out,
+            )?;
             stages.push(StageTime::since("mesh", t));
             (Some(summary), Some(files))
         }

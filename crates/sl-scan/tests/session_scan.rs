@@ -181,6 +181,12 @@ fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
     let (summary, mesh_files) = mesh_stage(&scan.merged, None, None, &poisson, &out).unwrap();
     assert!(summary.watertight && summary.manifold, "{summary:?}");
     assert!(summary.accuracy_vertices.is_none() && summary.accuracy_area.is_none());
+    // Simplified by default (coarse cells on a half-resolution scan: measured 50 % of the
+    // vertices kept).
+    assert!(
+        summary.simplify_ms.is_some() && summary.vertices * 5 < summary.vertices_extracted * 3,
+        "{summary:?}"
+    );
     let mesh = sl_mesh::read_ply_mesh(&out.join(&mesh_files.ply)).unwrap();
     assert_eq!(mesh.triangles.len(), summary.triangles);
     for f in [&mesh_files.stl, &mesh_files.preview, &mesh_files.view3d] {
