@@ -488,10 +488,10 @@ impl Neighbourhoods {
 /// `normals` must be unit vectors (zero where unknown: such pairs are skipped) with a sign
 /// that is consistent over the cloud (see [`orient_normals_outward`](crate::orient_normals_outward));
 /// `index` must be built over `points` (it is checked, and kept in the signature for
-/// compatibility: the neighbours are found on a uniform grid, see `Neighbourhoods`, which is
-/// several times faster than the tree for one fixed radius). A point with no usable neighbour gets an all-zero
-/// descriptor. Runs in parallel on the rayon pool; the result does not depend on the number
-/// of threads.
+/// compatibility: the neighbours are found on a uniform grid of cubes one radius wide, which
+/// for one fixed radius is several times faster than the tree). A point with no usable
+/// neighbour gets an all-zero descriptor. Runs in parallel on the rayon pool; the result does
+/// not depend on the number of threads.
 ///
 /// # Errors
 /// [`IcpError::InvalidParameter`] for a bad configuration, or when `normals` or `index` do not
@@ -783,6 +783,65 @@ mod tests {
             NO_PAIR,
             "normal along the line"
         );
+    }
+
+    #[test]
+    fn grid_neighbourhoods_equal_a_brute_force_search() {
+        // Pseudo-random points on a 0.25 mm lattice in a 40 mm box (some cubes empty, some
+        // crowded, negative coordinates; squared distances exact in f32 and f64, so none is
+        // rounded across the radius): every row must hold exactly the points within 4 mm
+        // (itself and coincident points excluded), or with a cap of 6 the 6 nearest (compared
+        // by distance: the lattice has ties).
+        let mut s = 0x9e37_79b9_u32;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            f64::from(s % 160) * 0.25 - 20.0
+        };
+        let pts: Vec<Point3<f64>> = (0..3000)
+            .map(|_| Point3::new(next(), next() * 0.5, next().abs()))
+            .collect();
+        for max in [1000, 6] {
+            let config = FpfhConfig {
+                radius: 4.0,
+                max_neighbours: max,
+            };
+            let hoods = Neighbourhoods::new(&pts, &config);
+            let mut position = vec![0; pts.len()];
+            for (at, &i) in hoods.order.iter().enumerate() {
+                position[i as usize] = at;
+            }
+            for (i, p) in pts.iter().enumerate() {
+                let mut expected: Vec<(f64, usize)> = pts
+                    .iter()
+                    .enumerate()
+                    .map(|(j, q)| ((q - p).norm(), j))
+                    .filter(|&(d, j)| j != i && d > 0.0 && d <= 4.0)
+                    .collect();
+                expected.sort_by(|a, b| a.0.total_cmp(&b.0));
+                expected.truncate(max);
+                let (idx, dist) = hoods.of(position[i]);
+                assert!(idx.windows(2).all(|w| w[0] < w[1]), "rows ascending");
+                let mut found: Vec<(f64, usize)> = idx
+                    .iter()
+                    .map(|&j| hoods.order[j as usize] as usize)
+                    .map(|j| ((pts[j] - p).norm(), j))
+                    .collect();
+                for ((d, _), &stored) in found.iter().zip(dist) {
+                    assert!((d - f64::from(stored)).abs() < 1e-5);
+                }
+                if max > expected.len() {
+                    found.sort_by_key(|x| x.1);
+                    expected.sort_by_key(|x| x.1);
+                    assert_eq!(found, expected, "point {i}");
+                } else {
+                    found.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    let d = |v: &[(f64, usize)]| v.iter().map(|x| x.0).collect::<Vec<_>>();
+                    assert_eq!(d(&found), d(&expected), "point {i}, cap {max}");
+                }
+            }
+        }
     }
 
     #[test]
