@@ -462,20 +462,26 @@ impl Neighbourhoods {
         let sorted: Vec<Vector3<f64>> = (0..self.len())
             .into_par_iter()
             .with_min_len(ROWS_PER_TASK)
-            .map_init(Vec::new, |buf: &mut Vec<(f32, u32)>, i| {
+            .map_init(Vec::new, |buf: &mut Vec<u64>, i| {
                 let (idx, dist) = self.of(i);
+                // (distance, neighbour) as one integer: the bits of a positive f32 are in
+                // its order, so the selection compares integers.
                 buf.clear();
-                buf.extend(dist.iter().copied().zip(idx.iter().copied()));
+                buf.extend(
+                    dist.iter()
+                        .zip(idx)
+                        .map(|(d, &j)| (u64::from(d.to_bits()) << 32) | u64::from(j)),
+                );
                 let keep = k.saturating_sub(1);
                 if buf.len() > keep && keep > 0 {
-                    buf.select_nth_unstable_by(keep - 1, |a, b| {
-                        a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
-                    });
+                    buf.select_nth_unstable(keep - 1);
                 }
                 buf.truncate(keep);
                 let original = |j: usize| self.order.get(j).map_or(usize::MAX, |&o| o as usize);
-                let around =
-                    std::iter::once(original(i)).chain(buf.iter().map(|x| original(x.1 as usize)));
+                let around = std::iter::once(original(i)).chain(
+                    buf.iter()
+                        .map(|&x| original((x & u64::from(u32::MAX)) as usize)),
+                );
                 fit_local_plane(points, around).map_or_else(Vector3::zeros, |p| p.normal)
             })
             .collect();
