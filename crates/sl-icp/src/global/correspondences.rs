@@ -86,8 +86,8 @@ pub struct Correspondence {
 }
 
 /// The descriptors of one cloud made ready for matching: the principal axes of the set, the
-/// descriptors rotated onto them, and the first eight rotated coordinates laid out
-/// dimension by dimension. Built once per cloud and matched with every other cloud.
+/// descriptors rotated onto them and ordered for the strip search (see the module docs).
+/// Built once per cloud and matched with every other cloud.
 #[derive(Debug, Clone)]
 pub struct FeatureIndex {
     /// Mean of the descriptors.
