@@ -86,8 +86,8 @@ pub struct Correspondence {
 }
 
 /// The descriptors of one cloud made ready for matching: the principal axes of the set, the
-/// descriptors rotated onto them, and the first eight rotated coordinates laid out
-/// dimension by dimension. Built once per cloud and matched with every other cloud.
+/// descriptors rotated onto them and ordered for the strip search (see the module docs).
+/// Built once per cloud and matched with every other cloud.
 #[derive(Debug, Clone)]
 pub struct FeatureIndex {
     /// Mean of the descriptors.
@@ -498,35 +498,39 @@ pub fn match_features(
     let queries = rotate_all(&target_index.mean, &target_index.basis, source);
     let ratio2 = (config.ratio * config.ratio) as f32;
     // Fixed runs of queries, each seeded with the matches of the query before it.
-    let forward: Vec<Option<Correspondence>> = queries
-        .par_chunks(ROWS_PER_TASK)
-        .enumerate()
-        .flat_map_iter(|(c, run)| {
-            let mut seeds = [u32::MAX; 2];
-            run.iter().enumerate().map(move |(k, q)| {
-                let best = targets.nearest::<2>(q, &seeds);
-                seeds = [best[0].0, best[1].0];
-                (c * ROWS_PER_TASK + k, best)
+    let search = || -> Vec<Option<Correspondence>> {
+        queries
+            .par_chunks(ROWS_PER_TASK)
+            .enumerate()
+            .flat_map_iter(|(c, run)| {
+                let mut seeds = [u32::MAX; 2];
+                run.iter().enumerate().map(move |(k, q)| {
+                    let best = targets.nearest::<2>(q, &seeds);
+                    seeds = [best[0].0, best[1].0];
+                    (c * ROWS_PER_TASK + k, best)
+                })
             })
-        })
-        .map(|(i, [(j, d1), (second, d2)])| {
-            if j == u32::MAX {
-                return None;
-            }
-            let ratio = if second == u32::MAX {
-                0.0
-            } else if d2 > 0.0 {
-                d1 / d2
-            } else {
-                1.0
-            };
-            (ratio <= ratio2).then_some(Correspondence {
-                source: i as u32,
-                target: j,
-                ratio: ratio.sqrt(),
+            .map(|(i, [(j, d1), (second, d2)])| {
+                if j == u32::MAX {
+                    return None;
+                }
+                let ratio = if second == u32::MAX {
+                    0.0
+                } else if d2 > 0.0 {
+                    d1 / d2
+                } else {
+                    1.0
+                };
+                (ratio <= ratio2).then_some(Correspondence {
+                    source: i as u32,
+                    target: j,
+                    ratio: ratio.sqrt(),
+                })
             })
-        })
-        .collect();
+            .collect()
+    };
+    // The sources' layout for the mutual check is built while the forward search runs.
+    let (forward, sources) = rayon::join(search, || config.mutual.then(|| Layout::new(&queries)));
     let mut found: Vec<Correspondence> = forward.into_iter().flatten().collect();
     if config.mutual {
         // The nearest source of every matched target, searched back in the same frame (the
@@ -536,7 +540,7 @@ pub fn match_features(
         chosen.sort_unstable();
         chosen.dedup_by_key(|x| x.0);
         let wanted: Vec<u32> = chosen.iter().map(|x| x.0).collect();
-        let sources = Layout::new(&queries);
+        let sources = sources.unwrap_or_else(|| Layout::new(&queries));
         let back: Vec<u32> = chosen
             .par_iter()
             .with_min_len(ROWS_PER_TASK)

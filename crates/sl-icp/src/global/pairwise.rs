@@ -95,7 +95,8 @@ impl GlobalConfig {
 
 /// A cloud made ready for global registration: downsampled, with normals whose sign depends
 /// on its shape only (see [`orient_normals_outward`](crate::orient_normals_outward)), its FPFH
-/// descriptors and their k-d tree. Build it once per cloud and match it with any other.
+/// descriptors and their search index ([`FeatureIndex`]). Build it once per cloud and match it
+/// with any other.
 #[derive(Debug, Clone)]
 pub struct GlobalCloud {
     prepared: PreparedCloud,
@@ -170,7 +171,7 @@ impl GlobalCloud {
         &self.features
     }
 
-    /// The k-d tree over the descriptors.
+    /// The descriptors laid out for matching.
     pub fn feature_index(&self) -> &FeatureIndex {
         &self.index
     }
