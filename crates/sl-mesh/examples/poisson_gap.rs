@@ -94,6 +94,10 @@ fn main() -> Result<(), Box<dyn Error>> {
             .ok()
             .and_then(|v| v.parse().ok())
             .unwrap_or(PoissonConfig::default().full_depth),
+        scale: std::env::var("SCALE")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(PoissonConfig::default().scale),
         ..PoissonConfig::default()
     };
     let t = std::time::Instant::now();
