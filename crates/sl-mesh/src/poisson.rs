@@ -19,10 +19,10 @@
 //! exactly without their lower back (`y > 0.4 r`, `z > 0`; depth 9; the test `gap_profile`
 //! prints it) the zero crossing along rays through the gap lies on average 1.2 mm inside the
 //! sphere with level 5 (5.8 mm cells, RMS 1.42 mm), 0.2 mm outside with level 4 (11.7 mm,
-//! RMS 0.49 mm); with `full_depth` 4 the extracted surface is at 0.47 mm RMS there instead of
-//! 1.41. The shape is not the data's, though: one sphere filling the cube (the usual single
+//! RMS 0.49 mm); with `full_depth` 4 the extracted surface is at 0.65 mm RMS there instead of
+//! 1.40. The shape is not the data's, though: one sphere filling the cube (the usual single
 //! scanned object, its gap near the cube's faces) is closed by a surface bulging outwards at
-//! either full depth, more at 4 (0.95 mm RMS) than at 5 (0.82 mm). So 5 stays the default and
+//! either full depth, more at 4 (0.93 mm RMS) than at 5 (0.82 mm). So 5 stays the default and
 //! 4 is the better choice for objects small in the cube.
 //!
 //! The finite-element system of every level is the Galerkin projection of the same energy (the
