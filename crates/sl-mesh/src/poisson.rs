@@ -33,10 +33,10 @@
 //! its rim the condition is the natural one (as on the cube's faces), so the coarser solution
 //! enters only as the starting point. Keeping the rim nodes at the coarser level's values
 //! instead (as until 2026-11-26) held the finest zero set a few hundredths of a cell off: on
-//! exact spheres the vertices near the samples were at 1.2 % of a cell RMS with that, 0.45 %
+//! exact spheres the vertices near the samples were at 3.3 % of a cell RMS with that, 1.2 %
 //! with the natural rim (0.0120 → 0.0045 mm at 0.365 mm cells), and 6 iterations give the
-//! same figures as 25. The surface is the level set of `χ`
-//! at the weighted mean of `χ` over the samples, extracted on the finest grid by
+//! same figures as 25. The surface is the level set of `χ` at the weighted mean of `χ` over
+//! the samples, extracted on the finest grid by
 //! [`contour`](crate::contour) — one value per grid node, so the mesh is watertight. Where a
 //! grid node lies outside the finest band (a gap in the data), its value comes from the deepest
 //! level that reaches it, measured against that level's own iso-value (the mean of that level's
