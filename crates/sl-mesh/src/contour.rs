@@ -6,6 +6,16 @@
 //! piecewise-linear interpolant is then a closed 2-manifold — watertight by construction, where
 //! marching cubes' ambiguous faces can leave holes. Zero counts as outside, so no vertex lies
 //! exactly on a node. Triangles are oriented with their normals towards positive values.
+//!
+//! The values are those of a trilinear field (one cell of the finest Poisson level), so each
+//! vertex sits where that field is zero along its tetrahedron edge: on a cell edge the field is
+//! linear, on a face diagonal quadratic, on the body diagonal cubic. Interpolating linearly
+//! along the diagonals as well (the plain marching-tetrahedra rule) misplaces vertices by up to
+//! a tenth of a cell where the field is a steep step across the surface, as Poisson's indicator
+//! is (on exact samples of two spheres, vertices within 0.2 mm of a sample: 0.0183 mm RMS with
+//! linear diagonals, 0.0120 mm with this, at 0.365 mm cells, measured before the Poisson bands
+//! got natural rims). Only the positions along the
+//! edges change, not which edges are cut, so the mesh stays closed.
 
 use std::collections::VecDeque;
 
@@ -108,6 +118,58 @@ pub(crate) fn contour(input: &ContourInput<'_>) -> TriangleMesh {
     mesh
 }
 
+/// The zero of the cell's trilinear interpolant of `f` along the segment from corner `lo` to
+/// corner `hi` (a face or the body diagonal; `hi`'s axis bits include `lo`'s), as a fraction
+/// of the segment from `lo`. `f[lo]` and `f[hi]` differ in sign, so a zero lies in between;
+/// false position with the Illinois modification brackets it.
+fn trilinear_root(f: &[f64; 8], lo: usize, hi: usize) -> f64 {
+    // Along the segment a corner's weight is t^j (1 − t)^(m − j), j of the m moving axes set
+    // in it (zero unless its fixed axes are lo's): a Bernstein form whose j-th coefficient is
+    // the sum of the corners with j moving bits set.
+    let moving = lo ^ hi;
+    let m = moving.count_ones() as usize;
+    let mut c = [0.0f64; 4];
+    for (k, fk) in f.iter().enumerate() {
+        if (k & !moving) == lo {
+            c[(k & moving).count_ones() as usize] += fk;
+        }
+    }
+    let at = |t: f64| -> f64 {
+        let s = 1.0 - t;
+        if m == 2 {
+            c[0] * s * s + c[1] * t * s + c[2] * t * t
+        } else {
+            c[0] * s * s * s + c[1] * t * s * s + c[2] * t * t * s + c[3] * t * t * t
+        }
+    };
+    let (mut a, mut fa, mut b, mut fb) = (0.0, f[lo], 1.0, f[hi]);
+    let mut t = fa / (fa - fb);
+    let mut last_side = 0;
+    for _ in 0..40 {
+        t = (a * fb - b * fa) / (fb - fa);
+        let ft = at(t);
+        if ft == 0.0 || b - a < 1e-9 {
+            break;
+        }
+        if (ft < 0.0) == (fa < 0.0) {
+            a = t;
+            fa = ft;
+            if last_side == -1 {
+                fb *= 0.5;
+            }
+            last_side = -1;
+        } else {
+            b = t;
+            fb = ft;
+            if last_side == 1 {
+                fa *= 0.5;
+            }
+            last_side = 1;
+        }
+    }
+    t.clamp(1e-6, 1.0 - 1e-6)
+}
+
 #[inline]
 fn corner(c: [i64; 3], k: usize) -> [i64; 3] {
     [
@@ -152,7 +214,14 @@ fn polygonise(
         let key = (((q[2] * n + q[1]) * n + q[0]) as u64) * 8 + (lo ^ hi) as u64;
         let mid = (pos(a) + pos(b)) * 0.5;
         let id = *edges.entry(key).or_insert_with(|| {
-            let t = f[a] / (f[a] - f[b]);
+            // Along a cell edge the trilinear interpolant is linear; along a face or the body
+            // diagonal it is quadratic or cubic, and its zero is found on that curve.
+            let t_lo = if (lo ^ hi).count_ones() > 1 {
+                trilinear_root(f, lo, hi)
+            } else {
+                f[lo] / (f[lo] - f[hi])
+            };
+            let t = if lo == a { t_lo } else { 1.0 - t_lo };
             let p = pos(a) + (pos(b) - pos(a)) * t;
             mesh.vertices.push(Point3::from(p));
             (mesh.vertices.len() - 1) as u32
@@ -194,5 +263,36 @@ fn polygonise(
         } else {
             mesh.triangles.push([t[0].0, t[2].0, t[1].0]);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The corner values of a field `g` on the unit cube.
+    fn corners(g: impl Fn(f64, f64, f64) -> f64) -> [f64; 8] {
+        let mut f = [0.0; 8];
+        for (k, fk) in f.iter_mut().enumerate() {
+            *fk = g((k & 1) as f64, ((k >> 1) & 1) as f64, ((k >> 2) & 1) as f64);
+        }
+        f
+    }
+
+    /// A linear field is its own trilinear interpolant: the zero along the body diagonal of
+    /// `x + y + z − 1.2` is at t = 0.4. A product `x y − 0.25` is bilinear: along the face
+    /// diagonal (corner 0 to 3) it is `t² − 0.25`, zero at 0.5, where linear interpolation of
+    /// its end values (−0.25, 0.75) would put 0.25.
+    #[test]
+    fn diagonal_roots_follow_the_trilinear_field() {
+        let plane = corners(|x, y, z| x + y + z - 1.2);
+        approx::assert_relative_eq!(trilinear_root(&plane, 0, 7), 0.4, epsilon = 1e-8);
+        let saddle = corners(|x, y, _| x * y - 0.25);
+        approx::assert_relative_eq!(trilinear_root(&saddle, 0, 3), 0.5, epsilon = 1e-8);
+        // From a corner other than 0: from corner 4 (z = 1) to 7 the same bilinear field.
+        approx::assert_relative_eq!(trilinear_root(&saddle, 4, 7), 0.5, epsilon = 1e-8);
+        // Cubic along the body diagonal: x y z − 0.125 is t³ − 0.125, zero at 0.5.
+        let cubic = corners(|x, y, z| x * y * z - 0.125);
+        approx::assert_relative_eq!(trilinear_root(&cubic, 0, 7), 0.5, epsilon = 1e-8);
     }
 }

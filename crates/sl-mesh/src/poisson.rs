@@ -6,16 +6,37 @@
 //! samples, and the screening term pulls its zero set through the samples. `χ` is a sum of
 //! trilinear B-splines over the nodes of an octree:
 //!
-//! - levels `0..=full_depth` cover the whole (padded) bounding cube: the far field, where the
-//!   surface has no data, comes from them;
+//! - levels `0..=full_depth` (default 5) cover the whole (padded) bounding cube: the far
+//!   field, where the surface has no data, comes from them;
 //! - deeper levels hold nodes only in a band of one cell around the cells holding samples.
+//!
+//! Where the scanner saw nothing (the lower back of the default scan's spheres, a patch some
+//! 45 × 40 mm), the surface is the zero set of the deepest level reaching there: level
+//! `full_depth` in the middle of a wide gap. A level solved to convergence over a gap gives
+//! plain Poisson's answer there, the harmonic membrane spanning the gap's rim, which is flat;
+//! the coarser the level, the more its restricted normal field spreads over the gap and the
+//! more its zero set keeps the curvature around it. On two spheres of radius 25 mm sampled
+//! exactly without their lower back (`y > 0.4 r`, `z > 0`; depth 9; the test `gap_profile`
+//! prints it) the zero crossing along rays through the gap lies on average 1.2 mm inside the
+//! sphere with level 5 (5.8 mm cells, RMS 1.42 mm), 0.2 mm outside with level 4 (11.7 mm,
+//! RMS 0.49 mm); with `full_depth` 4 the extracted surface is at 0.65 mm RMS there instead of
+//! 1.40. The shape is not the data's, though: one sphere filling the cube (the usual single
+//! scanned object, its gap near the cube's faces) is closed by a surface bulging outwards at
+//! either full depth, more at 4 (0.93 mm RMS) than at 5 (0.82 mm). So 5 stays the default and
+//! 4 is the better choice for objects small in the cube.
 //!
 //! The finite-element system of every level is the Galerkin projection of the same energy (the
 //! right-hand side of a level is the restriction of the finest one), solved coarse to fine
-//! (cascadic multigrid): a level starts from the prolongation of the coarser solution, its
-//! nodes on the rim of the band keep that value (the finer level only corrects inside its band),
-//! and Jacobi-preconditioned conjugate gradients relax it. The surface is the level set of `χ`
-//! at the weighted mean of `χ` over the samples, extracted on the finest grid by
+//! (cascadic multigrid): a level starts from the prolongation of the coarser solution and
+//! Jacobi-preconditioned conjugate gradients relax it (6 iterations per band level by
+//! default). A band level's domain is the union of its cells that have all eight corners; on
+//! its rim the condition is the natural one (as on the cube's faces), so the coarser solution
+//! enters only as the starting point. Keeping the rim nodes at the coarser level's values
+//! instead (as until 2026-11-26) held the finest zero set a few hundredths of a cell off: on
+//! exact spheres the vertices near the samples were at 3.3 % of a cell RMS with that, 1.2 %
+//! with the natural rim (0.0120 → 0.0045 mm at 0.365 mm cells), and 6 iterations give the
+//! same figures as 25. The surface is the level set of `χ` at the weighted mean of `χ` over
+//! the samples, extracted on the finest grid by
 //! [`contour`](crate::contour) — one value per grid node, so the mesh is watertight. Where a
 //! grid node lies outside the finest band (a gap in the data), its value comes from the deepest
 //! level that reaches it, measured against that level's own iso-value (the mean of that level's
@@ -50,8 +71,8 @@ const DENSITY_KERNEL_MEAN: f64 = 2.0 / 3.0;
 /// The coarsest level solved: below it the grid has too few nodes to matter (9 at level 1).
 const COARSEST_LEVEL: u32 = 2;
 
-/// Conjugate-gradient iterations at the fully populated levels (at most 33³ nodes at the
-/// default `full_depth`, so they are cheap); they start the cascade and must converge.
+/// Conjugate-gradient iterations at the fully populated levels (at most 17³ nodes at the
+/// default `full_depth`, 129³ at its largest, 7); they start the cascade and must converge.
 const FULL_LEVEL_ITERATIONS: usize = 200;
 
 /// Relative residual at which a level's conjugate gradients stop early.
@@ -65,6 +86,8 @@ pub struct PoissonConfig {
     /// 0.3 mm cells on the 130 mm scene of the default scan. At most 10.
     pub depth: u32,
     /// Levels `0..=full_depth` cover the whole cube; deeper ones only a band around the samples.
+    /// 4 by default: the surface closing a gap in the data comes from this level (see the
+    /// module documentation for why 4 and not 5).
     pub full_depth: u32,
     /// Ratio of the cube's edge to the largest extent of the samples (≥ 1): the margin keeps the
     /// surface away from the cube's faces. 1.1 as Kazhdan's and Open3D's default.
@@ -73,6 +96,9 @@ pub struct PoissonConfig {
     /// through the samples rather than only following their normals. 0 is plain Poisson.
     pub screening: f64,
     /// Conjugate-gradient iterations per band level (each starts from the coarser solution).
+    /// 6 by default: on the default scan's cloud and on exact spheres 4, 6, 10 and 25 give the
+    /// same surface to 0.0002 mm where the data is (the level starts from the coarser solution
+    /// and only corrects it near the samples).
     pub iterations: usize,
 }
 
@@ -83,7 +109,7 @@ impl Default for PoissonConfig {
             full_depth: 5,
             scale: 1.1,
             screening: 4.0,
-            iterations: 25,
+            iterations: 6,
         }
     }
 }
@@ -177,13 +203,91 @@ pub fn poisson_reconstruct(
     cloud: &PointCloud,
     cfg: &PoissonConfig,
 ) -> Result<PoissonSurface, MeshError> {
+    let t0 = Instant::now();
+    let Solved {
+        levels,
+        supers,
+        density,
+        h_dd,
+        centre,
+        size,
+        samples,
+        nodes_per_level,
+    } = solve(cloud, cfg)?;
+    let depth = cfg.depth;
+    let finest = 1i64 << depth;
+    let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
+
+    let t1 = Instant::now();
+    let finest_level = &levels[depth as usize];
+    let seeds: Vec<[i64; 3]> = supers.iter().map(|s| s.cell).collect();
+    let coarser = &levels[..depth as usize];
+    let value = |x: i64, y: i64, z: i64| -> f64 {
+        let v = match finest_level.nodes.slot(x, y, z) {
+            Some(s) => finest_level.x[s as usize],
+            None => {
+                let h = 1.0 / finest as f64;
+                return eval_above_iso(coarser, [x as f64 * h, y as f64 * h, z as f64 * h]);
+            }
+        };
+        v - finest_level.iso
+    };
+    let unit_mesh = contour(&ContourInput {
+        cells: finest,
+        seeds: &seeds,
+        value: &value,
+    });
+    let contour_ms = t1.elapsed().as_secs_f64() * 1e3;
+    let unit_area = size * size;
+    let densities = unit_mesh
+        .vertices
+        .iter()
+        .map(|u| {
+            let u = [u.x, u.y, u.z];
+            density.at(&u) / (DENSITY_KERNEL_MEAN * h_dd * h_dd) / unit_area
+        })
+        .collect();
+    let vertices = unit_mesh
+        .vertices
+        .iter()
+        .map(|u| centre + Vector3::new(u.x - 0.5, u.y - 0.5, u.z - 0.5) * size)
+        .collect();
+    Ok(PoissonSurface {
+        mesh: TriangleMesh {
+            vertices,
+            triangles: unit_mesh.triangles,
+        },
+        densities,
+        nodes_per_level,
+        samples,
+        cell_size: size / finest as f64,
+        solve_ms,
+        contour_ms,
+    })
+}
+
+/// The solved octree and what extraction needs of the set-up.
+struct Solved {
+    levels: Vec<Level>,
+    supers: Vec<SuperSample>,
+    density: DensityGrid,
+    /// Cell edge of the density grid, in the unit cube.
+    h_dd: f64,
+    centre: Point3<f64>,
+    /// Edge of the cube, in the cloud's units.
+    size: f64,
+    samples: usize,
+    nodes_per_level: Vec<usize>,
+}
+
+/// Builds the octree, the system of every level and solves it coarse to fine.
+fn solve(cloud: &PointCloud, cfg: &PoissonConfig) -> Result<Solved, MeshError> {
     validate(cfg)?;
     let Some(normals) = cloud.normals() else {
         return Err(MeshError::NoNormals {
             points: cloud.len(),
         });
     };
-    let t0 = Instant::now();
     let samples: Vec<(Point3<f64>, Vector3<f64>)> = cloud
         .positions()
         .iter()
@@ -360,53 +464,15 @@ pub fn poisson_reconstruct(
         }
         level.iso = if den > 0.0 { num / den } else { 0.0 };
     }
-    let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
-
-    let t1 = Instant::now();
-    let finest_level = &levels[depth as usize];
-    let seeds: Vec<[i64; 3]> = supers.iter().map(|s| s.cell).collect();
-    let coarser = &levels[..depth as usize];
-    let value = |x: i64, y: i64, z: i64| -> f64 {
-        let v = match finest_level.nodes.slot(x, y, z) {
-            Some(s) => finest_level.x[s as usize],
-            None => {
-                let h = 1.0 / finest as f64;
-                return eval_above_iso(coarser, [x as f64 * h, y as f64 * h, z as f64 * h]);
-            }
-        };
-        v - finest_level.iso
-    };
-    let unit_mesh = contour(&ContourInput {
-        cells: finest,
-        seeds: &seeds,
-        value: &value,
-    });
-    let contour_ms = t1.elapsed().as_secs_f64() * 1e3;
-    let unit_area = size * size;
-    let densities = unit_mesh
-        .vertices
-        .iter()
-        .map(|u| {
-            let u = [u.x, u.y, u.z];
-            density.at(&u) / (DENSITY_KERNEL_MEAN * h_dd * h_dd) / unit_area
-        })
-        .collect();
-    let vertices = unit_mesh
-        .vertices
-        .iter()
-        .map(|u| centre + Vector3::new(u.x - 0.5, u.y - 0.5, u.z - 0.5) * size)
-        .collect();
-    Ok(PoissonSurface {
-        mesh: TriangleMesh {
-            vertices,
-            triangles: unit_mesh.triangles,
-        },
-        densities,
-        nodes_per_level,
+    Ok(Solved {
+        levels,
+        supers,
+        density,
+        h_dd,
+        centre,
+        size,
         samples: samples.len(),
-        cell_size: size / finest as f64,
-        solve_ms,
-        contour_ms,
+        nodes_per_level,
     })
 }
 
@@ -717,8 +783,39 @@ fn stiffness_row(p: [i64; 3], n: i64) -> [f64; 27] {
     row
 }
 
-/// Relaxes one level with Jacobi-preconditioned conjugate gradients. Nodes whose 26
-/// neighbours are not all present (the rim of a band) keep their values.
+/// Stiffness coefficients of a node towards its 27 neighbours (unit spacing), summed over the
+/// eight cells around it that have all their corners: `present` has bit `offset_index(d)` set
+/// for each neighbour `d` that exists. On the rim of a band this is the natural (Neumann)
+/// condition, as on the faces of the cube. `None` when no cell around the node is complete.
+fn band_stiffness_row(present: u32) -> Option<[f64; 27]> {
+    let mut row = [0.0; 27];
+    let mut any = false;
+    for cell in 0..8usize {
+        // Lower corner of the cell relative to the node, in {-1, 0}³.
+        let lo = [
+            (cell & 1) as i64 - 1,
+            ((cell >> 1) & 1) as i64 - 1,
+            ((cell >> 2) & 1) as i64 - 1,
+        ];
+        if (0..8).any(|q| present & (1 << offset_index(corner(lo, q))) == 0) {
+            continue;
+        }
+        any = true;
+        let pl = (0..3).fold(0u32, |acc, a| acc | ((-lo[a] as u32) << a));
+        for q in 0..8usize {
+            row[offset_index(corner(lo, q))] += element_stiffness((pl ^ q as u32).count_ones());
+        }
+    }
+    any.then_some(row)
+}
+
+/// A free node of a level's system: its slot and its 27 neighbours' slots (its own where a
+/// neighbour is absent).
+type Row = (u32, [u32; 27]);
+
+/// Relaxes one level with Jacobi-preconditioned conjugate gradients. Every node of a complete
+/// cell is free; on the rim of a band the stiffness sums only the complete cells (the natural
+/// condition); nodes of no complete cell keep their values.
 fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations: usize) {
     let nodes = &level.nodes;
     let n = nodes.n as i64;
@@ -726,39 +823,42 @@ fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations
     let h = 1.0 / cells as f64;
     let offs = offsets();
     let interior = stiffness_row([1, 1, 1], n.max(3));
-    // Free rows: neighbour slots and coefficients.
-    let rows: Vec<(u32, [u32; 27])> = (0..nodes.len())
+    // Free rows: neighbour slots and stiffness coefficients (from the cells around the node
+    // that exist: all eight inside a band, fewer on its rim and on the cube's faces).
+    let (rows, mut coef): (Vec<Row>, Vec<[f32; 27]>) = (0..nodes.len())
         .into_par_iter()
         .filter_map(|s| {
             let c = nodes.coords(s);
             let mut nb = [s as u32; 27];
+            let mut present = 0u32;
+            let mut complete = true;
             for (i, o) in offs.iter().enumerate() {
                 let q = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
                 if q.iter().any(|&v| v < 0 || v >= n) {
                     continue;
                 }
-                nb[i] = nodes.slot(q[0], q[1], q[2])?;
+                match nodes.slot(q[0], q[1], q[2]) {
+                    Some(t) => {
+                        nb[i] = t;
+                        present |= 1 << i;
+                    }
+                    None => complete = false,
+                }
             }
-            Some((s as u32, nb))
-        })
-        .collect();
-    let mut row_of = vec![u32::MAX; nodes.len()];
-    for (r, (s, _)) in rows.iter().enumerate() {
-        row_of[*s as usize] = r as u32;
-    }
-    let mut coef: Vec<[f32; 27]> = rows
-        .par_iter()
-        .map(|(s, _)| {
-            let c = nodes.coords(*s as usize);
-            let on_face = c.iter().any(|&v| v == 0 || v == n - 1);
-            let row = if on_face {
+            let row = if !complete {
+                band_stiffness_row(present)?
+            } else if c.iter().any(|&v| v == 0 || v == n - 1) {
                 stiffness_row(c, n)
             } else {
                 interior
             };
-            row.map(|v| (v * h) as f32)
+            Some(((s as u32, nb), row.map(|v| (v * h) as f32)))
         })
-        .collect();
+        .unzip();
+    let mut row_of = vec![u32::MAX; nodes.len()];
+    for (r, (s, _)) in rows.iter().enumerate() {
+        row_of[*s as usize] = r as u32;
+    }
     // Screening: α Σ_s a_s B_i(s) B_j(s), from the super-samples.
     for sup in supers {
         let (c, w) = cell_weights(sup.u, cells);
@@ -891,11 +991,11 @@ mod tests {
     }
 
     /// A sphere of radius 20 mm sampled with 20 000 exact points (0.5 mm apart): the mesh is
-    /// closed, manifold, oriented outwards, and its vertices lie within 7 % of a finest cell
+    /// closed, manifold, oriented outwards, and its vertices lie within 2.5 % of a finest cell
     /// (depth 7: cells of 0.34 mm) of the sphere in RMS, unbiased to 1 % of a cell. Measured:
-    /// 6.0 % and 0.2 %; linear interpolation along the cell edges of a field that curves over
-    /// a few cells costs a few per cent of a cell, a wrong screening or a misplaced iso-value
-    /// costs tens.
+    /// 1.7 % and 0.1 % (3.2 % with the bands' rim nodes fixed to the coarser solution, 6.0 %
+    /// with vertices also interpolated linearly along the tetrahedra's diagonals); a wrong
+    /// screening or a misplaced iso-value costs tens of per cent.
     #[test]
     fn sphere_mesh_is_close_to_the_sphere() {
         let centre = Point3::new(5.0, -3.0, 300.0);
@@ -917,7 +1017,7 @@ mod tests {
         let rms = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt();
         let mean = errs.iter().sum::<f64>() / errs.len() as f64;
         assert!(
-            rms < 0.07 * s.cell_size,
+            rms < 0.025 * s.cell_size,
             "rms {rms} mm, cell {}",
             s.cell_size
         );
@@ -968,7 +1068,7 @@ mod tests {
         let topo = check_topology(&s.mesh);
         assert!(topo.is_watertight_manifold(), "{topo:?}");
         // Where the data is, the surface follows it: vertices near samples (z < 0) are on the
-        // sphere to a fifth of a cell.
+        // sphere to 6 % of a cell (measured 3.2 %).
         let near: Vec<f64> = s
             .mesh
             .vertices
@@ -978,14 +1078,18 @@ mod tests {
             .collect();
         assert!(near.len() > 100);
         let rms = (near.iter().map(|e| e * e).sum::<f64>() / near.len() as f64).sqrt();
-        assert!(rms < 0.2 * s.cell_size, "rms {rms}, cell {}", s.cell_size);
+        assert!(rms < 0.06 * s.cell_size, "rms {rms}, cell {}", s.cell_size);
     }
 
     /// A sphere whose lower back (`y > 0.4 r` and `z > 0`, what the default scan never sees)
     /// has no samples: the mesh is still closed and manifold, the vertices near the samples are
-    /// on the sphere to a tenth of a cell (measured 4 %), and the surface that closes the gap
-    /// stays within 0.35 r of the sphere (measured: 2.85 mm outwards for r = 10 mm, 0.13 mm
-    /// inwards; the closing surface is not the sphere, only a bounded guess).
+    /// on the sphere to 1.8 % of a cell in RMS (measured 1.25 %; 2.0 % with the bands' rim
+    /// nodes fixed to the coarser solution, 4 % with vertices also interpolated linearly along
+    /// the tetrahedra's diagonals, see `contour`), and the surface that closes
+    /// the gap stays within 0.3 r of the sphere, 0.1 r in RMS (measured: 2.72 mm outwards at
+    /// worst for r = 10 mm, 0.14 mm inwards, RMS 0.84 mm: the sphere nearly fills the cube, and
+    /// the closing surface bulges towards the cube's edge behind the gap; it is a bounded
+    /// guess, not the sphere — these bounds guard against it getting worse).
     #[test]
     fn sphere_missing_its_lower_back_is_closed_and_bounded() {
         let r = 10.0;
@@ -1018,9 +1122,99 @@ mod tests {
         }
         assert!(gap.len() > 100 && seen.len() > 1000);
         let rms = (seen.iter().map(|e| e * e).sum::<f64>() / seen.len() as f64).sqrt();
-        assert!(rms < 0.1 * s.cell_size, "rms {rms}, cell {}", s.cell_size);
+        assert!(rms < 0.018 * s.cell_size, "rms {rms}, cell {}", s.cell_size);
         let worst = gap.iter().fold(0.0f64, |m, e| m.max(e.abs()));
-        assert!(worst < 0.35 * r, "gap deviates {worst} mm");
+        let gap_rms = (gap.iter().map(|e| e * e).sum::<f64>() / gap.len() as f64).sqrt();
+        assert!(worst < 0.3 * r, "gap deviates {worst} mm");
+        assert!(gap_rms < 0.1 * r, "gap RMS {gap_rms} mm");
+    }
+
+    /// Diagnostic (`cargo test -p sl-mesh --release --lib gap_profile -- --ignored
+    /// --nocapture`): two spheres of radius 25 mm, 120 mm apart, sampled exactly without their
+    /// lower back (`y > 0.4 r`, `z > 0`) as the default scan; for `full_depth` 5 and 4, where
+    /// each level's `χ` (against its own iso-value) and the extracted field cross zero along
+    /// rays through the gap, and how far from the sphere (RMS and mean over the rays).
+    #[test]
+    #[ignore]
+    fn gap_profile() {
+        let r = 25.0;
+        let mut pts = Vec::new();
+        let mut nrm = Vec::new();
+        for cx in [-60.0, 60.0] {
+            let full = sphere(40_000, r, Point3::new(cx, 0.0, 450.0));
+            for (p, n) in full.positions().iter().zip(full.normals().unwrap()) {
+                if !(n.y > 0.4 && n.z > 0.0) {
+                    pts.push(*p);
+                    nrm.push(*n);
+                }
+            }
+        }
+        let cloud = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let centre = Point3::new(60.0, 0.0, 450.0);
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        for full_depth in [5, 4] {
+            let cfg = PoissonConfig {
+                full_depth,
+                ..PoissonConfig::default()
+            };
+            let s = solve(&cloud, &cfg).unwrap();
+            let extracted = s.levels.len();
+            let mut stats = vec![(0usize, 0.0f64, 0.0f64); extracted + 1];
+            for i in 0..2000 {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / 2000.0;
+                let rr = (1.0 - z * z).sqrt();
+                let t = golden * i as f64;
+                let n = Vector3::new(rr * t.cos(), rr * t.sin(), z);
+                if !(n.y > 0.5 && n.z > 0.1) {
+                    continue;
+                }
+                let at = |t: f64| {
+                    let q = (centre + n * t - s.centre) / s.size;
+                    [q.x + 0.5, q.y + 0.5, q.z + 0.5]
+                };
+                for (li, st) in stats.iter_mut().enumerate().skip(3) {
+                    let f = |t: f64| -> Option<f64> {
+                        if li == extracted {
+                            Some(eval_above_iso(&s.levels, at(t)))
+                        } else {
+                            level_value(&s.levels[li], at(t)).map(|v| v - s.levels[li].iso)
+                        }
+                    };
+                    let step = 0.02;
+                    let mut t = 15.0;
+                    let mut prev = f(t);
+                    while t < 35.0 {
+                        let cur = f(t + step);
+                        if let (Some(a), Some(b)) = (prev, cur)
+                            && a < 0.0
+                            && b >= 0.0
+                        {
+                            let e = t + step * a / (a - b) - r;
+                            st.0 += 1;
+                            st.1 += e * e;
+                            st.2 += e;
+                            break;
+                        }
+                        prev = cur;
+                        t += step;
+                    }
+                }
+            }
+            println!("full_depth {full_depth}:");
+            for (li, st) in stats.iter().enumerate().skip(3) {
+                let name = if li == extracted {
+                    "extracted".to_string()
+                } else {
+                    format!("level {li}")
+                };
+                println!(
+                    "  {name:9}: {:4} rays, RMS {:.3} mm, mean {:+.3} mm",
+                    st.0,
+                    (st.1 / st.0.max(1) as f64).sqrt(),
+                    st.2 / st.0.max(1) as f64
+                );
+            }
+        }
     }
 
     #[test]
