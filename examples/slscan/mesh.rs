@@ -11,10 +11,10 @@ use anyhow::Context;
 use sl_cloud::{PreviewConfig, read_ply};
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
-    BilateralConfig, MeshColoring, PoissonConfig, SimplifyConfig, TaubinConfig, ViewerConfig,
-    ViewerLayer, check_topology, decimate, fill_holes, poisson_reconstruct,
-    remove_small_components, render_mesh, simplify, smooth_bilateral, smooth_taubin,
-    trim_by_density, viewer_html, write_ply_mesh, write_stl,
+    BilateralConfig, FairConfig, MeshColoring, PoissonConfig, SimplifyConfig, TaubinConfig,
+    ViewerConfig, ViewerLayer, check_topology, decimate, fair_unsupported, fill_holes,
+    poisson_reconstruct, remove_small_components, render_mesh, simplify, smooth_bilateral,
+    smooth_taubin, trim_by_density, viewer_html, write_ply_mesh, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
 
@@ -62,6 +62,11 @@ pub(crate) struct Args {
     /// closes what the scanner never saw).
     #[arg(long, default_value_t = SimplifyConfig::default().unsupported_max_error)]
     pub(crate) simplify_unsupported_error: f64,
+    /// Leave the surface that closes what the scanner never saw as the reconstruction made it
+    /// (by default, after the simplification, it is faired: moved to the thin-plate surface
+    /// that continues the scanned surface's curvature across the gap).
+    #[arg(long)]
+    pub(crate) no_fair: bool,
     /// Decimate to at most this many triangles (quadric error).
     #[arg(long)]
     pub(crate) triangles: Option<usize>,
@@ -144,6 +149,24 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 "passes": s.passes,
             }),
         );
+        if !args.no_fair {
+            let cfg = FairConfig::default();
+            let t = std::time::Instant::now();
+            let f = report
+                .stage("fair", || fair_unsupported(&mut mesh, &s.densities, &cfg))
+                .context("cannot fair the unsupported surface (--no-fair leaves it)")?;
+            report.figure("fair_ms", t.elapsed().as_secs_f64() * 1e3);
+            report.figure(
+                "fair",
+                serde_json::json!({
+                    "support_ratio": cfg.support_ratio,
+                    "vertices_moved": f.vertices_moved,
+                    "largest_move_mm": f.largest_move,
+                    "iterations": f.iterations,
+                    "residual": f.residual,
+                }),
+            );
+        }
     }
     if let Some(max_edges) = args.fill_holes {
         let f = report.stage("fill holes", || fill_holes(&mut mesh, max_edges))?;

@@ -59,6 +59,7 @@ mod bilateral;
 mod contour;
 mod decimate;
 mod error;
+mod fair;
 mod files;
 mod grid;
 mod holes;
@@ -76,6 +77,7 @@ mod viewer;
 pub use bilateral::{BilateralConfig, smooth_bilateral};
 pub use decimate::{Decimation, decimate};
 pub use error::MeshError;
+pub use fair::{FairConfig, Fairing, fair_unsupported};
 pub use files::{
     obj_to_string, ply_mesh_to_bytes, read_mesh, read_obj, read_obj_from_bytes, read_stl,
     read_stl_from_bytes, stl_to_bytes, write_obj, write_ply_mesh, write_stl,

@@ -1,6 +1,7 @@
 //! The mesh stage: a watertight surface of the merged cloud (screened Poisson, `sl-mesh`),
 //! simplified under an error bound (`sl_mesh::simplify`: coarser where no samples support it),
-//! written beside it (`mesh.ply`, `mesh.stl`), pictured (`mesh_preview.png`), measured against
+//! the surface that closes what no view saw faired (`sl_mesh::fair_unsupported`), written
+//! beside it (`mesh.ply`, `mesh.stl`), pictured (`mesh_preview.png`), measured against
 //! the truth when there is one, and shown with the cloud in an interactive 3-D page
 //! (`view3d.html`, self-contained) that `index.html` embeds.
 
@@ -10,8 +11,9 @@ use serde::Serialize;
 use sl_cloud::{PointCloud, PreviewConfig};
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
-    MeshColoring, PoissonConfig, SimplifyConfig, ViewerConfig, ViewerLayer, check_topology,
-    poisson_reconstruct, render_mesh, simplify, viewer_html, write_ply_mesh, write_stl,
+    FairConfig, MeshColoring, PoissonConfig, SimplifyConfig, ViewerConfig, ViewerLayer,
+    check_topology, fair_unsupported, poisson_reconstruct, render_mesh, simplify, viewer_html,
+    write_ply_mesh, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Report, Truth, evaluate_mesh};
 
@@ -35,6 +37,9 @@ pub struct MeshSummary {
     pub triangles_extracted: usize,
     /// Wall time of the simplification (ms); `None` when it was off.
     pub simplify_ms: Option<f64>,
+    /// Wall time of the fairing of the unsupported surface (ms), which follows the
+    /// simplification; `None` when it was off.
+    pub fair_ms: Option<f64>,
     /// Octree depth of the reconstruction.
     pub depth: u32,
     /// Edge of a finest cell (mm).
@@ -125,7 +130,8 @@ pub fn mesh_stage(
 }
 
 /// Runs the mesh stage on `merged` into `out`: the reconstruction, then (with `simplify`) the
-/// error-bounded simplification, the files, the measures and the 3-D page.
+/// error-bounded simplification and the fairing of the unsupported surface
+/// (`sl_mesh::fair_unsupported`), the files, the measures and the 3-D page.
 ///
 /// # Errors
 /// [`ScanError::Mesh`] when the cloud cannot be meshed (no normals, too few points),
@@ -142,13 +148,18 @@ pub fn mesh_stage_with(
     let mut surface = poisson_reconstruct(merged, cfg)?;
     let (vertices_extracted, triangles_extracted) =
         (surface.mesh.vertices.len(), surface.mesh.triangles.len());
-    let simplify_ms = match simplify_cfg {
+    let (simplify_ms, fair_ms) = match simplify_cfg {
         Some(s) => {
             let t = std::time::Instant::now();
-            simplify(&mut surface.mesh, &surface.densities, s)?;
-            Some(t.elapsed().as_secs_f64() * 1e3)
+            let done = simplify(&mut surface.mesh, &surface.densities, s)?;
+            let simplify_ms = t.elapsed().as_secs_f64() * 1e3;
+            // The surface that closes the unseen part, faired on the simplified mesh (few
+            // vertices there, so the bi-Laplacian system is small).
+            let t = std::time::Instant::now();
+            fair_unsupported(&mut surface.mesh, &done.densities, &FairConfig::default())?;
+            (Some(simplify_ms), Some(t.elapsed().as_secs_f64() * 1e3))
         }
-        None => None,
+        None => (None, None),
     };
     let mesh = &surface.mesh;
     let topo = check_topology(mesh);
@@ -207,6 +218,7 @@ pub fn mesh_stage_with(
             vertices_extracted,
             triangles_extracted,
             simplify_ms,
+            fair_ms,
             watertight: topo.is_watertight(),
             manifold: topo.is_manifold(),
             depth: cfg.depth,
