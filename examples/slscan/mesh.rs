@@ -372,6 +372,8 @@ mod tests {
         );
         assert!(s["largest_error_mm"].as_f64().unwrap() <= 0.01, "{s}");
         assert!(f["simplify_ms"].as_f64().unwrap() >= 0.0);
+        // Faired after it: a sphere sampled all round has no unsupported vertex to move.
+        assert_eq!(f["fair"]["vertices_moved"], 0, "{f}");
         let names: Vec<&str> = r["stages"]
             .as_array()
             .unwrap()
@@ -403,6 +405,10 @@ mod tests {
             serde_json::from_str(&std::fs::read_to_string(out2.join("report.json")).unwrap())
                 .unwrap();
         assert!(r["figures"]["simplify"].is_null());
+        assert!(
+            r["figures"]["fair"].is_null(),
+            "the fairing follows the simplification"
+        );
         let mesh = sl_mesh::read_mesh(&out2.join("mesh.ply")).unwrap();
         assert!(mesh.triangles.len() <= 3000 && mesh.triangles.len() > 2900);
     }
