@@ -283,7 +283,7 @@ impl Operator {
                 }
             }
         }
-        entries.sort_unstable_by(|x, y| (x.0, x.1).cmp(&(y.0, y.1)));
+        entries.sort_unstable_by_key(|e| (e.0, e.1));
         let mut start = vec![0usize; nv + 1];
         let mut ring = Vec::with_capacity(entries.len() / 2);
         let mut weight = Vec::with_capacity(entries.len() / 2);
