@@ -361,9 +361,8 @@ impl Operator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_shapes::{sphere_cloud, sphere_mesh};
+    use crate::test_shapes::{partial_sphere_cloud, sphere_mesh};
     use crate::{PoissonConfig, SimplifyConfig, check_topology, poisson_reconstruct, simplify};
-    use sl_cloud::PointCloud;
 
     /// RMS of `|p| − r` over the vertices with `z > z_min`.
     fn cap_rms(mesh: &TriangleMesh, r: f64, z_min: f64) -> (f64, usize) {
@@ -390,15 +389,7 @@ mod tests {
     #[test]
     fn gap_follows_the_sphere() {
         let r = 10.0;
-        let full = sphere_cloud(20_000, r, Point3::origin());
-        let (pts, nrm): (Vec<_>, Vec<_>) = full
-            .positions()
-            .iter()
-            .zip(full.normals().unwrap())
-            .filter(|(_, n)| n.z < 0.5)
-            .map(|(p, n)| (*p, *n))
-            .unzip();
-        let cloud = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let cloud = partial_sphere_cloud(20_000, r, Point3::origin(), |_, n| n.z < 0.5);
         let cfg = PoissonConfig {
             depth: 6,
             ..PoissonConfig::default()

@@ -964,20 +964,7 @@ fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations
 mod tests {
     use super::*;
     use crate::check_topology;
-
-    fn sphere(n: usize, radius: f64, centre: Point3<f64>) -> PointCloud {
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        let (pts, nrm): (Vec<_>, Vec<_>) = (0..n)
-            .map(|i| {
-                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let r = (1.0 - z * z).sqrt();
-                let t = golden * i as f64;
-                let nv = Vector3::new(r * t.cos(), r * t.sin(), z);
-                (centre + nv * radius, nv)
-            })
-            .unzip();
-        PointCloud::from_positions(pts).with_normals(nrm).unwrap()
-    }
+    use crate::test_shapes::{partial_sphere_cloud, sphere_cloud as sphere};
 
     #[test]
     fn interior_stiffness_row_sums_to_zero() {
@@ -1055,15 +1042,7 @@ mod tests {
         assert!(topo.is_watertight_manifold(), "{topo:?}");
         assert_eq!(topo.components, 2, "{topo:?}");
 
-        let full = sphere(8000, 10.0, Point3::origin());
-        let (pts, nrm): (Vec<_>, Vec<_>) = full
-            .positions()
-            .iter()
-            .zip(full.normals().unwrap())
-            .filter(|(p, _)| p.z < 2.0)
-            .map(|(p, n)| (*p, *n))
-            .unzip();
-        let cap = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let cap = partial_sphere_cloud(8000, 10.0, Point3::origin(), |p, _| p.z < 2.0);
         let s = poisson_reconstruct(&cap, &cfg).unwrap();
         let topo = check_topology(&s.mesh);
         assert!(topo.is_watertight_manifold(), "{topo:?}");
@@ -1093,15 +1072,9 @@ mod tests {
     #[test]
     fn sphere_missing_its_lower_back_is_closed_and_bounded() {
         let r = 10.0;
-        let full = sphere(20_000, r, Point3::origin());
-        let (pts, nrm): (Vec<_>, Vec<_>) = full
-            .positions()
-            .iter()
-            .zip(full.normals().unwrap())
-            .filter(|(_, n)| !(n.y > 0.4 && n.z > 0.0))
-            .map(|(p, n)| (*p, *n))
-            .unzip();
-        let cloud = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let cloud = partial_sphere_cloud(20_000, r, Point3::origin(), |_, n| {
+            !(n.y > 0.4 && n.z > 0.0)
+        });
         let cfg = PoissonConfig {
             depth: 6,
             ..PoissonConfig::default()

@@ -1049,9 +1049,8 @@ fn folds(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_shapes::{cube_distance, cube_mesh, sphere_cloud, sphere_mesh};
+    use crate::test_shapes::{cube_distance, cube_mesh, partial_sphere_cloud, sphere_mesh};
     use crate::{PoissonConfig, check_topology, poisson_reconstruct, sample_surface};
-    use sl_cloud::PointCloud;
 
     /// Distances of points spread over `mesh` (one per 0.001 square units) to the sphere of
     /// radius `r` at the origin: (RMS, largest).
@@ -1165,15 +1164,7 @@ mod tests {
     #[test]
     fn unsupported_surface_is_coarser_and_no_worse() {
         let r = 10.0;
-        let full = sphere_cloud(20_000, r, Point3::origin());
-        let (pts, nrm): (Vec<_>, Vec<_>) = full
-            .positions()
-            .iter()
-            .zip(full.normals().unwrap())
-            .filter(|(_, n)| n.z < 0.5)
-            .map(|(p, n)| (*p, *n))
-            .unzip();
-        let cloud = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let cloud = partial_sphere_cloud(20_000, r, Point3::origin(), |_, n| n.z < 0.5);
         let cfg = PoissonConfig {
             depth: 6,
             ..PoissonConfig::default()

@@ -22,6 +22,25 @@ pub(crate) fn sphere_cloud(n: usize, radius: f64, centre: Point3<f64>) -> PointC
     PointCloud::from_positions(pts).with_normals(nrm).unwrap()
 }
 
+/// The points of `sphere_cloud(n, radius, centre)` for which `keep(position, normal)` holds:
+/// a sphere with a part no view saw.
+pub(crate) fn partial_sphere_cloud(
+    n: usize,
+    radius: f64,
+    centre: Point3<f64>,
+    keep: impl Fn(&Point3<f64>, &Vector3<f64>) -> bool,
+) -> PointCloud {
+    let full = sphere_cloud(n, radius, centre);
+    let (pts, nrm): (Vec<_>, Vec<_>) = full
+        .positions()
+        .iter()
+        .zip(full.normals().unwrap())
+        .filter(|(p, n)| keep(p, n))
+        .map(|(p, n)| (*p, *n))
+        .unzip();
+    PointCloud::from_positions(pts).with_normals(nrm).unwrap()
+}
+
 /// A closed mesh of a sphere of radius `radius` at the origin (Poisson at `depth`).
 pub(crate) fn sphere_mesh(radius: f64, depth: u32) -> TriangleMesh {
     let cloud = sphere_cloud(20_000, radius, Point3::origin());

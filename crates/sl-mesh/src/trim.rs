@@ -92,25 +92,16 @@ pub fn trim_by_density(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_shapes::sphere_cloud;
+    use crate::test_shapes::{partial_sphere_cloud, sphere_cloud};
     use crate::{PoissonConfig, check_topology, poisson_reconstruct};
     use nalgebra::Point3;
-    use sl_cloud::PointCloud;
 
     /// The lower half of a sphere only (as a scan sees an object from above): Poisson closes
     /// the top with invented surface; trimming at a tenth of the median density removes it
     /// (no vertex kept is more than a few cells above the data) and keeps the data's part.
     #[test]
     fn invented_surface_is_removed() {
-        let full = sphere_cloud(20_000, 10.0, Point3::origin());
-        let (pts, nrm): (Vec<_>, Vec<_>) = full
-            .positions()
-            .iter()
-            .zip(full.normals().unwrap())
-            .filter(|(p, _)| p.z < 0.0)
-            .map(|(p, n)| (*p, *n))
-            .unzip();
-        let cloud = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+        let cloud = partial_sphere_cloud(20_000, 10.0, Point3::origin(), |p, _| p.z < 0.0);
         let cfg = PoissonConfig {
             depth: 6,
             ..PoissonConfig::default()
@@ -137,6 +128,7 @@ mod tests {
         let topo = check_topology(&t.mesh);
         assert!(topo.boundary_edges > 0 && topo.is_manifold(), "{topo:?}");
         // Nothing to trim on a closed, evenly sampled sphere.
+        let full = sphere_cloud(20_000, 10.0, Point3::origin());
         let s = poisson_reconstruct(&full, &cfg).unwrap();
         let t = trim_by_density(&s.mesh, &s.densities, 0.1).unwrap();
         assert_eq!(t.triangles_removed, 0);
