@@ -122,14 +122,7 @@ pub fn fair_unsupported(
     if nv == 0 {
         return Ok(unchanged);
     }
-    let mut sorted: Vec<f64> = densities
-        .iter()
-        .copied()
-        .filter(|d| d.is_finite())
-        .collect();
-    sorted.sort_unstable_by(f64::total_cmp);
-    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
-    let threshold = cfg.support_ratio * median;
+    let threshold = cfg.support_ratio * crate::trim::median_density(densities);
 
     let op = Operator::new(mesh);
     let free: Vec<bool> = (0..nv)

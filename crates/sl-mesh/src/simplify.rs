@@ -443,9 +443,7 @@ pub fn simplify(
     let support_threshold = if dens.is_empty() {
         0.0
     } else {
-        let mut sorted: Vec<f64> = dens.iter().copied().filter(|d| d.is_finite()).collect();
-        sorted.sort_unstable_by(f64::total_cmp);
-        cfg.support_ratio * sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
+        cfg.support_ratio * crate::trim::median_density(&dens)
     };
     let mut unsupported: Vec<bool> = if dens.is_empty() {
         vec![false; nv]

@@ -59,14 +59,7 @@ pub fn trim_by_density(
         )));
     }
     crate::adjacency::check_indices(mesh)?;
-    let mut sorted: Vec<f64> = densities
-        .iter()
-        .copied()
-        .filter(|d| d.is_finite())
-        .collect();
-    sorted.sort_unstable_by(f64::total_cmp);
-    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
-    let threshold = min_ratio * median;
+    let threshold = min_ratio * median_density(densities);
     let low: Vec<bool> = densities
         .iter()
         .map(|&d| d.is_nan() || d < threshold)
@@ -87,6 +80,18 @@ pub fn trim_by_density(
         densities: dens,
         threshold,
     })
+}
+
+/// The median of the finite `densities` (0 when there is none): the reference of the support
+/// ratios of `trim_by_density`, `simplify` and `fair_unsupported`.
+pub(crate) fn median_density(densities: &[f64]) -> f64 {
+    let mut sorted: Vec<f64> = densities
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite())
+        .collect();
+    sorted.sort_unstable_by(f64::total_cmp);
+    sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
 }
 
 #[cfg(test)]
