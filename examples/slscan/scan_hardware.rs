@@ -23,11 +23,12 @@ use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use sl_cloud::PointCloud;
 use structured_light::mesh::PoissonConfig;
 use structured_light::scan::{
-    MergeStageConfig, PlacementConfig, PlacementRig, ReconstructConfig, ScanError,
-    SessionScanConfig, capture_placements, load_scan_calibration, mesh_stage, placement_dir_name,
-    scan_placements, scan_poisson_config, scan_session, write_scan_cloud,
+    MergeStageConfig, MeshFiles, MeshSummary, PlacementConfig, PlacementRig, ReconstructConfig,
+    ScanError, SessionScanConfig, capture_placements, load_scan_calibration, mesh_stage,
+    placement_dir_name, scan_placements, scan_poisson_config, scan_session, write_scan_cloud,
 };
 
 use crate::capture;
@@ -286,14 +287,7 @@ fn run_placements(
     }
     let merged = &scan.merge.merged;
     let files = report.stage("write", || write_scan_cloud(&out, merged, |_| {}))?;
-    let meshed = report.stage("mesh", || {
-        let poisson = scan_poisson_config(
-            merged,
-            config.merge.merge.output_voxel_size,
-            PoissonConfig::default().depth,
-        );
-        mesh_stage(merged, None, None, &poisson, &out)
-    });
+    let meshed = report.stage("mesh", || mesh_without_truth(merged, &config, &out));
     report.figure("rig", "hardware");
     report.figure("calibration", calib_path.display().to_string());
     report.figure("placements", args.placements);
@@ -313,22 +307,49 @@ fn run_placements(
         args.placements,
         calib_path.display()
     );
+    record_mesh(&mut report, meshed, &out, &files.merged)?;
+    Ok(())
+}
+
+/// The mesh stage of the virtual scan on a merged cloud, without a truth to measure it against
+/// (the depth from the cloud's spacing, as `slscan scan` on the virtual rig).
+fn mesh_without_truth(
+    merged: &PointCloud,
+    config: &SessionScanConfig,
+    out: &Path,
+) -> Result<(MeshSummary, MeshFiles), ScanError> {
+    let poisson = scan_poisson_config(
+        merged,
+        config.merge.merge.output_voxel_size,
+        PoissonConfig::default().depth,
+    );
+    mesh_stage(merged, None, None, &poisson, out)
+}
+
+/// Records the mesh stage's outcome in the report and writes it. A mesh that failed keeps the
+/// merged cloud (`merged_file`, relative to `out`) and the report on disk, and the error says so.
+fn record_mesh(
+    report: &mut Report,
+    meshed: Result<(MeshSummary, MeshFiles), ScanError>,
+    out: &Path,
+    merged_file: &str,
+) -> anyhow::Result<(MeshSummary, MeshFiles)> {
     match meshed {
         Ok((mesh, mesh_files)) => {
             report.figure("mesh", serde_json::to_value(&mesh)?);
             report.figure("mesh_files", serde_json::to_value(&mesh_files)?);
-            report.write(&out)?;
+            report.write(out)?;
+            Ok((mesh, mesh_files))
         }
         Err(e) => {
             report.figure("mesh_error", e.to_string());
-            report.write(&out)?;
-            return Err(anyhow::Error::new(e).context(format!(
+            report.write(out)?;
+            Err(anyhow::Error::new(e).context(format!(
                 "{} and its report are written; the mesh stage failed",
-                out.join(&files.merged).display()
-            )));
+                out.join(merged_file).display()
+            )))
         }
     }
-    Ok(())
 }
 
 /// The reconstruction and turntable merge of one session, from the options.
@@ -364,14 +385,7 @@ fn reconstruct(
     report.add_stages(&scan.stages);
     // The same mesh stage as the virtual scan, without a truth to measure it against. The
     // merged cloud is on disk already; a cloud that cannot be meshed keeps it and its report.
-    let meshed = report.stage("mesh", || {
-        let poisson = scan_poisson_config(
-            &scan.merged,
-            config.merge.merge.output_voxel_size,
-            PoissonConfig::default().depth,
-        );
-        mesh_stage(&scan.merged, None, None, &poisson, &out)
-    });
+    let meshed = report.stage("mesh", || mesh_without_truth(&scan.merged, &config, &out));
     report.figure("rig", "hardware");
     report.figure("calibration", calib_path.display().to_string());
     report.figure("views", scan.view_points.len());
@@ -386,20 +400,7 @@ fn reconstruct(
     );
     report.figure("files", serde_json::to_value(&files)?);
     report.figure("session", SESSION_DIR);
-    let (mesh, mesh_files) = match meshed {
-        Ok(m) => m,
-        Err(e) => {
-            report.figure("mesh_error", e.to_string());
-            report.write(&out)?;
-            return Err(anyhow::Error::new(e).context(format!(
-                "{} and its report are written; the mesh stage failed",
-                out.join(&files.merged).display()
-            )));
-        }
-    };
-    report.figure("mesh", serde_json::to_value(&mesh)?);
-    report.figure("mesh_files", serde_json::to_value(&mesh_files)?);
-    report.write(&out)?;
+    let (mesh, mesh_files) = record_mesh(&mut report, meshed, &out, &files.merged)?;
     println!(
         "{}: {} points merged from {} views (calibration {})",
         out.join(&files.merged).display(),

@@ -52,6 +52,14 @@ fn blob_views() -> Vec<(Vec<Point3<f64>>, Isometry3<f64>)> {
         .collect()
 }
 
+/// The views' points as clouds, in the order of the views.
+fn clouds_of(views: &[(Vec<Point3<f64>>, Isometry3<f64>)]) -> Vec<PointCloud> {
+    views
+        .iter()
+        .map(|(p, _)| PointCloud::from_positions(p.clone()))
+        .collect()
+}
+
 /// A flat 100 x 100 mm plate: every descriptor the same, so it matches nothing.
 fn plate() -> Vec<Point3<f64>> {
     (0..10_000)
@@ -62,10 +70,7 @@ fn plate() -> Vec<Point3<f64>> {
 #[test]
 fn synthetic_views_are_placed_and_an_unrelated_cloud_is_named() {
     let views = blob_views();
-    let mut clouds: Vec<PointCloud> = views
-        .iter()
-        .map(|(p, _)| PointCloud::from_positions(p.clone()))
-        .collect();
+    let mut clouds = clouds_of(&views);
     clouds.insert(2, PointCloud::from_positions(plate()));
     let a = align_unordered(&clouds, &MultiwayConfig::default()).unwrap();
     assert_eq!(a.unplaced.len(), 1, "{:?}", a.unplaced);
@@ -94,10 +99,7 @@ const SAME_ANSWER_MM: f64 = 0.1;
 #[test]
 fn synthetic_input_order_does_not_change_the_relative_poses() {
     let views = blob_views();
-    let clouds: Vec<PointCloud> = views
-        .iter()
-        .map(|(p, _)| PointCloud::from_positions(p.clone()))
-        .collect();
+    let clouds = clouds_of(&views);
     let config = MultiwayConfig::default();
     let a = align_unordered(&clouds, &config).unwrap();
     let order = [2, 0, 3, 1];
@@ -154,10 +156,7 @@ fn bunny_scans_in_any_order_are_placed_within_1_mm() {
 #[test]
 fn a_corrupted_verified_edge_is_pruned_and_the_views_still_placed() {
     let views = blob_views();
-    let clouds: Vec<PointCloud> = views
-        .iter()
-        .map(|(p, _)| PointCloud::from_positions(p.clone()))
-        .collect();
+    let clouds = clouds_of(&views);
     let config = MultiwayConfig::default();
     let a = align_unordered(&clouds, &config).unwrap();
     // (Some candidate pairs of these smooth views may verify wrongly and be pruned already:
