@@ -64,7 +64,8 @@ pub(crate) struct Args {
     pub(crate) simplify_unsupported_error: f64,
     /// Leave the surface that closes what the scanner never saw as the reconstruction made it
     /// (by default, after the simplification, it is faired: moved to the thin-plate surface
-    /// that continues the scanned surface's curvature across the gap).
+    /// that continues the scanned surface, then to the surface that continues its mean
+    /// curvature, which closes a gap in a sphere by the sphere).
     #[arg(long)]
     pub(crate) no_fair: bool,
     /// Decimate to at most this many triangles (quadric error).
@@ -164,6 +165,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                     "largest_move_mm": f.largest_move,
                     "iterations": f.iterations,
                     "residual": f.residual,
+                    "curvature_steps": f.curvature_steps,
+                    "curvature_converged": f.curvature_converged,
                 }),
             );
         }

@@ -12,6 +12,24 @@
 //! surface instead of spanning it flat. The connectivity is not changed: a closed manifold
 //! stays closed and manifold.
 //!
+//! The thin plate under a clamped rim is not a sphere: it misses the middle of a spherical
+//! gap of half-width `a` by about `a⁴ / (16 r³)` (0.35 mm on a sphere of radius 10 without a
+//! 60° cap; 0.4 mm over the unseen patch of the default scan). So it is followed by the
+//! curvature fairing of Schneider & Kobbelt (2001), `ΔH = 0`, split into two second-order
+//! problems: the mean curvature `H` of the well-sampled surface around the gap (density at
+//! least the median) is continued harmonically over the free vertices, then the free
+//! vertices are placed, with the same fixed rings, so that every umbrella vector
+//! `x_i − mean_j x_j` is `H n_i mean_j |x_j − x_i|² / 2` — exact for a sphere whatever the
+//! triangles' shapes, where the cotangent Laplacian of a simplified mesh is not (its
+//! obtuse and sliver triangles put errors of tens of times the sphere's `2H` into single
+//! vertices). Normals and neighbour distances follow the surface, so the placement is
+//! repeated until no vertex moves by more than a hundredth of the mean edge (7–9 steps on
+//! the default scan); if it does not settle within
+//! [`curvature_iterations`](FairConfig::curvature_iterations) steps the thin plate stays.
+//! A gap in a sphere is closed by the sphere (the cap above: 0.10 mm instead of 0.35 mm; the
+//! default scan's unseen patch 0.09 mm over its area instead of 0.41 mm), a gap in a plane
+//! by the plane.
+//!
 //! The system is solved by conjugate gradients on the unsupported vertices only (their
 //! operator is applied through the two rings around them). Run it on a simplified mesh
 //! ([`simplify`](crate::simplify) leaves few vertices on that surface): the condition of the
@@ -29,13 +47,15 @@ pub struct FairConfig {
     /// A vertex whose sampling density is below this fraction of the median density of the
     /// vertices is free to move. 0.3: three times `trim_by_density`'s and `simplify`'s 0.1,
     /// so that the thinly sampled rim of a gap, where Poisson's membrane already sags, moves
-    /// too (on the default scan the closing surface's RMS over its vertices is 0.335 mm with
-    /// 0.1, 0.173 mm with 0.3, 0.166 mm with 0.5; docs/meshing.md).
+    /// too (docs/meshing.md, "Fairing", has the figures for 0.1 to 0.7).
     pub support_ratio: f64,
     /// Most conjugate-gradient iterations.
     pub max_iterations: usize,
     /// Relative residual at which the iterations stop.
     pub tolerance: f64,
+    /// Most steps of the curvature fairing that follows the thin plate (0: the thin plate
+    /// only). 30: it settles in 7–9 on the default scan and on the test sphere.
+    pub curvature_iterations: usize,
 }
 
 impl Default for FairConfig {
@@ -44,6 +64,7 @@ impl Default for FairConfig {
             support_ratio: 0.3,
             max_iterations: 5000,
             tolerance: 1e-10,
+            curvature_iterations: 30,
         }
     }
 }
@@ -59,6 +80,10 @@ pub struct Fairing {
     pub iterations: usize,
     /// Relative residual reached.
     pub residual: f64,
+    /// Curvature-fairing steps made.
+    pub curvature_steps: usize,
+    /// Whether the curvature fairing reached its fixed point (if not, the thin plate stays).
+    pub curvature_converged: bool,
 }
 
 /// Moves the vertices of `mesh` whose density is below `cfg.support_ratio` times the median
@@ -118,6 +143,8 @@ pub fn fair_unsupported(
         largest_move: 0.0,
         iterations: 0,
         residual: 0.0,
+        curvature_steps: 0,
+        curvature_converged: false,
     };
     if nv == 0 {
         return Ok(unchanged);
@@ -144,27 +171,148 @@ pub fn fair_unsupported(
         }
     }
     let active_ids: Vec<usize> = (0..nv).filter(|&v| active[v]).collect();
+    let start: Vec<Vector3<f64>> = free_ids.iter().map(|&v| mesh.vertices[v].coords).collect();
 
-    // b = −K x_C on the free rows (the fixed vertices' pull), K = L M⁻¹ L.
+    // The thin plate, from where the vertices are (the membrane).
+    let pull = fixed_pull(&op, mesh, &free, &active_ids, &free_ids);
+    let (thin_plate, iterations, residual) =
+        solve_thin_plate(&op, &free_ids, &active_ids, &pull, start.clone(), cfg);
+    let mut x = thin_plate.clone();
+    let mut curvature_steps = 0;
+    let mut curvature_converged = false;
+    if cfg.curvature_iterations > 0 {
+        for (i, &v) in free_ids.iter().enumerate() {
+            mesh.vertices[v] = Point3::from(x[i]);
+        }
+        let median = crate::trim::median_density(densities);
+        let well: Vec<bool> = densities.iter().map(|&d| d >= median).collect();
+        let h = continued_curvature(mesh, &op, &free, &free_ids, &well, cfg);
+        let umbrella = op.umbrella();
+        let pull = fixed_pull(&umbrella, mesh, &free, &active_ids, &free_ids);
+        while curvature_steps < cfg.curvature_iterations {
+            curvature_steps += 1;
+            // The umbrella vector `x_i − mean_j x_j` of a surface of mean curvature H is
+            // `H n_i mean_j |x_j − x_i|² / 2` (each neighbour lies `κ d²/2` below the tangent
+            // plane, and every normal curvature κ of a sphere is H): the target of every row
+            // the free vertices enter.
+            let normals = vertex_normals(mesh);
+            let mut target = vec![Vector3::zeros(); nv];
+            for &v in &active_ids {
+                let p = mesh.vertices[v];
+                let ring = umbrella.ring(v);
+                let mean_sq = ring
+                    .iter()
+                    .map(|&j| (mesh.vertices[j as usize] - p).norm_squared())
+                    .sum::<f64>()
+                    / ring.len().max(1) as f64;
+                target[v] = normals[v] * (h[v] * mean_sq / 2.0);
+            }
+            let b: Vec<Vector3<f64>> = free_ids
+                .iter()
+                .zip(&pull)
+                .map(|(&v, p)| p + umbrella.laplace(&target, v))
+                .collect();
+            // Each step only needs to be as exact as the next one's linearisation.
+            let step_cfg = FairConfig {
+                tolerance: cfg.tolerance.max(CURVATURE_SOLVE_TOLERANCE),
+                ..cfg.clone()
+            };
+            let (next, _, _) =
+                solve_thin_plate(&umbrella, &free_ids, &active_ids, &b, x.clone(), &step_cfg);
+            let step = next
+                .iter()
+                .zip(&x)
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max);
+            x = next;
+            for (i, &v) in free_ids.iter().enumerate() {
+                mesh.vertices[v] = Point3::from(x[i]);
+            }
+            if !step.is_finite() {
+                break;
+            }
+            if step <= CURVATURE_STEP_TOLERANCE * op.edge_scale {
+                curvature_converged = true;
+                break;
+            }
+        }
+        if !curvature_converged {
+            // No fixed point within the steps allowed: the thin plate stays.
+            x = thin_plate;
+        }
+    }
+    for (i, &v) in free_ids.iter().enumerate() {
+        mesh.vertices[v] = Point3::from(x[i]);
+    }
+    let largest_move = x
+        .iter()
+        .zip(&start)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    Ok(Fairing {
+        vertices_moved: free_ids.len(),
+        largest_move,
+        iterations,
+        residual,
+        curvature_steps,
+        curvature_converged,
+    })
+}
+
+/// `−K x_C` on the free rows: the pull of the fixed vertices (`K = L M⁻¹ L`).
+fn fixed_pull(
+    op: &Operator,
+    mesh: &TriangleMesh,
+    free: &[bool],
+    active_ids: &[usize],
+    free_ids: &[usize],
+) -> Vec<Vector3<f64>> {
+    let nv = mesh.vertices.len();
     let mut fixed_part: Vec<Vector3<f64>> = vec![Vector3::zeros(); nv];
-    for &v in &active_ids {
+    for &v in active_ids {
         if !free[v] {
             fixed_part[v] = mesh.vertices[v].coords;
         }
     }
     let mut scratch = vec![Vector3::zeros(); nv];
     let mut out = vec![Vector3::zeros(); nv];
-    op.apply(&fixed_part, &active_ids, &mut scratch, &mut out);
-    let b: Vec<Vector3<f64>> = free_ids.iter().map(|&v| -out[v]).collect();
+    op.apply(&fixed_part, active_ids, &mut scratch, &mut out);
+    free_ids.iter().map(|&v| -out[v]).collect()
+}
 
-    // Conjugate gradients on the free vertices, from where they are (the membrane).
-    let mut x: Vec<Vector3<f64>> = free_ids.iter().map(|&v| mesh.vertices[v].coords).collect();
+/// A curvature step that moves no vertex by more than this fraction of the mean edge length
+/// ends the curvature fairing.
+const CURVATURE_STEP_TOLERANCE: f64 = 1e-2;
+
+/// Relative residual of the linear solve of one curvature step.
+const CURVATURE_SOLVE_TOLERANCE: f64 = 1e-8;
+
+/// Rings of fixed vertices around the free ones whose mean curvature is continued over them.
+const CURVATURE_RINGS: usize = 16;
+
+/// Neighbour-averaging passes of that curvature before it is continued.
+const CURVATURE_SMOOTHING: usize = 4;
+
+/// Solves `K x = b` on the free vertices (`K = L M⁻¹ L` restricted to them) by
+/// Jacobi-preconditioned conjugate gradients from `x`; returns the solution, the iterations
+/// and the relative residual.
+fn solve_thin_plate(
+    op: &Operator,
+    free_ids: &[usize],
+    active_ids: &[usize],
+    b: &[Vector3<f64>],
+    mut x: Vec<Vector3<f64>>,
+    cfg: &FairConfig,
+) -> (Vec<Vector3<f64>>, usize, f64) {
+    let nv = op.area.len();
+    let mut scratch = vec![Vector3::zeros(); nv];
+    let mut out = vec![Vector3::zeros(); nv];
     let mut full = vec![Vector3::zeros(); nv];
     let mut k_of = |p: &[Vector3<f64>], full: &mut Vec<Vector3<f64>>| -> Vec<Vector3<f64>> {
         for (i, &v) in free_ids.iter().enumerate() {
             full[v] = p[i];
         }
-        op.apply(full, &active_ids, &mut scratch, &mut out);
+        op.apply(full, active_ids, &mut scratch, &mut out);
         free_ids.iter().map(|&v| out[v]).collect()
     };
     // Jacobi preconditioner: the diagonal of K, Σ_j L_ji² / M_j (the simplified mesh's cells
@@ -195,12 +343,7 @@ pub fn fair_unsupported(
     let mut r: Vec<Vector3<f64>> = b.iter().zip(&kx).map(|(b, k)| b - k).collect();
     let mut z: Vec<Vector3<f64>> = r.iter().zip(&diag).map(|(r, d)| r * *d).collect();
     let mut p = z.clone();
-    let dot = |a: &[Vector3<f64>], b: &[Vector3<f64>]| -> Vector3<f64> {
-        a.iter()
-            .zip(b)
-            .fold(Vector3::zeros(), |s, (a, b)| s + a.component_mul(b))
-    };
-    let b_norm = dot(&b, &b).sum().sqrt().max(f64::MIN_POSITIVE);
+    let b_norm = dot(b, b).sum().sqrt().max(f64::MIN_POSITIVE);
     let mut rz = dot(&r, &z);
     let mut r_norm = dot(&r, &r).sum().sqrt();
     let mut iterations = 0;
@@ -223,17 +366,203 @@ pub fn fair_unsupported(
         r_norm = dot(&r, &r).sum().sqrt();
         iterations += 1;
     }
-    let mut largest_move: f64 = 0.0;
-    for (i, &v) in free_ids.iter().enumerate() {
-        largest_move = largest_move.max((x[i] - mesh.vertices[v].coords).norm());
-        mesh.vertices[v] = Point3::from(x[i]);
+    (x, iterations, r_norm / b_norm)
+}
+
+/// Per-coordinate sums of products.
+fn dot(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Vector3<f64> {
+    a.iter()
+        .zip(b)
+        .fold(Vector3::zeros(), |s, (a, b)| s + a.component_mul(b))
+}
+
+/// The mean curvature `H` of every vertex the free ones reach (zero elsewhere), continued
+/// from the well-supported surface around them:
+///
+/// - measured on the fixed vertices within [`CURVATURE_RINGS`] rings of the free ones whose
+///   sampling density is at least the median (`well`): the mean over the fixed neighbours
+///   within two rings of the normal curvature of the circle through the neighbour tangent to
+///   the vertex's normal (a vertex's discrete Laplacian is far noisier on a simplified mesh),
+///   then smoothed over those vertices; the thinly sampled rim next to a gap is left out, as
+///   the reconstruction there is already flattened towards Poisson's membrane;
+/// - continued harmonically (`ΔH = 0`, cotangent weights) over the free vertices and the
+///   thin rim, with the natural condition where the band ends.
+fn continued_curvature(
+    mesh: &TriangleMesh,
+    op: &Operator,
+    free: &[bool],
+    free_ids: &[usize],
+    well: &[bool],
+    cfg: &FairConfig,
+) -> Vec<f64> {
+    let nv = mesh.vertices.len();
+    let normals = vertex_normals(mesh);
+    let mut near = vec![false; nv];
+    let mut frontier: Vec<usize> = free_ids.to_vec();
+    for _ in 0..CURVATURE_RINGS {
+        let mut next = Vec::new();
+        for &v in &frontier {
+            for &a in op.ring(v) {
+                let a = a as usize;
+                if !free[a] && !near[a] {
+                    near[a] = true;
+                    next.push(a);
+                }
+            }
+        }
+        frontier = next;
     }
-    Ok(Fairing {
-        vertices_moved: free_ids.len(),
-        largest_move,
-        iterations,
-        residual: r_norm / b_norm,
-    })
+    let measured: Vec<bool> = (0..nv).map(|v| near[v] && well[v]).collect();
+    let unknown: Vec<bool> = (0..nv).map(|v| free[v] || (near[v] && !well[v])).collect();
+    let measured_ids: Vec<usize> = (0..nv).filter(|&v| measured[v]).collect();
+    let unknown_ids: Vec<usize> = (0..nv).filter(|&v| unknown[v]).collect();
+    let mut h = vec![0.0; nv];
+    for &v in &measured_ids {
+        let (p, n) = (mesh.vertices[v], normals[v]);
+        let mut seen: Vec<u32> = op.ring(v).to_vec();
+        for &a in op.ring(v) {
+            seen.extend_from_slice(op.ring(a as usize));
+        }
+        seen.sort_unstable();
+        seen.dedup();
+        let (mut sum, mut count) = (0.0, 0usize);
+        for j in seen {
+            let j = j as usize;
+            if j == v || free[j] {
+                continue;
+            }
+            let d = mesh.vertices[j] - p;
+            let l2 = d.norm_squared();
+            if l2 > 0.0 {
+                sum += -2.0 * d.dot(&n) / l2;
+                count += 1;
+            }
+        }
+        if count > 0 {
+            h[v] = sum / count as f64;
+        }
+    }
+    for _ in 0..CURVATURE_SMOOTHING {
+        let prev = h.clone();
+        for &v in &measured_ids {
+            let (mut s, mut a) = (prev[v] * op.area[v], op.area[v]);
+            for &j in op.ring(v) {
+                let j = j as usize;
+                if measured[j] {
+                    s += prev[j] * op.area[j];
+                    a += op.area[j];
+                }
+            }
+            if a > 0.0 {
+                h[v] = s / a;
+            }
+        }
+    }
+    let hu = solve_laplace(op, &unknown, &measured, &unknown_ids, &h, cfg);
+    for (i, &v) in unknown_ids.iter().enumerate() {
+        h[v] = hu[i];
+    }
+    h
+}
+
+/// The harmonic continuation of `values` (given on `known`) over `unknown_ids`:
+/// `Σ_j w_ij (y_i − y_j) = 0` over the neighbours `j` that are unknown or known (the others
+/// left out: the natural condition), by Jacobi-preconditioned conjugate gradients. A piece
+/// of unknown vertices that touches no known one stays at zero.
+fn solve_laplace(
+    op: &Operator,
+    unknown: &[bool],
+    known: &[bool],
+    unknown_ids: &[usize],
+    values: &[f64],
+    cfg: &FairConfig,
+) -> Vec<f64> {
+    let mut pos = vec![usize::MAX; unknown.len()];
+    for (i, &v) in unknown_ids.iter().enumerate() {
+        pos[v] = i;
+    }
+    let mut diagonal = vec![0.0; unknown_ids.len()];
+    let mut b = vec![0.0; unknown_ids.len()];
+    for (i, &v) in unknown_ids.iter().enumerate() {
+        for k in op.start[v]..op.start[v + 1] {
+            let j = op.ring[k] as usize;
+            if unknown[j] || known[j] {
+                diagonal[i] += op.weight[k];
+            }
+            if known[j] {
+                b[i] += op.weight[k] * values[j];
+            }
+        }
+    }
+    let apply = |p: &[f64]| -> Vec<f64> {
+        unknown_ids
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let mut s = p[i] * diagonal[i];
+                for k in op.start[v]..op.start[v + 1] {
+                    let j = pos[op.ring[k] as usize];
+                    if j != usize::MAX {
+                        s -= p[j] * op.weight[k];
+                    }
+                }
+                s
+            })
+            .collect()
+    };
+    let inv: Vec<f64> = diagonal
+        .iter()
+        .map(|&d| if d > 0.0 { 1.0 / d } else { 1.0 })
+        .collect();
+    let dot = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).map(|(a, b)| a * b).sum() };
+    let mut y = vec![0.0; b.len()];
+    let mut r = b.clone();
+    let mut z: Vec<f64> = r.iter().zip(&inv).map(|(r, d)| r * d).collect();
+    let mut p = z.clone();
+    let b_norm = dot(&b, &b).sqrt().max(f64::MIN_POSITIVE);
+    let mut rz = dot(&r, &z);
+    for _ in 0..cfg.max_iterations {
+        if dot(&r, &r).sqrt() <= cfg.tolerance * b_norm {
+            break;
+        }
+        let ap = apply(&p);
+        let pap = dot(&p, &ap);
+        if pap <= 0.0 {
+            break;
+        }
+        let alpha = rz / pap;
+        for i in 0..y.len() {
+            y[i] += alpha * p[i];
+            r[i] -= alpha * ap[i];
+            z[i] = r[i] * inv[i];
+        }
+        let rz_new = dot(&r, &z);
+        let beta = rz_new / rz;
+        for i in 0..p.len() {
+            p[i] = z[i] + beta * p[i];
+        }
+        rz = rz_new;
+    }
+    y
+}
+
+/// Area-weighted vertex normals (unit; zero for a vertex in no triangle of positive area).
+fn vertex_normals(mesh: &TriangleMesh) -> Vec<Vector3<f64>> {
+    let mut n = vec![Vector3::zeros(); mesh.vertices.len()];
+    for t in &mesh.triangles {
+        let p = t.map(|i| mesh.vertices[i as usize]);
+        let c = (p[1] - p[0]).cross(&(p[2] - p[0]));
+        for &i in t {
+            n[i as usize] += c;
+        }
+    }
+    for v in &mut n {
+        let l = v.norm();
+        if l > 0.0 {
+            *v /= l;
+        }
+    }
+    n
 }
 
 /// The cotangent Laplacian `L` (symmetric, `L_ii = Σ_j w_ij`, `L_ij = −w_ij`) and the
@@ -245,6 +574,8 @@ struct Operator {
     diagonal: Vec<f64>,
     area: Vec<f64>,
     boundary: Vec<bool>,
+    /// Mean edge length.
+    edge_scale: f64,
 }
 
 impl Operator {
@@ -305,6 +636,17 @@ impl Operator {
         for v in 0..nv {
             start[v + 1] += start[v];
         }
+        let edge_scale = {
+            let (mut sum, mut n) = (0.0, 0usize);
+            for t in &mesh.triangles {
+                for k in 0..3 {
+                    let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+                    sum += (mesh.vertices[a] - mesh.vertices[b]).norm();
+                    n += 1;
+                }
+            }
+            if n > 0 { sum / n as f64 } else { 0.0 }
+        };
         Self {
             start,
             ring,
@@ -312,6 +654,24 @@ impl Operator {
             diagonal,
             area,
             boundary,
+            edge_scale,
+        }
+    }
+
+    /// The same connectivity with uniform (umbrella) weights: `M⁻¹ L x` is `x_i` minus the
+    /// mean of its neighbours, whatever the triangles' shapes.
+    fn umbrella(&self) -> Self {
+        let valence: Vec<f64> = (0..self.area.len())
+            .map(|v| (self.start[v + 1] - self.start[v]) as f64)
+            .collect();
+        Self {
+            start: self.start.clone(),
+            ring: self.ring.clone(),
+            weight: vec![1.0; self.weight.len()],
+            diagonal: valence.clone(),
+            area: valence,
+            boundary: self.boundary.clone(),
+            edge_scale: self.edge_scale,
         }
     }
 
@@ -373,12 +733,15 @@ mod tests {
 
     /// A sphere of radius 10 whose top (a cap of 60° around +z) has no samples, reconstructed
     /// and simplified as `slscan mesh` does: Poisson spans the gap as a membrane that sags
-    /// into the sphere. Faired, the cap continues the sphere's curvature: its RMS over the
-    /// vertices of the cap z > 0.6 r falls more than twofold (measured 0.85 → 0.35 mm) and
-    /// below 0.05 r. It does not vanish: the thin-plate surface through a clamped rim is not a
-    /// sphere — for a cap of half-width `a` the clamped plate under the sphere's curvature
-    /// misses its middle by about `a⁴ / (16 r³)`, 0.35 mm here. The supported vertices do not
-    /// move, and the mesh stays closed and manifold with the same triangles.
+    /// into the sphere (RMS 0.85 mm over the vertices of the cap z > 0.6 r). The thin plate
+    /// alone (no curvature steps) continues the sphere's curvature but cannot be a sphere: a
+    /// clamped plate of half-width `a` under the sphere's curvature misses its middle by about
+    /// `a⁴ / (16 r³)`, 0.35 mm here (measured 0.350). The curvature fairing continues the
+    /// sphere's mean curvature `1/r` and so closes the gap by the sphere itself, up to the
+    /// estimate of `H` (1 % of `H` is about 0.05 mm at the middle of this cap) and the
+    /// simplified mesh's facets: measured 0.10 mm, so it must be below 0.02 r and below half
+    /// the thin plate's. The supported vertices do not move, and the mesh stays closed and
+    /// manifold with the same triangles.
     #[test]
     fn gap_follows_the_sphere() {
         let r = 10.0;
@@ -391,13 +754,29 @@ mod tests {
         let d = simplify(&mut s.mesh, &s.densities, &SimplifyConfig::default()).unwrap();
         let before = s.mesh.clone();
         let (rms0, n0) = cap_rms(&before, r, 0.6 * r);
+        let mut plate = before.clone();
+        let thin = FairConfig {
+            curvature_iterations: 0,
+            ..FairConfig::default()
+        };
+        let fp = fair_unsupported(&mut plate, &d.densities, &thin).unwrap();
+        let (rms_plate, _) = cap_rms(&plate, r, 0.6 * r);
         let f = fair_unsupported(&mut s.mesh, &d.densities, &FairConfig::default()).unwrap();
         let (rms1, n1) = cap_rms(&s.mesh, r, 0.6 * r);
-        eprintln!("cap RMS {rms0:.4} mm ({n0} vertices) → {rms1:.4} mm ({n1}); {f:?}");
+        eprintln!(
+            "cap RMS {rms0:.4} mm ({n0} vertices) → thin plate {rms_plate:.4} mm → curvature \
+             {rms1:.4} mm ({n1}); {f:?}"
+        );
         assert!(n0 > 20 && n1 > 20, "{n0} {n1}");
+        assert_eq!(fp.curvature_steps, 0);
         assert!(
-            rms1 * 2.0 < rms0 && rms1 < 0.05 * r,
-            "cap RMS {rms0} → {rms1}"
+            rms_plate * 2.0 < rms0 && rms_plate < 0.05 * r,
+            "thin plate: cap RMS {rms0} → {rms_plate}"
+        );
+        assert!(f.curvature_converged && f.curvature_steps > 0, "{f:?}");
+        assert!(
+            rms1 * 2.0 < rms_plate && rms1 < 0.02 * r,
+            "curvature: cap RMS {rms_plate} → {rms1}"
         );
         assert!(f.residual <= FairConfig::default().tolerance, "{f:?}");
         assert_eq!(s.mesh.triangles, before.triangles);

@@ -8,7 +8,8 @@
 //! - [`simplify`]: error-bounded simplification of the extracted surface (0.01 mm where samples
 //!   support it, 0.03 mm where they do not), closed manifolds kept closed and manifold.
 //! - [`fair_unsupported`]: the surface that closes what no view saw moved onto the thin-plate
-//!   surface spanned by the scanned one, so it continues its curvature instead of sagging.
+//!   surface spanned by the scanned one, then onto the surface that continues its mean
+//!   curvature (`ΔH = 0`), instead of sagging as Poisson's membrane.
 //! - Clean-up: [`trim_by_density`] (surface the data does not support), [`smooth_bilateral`]
 //!   (feature-preserving) and [`smooth_taubin`], [`decimate`] (quadric error, to a triangle
 //!   count), [`fill_holes`], [`remove_small_components`].
