@@ -167,6 +167,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                     "residual": f.residual,
                     "curvature_steps": f.curvature_steps,
                     "curvature_converged": f.curvature_converged,
+                    "mean_curvature_per_mm": f.mean_curvature,
                 }),
             );
         }

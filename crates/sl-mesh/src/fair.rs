@@ -84,6 +84,9 @@ pub struct Fairing {
     pub curvature_steps: usize,
     /// Whether the curvature fairing reached its fixed point (if not, the thin plate stays).
     pub curvature_converged: bool,
+    /// The mean curvature continued over the moved vertices (their mean, in the inverse of
+    /// the mesh's units; `1/r` for a gap in a sphere of radius `r`), 0 without curvature steps.
+    pub mean_curvature: f64,
 }
 
 /// Moves the vertices of `mesh` whose density is below `cfg.support_ratio` times the median
@@ -145,6 +148,7 @@ pub fn fair_unsupported(
         residual: 0.0,
         curvature_steps: 0,
         curvature_converged: false,
+        mean_curvature: 0.0,
     };
     if nv == 0 {
         return Ok(unchanged);
@@ -180,6 +184,7 @@ pub fn fair_unsupported(
     let mut x = thin_plate.clone();
     let mut curvature_steps = 0;
     let mut curvature_converged = false;
+    let mut mean_curvature = 0.0;
     if cfg.curvature_iterations > 0 {
         for (i, &v) in free_ids.iter().enumerate() {
             mesh.vertices[v] = Point3::from(x[i]);
@@ -187,6 +192,7 @@ pub fn fair_unsupported(
         let median = crate::trim::median_density(densities);
         let well: Vec<bool> = densities.iter().map(|&d| d >= median).collect();
         let h = continued_curvature(mesh, &op, &free, &free_ids, &well, cfg);
+        mean_curvature = free_ids.iter().map(|&v| h[v]).sum::<f64>() / free_ids.len() as f64;
         let umbrella = op.umbrella();
         let pull = fixed_pull(&umbrella, mesh, &free, &active_ids, &free_ids);
         while curvature_steps < cfg.curvature_iterations {
@@ -256,6 +262,7 @@ pub fn fair_unsupported(
         residual,
         curvature_steps,
         curvature_converged,
+        mean_curvature,
     })
 }
 
