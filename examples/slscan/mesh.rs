@@ -84,6 +84,13 @@ pub(crate) struct Args {
     /// by its error.
     #[arg(long)]
     pub(crate) truth: Option<PathBuf>,
+    /// Viewpoint of `preview.png` and `error_map.png`: azimuth about the vertical axis
+    /// (degrees; 180 looks at the back), as `slscan report --azimuth`.
+    #[arg(long, default_value_t = PreviewConfig::default().azimuth_deg, allow_negative_numbers = true)]
+    pub(crate) azimuth: f64,
+    /// Viewpoint of the pictures: elevation (degrees; negative looks from below).
+    #[arg(long, default_value_t = PreviewConfig::default().elevation_deg, allow_negative_numbers = true)]
+    pub(crate) elevation: f64,
 }
 
 /// Runs `slscan mesh`.
@@ -219,7 +226,11 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         report.figure("metrology_area", serde_json::to_value(&by_area)?);
         errors = Some(by_vertex.signed_distances_mm);
     }
-    let view = PreviewConfig::default();
+    let view = PreviewConfig {
+        azimuth_deg: args.azimuth,
+        elevation_deg: args.elevation,
+        ..PreviewConfig::default()
+    };
     let png = out.join("preview.png");
     let html = out.join("mesh.html");
     report.stage("preview", || -> anyhow::Result<()> {

@@ -30,10 +30,10 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = sl_metrology::VDI_TRIM_FRACTION)]
     pub(crate) trim: f64,
     /// Heat-map viewpoint: azimuth about the vertical axis (degrees).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub(crate) azimuth: f64,
-    /// Heat-map viewpoint: elevation (degrees).
-    #[arg(long, default_value_t = 20.0)]
+    /// Heat-map viewpoint: elevation (degrees; negative looks from below).
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     pub(crate) elevation: f64,
 }
 
