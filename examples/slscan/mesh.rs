@@ -475,6 +475,7 @@ mod tests {
         let faired = run("faired", &[]);
         let below = run("below", &["--elevation", "-60", "--azimuth", "10"]);
         let membrane = run("membrane", &["--no-fair"]);
+        assert!(membrane["figures"]["fair"].is_null(), "--no-fair");
         let f = &faired["figures"];
         assert_eq!(f["watertight"], true, "{f}");
         assert_eq!(f["fair"]["curvature_converged"], true, "{f}");
