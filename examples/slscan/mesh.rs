@@ -327,35 +327,64 @@ mod tests {
             .unzip()
     }
 
-    #[test]
-    fn sphere_becomes_a_closed_measured_mesh() {
-        let tmp = tempfile::tempdir().unwrap();
-        let centre = Point3::new(0.0, 0.0, 400.0);
-        let (p, n) = sphere(20_000, 25.0, centre);
+    /// Centre of the test ball (camera frame, mm); its radius is 25 mm.
+    const BALL_CENTRE: Point3<f64> = Point3::new(0.0, 0.0, 400.0);
+
+    /// The points of a ball of 20,000 samples whose outward normal passes `keep`, written to
+    /// `dir/ball.ply`, and its truth (the sphere, selecting points within `select_mm`) to
+    /// `dir/truth.json`; returns the two paths.
+    fn ball_files(
+        dir: &std::path::Path,
+        keep: impl Fn(&Vector3<f64>) -> bool,
+        select_mm: f64,
+    ) -> (std::path::PathBuf, std::path::PathBuf) {
+        let (p, n): (Vec<_>, Vec<_>) = {
+            let (p, n) = sphere(20_000, 25.0, BALL_CENTRE);
+            p.into_iter().zip(n).filter(|(_, n)| keep(n)).unzip()
+        };
         let cloud = PointCloud::from_positions(p).with_normals(n).unwrap();
-        let ply = tmp.path().join("ball.ply");
+        let ply = dir.join("ball.ply");
         write_ply(&ply, &cloud, sl_cloud::PlyFormat::default()).unwrap();
         let truth = sl_metrology::Truth::new("ball").with(sl_metrology::Feature::Sphere(
             sl_metrology::SphereSpec {
                 name: "ball".into(),
                 radius_mm: 25.0,
-                centre_mm: Some(centre),
-                select_mm: 2.0,
+                centre_mm: Some(BALL_CENTRE),
+                select_mm,
             },
         ));
-        let truth_path = tmp.path().join("truth.json");
+        let truth_path = dir.join("truth.json");
         truth.save(&truth_path).unwrap();
-        let out = tmp.path().join("out");
-        slscan(&[
+        (ply, truth_path)
+    }
+
+    /// `slscan mesh PLY --out OUT --depth 7 --truth TRUTH EXTRA…`; returns its `report.json`.
+    fn mesh_at_depth_7(
+        ply: &std::path::Path,
+        truth: &std::path::Path,
+        out: &std::path::Path,
+        extra: &[&str],
+    ) -> serde_json::Value {
+        let mut args = vec![
             ply.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
             "--depth",
             "7",
             "--truth",
-            truth_path.to_str().unwrap(),
-        ])
-        .unwrap();
+            truth.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        slscan(&args).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn sphere_becomes_a_closed_measured_mesh() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (ply, truth_path) = ball_files(tmp.path(), |_| true, 2.0);
+        let out = tmp.path().join("out");
+        let r = mesh_at_depth_7(&ply, &truth_path, &out, &[]);
         for f in [
             "mesh.ply",
             "mesh.stl",
@@ -366,9 +395,6 @@ mod tests {
         ] {
             assert!(out.join(f).is_file(), "{f} missing");
         }
-        let r: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
-                .unwrap();
         let f = &r["figures"];
         assert_eq!(f["watertight"], true, "{f}");
         assert_eq!(f["manifold"], true, "{f}");
@@ -439,38 +465,10 @@ mod tests {
     #[test]
     fn unseen_cap_is_closed_by_the_sphere() {
         let tmp = tempfile::tempdir().unwrap();
-        let centre = Point3::new(0.0, 0.0, 400.0);
-        let (p, n) = sphere(20_000, 25.0, centre);
         let cos45 = std::f64::consts::FRAC_1_SQRT_2;
-        let (p, n): (Vec<_>, Vec<_>) = p.into_iter().zip(n).filter(|(_, n)| -n.y < cos45).unzip();
-        let cloud = PointCloud::from_positions(p).with_normals(n).unwrap();
-        let ply = tmp.path().join("ball.ply");
-        write_ply(&ply, &cloud, sl_cloud::PlyFormat::default()).unwrap();
-        let truth = sl_metrology::Truth::new("ball").with(sl_metrology::Feature::Sphere(
-            sl_metrology::SphereSpec {
-                name: "ball".into(),
-                radius_mm: 25.0,
-                centre_mm: Some(centre),
-                select_mm: 30.0,
-            },
-        ));
-        let truth_path = tmp.path().join("truth.json");
-        truth.save(&truth_path).unwrap();
-        let run = |name: &str, extra: &[&str]| -> serde_json::Value {
-            let out = tmp.path().join(name);
-            let mut args = vec![
-                ply.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--depth",
-                "7",
-                "--truth",
-                truth_path.to_str().unwrap(),
-            ];
-            args.extend_from_slice(extra);
-            slscan(&args).unwrap();
-            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
-                .unwrap()
+        let (ply, truth_path) = ball_files(tmp.path(), |n| -n.y < cos45, 30.0);
+        let run = |name: &str, extra: &[&str]| {
+            mesh_at_depth_7(&ply, &truth_path, &tmp.path().join(name), extra)
         };
         let faired = run("faired", &[]);
         let below = run("below", &["--elevation", "-60", "--azimuth", "10"]);
@@ -487,7 +485,7 @@ mod tests {
             let e: Vec<f64> = mesh
                 .vertices
                 .iter()
-                .map(|p| p - centre)
+                .map(|p| p - BALL_CENTRE)
                 .filter(|d| -d.y > cos45 * d.norm())
                 .map(|d| d.norm() - 25.0)
                 .collect();

@@ -47,7 +47,7 @@ pub struct FairConfig {
     /// A vertex whose sampling density is below this fraction of the median density of the
     /// vertices is free to move. 0.3: three times `trim_by_density`'s and `simplify`'s 0.1,
     /// so that the thinly sampled rim of a gap, where Poisson's membrane already sags, moves
-    /// too (docs/meshing.md, "Fairing", has the figures for 0.1 to 0.7).
+    /// too (docs/meshing.md, "Fairing", has the figures for 0.1, 0.3 and 0.5).
     pub support_ratio: f64,
     /// Most conjugate-gradient iterations.
     pub max_iterations: usize,
