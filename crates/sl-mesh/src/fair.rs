@@ -25,7 +25,8 @@
 //! vertices). Normals and neighbour distances follow the surface, so the placement is
 //! repeated until no vertex moves by more than a hundredth of the mean edge (7–9 steps on
 //! the default scan); if it does not settle within
-//! [`curvature_iterations`](FairConfig::curvature_iterations) steps the thin plate stays.
+//! [`curvature_iterations`](FairConfig::curvature_iterations) steps, or no well-sampled
+//! surface lies within 16 rings of the gap, the thin plate stays.
 //! A gap in a sphere is closed by the sphere (the cap above: 0.10 mm instead of 0.35 mm; the
 //! default scan's unseen patch 0.09 mm over its area instead of 0.41 mm), a gap in a plane
 //! by the plane.
@@ -181,7 +182,7 @@ pub fn fair_unsupported(
     let pull = fixed_pull(&op, mesh, &free, &active_ids, &free_ids);
     let (thin_plate, iterations, residual) =
         solve_thin_plate(&op, &free_ids, &active_ids, &pull, start.clone(), cfg);
-    let mut x = thin_plate.clone();
+    let mut x = thin_plate;
     let mut curvature_steps = 0;
     let mut curvature_converged = false;
     let mut mean_curvature = 0.0;
@@ -191,60 +192,15 @@ pub fn fair_unsupported(
         }
         let median = crate::trim::median_density(densities);
         let well: Vec<bool> = densities.iter().map(|&d| d >= median).collect();
-        let h = continued_curvature(mesh, &op, &free, &free_ids, &well, cfg);
-        mean_curvature = free_ids.iter().map(|&v| h[v]).sum::<f64>() / free_ids.len() as f64;
-        let umbrella = op.umbrella();
-        let pull = fixed_pull(&umbrella, mesh, &free, &active_ids, &free_ids);
-        while curvature_steps < cfg.curvature_iterations {
-            curvature_steps += 1;
-            // The umbrella vector `x_i − mean_j x_j` of a surface of mean curvature H is
-            // `H n_i mean_j |x_j − x_i|² / 2` (each neighbour lies `κ d²/2` below the tangent
-            // plane, and every normal curvature κ of a sphere is H): the target of every row
-            // the free vertices enter.
-            let normals = vertex_normals(mesh);
-            let mut target = vec![Vector3::zeros(); nv];
-            for &v in &active_ids {
-                let p = mesh.vertices[v];
-                let ring = umbrella.ring(v);
-                let mean_sq = ring
-                    .iter()
-                    .map(|&j| (mesh.vertices[j as usize] - p).norm_squared())
-                    .sum::<f64>()
-                    / ring.len().max(1) as f64;
-                target[v] = normals[v] * (h[v] * mean_sq / 2.0);
+        // Without well-sampled surface near the gap there is no curvature to continue.
+        if let Some(h) = continued_curvature(mesh, &op, &free, &free_ids, &well, cfg) {
+            mean_curvature = free_ids.iter().map(|&v| h[v]).sum::<f64>() / free_ids.len() as f64;
+            let faired = curvature_fairing(mesh, &op, &free, &free_ids, &active_ids, &h, cfg);
+            curvature_steps = faired.steps;
+            curvature_converged = faired.converged;
+            if faired.converged {
+                x = faired.positions;
             }
-            let b: Vec<Vector3<f64>> = free_ids
-                .iter()
-                .zip(&pull)
-                .map(|(&v, p)| p + umbrella.laplace(&target, v))
-                .collect();
-            // Each step only needs to be as exact as the next one's linearisation.
-            let step_cfg = FairConfig {
-                tolerance: cfg.tolerance.max(CURVATURE_SOLVE_TOLERANCE),
-                ..cfg.clone()
-            };
-            let (next, _, _) =
-                solve_thin_plate(&umbrella, &free_ids, &active_ids, &b, x.clone(), &step_cfg);
-            let step = next
-                .iter()
-                .zip(&x)
-                .map(|(a, b)| (a - b).norm())
-                .fold(0.0, f64::max);
-            x = next;
-            for (i, &v) in free_ids.iter().enumerate() {
-                mesh.vertices[v] = Point3::from(x[i]);
-            }
-            if !step.is_finite() {
-                break;
-            }
-            if step <= CURVATURE_STEP_TOLERANCE * op.edge_scale {
-                curvature_converged = true;
-                break;
-            }
-        }
-        if !curvature_converged {
-            // No fixed point within the steps allowed: the thin plate stays.
-            x = thin_plate;
         }
     }
     for (i, &v) in free_ids.iter().enumerate() {
@@ -264,6 +220,90 @@ pub fn fair_unsupported(
         curvature_converged,
         mean_curvature,
     })
+}
+
+/// What [`curvature_fairing`] reached.
+struct CurvatureFairing {
+    /// The free vertices' positions after the last step.
+    positions: Vec<Vector3<f64>>,
+    /// Steps made.
+    steps: usize,
+    /// Whether the last step moved no vertex by more than [`CURVATURE_STEP_TOLERANCE`] of the
+    /// mean edge.
+    converged: bool,
+}
+
+/// The curvature fairing's steps from the mesh as it is (the thin plate): the free vertices
+/// placed, with the two fixed rings, so that their umbrella vectors carry the mean curvature
+/// `h` (see the module documentation), until they settle or `cfg.curvature_iterations`
+/// steps are made. Moves the mesh's free vertices.
+fn curvature_fairing(
+    mesh: &mut TriangleMesh,
+    op: &Operator,
+    free: &[bool],
+    free_ids: &[usize],
+    active_ids: &[usize],
+    h: &[f64],
+    cfg: &FairConfig,
+) -> CurvatureFairing {
+    let nv = mesh.vertices.len();
+    let mut x: Vec<Vector3<f64>> = free_ids.iter().map(|&v| mesh.vertices[v].coords).collect();
+    let mut curvature_steps = 0;
+    let mut curvature_converged = false;
+    let umbrella = op.umbrella();
+    let pull = fixed_pull(&umbrella, mesh, free, active_ids, free_ids);
+    while curvature_steps < cfg.curvature_iterations {
+        curvature_steps += 1;
+        // The umbrella vector `x_i − mean_j x_j` of a surface of mean curvature H is
+        // `H n_i mean_j |x_j − x_i|² / 2` (each neighbour lies `κ d²/2` below the tangent
+        // plane, and every normal curvature κ of a sphere is H): the target of every row
+        // the free vertices enter.
+        let normals = vertex_normals(mesh);
+        let mut target = vec![Vector3::zeros(); nv];
+        for &v in active_ids {
+            let p = mesh.vertices[v];
+            let ring = umbrella.ring(v);
+            let mean_sq = ring
+                .iter()
+                .map(|&j| (mesh.vertices[j as usize] - p).norm_squared())
+                .sum::<f64>()
+                / ring.len().max(1) as f64;
+            target[v] = normals[v] * (h[v] * mean_sq / 2.0);
+        }
+        let b: Vec<Vector3<f64>> = free_ids
+            .iter()
+            .zip(&pull)
+            .map(|(&v, p)| p + umbrella.laplace(&target, v))
+            .collect();
+        // Each step only needs to be as exact as the next one's linearisation.
+        let step_cfg = FairConfig {
+            tolerance: cfg.tolerance.max(CURVATURE_SOLVE_TOLERANCE),
+            ..cfg.clone()
+        };
+        let (next, _, _) =
+            solve_thin_plate(&umbrella, free_ids, active_ids, &b, x.clone(), &step_cfg);
+        let step = next
+            .iter()
+            .zip(&x)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        x = next;
+        for (i, &v) in free_ids.iter().enumerate() {
+            mesh.vertices[v] = Point3::from(x[i]);
+        }
+        if !step.is_finite() {
+            break;
+        }
+        if step <= CURVATURE_STEP_TOLERANCE * op.edge_scale {
+            curvature_converged = true;
+            break;
+        }
+    }
+    CurvatureFairing {
+        positions: x,
+        steps: curvature_steps,
+        converged: curvature_converged,
+    }
 }
 
 /// `−K x_C` on the free rows: the pull of the fixed vertices (`K = L M⁻¹ L`).
@@ -384,7 +424,8 @@ fn dot(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Vector3<f64> {
 }
 
 /// The mean curvature `H` of every vertex the free ones reach (zero elsewhere), continued
-/// from the well-supported surface around them:
+/// from the well-supported surface around them (`None` if there is none within
+/// [`CURVATURE_RINGS`] rings):
 ///
 /// - measured on the fixed vertices within [`CURVATURE_RINGS`] rings of the free ones whose
 ///   sampling density is at least the median (`well`): the mean over the fixed neighbours
@@ -401,7 +442,7 @@ fn continued_curvature(
     free_ids: &[usize],
     well: &[bool],
     cfg: &FairConfig,
-) -> Vec<f64> {
+) -> Option<Vec<f64>> {
     let nv = mesh.vertices.len();
     let normals = vertex_normals(mesh);
     let mut near = vec![false; nv];
@@ -422,6 +463,9 @@ fn continued_curvature(
     let measured: Vec<bool> = (0..nv).map(|v| near[v] && well[v]).collect();
     let unknown: Vec<bool> = (0..nv).map(|v| free[v] || (near[v] && !well[v])).collect();
     let measured_ids: Vec<usize> = (0..nv).filter(|&v| measured[v]).collect();
+    if measured_ids.is_empty() {
+        return None;
+    }
     let unknown_ids: Vec<usize> = (0..nv).filter(|&v| unknown[v]).collect();
     let mut h = vec![0.0; nv];
     for &v in &measured_ids {
@@ -469,7 +513,7 @@ fn continued_curvature(
     for (i, &v) in unknown_ids.iter().enumerate() {
         h[v] = hu[i];
     }
-    h
+    Some(h)
 }
 
 /// The harmonic continuation of `values` (given on `known`) over `unknown_ids`:
