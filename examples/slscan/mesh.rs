@@ -170,7 +170,6 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                     "support_ratio": cfg.support_ratio,
                     "vertices_moved": f.vertices_moved,
                     "largest_move_mm": f.largest_move,
-                    "iterations": f.iterations,
                     "residual": f.residual,
                     "curvature_steps": f.curvature_steps,
                     "curvature_converged": f.curvature_converged,

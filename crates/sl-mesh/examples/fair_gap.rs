@@ -1,7 +1,6 @@
 //! Reconstruction, simplification and fairing of the unsupported surface on a cloud, written
 //! as PLY meshes for `benches/peers/mesh_figures.py`:
-//! `cargo run --release -p sl-mesh --example fair_gap -- CLOUD.ply OUT_DIR [RATIO] [DEPTH] [TOLERANCE]
-//! [CURVATURE_STEPS]`.
+//! `cargo run --release -p sl-mesh --example fair_gap -- CLOUD.ply OUT_DIR [RATIO] [DEPTH] [CURVATURE_STEPS]`.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -18,9 +17,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     std::fs::create_dir_all(&out)?;
     let ratio: f64 = args.get(3).map_or(Ok(0.1), |s| s.parse())?;
     let depth: u32 = args.get(4).map_or(Ok(9), |s| s.parse())?;
-    let tolerance: f64 = args.get(5).map_or(Ok(1e-10), |s| s.parse())?;
     let curvature: usize = args
-        .get(6)
+        .get(5)
         .map_or(Ok(FairConfig::default().curvature_iterations), |s| {
             s.parse()
         })?;
@@ -51,9 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &s.densities,
         &FairConfig {
             support_ratio: ratio,
-            tolerance,
             curvature_iterations: curvature,
-            ..FairConfig::default()
         },
     )?;
     println!("fair {:.1} ms: {f:?}", t.elapsed().as_secs_f64() * 1e3);

@@ -36,6 +36,10 @@
 //! ([`simplify`](crate::simplify) leaves few vertices on that surface): the condition of the
 //! bi-Laplacian grows with the fourth power of the hole's width in vertices.
 
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::Llt;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, Side};
 use nalgebra::{Point3, Vector3};
 use sl_cloud::TriangleMesh;
 
@@ -50,10 +54,6 @@ pub struct FairConfig {
     /// so that the thinly sampled rim of a gap, where Poisson's membrane already sags, moves
     /// too (docs/meshing.md, "Fairing", has the figures for 0.1, 0.3 and 0.5).
     pub support_ratio: f64,
-    /// Most conjugate-gradient iterations.
-    pub max_iterations: usize,
-    /// Relative residual at which the iterations stop.
-    pub tolerance: f64,
     /// Most steps of the curvature fairing that follows the thin plate (0: the thin plate
     /// only). 30: it settles in 7–9 on the default scan and on the test sphere.
     pub curvature_iterations: usize,
@@ -63,8 +63,6 @@ impl Default for FairConfig {
     fn default() -> Self {
         Self {
             support_ratio: 0.3,
-            max_iterations: 5000,
-            tolerance: 1e-10,
             curvature_iterations: 30,
         }
     }
@@ -77,9 +75,8 @@ pub struct Fairing {
     pub vertices_moved: usize,
     /// The largest distance a vertex moved, in the mesh's units.
     pub largest_move: f64,
-    /// Conjugate-gradient iterations made.
-    pub iterations: usize,
-    /// Relative residual reached.
+    /// Relative residual of the thin plate's solution, `|b − K x| / |b|` (a check of the
+    /// direct solve: round-off only).
     pub residual: f64,
     /// Curvature-fairing steps made.
     pub curvature_steps: usize,
@@ -97,9 +94,8 @@ pub struct Fairing {
 /// A mesh without unsupported vertices is left unchanged.
 ///
 /// # Errors
-/// [`MeshError::InvalidParameter`] for a ratio outside `[0, 1)`, no iterations or a
-/// non-positive tolerance; [`MeshError::InvalidMesh`] for a triangle index out of range or a
-/// density count that is not the vertex count.
+/// [`MeshError::InvalidParameter`] for a ratio outside `[0, 1)`; [`MeshError::InvalidMesh`]
+/// for a triangle index out of range or a density count that is not the vertex count.
 ///
 /// ```
 /// use sl_mesh::{FairConfig, fair_unsupported};
@@ -120,20 +116,6 @@ pub fn fair_unsupported(
             "must be in [0, 1): a fraction of the median sampling density",
         ));
     }
-    if cfg.max_iterations == 0 {
-        return Err(MeshError::invalid(
-            "max_iterations",
-            0.0,
-            "must be at least 1",
-        ));
-    }
-    if !(cfg.tolerance.is_finite() && cfg.tolerance > 0.0) {
-        return Err(MeshError::invalid(
-            "tolerance",
-            cfg.tolerance,
-            "must be a finite relative residual > 0",
-        ));
-    }
     check_indices(mesh)?;
     let nv = mesh.vertices.len();
     if densities.len() != nv {
@@ -145,7 +127,6 @@ pub fn fair_unsupported(
     let unchanged = Fairing {
         vertices_moved: 0,
         largest_move: 0.0,
-        iterations: 0,
         residual: 0.0,
         curvature_steps: 0,
         curvature_converged: false,
@@ -157,9 +138,36 @@ pub fn fair_unsupported(
     let threshold = cfg.support_ratio * crate::trim::median_density(densities);
 
     let op = Operator::new(mesh);
-    let free: Vec<bool> = (0..nv)
+    let mut free: Vec<bool> = (0..nv)
         .map(|v| densities[v] < threshold && !op.boundary[v])
         .collect();
+    // A piece of free vertices that touches no fixed one (an island the data never reached)
+    // has nothing to span: it stays as it is.
+    let mut seen = vec![false; nv];
+    for v0 in 0..nv {
+        if !free[v0] || seen[v0] {
+            continue;
+        }
+        let (mut piece, mut stack, mut anchored) = (vec![v0], vec![v0], false);
+        seen[v0] = true;
+        while let Some(v) = stack.pop() {
+            for &a in op.ring(v) {
+                let a = a as usize;
+                if !free[a] {
+                    anchored = true;
+                } else if !seen[a] {
+                    seen[a] = true;
+                    piece.push(a);
+                    stack.push(a);
+                }
+            }
+        }
+        if !anchored {
+            for v in piece {
+                free[v] = false;
+            }
+        }
+    }
     let free_ids: Vec<usize> = (0..nv).filter(|&v| free[v]).collect();
     if free_ids.is_empty() {
         return Ok(unchanged);
@@ -178,24 +186,26 @@ pub fn fair_unsupported(
     let active_ids: Vec<usize> = (0..nv).filter(|&v| active[v]).collect();
     let start: Vec<Vector3<f64>> = free_ids.iter().map(|&v| mesh.vertices[v].coords).collect();
 
-    // The thin plate, from where the vertices are (the membrane).
+    // The thin plate: `K_ff x_f = −K_fc x_c`, factored once (sparse Cholesky).
     let pull = fixed_pull(&op, mesh, &free, &active_ids, &free_ids);
-    let (thin_plate, iterations, residual) =
-        solve_thin_plate(&op, &free_ids, &active_ids, &pull, start.clone(), cfg);
-    let mut x = thin_plate;
+    let Some(plate) = FreeSystem::new(&op, &free_ids, &active_ids) else {
+        return Err(MeshError::InvalidMesh(
+            "the thin-plate system of the unsupported vertices is not positive definite".into(),
+        ));
+    };
+    let mut x = plate.solve(&pull);
+    let residual = plate.relative_residual(&x, &pull);
     let mut curvature_steps = 0;
     let mut curvature_converged = false;
     let mut mean_curvature = 0.0;
-    // A thin plate the iterations could not converge (a gap too wide for them) leaves no
-    // footing for the curvature steps, which would not converge either.
-    if cfg.curvature_iterations > 0 && residual <= cfg.tolerance {
+    if cfg.curvature_iterations > 0 {
         for (i, &v) in free_ids.iter().enumerate() {
             mesh.vertices[v] = Point3::from(x[i]);
         }
         let median = crate::trim::median_density(densities);
         let well: Vec<bool> = densities.iter().map(|&d| d >= median).collect();
         // Without well-sampled surface near the gap there is no curvature to continue.
-        if let Some(h) = continued_curvature(mesh, &op, &free, &free_ids, &well, cfg) {
+        if let Some(h) = continued_curvature(mesh, &op, &free, &free_ids, &well) {
             mean_curvature = free_ids.iter().map(|&v| h[v]).sum::<f64>() / free_ids.len() as f64;
             let faired = curvature_fairing(mesh, &op, &free, &free_ids, &active_ids, &h, cfg);
             curvature_steps = faired.steps;
@@ -216,7 +226,6 @@ pub fn fair_unsupported(
     Ok(Fairing {
         vertices_moved: free_ids.len(),
         largest_move,
-        iterations,
         residual,
         curvature_steps,
         curvature_converged,
@@ -254,10 +263,12 @@ fn curvature_fairing(
     let mut curvature_converged = false;
     let umbrella = op.umbrella();
     let pull = fixed_pull(&umbrella, mesh, free, active_ids, free_ids);
-    // Each step only needs to be as exact as the next one's linearisation.
-    let step_cfg = FairConfig {
-        tolerance: cfg.tolerance.max(CURVATURE_SOLVE_TOLERANCE),
-        ..cfg.clone()
+    let Some(system) = FreeSystem::new(&umbrella, free_ids, active_ids) else {
+        return CurvatureFairing {
+            positions: x,
+            steps: 0,
+            converged: false,
+        };
     };
     let (mut last_step, mut growing) = (f64::INFINITY, 0);
     while curvature_steps < cfg.curvature_iterations {
@@ -283,8 +294,7 @@ fn curvature_fairing(
             .zip(&pull)
             .map(|(&v, p)| p + umbrella.laplace(&target, v))
             .collect();
-        let (next, _, residual) =
-            solve_thin_plate(&umbrella, free_ids, active_ids, &b, x.clone(), &step_cfg);
+        let next = system.solve(&b);
         let step = next
             .iter()
             .zip(&x)
@@ -294,9 +304,9 @@ fn curvature_fairing(
         for (i, &v) in free_ids.iter().enumerate() {
             mesh.vertices[v] = Point3::from(x[i]);
         }
-        // A step not solved, not finite, or growing twice running (the steps shrink
-        // geometrically when they settle) ends the fairing unsettled: the thin plate stays.
-        if !step.is_finite() || residual > step_cfg.tolerance {
+        // A step not finite, or growing twice running (the steps shrink geometrically when
+        // they settle), ends the fairing unsettled: the thin plate stays.
+        if !step.is_finite() {
             break;
         }
         growing = if step > last_step { growing + 1 } else { 0 };
@@ -341,96 +351,103 @@ fn fixed_pull(
 /// ends the curvature fairing.
 const CURVATURE_STEP_TOLERANCE: f64 = 1e-2;
 
-/// Relative residual of the linear solve of one curvature step.
-const CURVATURE_SOLVE_TOLERANCE: f64 = 1e-8;
-
 /// Rings of fixed vertices around the free ones whose mean curvature is continued over them.
 const CURVATURE_RINGS: usize = 16;
 
 /// Neighbour-averaging passes of that curvature before it is continued.
 const CURVATURE_SMOOTHING: usize = 4;
 
-/// Solves `K x = b` on the free vertices (`K = L M⁻¹ L` restricted to them) by
-/// Jacobi-preconditioned conjugate gradients from `x`; returns the solution, the iterations
-/// and the relative residual.
-fn solve_thin_plate(
-    op: &Operator,
-    free_ids: &[usize],
-    active_ids: &[usize],
-    b: &[Vector3<f64>],
-    mut x: Vec<Vector3<f64>>,
-    cfg: &FairConfig,
-) -> (Vec<Vector3<f64>>, usize, f64) {
-    let nv = op.area.len();
-    let mut scratch = vec![Vector3::zeros(); nv];
-    let mut out = vec![Vector3::zeros(); nv];
-    let mut full = vec![Vector3::zeros(); nv];
-    let mut k_of = |p: &[Vector3<f64>], full: &mut Vec<Vector3<f64>>| -> Vec<Vector3<f64>> {
-        for (i, &v) in free_ids.iter().enumerate() {
-            full[v] = p[i];
-        }
-        op.apply(full, active_ids, &mut scratch, &mut out);
-        free_ids.iter().map(|&v| out[v]).collect()
-    };
-    // Jacobi preconditioner: the diagonal of K, Σ_j L_ji² / M_j (the simplified mesh's cells
-    // differ in size by orders of magnitude, which plain CG pays for in iterations).
-    let diag: Vec<f64> = free_ids
-        .iter()
-        .map(|&v| {
-            let own = if op.area[v] > 0.0 {
-                op.diagonal[v] * op.diagonal[v] / op.area[v]
-            } else {
-                0.0
-            };
-            let ring: f64 = (op.start[v]..op.start[v + 1])
-                .map(|k| {
-                    let j = op.ring[k] as usize;
-                    if op.area[j] > 0.0 {
-                        op.weight[k] * op.weight[k] / op.area[j]
-                    } else {
-                        0.0
-                    }
-                })
-                .sum();
-            let d = own + ring;
-            if d > 0.0 { 1.0 / d } else { 1.0 }
-        })
-        .collect();
-    let kx = k_of(&x, &mut full);
-    let mut r: Vec<Vector3<f64>> = b.iter().zip(&kx).map(|(b, k)| b - k).collect();
-    let mut z: Vec<Vector3<f64>> = r.iter().zip(&diag).map(|(r, d)| r * *d).collect();
-    let mut p = z.clone();
-    let b_norm = dot(b, b).sum().sqrt().max(f64::MIN_POSITIVE);
-    let mut rz = dot(&r, &z);
-    let mut r_norm = dot(&r, &r).sum().sqrt();
-    let mut iterations = 0;
-    while iterations < cfg.max_iterations && r_norm > cfg.tolerance * b_norm {
-        let kp = k_of(&p, &mut full);
-        let pkp = dot(&p, &kp);
-        // The three coordinates are three independent systems with the same matrix.
-        let alpha = Vector3::from_fn(|c, _| if pkp[c] > 0.0 { rz[c] / pkp[c] } else { 0.0 });
-        for i in 0..x.len() {
-            x[i] += p[i].component_mul(&alpha);
-            r[i] -= kp[i].component_mul(&alpha);
-            z[i] = r[i] * diag[i];
-        }
-        let rz_new = dot(&r, &z);
-        let beta = Vector3::from_fn(|c, _| if rz[c] > 0.0 { rz_new[c] / rz[c] } else { 0.0 });
-        for i in 0..p.len() {
-            p[i] = z[i] + p[i].component_mul(&beta);
-        }
-        rz = rz_new;
-        r_norm = dot(&r, &r).sum().sqrt();
-        iterations += 1;
-    }
-    (x, iterations, r_norm / b_norm)
+/// `K_ff`, the thin-plate operator `K = L M⁻¹ L` of an [`Operator`] on the free vertices,
+/// factored by sparse Cholesky (faer): the fairing's systems are small but badly conditioned
+/// (the bi-Laplacian's condition grows with the fourth power of a gap's width in vertices),
+/// which conjugate gradients paid for in thousands of iterations (13 s for the 31,490 free
+/// vertices of the Stanford bunny's three scans, and still short of 1e-10); the factor is
+/// made once and serves every right-hand side.
+struct FreeSystem<'a> {
+    op: &'a Operator,
+    free_ids: &'a [usize],
+    active_ids: &'a [usize],
+    llt: Llt<usize, f64>,
 }
 
-/// Per-coordinate sums of products.
-fn dot(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Vector3<f64> {
-    a.iter()
-        .zip(b)
-        .fold(Vector3::zeros(), |s, (a, b)| s + a.component_mul(b))
+impl<'a> FreeSystem<'a> {
+    /// `None` if `K_ff` is not positive definite.
+    fn new(op: &'a Operator, free_ids: &'a [usize], active_ids: &'a [usize]) -> Option<Self> {
+        let mut pos = vec![usize::MAX; op.area.len()];
+        for (i, &v) in free_ids.iter().enumerate() {
+            pos[v] = i;
+        }
+        // K = Σ_k L_k·ᵀ L_k· / A_k over the rows k of L (symmetric): each row's free entries
+        // pair up.
+        let mut triplets = Vec::new();
+        let mut row: Vec<(usize, f64)> = Vec::new();
+        for &k in active_ids {
+            if op.area[k] <= 0.0 {
+                continue;
+            }
+            row.clear();
+            if pos[k] != usize::MAX {
+                row.push((pos[k], op.diagonal[k]));
+            }
+            for e in op.start[k]..op.start[k + 1] {
+                let j = pos[op.ring[e] as usize];
+                if j != usize::MAX {
+                    row.push((j, -op.weight[e]));
+                }
+            }
+            for &(i, a) in &row {
+                for &(j, b) in &row {
+                    triplets.push(Triplet::new(i, j, a * b / op.area[k]));
+                }
+            }
+        }
+        let n = free_ids.len();
+        let k = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).ok()?;
+        let llt = k.sp_cholesky(Side::Lower).ok()?;
+        Some(Self {
+            op,
+            free_ids,
+            active_ids,
+            llt,
+        })
+    }
+
+    /// The solution of `K_ff x = b` (three right-hand sides, one per coordinate).
+    fn solve(&self, b: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+        let mut m = Mat::<f64>::zeros(b.len(), 3);
+        for (i, v) in b.iter().enumerate() {
+            for c in 0..3 {
+                m[(i, c)] = v[c];
+            }
+        }
+        self.llt.solve_in_place(m.as_mut());
+        (0..b.len())
+            .map(|i| Vector3::new(m[(i, 0)], m[(i, 1)], m[(i, 2)]))
+            .collect()
+    }
+
+    /// `|b − K_ff x| / |b|`, with `K` applied through the operator (not the factor).
+    fn relative_residual(&self, x: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+        let nv = self.op.area.len();
+        let mut full = vec![Vector3::zeros(); nv];
+        for (i, &v) in self.free_ids.iter().enumerate() {
+            full[v] = x[i];
+        }
+        let mut scratch = vec![Vector3::zeros(); nv];
+        let mut out = vec![Vector3::zeros(); nv];
+        self.op
+            .apply(&full, self.active_ids, &mut scratch, &mut out);
+        let (mut r2, mut b2) = (0.0, 0.0);
+        for (i, &v) in self.free_ids.iter().enumerate() {
+            r2 += (b[i] - out[v]).norm_squared();
+            b2 += b[i].norm_squared();
+        }
+        if b2 > 0.0 {
+            (r2 / b2).sqrt()
+        } else {
+            r2.sqrt()
+        }
+    }
 }
 
 /// The mean curvature `H` of every vertex the free ones reach (zero elsewhere), continued
@@ -451,7 +468,6 @@ fn continued_curvature(
     free: &[bool],
     free_ids: &[usize],
     well: &[bool],
-    cfg: &FairConfig,
 ) -> Option<Vec<f64>> {
     let nv = mesh.vertices.len();
     let normals = vertex_normals(mesh);
@@ -519,7 +535,7 @@ fn continued_curvature(
             }
         }
     }
-    let hu = solve_laplace(op, &unknown, &measured, &unknown_ids, &h, cfg);
+    let hu = harmonic_continuation(op, &unknown, &measured, &unknown_ids, &h)?;
     for (i, &v) in unknown_ids.iter().enumerate() {
         h[v] = hu[i];
     }
@@ -528,83 +544,42 @@ fn continued_curvature(
 
 /// The harmonic continuation of `values` (given on `known`) over `unknown_ids`:
 /// `Σ_j w_ij (y_i − y_j) = 0` over the neighbours `j` that are unknown or known (the others
-/// left out: the natural condition), by Jacobi-preconditioned conjugate gradients. A piece
-/// of unknown vertices that touches no known one stays at zero.
-fn solve_laplace(
+/// left out: the natural condition), by sparse Cholesky. `None` if a piece of unknown vertices
+/// touches no known one (the system is then singular).
+fn harmonic_continuation(
     op: &Operator,
     unknown: &[bool],
     known: &[bool],
     unknown_ids: &[usize],
     values: &[f64],
-    cfg: &FairConfig,
-) -> Vec<f64> {
+) -> Option<Vec<f64>> {
     let mut pos = vec![usize::MAX; unknown.len()];
     for (i, &v) in unknown_ids.iter().enumerate() {
         pos[v] = i;
     }
-    let mut diagonal = vec![0.0; unknown_ids.len()];
-    let mut b = vec![0.0; unknown_ids.len()];
+    let n = unknown_ids.len();
+    let mut triplets = Vec::new();
+    let mut b = Mat::<f64>::zeros(n, 1);
     for (i, &v) in unknown_ids.iter().enumerate() {
+        let mut diagonal = 0.0;
         for k in op.start[v]..op.start[v + 1] {
             let j = op.ring[k] as usize;
             if unknown[j] || known[j] {
-                diagonal[i] += op.weight[k];
+                diagonal += op.weight[k];
             }
             if known[j] {
-                b[i] += op.weight[k] * values[j];
+                b[(i, 0)] += op.weight[k] * values[j];
+            } else if unknown[j] {
+                triplets.push(Triplet::new(i, pos[j], -op.weight[k]));
             }
         }
+        triplets.push(Triplet::new(i, i, diagonal));
     }
-    let apply = |p: &[f64]| -> Vec<f64> {
-        unknown_ids
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| {
-                let mut s = p[i] * diagonal[i];
-                for k in op.start[v]..op.start[v + 1] {
-                    let j = pos[op.ring[k] as usize];
-                    if j != usize::MAX {
-                        s -= p[j] * op.weight[k];
-                    }
-                }
-                s
-            })
-            .collect()
-    };
-    let inv: Vec<f64> = diagonal
-        .iter()
-        .map(|&d| if d > 0.0 { 1.0 / d } else { 1.0 })
-        .collect();
-    let dot = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).map(|(a, b)| a * b).sum() };
-    let mut y = vec![0.0; b.len()];
-    let mut r = b.clone();
-    let mut z: Vec<f64> = r.iter().zip(&inv).map(|(r, d)| r * d).collect();
-    let mut p = z.clone();
-    let b_norm = dot(&b, &b).sqrt().max(f64::MIN_POSITIVE);
-    let mut rz = dot(&r, &z);
-    for _ in 0..cfg.max_iterations {
-        if dot(&r, &r).sqrt() <= cfg.tolerance * b_norm {
-            break;
-        }
-        let ap = apply(&p);
-        let pap = dot(&p, &ap);
-        if pap <= 0.0 {
-            break;
-        }
-        let alpha = rz / pap;
-        for i in 0..y.len() {
-            y[i] += alpha * p[i];
-            r[i] -= alpha * ap[i];
-            z[i] = r[i] * inv[i];
-        }
-        let rz_new = dot(&r, &z);
-        let beta = rz_new / rz;
-        for i in 0..p.len() {
-            p[i] = z[i] + beta * p[i];
-        }
-        rz = rz_new;
-    }
-    y
+    let a = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).ok()?;
+    let llt = a.sp_cholesky(Side::Lower).ok()?;
+    llt.solve_in_place(b.as_mut());
+    let y: Vec<f64> = (0..n).map(|i| b[(i, 0)]).collect();
+    y.iter().all(|v| v.is_finite()).then_some(y)
 }
 
 /// Area-weighted vertex normals (unit; zero for a vertex in no triangle of positive area).
@@ -802,9 +777,9 @@ mod tests {
     /// estimate of `H` (1 % of `H` is about 0.05 mm at the middle of this cap) and the
     /// simplified mesh's facets: measured 0.10 mm, so it must be below 0.02 r and below half
     /// the thin plate's; the curvature it continued is `1/r` within 5 %. Allowed one step,
-    /// which does not settle, it leaves the thin plate exactly; after a thin plate stopped
-    /// short of its tolerance it makes no step. The supported vertices do not
-    /// move, and the mesh stays closed and manifold with the same triangles.
+    /// which does not settle, it leaves the thin plate exactly. The direct solve's residual is
+    /// round-off (below 1e-9). The supported vertices do not move, and the mesh stays closed
+    /// and manifold with the same triangles.
     #[test]
     fn gap_follows_the_sphere() {
         let r = 10.0;
@@ -847,23 +822,11 @@ mod tests {
         let f1 = fair_unsupported(&mut one, &d.densities, &cfg1).unwrap();
         assert!(!f1.curvature_converged && f1.curvature_steps == 1, "{f1:?}");
         assert_eq!(one.vertices, plate.vertices);
-        // A thin plate the iterations cannot converge (a gap too wide for them) is not
-        // followed by curvature steps.
-        let mut short = before.clone();
-        let cfg10 = FairConfig {
-            max_iterations: 10,
-            ..FairConfig::default()
-        };
-        let f10 = fair_unsupported(&mut short, &d.densities, &cfg10).unwrap();
-        assert!(
-            f10.residual > cfg10.tolerance && f10.curvature_steps == 0,
-            "{f10:?}"
-        );
         assert!(
             rms1 * 2.0 < rms_plate && rms1 < 0.02 * r,
             "curvature: cap RMS {rms_plate} → {rms1}"
         );
-        assert!(f.residual <= FairConfig::default().tolerance, "{f:?}");
+        assert!(f.residual < 1e-9 && fp.residual < 1e-9, "{f:?} {fp:?}");
         assert_eq!(s.mesh.triangles, before.triangles);
         assert!(check_topology(&s.mesh).is_watertight_manifold());
         let mut sorted = d.densities.clone();
@@ -924,17 +887,10 @@ mod tests {
             ),
             (
                 FairConfig {
-                    max_iterations: 0,
+                    support_ratio: -0.1,
                     ..FairConfig::default()
                 },
-                "max_iterations",
-            ),
-            (
-                FairConfig {
-                    tolerance: 0.0,
-                    ..FairConfig::default()
-                },
-                "tolerance",
+                "support_ratio",
             ),
         ] {
             let e = fair_unsupported(&mut mesh, &d, &cfg).unwrap_err();
