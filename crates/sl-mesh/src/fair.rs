@@ -25,16 +25,18 @@
 //! vertices). Normals and neighbour distances follow the surface, so the placement is
 //! repeated until no vertex moves by more than a hundredth of the mean edge (7–9 steps on
 //! the default scan); if it does not settle within
-//! [`curvature_iterations`](FairConfig::curvature_iterations) steps, or no well-sampled
-//! surface lies within 16 rings of the gap, the thin plate stays.
+//! [`curvature_iterations`](FairConfig::curvature_iterations) steps (or a step is not finite
+//! or grows twice running), or the curvature cannot be continued over the gap (no
+//! well-sampled surface within 16 rings of part of it), the thin plate stays.
 //! A gap in a sphere is closed by the sphere (the cap above: 0.10 mm instead of 0.35 mm; the
 //! default scan's unseen patch 0.09 mm over its area instead of 0.41 mm), a gap in a plane
 //! by the plane.
 //!
-//! The system is solved by conjugate gradients on the unsupported vertices only (their
-//! operator is applied through the two rings around them). Run it on a simplified mesh
-//! ([`simplify`](crate::simplify) leaves few vertices on that surface): the condition of the
-//! bi-Laplacian grows with the fourth power of the hole's width in vertices.
+//! Each system lives on the unsupported vertices only (the fixed ones enter its right-hand
+//! side through the two rings around them) and is factored once by sparse Cholesky (faer):
+//! the bi-Laplacian's condition grows with the fourth power of a hole's width in vertices,
+//! which iterative solvers pay for (see [`FreeSystem`]). Run it on a simplified mesh
+//! ([`simplify`](crate::simplify) leaves few vertices on that surface).
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::Llt;
@@ -143,25 +145,10 @@ pub fn fair_unsupported(
         .collect();
     // A piece of free vertices that touches no fixed one (an island the data never reached)
     // has nothing to span: it stays as it is.
-    let mut seen = vec![false; nv];
-    for v0 in 0..nv {
-        if !free[v0] || seen[v0] {
-            continue;
-        }
-        let (mut piece, mut stack, mut anchored) = (vec![v0], vec![v0], false);
-        seen[v0] = true;
-        while let Some(v) = stack.pop() {
-            for &a in op.ring(v) {
-                let a = a as usize;
-                if !free[a] {
-                    anchored = true;
-                } else if !seen[a] {
-                    seen[a] = true;
-                    piece.push(a);
-                    stack.push(a);
-                }
-            }
-        }
+    for piece in op.pieces(&free) {
+        let anchored = piece
+            .iter()
+            .any(|&v| op.ring(v).iter().any(|&a| !free[a as usize]));
         if !anchored {
             for v in piece {
                 free[v] = false;
@@ -487,12 +474,11 @@ fn continued_curvature(
         frontier = next;
     }
     let measured: Vec<bool> = (0..nv).map(|v| near[v] && well[v]).collect();
-    let unknown: Vec<bool> = (0..nv).map(|v| free[v] || (near[v] && !well[v])).collect();
+    let mut unknown: Vec<bool> = (0..nv).map(|v| free[v] || (near[v] && !well[v])).collect();
     let measured_ids: Vec<usize> = (0..nv).filter(|&v| measured[v]).collect();
     if measured_ids.is_empty() {
         return None;
     }
-    let unknown_ids: Vec<usize> = (0..nv).filter(|&v| unknown[v]).collect();
     let mut h = vec![0.0; nv];
     for &v in &measured_ids {
         let (p, n) = (mesh.vertices[v], normals[v]);
@@ -535,7 +521,24 @@ fn continued_curvature(
             }
         }
     }
-    let hu = harmonic_continuation(op, &unknown, &measured, &unknown_ids, &h)?;
+    // A piece of unknown vertices that no measured one borders (a gap whose rim is thinly
+    // sampled all round) takes the mean curvature of the measured surface.
+    let mut known = measured.clone();
+    let mean = measured_ids.iter().map(|&v| h[v]).sum::<f64>() / measured_ids.len() as f64;
+    for piece in op.pieces(&unknown) {
+        let bordered = piece
+            .iter()
+            .any(|&v| op.ring(v).iter().any(|&a| measured[a as usize]));
+        if !bordered {
+            for v in piece {
+                unknown[v] = false;
+                known[v] = true;
+                h[v] = mean;
+            }
+        }
+    }
+    let unknown_ids: Vec<usize> = (0..nv).filter(|&v| unknown[v]).collect();
+    let hu = harmonic_continuation(op, &unknown, &known, &unknown_ids, &h)?;
     for (i, &v) in unknown_ids.iter().enumerate() {
         h[v] = hu[i];
     }
@@ -709,6 +712,31 @@ impl Operator {
             boundary: self.boundary.clone(),
             edge_scale: self.edge_scale,
         }
+    }
+
+    /// The connected pieces of the vertices where `inside` holds.
+    fn pieces(&self, inside: &[bool]) -> Vec<Vec<usize>> {
+        let mut seen = vec![false; inside.len()];
+        let mut pieces = Vec::new();
+        for v0 in 0..inside.len() {
+            if !inside[v0] || seen[v0] {
+                continue;
+            }
+            seen[v0] = true;
+            let (mut piece, mut stack) = (vec![v0], vec![v0]);
+            while let Some(v) = stack.pop() {
+                for &a in self.ring(v) {
+                    let a = a as usize;
+                    if inside[a] && !seen[a] {
+                        seen[a] = true;
+                        piece.push(a);
+                        stack.push(a);
+                    }
+                }
+            }
+            pieces.push(piece);
+        }
+        pieces
     }
 
     fn ring(&self, v: usize) -> &[u32] {
