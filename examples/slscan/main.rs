@@ -9,6 +9,10 @@
 //!   code 1 (2 for a malformed command line, as clap does).
 
 mod align;
+/// The Stanford bunny loader of sl-icp's tests (`$SL_DATA/bunny`), for the mesh tests.
+#[cfg(test)]
+#[path = "../../crates/sl-icp/tests/support/bunny.rs"]
+mod bunny_support;
 mod calibrate;
 mod calibrate_capture;
 mod capture;
