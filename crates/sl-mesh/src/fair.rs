@@ -93,7 +93,8 @@ pub struct Fairing {
 /// of `densities` (one per vertex: [`PoissonSurface::densities`](crate::PoissonSurface) or
 /// [`Simplification::densities`](crate::Simplification)) to the thin-plate surface spanned by
 /// the others (see the module documentation). Vertices on a boundary edge stay where they are.
-/// A mesh without unsupported vertices is left unchanged.
+/// A mesh without unsupported vertices is left unchanged, and so is one whose thin-plate
+/// system cannot be factored (degenerate triangles all round a free vertex).
 ///
 /// # Errors
 /// [`MeshError::InvalidParameter`] for a ratio outside `[0, 1)`; [`MeshError::InvalidMesh`]
@@ -175,10 +176,10 @@ pub fn fair_unsupported(
 
     // The thin plate: `K_ff x_f = −K_fc x_c`, factored once (sparse Cholesky).
     let pull = fixed_pull(&op, mesh, &free, &active_ids, &free_ids);
+    // Not positive definite only where every triangle around a free vertex is degenerate
+    // (all its cotangent weights clamped to zero): then nothing is moved.
     let Some(plate) = FreeSystem::new(&op, &free_ids, &active_ids) else {
-        return Err(MeshError::InvalidMesh(
-            "the thin-plate system of the unsupported vertices is not positive definite".into(),
-        ));
+        return Ok(unchanged);
     };
     let mut x = plate.solve(&pull);
     let residual = plate.relative_residual(&x, &pull);
