@@ -357,10 +357,11 @@ mod tests {
         (ply, truth_path)
     }
 
-    /// `slscan mesh PLY --out OUT --depth 7 --truth TRUTH EXTRA…`; returns its `report.json`.
+    /// `slscan mesh PLY --out OUT --depth 7 [--truth TRUTH] EXTRA…`; returns its
+    /// `report.json`.
     fn mesh_at_depth_7(
         ply: &std::path::Path,
-        truth: &std::path::Path,
+        truth: Option<&std::path::Path>,
         out: &std::path::Path,
         extra: &[&str],
     ) -> serde_json::Value {
@@ -370,9 +371,10 @@ mod tests {
             out.to_str().unwrap(),
             "--depth",
             "7",
-            "--truth",
-            truth.to_str().unwrap(),
         ];
+        if let Some(truth) = truth {
+            args.extend(["--truth", truth.to_str().unwrap()]);
+        }
         args.extend_from_slice(extra);
         slscan(&args).unwrap();
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
@@ -383,7 +385,7 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let (ply, truth_path) = ball_files(tmp.path(), |_| true, 2.0);
         let out = tmp.path().join("out");
-        let r = mesh_at_depth_7(&ply, &truth_path, &out, &[]);
+        let r = mesh_at_depth_7(&ply, Some(&truth_path), &out, &[]);
         for f in [
             "mesh.ply",
             "mesh.stl",
@@ -467,7 +469,7 @@ mod tests {
         let cos45 = std::f64::consts::FRAC_1_SQRT_2;
         let (ply, truth_path) = ball_files(tmp.path(), |n| -n.y < cos45, 30.0);
         let run = |name: &str, extra: &[&str]| {
-            mesh_at_depth_7(&ply, &truth_path, &tmp.path().join(name), extra)
+            mesh_at_depth_7(&ply, Some(&truth_path), &tmp.path().join(name), extra)
         };
         let faired = run("faired", &[]);
         let below = run("below", &["--elevation", "-60", "--azimuth", "10"]);
@@ -539,17 +541,7 @@ mod tests {
         let ply = tmp.path().join("bunny.ply");
         write_ply(&ply, &cloud, sl_cloud::PlyFormat::default()).unwrap();
         let out = tmp.path().join("out");
-        slscan(&[
-            ply.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--depth",
-            "7",
-        ])
-        .unwrap();
-        let r: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
-                .unwrap();
+        let r = mesh_at_depth_7(&ply, None, &out, &[]);
         let f = &r["figures"];
         eprintln!("{}", f["fair"]);
         assert_eq!(f["watertight"], true, "{f}");

@@ -47,6 +47,7 @@ use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
 use crate::adjacency::check_indices;
+use crate::measure::vertex_normals;
 
 /// Parameters of [`fair_unsupported`].
 #[derive(Debug, Clone, PartialEq)]
@@ -138,7 +139,8 @@ pub fn fair_unsupported(
     if nv == 0 {
         return Ok(unchanged);
     }
-    let threshold = cfg.support_ratio * crate::trim::median_density(densities);
+    let median = crate::trim::median_density(densities);
+    let threshold = cfg.support_ratio * median;
 
     let op = Operator::new(mesh);
     let mut free: Vec<bool> = (0..nv)
@@ -190,7 +192,6 @@ pub fn fair_unsupported(
         for (i, &v) in free_ids.iter().enumerate() {
             mesh.vertices[v] = Point3::from(x[i]);
         }
-        let median = crate::trim::median_density(densities);
         let well: Vec<bool> = densities.iter().map(|&d| d >= median).collect();
         // Without well-sampled surface near the gap there is no curvature to continue.
         if let Some(h) = continued_curvature(mesh, &op, &free, &free_ids, &well) {
@@ -586,25 +587,6 @@ fn harmonic_continuation(
     y.iter().all(|v| v.is_finite()).then_some(y)
 }
 
-/// Area-weighted vertex normals (unit; zero for a vertex in no triangle of positive area).
-fn vertex_normals(mesh: &TriangleMesh) -> Vec<Vector3<f64>> {
-    let mut n = vec![Vector3::zeros(); mesh.vertices.len()];
-    for t in &mesh.triangles {
-        let p = t.map(|i| mesh.vertices[i as usize]);
-        let c = (p[1] - p[0]).cross(&(p[2] - p[0]));
-        for &i in t {
-            n[i as usize] += c;
-        }
-    }
-    for v in &mut n {
-        let l = v.norm();
-        if l > 0.0 {
-            *v /= l;
-        }
-    }
-    n
-}
-
 /// The cotangent Laplacian `L` (symmetric, `L_ii = Σ_j w_ij`, `L_ij = −w_ij`) and the
 /// barycentric vertex areas `M` of a mesh, in compressed rows.
 struct Operator {
@@ -779,8 +761,8 @@ impl Operator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_shapes::{partial_sphere_cloud, sphere_mesh};
-    use crate::{PoissonConfig, SimplifyConfig, check_topology, poisson_reconstruct, simplify};
+    use crate::test_shapes::{partial_sphere_surface, sphere_mesh};
+    use crate::{SimplifyConfig, check_topology, simplify};
 
     /// RMS of `|p| − r` over the vertices with `z > z_min`.
     fn cap_rms(mesh: &TriangleMesh, r: f64, z_min: f64) -> (f64, usize) {
@@ -812,12 +794,7 @@ mod tests {
     #[test]
     fn gap_follows_the_sphere() {
         let r = 10.0;
-        let cloud = partial_sphere_cloud(20_000, r, Point3::origin(), |_, n| n.z < 0.5);
-        let cfg = PoissonConfig {
-            depth: 6,
-            ..PoissonConfig::default()
-        };
-        let mut s = poisson_reconstruct(&cloud, &cfg).unwrap();
+        let mut s = partial_sphere_surface(r, |_, n| n.z < 0.5);
         let d = simplify(&mut s.mesh, &s.densities, &SimplifyConfig::default()).unwrap();
         let before = s.mesh.clone();
         let (rms0, n0) = cap_rms(&before, r, 0.6 * r);

@@ -964,7 +964,9 @@ fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations
 mod tests {
     use super::*;
     use crate::check_topology;
-    use crate::test_shapes::{partial_sphere_cloud, sphere_cloud as sphere};
+    use crate::test_shapes::{
+        partial_sphere_cloud, partial_sphere_surface, sphere_cloud as sphere,
+    };
 
     #[test]
     fn interior_stiffness_row_sums_to_zero() {
@@ -1072,14 +1074,7 @@ mod tests {
     #[test]
     fn sphere_missing_its_lower_back_is_closed_and_bounded() {
         let r = 10.0;
-        let cloud = partial_sphere_cloud(20_000, r, Point3::origin(), |_, n| {
-            !(n.y > 0.4 && n.z > 0.0)
-        });
-        let cfg = PoissonConfig {
-            depth: 6,
-            ..PoissonConfig::default()
-        };
-        let s = poisson_reconstruct(&cloud, &cfg).unwrap();
+        let s = partial_sphere_surface(r, |_, n| !(n.y > 0.4 && n.z > 0.0));
         let topo = check_topology(&s.mesh);
         assert!(topo.is_watertight_manifold(), "{topo:?}");
         let (mut seen, mut gap) = (Vec::new(), Vec::new());

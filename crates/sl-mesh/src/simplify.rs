@@ -1047,8 +1047,8 @@ fn folds(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_shapes::{cube_distance, cube_mesh, partial_sphere_cloud, sphere_mesh};
-    use crate::{PoissonConfig, check_topology, poisson_reconstruct, sample_surface};
+    use crate::test_shapes::{cube_distance, cube_mesh, partial_sphere_surface, sphere_mesh};
+    use crate::{check_topology, sample_surface};
 
     /// Distances of points spread over `mesh` (one per 0.001 square units) to the sphere of
     /// radius `r` at the origin: (RMS, largest).
@@ -1162,12 +1162,7 @@ mod tests {
     #[test]
     fn unsupported_surface_is_coarser_and_no_worse() {
         let r = 10.0;
-        let cloud = partial_sphere_cloud(20_000, r, Point3::origin(), |_, n| n.z < 0.5);
-        let cfg = PoissonConfig {
-            depth: 6,
-            ..PoissonConfig::default()
-        };
-        let s = poisson_reconstruct(&cloud, &cfg).unwrap();
+        let s = partial_sphere_surface(r, |_, n| n.z < 0.5);
         // Vertices in the caps z > 0.8 r (inside the gap) and z < −0.8 r (data), of equal area
         // on the sphere.
         let caps = |m: &TriangleMesh| {

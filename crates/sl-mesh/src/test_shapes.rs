@@ -41,6 +41,20 @@ pub(crate) fn partial_sphere_cloud(
     PointCloud::from_positions(pts).with_normals(nrm).unwrap()
 }
 
+/// The Poisson surface (depth 6) of `partial_sphere_cloud(20_000, radius, origin, keep)`:
+/// a sphere of radius `radius` at the origin with a part no view saw, closed by invention.
+pub(crate) fn partial_sphere_surface(
+    radius: f64,
+    keep: impl Fn(&Point3<f64>, &Vector3<f64>) -> bool,
+) -> crate::PoissonSurface {
+    let cloud = partial_sphere_cloud(20_000, radius, Point3::origin(), keep);
+    let cfg = PoissonConfig {
+        depth: 6,
+        ..PoissonConfig::default()
+    };
+    poisson_reconstruct(&cloud, &cfg).unwrap()
+}
+
 /// A closed mesh of a sphere of radius `radius` at the origin (Poisson at `depth`).
 pub(crate) fn sphere_mesh(radius: f64, depth: u32) -> TriangleMesh {
     let cloud = sphere_cloud(20_000, radius, Point3::origin());

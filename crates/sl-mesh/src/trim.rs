@@ -97,21 +97,15 @@ pub(crate) fn median_density(densities: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_shapes::{partial_sphere_cloud, sphere_cloud};
-    use crate::{PoissonConfig, check_topology, poisson_reconstruct};
-    use nalgebra::Point3;
+    use crate::check_topology;
+    use crate::test_shapes::partial_sphere_surface;
 
     /// The lower half of a sphere only (as a scan sees an object from above): Poisson closes
     /// the top with invented surface; trimming at a tenth of the median density removes it
     /// (no vertex kept is more than a few cells above the data) and keeps the data's part.
     #[test]
     fn invented_surface_is_removed() {
-        let cloud = partial_sphere_cloud(20_000, 10.0, Point3::origin(), |p, _| p.z < 0.0);
-        let cfg = PoissonConfig {
-            depth: 6,
-            ..PoissonConfig::default()
-        };
-        let s = poisson_reconstruct(&cloud, &cfg).unwrap();
+        let s = partial_sphere_surface(10.0, |p, _| p.z < 0.0);
         assert!(s.mesh.vertices.iter().any(|p| p.z > 3.0));
         let t = trim_by_density(&s.mesh, &s.densities, 0.1).unwrap();
         assert!(t.triangles_removed > 0);
@@ -133,8 +127,7 @@ mod tests {
         let topo = check_topology(&t.mesh);
         assert!(topo.boundary_edges > 0 && topo.is_manifold(), "{topo:?}");
         // Nothing to trim on a closed, evenly sampled sphere.
-        let full = sphere_cloud(20_000, 10.0, Point3::origin());
-        let s = poisson_reconstruct(&full, &cfg).unwrap();
+        let s = partial_sphere_surface(10.0, |_, _| true);
         let t = trim_by_density(&s.mesh, &s.densities, 0.1).unwrap();
         assert_eq!(t.triangles_removed, 0);
         assert!(trim_by_density(&s.mesh, &s.densities, 1.5).is_err());

@@ -739,17 +739,22 @@ mod tests {
         assert_eq!(atan2_approx(0.0, 0.0), 0.0);
     }
 
+    /// Marsaglia's 32-bit xorshift from `s`: reproducible pseudo-random bits for the tests.
+    fn xorshift32(mut s: u32) -> impl FnMut() -> u32 {
+        move || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s
+        }
+    }
+
     #[test]
     fn pair_codes_agree_with_the_darboux_frame_construction() {
         // Pseudo-random unit normals and offsets; the shortcut formulas of `pair_code` give
         // the bins of Rusu's frame, except for an angle within rounding of a bin edge.
-        let mut s = 0x2545_f491_u32;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 17;
-            s ^= s << 5;
-            (s % 20_001) as f32 / 10_000.0 - 1.0
-        };
+        let mut bits = xorshift32(0x2545_f491);
+        let mut next = || (bits() % 20_001) as f32 / 10_000.0 - 1.0;
         let unit = |next: &mut dyn FnMut() -> f32| {
             V3::new(next(), next(), next())
                 .try_normalize(1e-3)
@@ -798,13 +803,8 @@ mod tests {
         // rounded across the radius): every row must hold exactly the points within 4 mm
         // (itself and coincident points excluded), or with a cap of 6 the 6 nearest (compared
         // by distance: the lattice has ties).
-        let mut s = 0x9e37_79b9_u32;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 17;
-            s ^= s << 5;
-            f64::from(s % 160) * 0.25 - 20.0
-        };
+        let mut bits = xorshift32(0x9e37_79b9);
+        let mut next = || f64::from(bits() % 160) * 0.25 - 20.0;
         let pts: Vec<Point3<f64>> = (0..3000)
             .map(|_| Point3::new(next(), next() * 0.5, next().abs()))
             .collect();
