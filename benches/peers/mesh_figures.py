@@ -5,6 +5,15 @@ triangle by the 6-point degree-4 Gauss rule of Dunavant 1985), split the same wa
 quadrature point. Same selection as `poisson_open3d.py` (points
 within `select_mm` of a true sphere).
 
+The RMS to the truth mixes two things: the error the cloud already has (on the default scan a
+rigid displacement of about 0.1 mm from the calibration, the same for both spheres) and the
+error the mesh adds. So the spheres fitted to the cloud are printed too, and for each mesh, where
+the data is: the RMS of its vertices and of its area to those fitted spheres (the error the
+mesh adds to the cloud's surface) and the RMS of the cloud's own error field at its vertices
+(the truth error of the fitted sphere at each vertex's direction: what the vertices' RMS to the
+truth would be if the mesh lay exactly on the cloud's surface). The last depends only on where
+the vertices are.
+
     /work/peers/bin/python benches/peers/mesh_figures.py /work/wt/data/merged.ply \
         --truth /work/wt/data/truth.json OUT_A/mesh.ply OUT_B/mesh.ply [/tmp/poisson-peers/open3d.ply]
 """
@@ -32,6 +41,34 @@ def rms(e, w=None):
     return float(np.sqrt(np.sum(w * e**2) / np.sum(w)))
 
 
+def fit_spheres(points, truth):
+    """Least-squares sphere (algebraic, Kasa) through the points within select of each true sphere."""
+    fits = []
+    for s in [f for f in truth["features"] if f["type"] == "sphere"]:
+        c = np.asarray(s["centre_mm"])
+        q = points[np.abs(np.linalg.norm(points - c, axis=1) - s["radius_mm"]) <= s.get("select_mm", 2.0)]
+        a = np.c_[2 * q, np.ones(len(q))]
+        x = np.linalg.lstsq(a, (q**2).sum(1), rcond=None)[0]
+        fits.append((x[:3], float(np.sqrt(x[3] + x[:3] @ x[:3])), c, s["radius_mm"]))
+    return fits
+
+
+def fitted_errors(points, fits):
+    """Per point: signed distance to the nearest fitted sphere, and the truth error of that fitted
+    sphere at the point's direction (the cloud's error field there)."""
+    best = np.full(len(points), np.inf)
+    field = np.zeros(len(points))
+    for c, r, tc, tr in fits:
+        d = points - c
+        rr = np.linalg.norm(d, axis=1)
+        on = c + d / rr[:, None] * r
+        e = np.linalg.norm(on - tc, axis=1) - tr
+        closer = np.abs(rr - r) < np.abs(best)
+        best = np.where(closer, rr - r, best)
+        field = np.where(closer, e, field)
+    return best, field
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("cloud")
@@ -41,6 +78,13 @@ def main():
     args = ap.parse_args()
     truth = json.load(open(args.truth))
     cloud = o3d.io.read_point_cloud(args.cloud)
+    cp = np.asarray(cloud.points)
+    fits = fit_spheres(cp, truth)
+    own, _ = fitted_errors(cp, fits)
+    for c, r, tc, tr in fits:
+        print(f"cloud: sphere fitted at {np.round(c - tc, 4)} mm from the true centre, radius "
+              f"{r - tr:+.4f} mm")
+    print(f"cloud: RMS to the fitted spheres {rms(own):.4f} mm")
     for path in args.meshes:
         mesh = o3d.io.read_triangle_mesh(path)
         v = np.asarray(mesh.vertices)
@@ -66,6 +110,12 @@ def main():
               f"{rms(cerr[csel & cnear], area[csel & cnear]):.4f} mm "
               f"({area[csel & cnear].sum():.0f} mm2), unsupported "
               f"{rms(cerr[csel & ~cnear], area[csel & ~cnear]):.4f} mm ({area[csel & ~cnear].sum():.0f} mm2)")
+        vown, vfield = fitted_errors(v, fits)
+        cown, _ = fitted_errors(c, fits)
+        vs, cs = sel & near, csel & cnear
+        print(f"  where the data is, to the spheres fitted to the cloud: vertices {rms(vown[vs]):.4f} mm, "
+              f"area-weighted {rms(cown[cs], area[cs]):.4f} mm; the cloud's own truth error at "
+              f"these vertices {rms(vfield[vs]):.4f} mm")
         rep = os.path.join(os.path.dirname(path), "report.json")
         if os.path.exists(rep):
             f = json.load(open(rep))["figures"]
