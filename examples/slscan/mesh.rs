@@ -12,7 +12,8 @@ use sl_cloud::{PreviewConfig, read_ply};
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
     BilateralConfig, FairConfig, MeshColoring, PoissonConfig, SimplifyConfig, TaubinConfig,
-    ViewerConfig, ViewerLayer, check_topology, decimate, fair_unsupported, fill_holes,
+    RemeshConfig, ViewerConfig, ViewerLayer, check_topology, decimate, fair_unsupported, fill_holes,
+    remesh_isotropic,
     poisson_reconstruct, remove_small_components, render_mesh, simplify, smooth_bilateral,
     smooth_taubin, trim_by_density, viewer_html, write_ply_mesh, write_stl,
 };
@@ -68,6 +69,11 @@ pub(crate) struct Args {
     /// curvature, which closes a gap in a sphere by the sphere).
     #[arg(long)]
     pub(crate) no_fair: bool,
+    /// Remesh isotropically after the simplification and fairing: triangles of about this
+    /// edge length (mm; 0 keeps the number of vertices), every vertex standing for the same
+    /// area of surface, each on the surface before.
+    #[arg(long)]
+    pub(crate) remesh: Option<f64>,
     /// Decimate to at most this many triangles (quadric error).
     #[arg(long)]
     pub(crate) triangles: Option<usize>,
@@ -177,6 +183,30 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 }),
             );
         }
+    }
+    if let Some(edge) = args.remesh {
+        let cfg = RemeshConfig {
+            target_edge: edge,
+            ..RemeshConfig::default()
+        };
+        let t = std::time::Instant::now();
+        let r = report
+            .stage("remesh", || remesh_isotropic(&mut mesh, &cfg))
+            .context("cannot remesh (--remesh)")?;
+        report.figure("remesh_ms", t.elapsed().as_secs_f64() * 1e3);
+        report.figure(
+            "remesh",
+            serde_json::json!({
+                "target_edge_mm": r.target_edge,
+                "vertices_before": r.vertices_before,
+                "vertices_after": r.vertices_after,
+                "splits": r.splits,
+                "collapses": r.collapses,
+                "flips": r.flips,
+                "rms_distance_mm": r.rms_distance,
+                "largest_distance_mm": r.largest_distance,
+            }),
+        );
     }
     if let Some(max_edges) = args.fill_holes {
         let f = report.stage("fill holes", || fill_holes(&mut mesh, max_edges))?;

@@ -68,6 +68,7 @@ mod grid;
 mod holes;
 mod measure;
 mod poisson;
+mod remesh;
 mod render;
 mod simplify;
 mod taubin;
@@ -88,6 +89,7 @@ pub use files::{
 pub use holes::{HoleFilling, fill_holes};
 pub use measure::{sample_surface, signed_volume, surface_area, vertex_normals};
 pub use poisson::{MIN_POISSON_POINTS, PoissonConfig, PoissonSurface, poisson_reconstruct};
+pub use remesh::{RemeshConfig, Remeshing, remesh_isotropic};
 pub use render::{MeshColoring, render_mesh};
 pub use simplify::{Simplification, SimplifyConfig, simplify};
 pub use sl_cloud::{TriangleMesh, read_ply_mesh};
