@@ -49,6 +49,7 @@ use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
 use crate::adjacency::check_indices;
+use crate::curvature::fit_curvature;
 use crate::measure::vertex_normals;
 
 /// Parameters of [`fair_unsupported`].
@@ -196,7 +197,13 @@ pub fn fair_unsupported(
         }
         let well: Vec<bool> = densities.iter().map(|&d| d >= median).collect();
         let support: Vec<f64> = (0..nv)
-            .map(|v| if free[v] { 0.0 } else { (densities[v] / median).clamp(0.0, 1.0) })
+            .map(|v| {
+                if free[v] {
+                    0.0
+                } else {
+                    (densities[v] / median).clamp(0.0, 1.0)
+                }
+            })
             .collect();
         // Without well-sampled surface near the gap there is no curvature to continue.
         if let Some(h) = continued_curvature(mesh, &op, &free, &free_ids, &well, &support) {
@@ -463,10 +470,18 @@ impl<'a> FreeSystem<'a> {
 ///
 /// - measured on the fixed vertices within [`CURVATURE_RINGS`] rings of the free ones whose
 ///   sampling density is at least the median (`well`): a quadric fitted to the fixed
-///   vertices within [`CURVATURE_RADIUS_EDGES`] mean edges ([`quadric_mean_curvature`]; a
-///   vertex's discrete Laplacian is far noisier on a simplified mesh), then smoothed over
-///   those vertices; the thinly sampled rim next to a gap is left out, as the reconstruction
-///   there is already flattened towards Poisson's membrane;
+///   vertices within [`CURVATURE_RADIUS_EDGES`] mean edges ([`fit_curvature`]; a
+///   vertex's discrete Laplacian is far noisier on a simplified mesh), each weighing by its
+///   support (sampling density over the median, to the power [`CURVATURE_SUPPORT_POWER`]),
+///   then smoothed over those vertices; the thinly sampled rim next to a gap is left out, as
+///   the reconstruction there is already flattened towards Poisson's membrane. A fit over a
+///   distance, not the circles through the neighbours within two rings (`−2 d·n / |d|²`,
+///   until 2026-11-27): those divide the surface's wiggles by the squared edge length, so
+///   their spread per vertex on the default scan's spheres (`1/r` = 0.04 mm⁻¹) grew from
+///   0.033 mm⁻¹ (1.36 mm edges) to 1.9 mm⁻¹ on the unsimplified extraction (0.33 mm), and
+///   what they continued over the gap went from 0.0398 (simplified to 0.01 mm) to 0.0374
+///   (0.005 mm), which left the patch 0.15 mm RMS off instead of 0.09. The fit continues
+///   0.0400, 0.0401 and 0.0396 mm⁻¹ at 0.01, 0.005 and 0.002 mm;
 /// - continued harmonically (`ΔH = 0`, cotangent weights) over the free vertices and the
 ///   thin rim, with the natural condition where the band ends.
 fn continued_curvature(
@@ -503,7 +518,19 @@ fn continued_curvature(
     let radius = CURVATURE_RADIUS_EDGES * op.edge_scale;
     let fitted: Vec<Option<f64>> = measured_ids
         .par_iter()
-        .map(|&v| quadric_mean_curvature(mesh, op, support, &normals, v, radius))
+        .map(|&v| {
+            let weight = |i: usize| support[i].powi(CURVATURE_SUPPORT_POWER);
+            let ring = |i: usize| op.ring(i);
+            fit_curvature(
+                &mesh.vertices,
+                &ring,
+                &weight,
+                v,
+                normals[v],
+                radius,
+                CURVATURE_MIN_NEIGHBOURS,
+            )
+        })
         .collect();
     let mut h = vec![0.0; nv];
     for (&v, fit) in measured_ids.iter().zip(&fitted) {
@@ -554,71 +581,6 @@ fn continued_curvature(
         h[v] = hu[i];
     }
     Some(h)
-}
-
-/// The mean curvature at vertex `v` (positive where the surface bends away from its normal,
-/// `1/r` on a sphere with outward normals): the quadric
-/// `z = c0 + c1 x + c2 y + c3 (x² − y²) + c4 xy + c5 (x² + y² + z²)` fitted by least squares,
-/// in the frame of the vertex normal, to the fixed vertices within `radius` reached through
-/// the mesh from `v`; `H = −2 c5`. Its isotropic term takes `z²` too, which makes it exact on
-/// a sphere at any radius (a point `d` from a sphere's point has `d·n = −|d|² / 2r`), where
-/// a height-field quadric reads a curvature too low once the radius is a fair part of `r`;
-/// the linear terms take up an error of the vertex normal. `None` with fewer than
-/// [`CURVATURE_MIN_NEIGHBOURS`] vertices or a singular fit.
-///
-/// Each fixed vertex weighs by its support (sampling density over the median, to the power
-/// [`CURVATURE_SUPPORT_POWER`]). A fit over a distance rather than the circles through the
-/// neighbours within two rings (`−2 d·n / |d|²`, until 2026-11-27): those divide the
-/// surface's wiggles by the squared edge length, so their spread per vertex on the default
-/// scan's spheres (`1/r` = 0.04 mm⁻¹) grew from 0.033 mm⁻¹ (1.36 mm edges) to 1.9 mm⁻¹ on
-/// the unsimplified extraction (0.33 mm), and what they continued over the gap went from
-/// 0.0398 (simplified to 0.01 mm) to 0.0374 (0.005 mm), which left the patch 0.15 mm RMS off
-/// instead of 0.09. This fit continues 0.0400, 0.0401 and 0.0396 mm⁻¹ at 0.01, 0.005 and
-/// 0.002 mm.
-fn quadric_mean_curvature(
-    mesh: &TriangleMesh,
-    op: &Operator,
-    support: &[f64],
-    normals: &[Vector3<f64>],
-    v: usize,
-    radius: f64,
-) -> Option<f64> {
-    let (p, n) = (mesh.vertices[v], normals[v]);
-    let helper = if n.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let a = n.cross(&helper).normalize();
-    let b = n.cross(&a);
-    let mut normal_matrix = nalgebra::Matrix6::<f64>::zeros();
-    let mut rhs = nalgebra::Vector6::<f64>::zeros();
-    let mut count = 0usize;
-    let mut seen = std::collections::HashSet::from([v as u32]);
-    let mut stack = vec![v as u32];
-    let r2 = radius * radius;
-    while let Some(i) = stack.pop() {
-        let d = mesh.vertices[i as usize] - p;
-        let w = support[i as usize].powi(CURVATURE_SUPPORT_POWER);
-        if w > 0.0 {
-            let (x, y, z) = (d.dot(&a), d.dot(&b), d.dot(&n));
-            let row = nalgebra::Vector6::new(1.0, x, y, x * x - y * y, x * y, d.norm_squared());
-            normal_matrix += row * row.transpose() * w;
-            rhs += row * (z * w);
-            count += 1;
-        }
-        for &j in op.ring(i as usize) {
-            if (mesh.vertices[j as usize] - p).norm_squared() <= r2 && seen.insert(j) {
-                stack.push(j);
-            }
-        }
-    }
-    if count < CURVATURE_MIN_NEIGHBOURS {
-        return None;
-    }
-    let c = normal_matrix.cholesky()?.solve(&rhs);
-    let h = -2.0 * c[5];
-    h.is_finite().then_some(h)
 }
 
 /// The harmonic continuation of `values` (given on `known`) over `unknown_ids`:

@@ -60,6 +60,7 @@
 mod adjacency;
 mod bilateral;
 mod contour;
+mod curvature;
 mod decimate;
 mod error;
 mod fair;
