@@ -10,6 +10,8 @@
 //! - [`fair_unsupported`]: the surface that closes what no view saw moved onto the thin-plate
 //!   surface spanned by the scanned one, then onto the surface that continues its mean
 //!   curvature (`ΔH = 0`), instead of sagging as Poisson's membrane.
+//! - [`remesh_isotropic`]: near-equilateral triangles of one edge length, each vertex on the
+//!   surface and standing for the same area of it.
 //! - Clean-up: [`trim_by_density`] (surface the data does not support), [`smooth_bilateral`]
 //!   (feature-preserving) and [`smooth_taubin`], [`decimate`] (quadric error, to a triangle
 //!   count), [`fill_holes`], [`remove_small_components`].
