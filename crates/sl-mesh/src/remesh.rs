@@ -86,7 +86,8 @@ pub struct Remeshing {
 /// Remeshes `mesh` in place to triangles of edge length about `cfg.target_edge` whose
 /// vertices lie on the surface given (see the module documentation). `values` (one per vertex,
 /// e.g. the sampling densities of a reconstruction, or empty) are carried over: each new
-/// vertex takes the value interpolated where it lies on the surface given.
+/// vertex takes the value interpolated where it lies on the surface given. Vertices of no
+/// triangle are dropped.
 ///
 /// # Errors
 /// [`MeshError::InvalidParameter`] for a target edge that is negative, not finite, or so small
