@@ -27,7 +27,7 @@ pub enum MeshError {
     },
     /// Surface reconstruction needs one oriented normal per point.
     #[error(
-        "the cloud of {points} points has no normals: surface reconstruction needs oriented normals (estimate them first, e.g. `slscan merge` writes them)"
+        "the cloud of {points} points has no normals: surface reconstruction needs oriented normals (estimate them first: `slscan merge` writes them, `slscan align --normals-towards X,Y,Z` estimates them)"
     )]
     NoNormals {
         /// Number of points of the cloud.
