@@ -533,10 +533,14 @@ fn continued_curvature(
         })
         .collect();
     let mut h = vec![0.0; nv];
+    // A vertex whose fit failed (too few well-sampled neighbours) takes the continued value.
     for (&v, fit) in measured_ids.iter().zip(&fitted) {
         match fit {
             Some(value) => h[v] = *value,
-            None => measured[v] = false,
+            None => {
+                measured[v] = false;
+                unknown[v] = true;
+            }
         }
     }
     let measured_ids: Vec<usize> = (0..nv).filter(|&v| measured[v]).collect();
