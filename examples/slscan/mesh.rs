@@ -73,7 +73,7 @@ pub(crate) struct Args {
     /// triangles of about this edge length (mm; 0 keeps the number of vertices), every vertex
     /// on the surface and standing for the same area of it (docs/meshing.md, "Isotropic
     /// remeshing").
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub(crate) remesh: Option<f64>,
     /// Decimate to at most this many triangles (quadric error).
     #[arg(long)]
@@ -112,6 +112,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         anyhow::ensure!(
             args.no_simplify || (v.is_finite() && v >= 0.0),
             "{flag} {v}: must be a distance ≥ 0 in mm"
+        );
+    }
+    if let Some(edge) = args.remesh {
+        anyhow::ensure!(
+            edge.is_finite() && edge >= 0.0,
+            "--remesh {edge}: must be an edge length ≥ 0 in mm (0 keeps the number of vertices)"
         );
     }
     let mut report = Report::new("mesh");
@@ -198,7 +204,6 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             })
             .context("cannot remesh (--remesh)")?;
         report.figure("remesh_ms", t.elapsed().as_secs_f64() * 1e3);
-
         report.figure(
             "remesh",
             serde_json::json!({
@@ -657,5 +662,11 @@ mod tests {
         let err =
             slscan(&[ply.to_str().unwrap(), "--out", "x", "--simplify-error=-1"]).unwrap_err();
         assert!(format!("{err:#}").contains("--simplify-error"), "{err:#}");
+        // Refused before anything is computed or written.
+        let out = tmp.path().join("neg");
+        let o = out.to_str().unwrap();
+        let err = slscan(&[ply.to_str().unwrap(), "--out", o, "--remesh", "-1"]).unwrap_err();
+        assert!(format!("{err:#}").contains("--remesh -1"), "{err:#}");
+        assert!(!out.join("report.json").exists());
     }
 }
