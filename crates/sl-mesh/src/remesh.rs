@@ -893,6 +893,45 @@ mod tests {
         );
     }
 
+    /// Two spheres touching at one vertex (the north pole of one is the south pole of the
+    /// other: a non-manifold vertex): it stays where it is, the only non-manifold place, and
+    /// every edge keeps two triangles.
+    #[test]
+    fn a_pinch_vertex_stays() {
+        let a = uv_sphere(10.0, 20, 40);
+        let mut b = uv_sphere(10.0, 20, 40);
+        for p in &mut b.vertices {
+            p.z += 20.0;
+        }
+        // b's south pole (its last vertex) becomes a's north pole (vertex 0).
+        let south = (b.vertices.len() - 1) as u32;
+        let offset = a.vertices.len() as u32;
+        let mut mesh = a.clone();
+        mesh.vertices.extend(&b.vertices[..b.vertices.len() - 1]);
+        mesh.triangles.extend(
+            b.triangles
+                .iter()
+                .map(|t| t.map(|v| if v == south { 0 } else { v + offset })),
+        );
+        let before = check_topology(&mesh);
+        assert_eq!(before.non_manifold_vertices, 1, "{before:?}");
+        let cfg = RemeshConfig {
+            target_edge: 1.0,
+            ..RemeshConfig::default()
+        };
+        remesh_isotropic(&mut mesh, &mut Vec::new(), &cfg).unwrap();
+        let after = check_topology(&mesh);
+        assert_eq!(after.non_manifold_vertices, 1, "{after:?}");
+        assert_eq!(after.boundary_edges, 0, "{after:?}");
+        assert_eq!(after.non_manifold_edges, 0, "{after:?}");
+        assert!(
+            mesh.vertices
+                .iter()
+                .any(|p| (p - Point3::new(0.0, 0.0, 10.0)).norm() < 1e-12),
+            "the pinch vertex moved"
+        );
+    }
+
     #[test]
     fn bad_input_is_named() {
         let mut mesh = uv_sphere(10.0, 8, 16);
