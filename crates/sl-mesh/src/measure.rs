@@ -7,7 +7,7 @@ use sl_cloud::TriangleMesh;
 pub fn surface_area(mesh: &TriangleMesh) -> f64 {
     mesh.triangles
         .iter()
-        .map(|t| triangle_normal(mesh, t).norm() * 0.5)
+        .map(|t| triangle_normal(&mesh.vertices, t).norm() * 0.5)
         .sum()
 }
 
@@ -24,8 +24,8 @@ pub fn signed_volume(mesh: &TriangleMesh) -> f64 {
 }
 
 /// Cross product of two edges of a triangle: normal times twice the area.
-fn triangle_normal(mesh: &TriangleMesh, t: &[u32; 3]) -> Vector3<f64> {
-    let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+pub(crate) fn triangle_normal(pos: &[Point3<f64>], t: &[u32; 3]) -> Vector3<f64> {
+    let [a, b, c] = t.map(|i| pos[i as usize]);
     (b - a).cross(&(c - a))
 }
 
@@ -34,7 +34,7 @@ fn triangle_normal(mesh: &TriangleMesh, t: &[u32; 3]) -> Vector3<f64> {
 pub fn vertex_normals(mesh: &TriangleMesh) -> Vec<Vector3<f64>> {
     let mut n = vec![Vector3::zeros(); mesh.vertices.len()];
     for t in &mesh.triangles {
-        let f = triangle_normal(mesh, t);
+        let f = triangle_normal(&mesh.vertices, t);
         for &i in t {
             n[i as usize] += f;
         }

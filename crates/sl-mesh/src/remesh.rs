@@ -33,7 +33,8 @@ use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
 use crate::adjacency::check_indices;
-use crate::measure::surface_area;
+use crate::measure::{surface_area, triangle_normal};
+use crate::simplify::closed_fan;
 
 /// Most vertices a remeshing may aim at: a target edge far below the mesh's scale (a typo in
 /// the units) is an error rather than an attempt to allocate gigabytes.
@@ -155,11 +156,7 @@ pub fn remesh_isotropic(
         rms_distance: 0.0,
         largest_distance: 0.0,
     };
-    if target_edge.is_nan()
-        || target_edge <= 0.0
-        || mesh.triangles.is_empty()
-        || cfg.iterations == 0
-    {
+    if target_edge <= 0.0 || mesh.triangles.is_empty() || cfg.iterations == 0 {
         return Ok(unchanged);
     }
     if area / (3f64.sqrt() / 2.0 * target_edge * target_edge) > MAX_TARGET_VERTICES {
@@ -175,12 +172,11 @@ pub fn remesh_isotropic(
         .copied()
         .filter(|t| triangle_normal(&mesh.vertices, t).norm() > 0.0)
         .collect();
-    let Ok(reference) = TriMesh::new(mesh.vertices.clone(), reference_triangles.clone()) else {
+    let Ok(surface) = TriMesh::new(mesh.vertices.clone(), reference_triangles) else {
         return Ok(unchanged);
     };
     let reference = Reference {
-        surface: reference,
-        triangles: reference_triangles,
+        surface,
         values: values.clone(),
     };
     let mut work = Work::new(mesh, values.clone());
@@ -213,16 +209,9 @@ pub fn remesh_isotropic(
     })
 }
 
-fn triangle_normal(pos: &[Point3<f64>], t: &[u32; 3]) -> Vector3<f64> {
-    let p = t.map(|i| pos[i as usize]);
-    (p[1] - p[0]).cross(&(p[2] - p[0]))
-}
-
 /// The surface the vertices are put back on, with the values to interpolate there.
 struct Reference {
     surface: TriMesh,
-    /// The triangles of `surface`, in its order.
-    triangles: Vec<[u32; 3]>,
     /// One per vertex, or none.
     values: Vec<f64>,
 }
@@ -277,8 +266,9 @@ impl Work {
         }
         // A vertex whose triangles do not form one closed fan (two cones meeting at a point)
         // is non-manifold although each of its edges has two triangles.
+        let mut link = Vec::new();
         for v in 0..nv {
-            if !locked[v] && !single_fan(&mesh.triangles, &vt[v], v as u32) {
+            if !locked[v] && !closed_fan(&mesh.triangles, &vt[v], v as u32, &mut link) {
                 locked[v] = true;
             }
         }
@@ -309,15 +299,23 @@ impl Work {
         (n == 2).then_some(pair)
     }
 
-    /// The vertices joined to `v` by an edge.
+    /// The vertices joined to `v` by an edge, sorted, into `out`.
+    fn ring_into(&self, v: u32, out: &mut Vec<u32>) {
+        out.clear();
+        out.extend(
+            self.vt[v as usize]
+                .iter()
+                .flat_map(|&t| self.tris[t as usize])
+                .filter(|&u| u != v),
+        );
+        out.sort_unstable();
+        out.dedup();
+    }
+
+    /// The vertices joined to `v` by an edge, sorted.
     fn ring(&self, v: u32) -> Vec<u32> {
-        let mut r: Vec<u32> = self.vt[v as usize]
-            .iter()
-            .flat_map(|&t| self.tris[t as usize])
-            .filter(|&u| u != v)
-            .collect();
-        r.sort_unstable();
-        r.dedup();
+        let mut r = Vec::new();
+        self.ring_into(v, &mut r);
         r
     }
 
@@ -421,6 +419,7 @@ impl Work {
             .collect();
         short.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
         let mut count = 0;
+        let (mut ra, mut rb) = (Vec::new(), Vec::new());
         for (_, a, b) in short {
             let (ai, bi) = (a as usize, b as usize);
             if self.dead[ai] || self.dead[bi] || self.locked[ai] || self.locked[bi] {
@@ -432,21 +431,20 @@ impl Work {
             if self.len(a, b) >= lo {
                 continue;
             }
-            let opposite: Vec<u32> = ts
-                .iter()
-                .filter_map(|&t| {
-                    self.tris[t as usize]
-                        .into_iter()
-                        .find(|&v| v != a && v != b)
-                })
-                .collect();
-            if opposite.len() != 2 {
+            let opposite = ts.map(|t| {
+                self.tris[t as usize]
+                    .into_iter()
+                    .find(|&v| v != a && v != b)
+            });
+            let [Some(c), Some(d)] = opposite else {
+                continue;
+            };
+            if c == d {
                 continue;
             }
-            if opposite[0] == opposite[1] {
-                continue;
-            }
-            let (ra, rb) = (self.ring(a), self.ring(b));
+            let opposite = [c, d];
+            self.ring_into(a, &mut ra);
+            self.ring_into(b, &mut rb);
             let shared = ra.iter().filter(|v| rb.binary_search(v).is_ok()).count();
             if shared != 2
                 || opposite
@@ -624,7 +622,7 @@ impl Work {
                     .then(|| location.barycentric_coordinates())
                     .flatten()
                     .map(|w| {
-                        let t = reference.triangles[part as usize];
+                        let t = reference.surface.indices()[part as usize];
                         (0..3).map(|k| w[k] * reference.values[t[k] as usize]).sum()
                     });
                 Some((proj.point, value))
@@ -674,51 +672,6 @@ impl Work {
             values,
         )
     }
-}
-
-/// Whether the triangles `star` of vertex `v` form one fan (closed or open) around it.
-fn single_fan(tris: &[[u32; 3]], star: &[u32], v: u32) -> bool {
-    if star.is_empty() {
-        return true;
-    }
-    // Each triangle of the star is the edge (next, previous) of the ring around v.
-    let spokes: Vec<(u32, u32)> = star
-        .iter()
-        .filter_map(|&t| {
-            let r = (0..3)
-                .map(|k| {
-                    let tri = tris[t as usize];
-                    [tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]]
-                })
-                .find(|r| r[0] == v)?;
-            Some((r[1], r[2]))
-        })
-        .collect();
-    // Walk from the first spoke: a single fan visits all of them.
-    let mut visited = vec![false; spokes.len()];
-    visited[0] = true;
-    let mut at = spokes[0].1;
-    let mut walked = 1;
-    while let Some(k) = spokes
-        .iter()
-        .enumerate()
-        .position(|(k, s)| !visited[k] && s.0 == at)
-    {
-        visited[k] = true;
-        at = spokes[k].1;
-        walked += 1;
-    }
-    let mut at = spokes[0].0;
-    while let Some(k) = spokes
-        .iter()
-        .enumerate()
-        .position(|(k, s)| !visited[k] && s.1 == at)
-    {
-        visited[k] = true;
-        at = spokes[k].0;
-        walked += 1;
-    }
-    walked == spokes.len()
 }
 
 #[cfg(test)]

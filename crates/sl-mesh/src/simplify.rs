@@ -339,7 +339,12 @@ impl Incidence {
 
 /// Whether the triangles around `v` form one closed fan: every corner of its link is left once
 /// and entered once, and following the link from one corner visits all of them.
-fn closed_fan(tris: &[[u32; 3]], star: &[u32], v: u32, next: &mut Vec<(u32, u32)>) -> bool {
+pub(crate) fn closed_fan(
+    tris: &[[u32; 3]],
+    star: &[u32],
+    v: u32,
+    next: &mut Vec<(u32, u32)>,
+) -> bool {
     if star.len() < 3 {
         return false;
     }
