@@ -119,7 +119,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut painted = PointCloud::new();
     for (i, (c, pose)) in clouds.iter().zip(&a.poses).enumerate() {
         let Some(pose) = pose else { continue };
-        let moved = match viewpoint {
+        // The scan's own attributes (colours, quality) stay; estimated normals replace its own.
+        let mut moved = match viewpoint {
             Some(v) => {
                 let cfg = NormalConfig {
                     k: NORMAL_NEIGHBOURS,
@@ -127,12 +128,11 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 };
                 let est = estimate_normals(c, &cfg)
                     .map_err(|e| anyhow::anyhow!("{}: cannot estimate normals: {e}", name(i)))?;
-                PointCloud::from_positions(c.positions().to_vec())
-                    .with_normals(est.normals)?
-                    .transformed(pose)
+                c.clone().with_normals(est.normals)?
             }
-            None => c.transformed(pose),
+            None => c.clone(),
         };
+        moved.transform(pose);
         aligned.extend(&moved, MergePolicy::DropMismatched)?;
         let bare = PointCloud::from_positions(moved.positions().to_vec());
         let colour = PALETTE[i % PALETTE.len()];
