@@ -809,57 +809,73 @@ fn band_stiffness_row(present: u32) -> Option<[f64; 27]> {
     any.then_some(row)
 }
 
-/// A free node of a level's system: its slot and its 27 neighbours' slots (its own where a
-/// neighbour is absent).
-type Row = (u32, [u32; 27]);
+/// Nodes per chunk of the parallel construction of [`solve_level`]'s system.
+const SOLVE_CHUNK: usize = 4096;
+
+/// `Σ f(i)` over `0..len`, in order. The sums of the conjugate gradients stay serial: a
+/// parallel sum rounds differently with the number of threads, and the iteration count of the
+/// fully populated levels (to a relative residual) with it.
+fn ordered_sum(len: usize, f: impl Fn(usize) -> f64) -> f64 {
+    (0..len).map(f).sum()
+}
 
 /// Relaxes one level with Jacobi-preconditioned conjugate gradients. Every node of a complete
 /// cell is free; on the rim of a band the stiffness sums only the complete cells (the natural
 /// condition); nodes of no complete cell keep their values.
+///
+/// The system is stored by node slot: for every node its 27 neighbours' slots (its own where
+/// a neighbour is absent) and their coefficients, all zero on a node that is not free, so that
+/// the vectors of the iteration are indexed like the level's and its products and updates run
+/// in parallel (its sums in order, see [`ordered_sum`]).
 fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations: usize) {
     let nodes = &level.nodes;
+    let len = nodes.len();
     let n = nodes.n as i64;
     let cells = level.cells();
     let h = 1.0 / cells as f64;
     let offs = offsets();
-    let interior = stiffness_row([1, 1, 1], n.max(3));
-    // Free rows: neighbour slots and stiffness coefficients (from the cells around the node
-    // that exist: all eight inside a band, fewer on its rim and on the cube's faces).
-    let (rows, mut coef): (Vec<Row>, Vec<[f32; 27]>) = (0..nodes.len())
-        .into_par_iter()
-        .filter_map(|s| {
-            let c = nodes.coords(s);
-            let mut nb = [s as u32; 27];
-            let mut present = 0u32;
-            let mut complete = true;
-            for (i, o) in offs.iter().enumerate() {
-                let q = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
-                if q.iter().any(|&v| v < 0 || v >= n) {
-                    continue;
-                }
-                match nodes.slot(q[0], q[1], q[2]) {
-                    Some(t) => {
-                        nb[i] = t;
-                        present |= 1 << i;
+    let interior = stiffness_row([1, 1, 1], n.max(3)).map(|v| (v * h) as f32);
+    // Neighbour slots and stiffness coefficients (from the cells around the node that exist:
+    // all eight inside a band, fewer on its rim and on the cube's faces).
+    let mut nb = vec![[0u32; 27]; len];
+    let mut coef = vec![[0.0f32; 27]; len];
+    nb.par_chunks_mut(SOLVE_CHUNK)
+        .zip(coef.par_chunks_mut(SOLVE_CHUNK))
+        .enumerate()
+        .for_each(|(chunk, (nbs, cfs))| {
+            for (k, (nb, cf)) in nbs.iter_mut().zip(cfs.iter_mut()).enumerate() {
+                let s = chunk * SOLVE_CHUNK + k;
+                let c = nodes.coords(s);
+                *nb = [s as u32; 27];
+                let mut present = 0u32;
+                let mut complete = true;
+                for (i, o) in offs.iter().enumerate() {
+                    let q = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
+                    if q.iter().any(|&v| v < 0 || v >= n) {
+                        continue;
                     }
-                    None => complete = false,
+                    match nodes.slot(q[0], q[1], q[2]) {
+                        Some(t) => {
+                            nb[i] = t;
+                            present |= 1 << i;
+                        }
+                        None => complete = false,
+                    }
                 }
+                let row = if !complete {
+                    match band_stiffness_row(present) {
+                        Some(row) => row.map(|v| (v * h) as f32),
+                        None => continue,
+                    }
+                } else if c.iter().any(|&v| v == 0 || v == n - 1) {
+                    stiffness_row(c, n).map(|v| (v * h) as f32)
+                } else {
+                    interior
+                };
+                *cf = row;
             }
-            let row = if !complete {
-                band_stiffness_row(present)?
-            } else if c.iter().any(|&v| v == 0 || v == n - 1) {
-                stiffness_row(c, n)
-            } else {
-                interior
-            };
-            Some(((s as u32, nb), row.map(|v| (v * h) as f32)))
-        })
-        .unzip();
-    let mut row_of = vec![u32::MAX; nodes.len()];
-    for (r, (s, _)) in rows.iter().enumerate() {
-        row_of[*s as usize] = r as u32;
-    }
-    // Screening: α Σ_s a_s B_i(s) B_j(s), from the super-samples.
+        });
+    // Screening: α Σ_s a_s B_i(s) B_j(s), from the super-samples, on the free rows.
     for sup in supers {
         let (c, w) = cell_weights(sup.u, cells);
         for k in 0..8 {
@@ -867,11 +883,10 @@ fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations
             let Some(slot) = nodes.slot(qk[0], qk[1], qk[2]) else {
                 continue;
             };
-            let r = row_of[slot as usize];
-            if r == u32::MAX {
+            let row = &mut coef[slot as usize];
+            if row[13] == 0.0 {
                 continue;
             }
-            let row = &mut coef[r as usize];
             for (l, wl) in w.iter().enumerate() {
                 let ql = corner(c, l);
                 let d = [ql[0] - qk[0], ql[1] - qk[1], ql[2] - qk[2]];
@@ -879,20 +894,27 @@ fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations
             }
         }
     }
-    // Zero the coefficients towards the grid outside (their nb points at the row itself).
-    for ((s, nb), cf) in rows.iter().zip(coef.iter_mut()) {
-        for i in 0..27 {
-            if i != 13 && nb[i] == *s {
-                cf[i] = 0.0;
+    // Zero the coefficients towards the grid outside (their slot is the node's own).
+    coef.par_iter_mut()
+        .zip(&nb)
+        .enumerate()
+        .for_each(|(s, (cf, nb))| {
+            for i in 0..27 {
+                if i != 13 && nb[i] == s as u32 {
+                    cf[i] = 0.0;
+                }
             }
-        }
+        });
+    let free: Vec<bool> = coef.par_iter().map(|cf| cf[13] > 0.0).collect();
+    if !free.contains(&true) {
+        return;
     }
     let x = &mut level.x;
     let b = &level.b;
     let apply = |v: &[f64], out: &mut [f64]| {
         out.par_iter_mut()
-            .zip(rows.par_iter().zip(coef.par_iter()))
-            .for_each(|(o, ((_, nb), cf))| {
+            .zip(nb.par_iter().zip(coef.par_iter()))
+            .for_each(|(o, (nb, cf))| {
                 let mut acc = 0.0;
                 for i in 0..27 {
                     acc += f64::from(cf[i]) * v[nb[i] as usize];
@@ -900,63 +922,57 @@ fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations
                 *o = acc;
             });
     };
-    let m = rows.len();
-    if m == 0 {
-        return;
-    }
-    let mut ax = vec![0.0; m];
-    apply(x, &mut ax);
-    let mut r: Vec<f64> = rows
-        .iter()
-        .zip(&ax)
-        .map(|((s, _), a)| b[*s as usize] - a)
-        .collect();
     let diag: Vec<f64> = coef
-        .iter()
-        .map(|c| 1.0 / f64::from(c[13]).max(f64::MIN_POSITIVE))
+        .par_iter()
+        .map(|c| {
+            if c[13] > 0.0 {
+                1.0 / f64::from(c[13])
+            } else {
+                0.0
+            }
+        })
         .collect();
-    let bnorm = rows
-        .iter()
-        .map(|(s, _)| b[*s as usize].powi(2))
-        .sum::<f64>()
+    let mut r = vec![0.0; len];
+    apply(x, &mut r);
+    r.par_iter_mut()
+        .zip(b.par_iter().zip(&free))
+        .for_each(|(ri, (bi, f))| *ri = if *f { bi - *ri } else { 0.0 });
+    let bnorm = ordered_sum(len, |i| if free[i] { b[i] * b[i] } else { 0.0 })
         .sqrt()
         .max(f64::MIN_POSITIVE);
-    let mut z: Vec<f64> = r.iter().zip(&diag).map(|(a, d)| a * d).collect();
-    let mut p = vec![0.0; nodes.len()];
-    for ((s, _), zi) in rows.iter().zip(&z) {
-        p[*s as usize] = *zi;
-    }
-    let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
-    let mut q = vec![0.0; m];
+    let mut z: Vec<f64> = r.par_iter().zip(&diag).map(|(a, d)| a * d).collect();
+    let mut p = z.clone();
+    let mut rz = ordered_sum(len, |i| r[i] * z[i]);
+    let mut q = vec![0.0; len];
     for _ in 0..iterations {
         apply(&p, &mut q);
-        let pq: f64 = rows
-            .iter()
-            .zip(&q)
-            .map(|((s, _), qi)| p[*s as usize] * qi)
-            .sum();
+        let pq = ordered_sum(len, |i| if free[i] { p[i] * q[i] } else { 0.0 });
         if pq.is_nan() || pq <= 0.0 {
             break;
         }
         let a = rz / pq;
-        for (((s, _), ri), qi) in rows.iter().zip(r.iter_mut()).zip(&q) {
-            x[*s as usize] += a * p[*s as usize];
-            *ri -= a * qi;
-        }
-        let rnorm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+        x.par_iter_mut()
+            .zip(r.par_iter_mut())
+            .zip(p.par_iter().zip(q.par_iter().zip(&free)))
+            .for_each(|((xi, ri), (pi, (qi, f)))| {
+                if *f {
+                    *xi += a * pi;
+                    *ri -= a * qi;
+                }
+            });
+        let rnorm = ordered_sum(len, |i| r[i] * r[i]).sqrt();
         if rnorm < CG_TOLERANCE * bnorm {
             break;
         }
-        for ((zi, ri), d) in z.iter_mut().zip(&r).zip(&diag) {
-            *zi = ri * d;
-        }
-        let rz_new: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+        z.par_iter_mut()
+            .zip(r.par_iter().zip(&diag))
+            .for_each(|(zi, (ri, d))| *zi = ri * d);
+        let rz_new = ordered_sum(len, |i| r[i] * z[i]);
         let beta = rz_new / rz;
         rz = rz_new;
-        for ((s, _), zi) in rows.iter().zip(&z) {
-            let v = &mut p[*s as usize];
-            *v = zi + beta * *v;
-        }
+        p.par_iter_mut()
+            .zip(&z)
+            .for_each(|(pi, zi)| *pi = zi + beta * *pi);
     }
 }
 

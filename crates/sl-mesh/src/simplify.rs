@@ -26,8 +26,13 @@
 //! within each block and sweeps them once: a collapse is taken when neither of its vertices
 //! was touched by a collapse of the same pass, after the checks below on the current
 //! triangles. The costs of a batch of blocks are computed in parallel and swept right after,
-//! while their data is in cache. There is no global heap; passes repeat until one finds no
-//! collapse. The order is a total order (block, cost, then indices), so the result does not
+//! while their data is in cache. The blocks of a batch are swept in parallel too: each owns its
+//! vertices and the triangles whose smallest vertex is among them (the triangles are kept in
+//! that order), and takes only the collapses whose triangles and their vertices are all its
+//! own; the candidates that reach into another block are then swept one block after the other
+//! (about a quarter of the collapses of the first pass on the default scan). There is no
+//! global heap; passes repeat until one finds no collapse. Each block's order is a total order
+//! (cost, then indices), and what a block's sweep reads is its own, so the result does not
 //! depend on the number of threads.
 //!
 //! # What keeps a closed manifold closed and manifold
@@ -506,21 +511,7 @@ pub fn simplify(
     for t in &mut tris {
         *t = t.map(|i| new_id[i as usize]);
     }
-    // Triangles by their smallest vertex (a stable counting sort).
-    let mut first = vec![0u32; nv + 1];
-    for t in &tris {
-        first[t[0].min(t[1]).min(t[2]) as usize + 1] += 1;
-    }
-    for i in 0..nv {
-        first[i + 1] += first[i];
-    }
-    let mut sorted = vec![[0u32; 3]; tris.len()];
-    for t in &tris {
-        let k = &mut first[t[0].min(t[1]).min(t[2]) as usize];
-        sorted[*k as usize] = *t;
-        *k += 1;
-    }
-    let tris = sorted;
+    sort_by_smallest_vertex(&mut tris, nv);
     // Each vertex's quadric (the planes of its triangles, by area) and whether it never moves
     // (not one closed fan).
     let inc = Incidence::new(&tris, nv);
@@ -557,8 +548,6 @@ pub fn simplify(
         best: vec![(f64::INFINITY, u32::MAX); nv],
         mark: vec![0; nv],
         stamp: 0,
-        star_a: Vec::new(),
-        star_b: Vec::new(),
     };
     let mut inc = Some(inc);
     let mut live = nv;
@@ -628,10 +617,8 @@ struct Scratch {
     best: Vec<(f64, u32)>,
     /// Stamps for the link condition.
     mark: Vec<u32>,
+    /// The last stamp used in `mark`.
     stamp: u32,
-    /// The living triangles around the two vertices of a collapse.
-    star_a: Vec<(u32, [u32; 3])>,
-    star_b: Vec<(u32, [u32; 3])>,
 }
 
 impl Scratch {
@@ -656,12 +643,53 @@ struct PassState {
     out: Pass,
 }
 
-/// What one pass did.
+/// What one pass (or one sweep) did.
+#[derive(Default)]
 struct Pass {
     collapses: usize,
     /// Largest mean squared error of a collapse made where supported, and where not.
     largest: f64,
     largest_unsupported: f64,
+}
+
+impl Pass {
+    fn add(&mut self, o: &Self) {
+        self.collapses += o.collapses;
+        self.largest = self.largest.max(o.largest);
+        self.largest_unsupported = self.largest_unsupported.max(o.largest_unsupported);
+    }
+}
+
+/// What a sweep reads and changes: a range of the vertices and a range of the triangles (all
+/// of them, or one block's), indexed from the ranges' starts.
+struct View<'a> {
+    /// The first vertex and the first triangle of the ranges.
+    v0: usize,
+    t0: usize,
+    tris: &'a mut [[u32; 3]],
+    alive: &'a mut [bool],
+    pos: &'a mut [Point3<f64>],
+    quad: &'a mut [Quadric],
+    unsupported: &'a mut [bool],
+    /// Empty without densities.
+    dens: &'a mut [f64],
+    deg: &'a mut [u32],
+    locked: &'a mut [bool],
+    changed: &'a mut [bool],
+    mark: &'a mut [u32],
+    /// The squared bounds where supported and where not.
+    bound_s: f64,
+    bound_u: f64,
+}
+
+/// The buffers of one sweep.
+#[derive(Default)]
+struct SweepBuffers {
+    /// The living triangles around the two vertices of a collapse (in the view's indices).
+    star_a: Vec<(u32, [u32; 3])>,
+    star_b: Vec<(u32, [u32; 3])>,
+    /// The last stamp used in the view's `mark`.
+    stamp: u32,
 }
 
 impl Work {
@@ -706,29 +734,46 @@ impl Work {
     }
 
     /// One pass: costs, candidates, sweep, batch after batch of blocks; `inc` is the incidence
-    /// of the current triangles when the caller has it.
+    /// of the current triangles when the caller has it (they are then in the order of their
+    /// smallest vertex).
     fn pass(&mut self, inc: Option<Incidence>, scratch: &mut Scratch) -> Pass {
         let nv = self.pos.len();
-        let inc = inc.unwrap_or_else(|| Incidence::new(&self.tris, nv));
+        let inc = match inc {
+            Some(inc) => inc,
+            None => {
+                sort_by_smallest_vertex(&mut self.tris, nv);
+                Incidence::new(&self.tris, nv)
+            }
+        };
+        let blocks = nv.div_ceil(CHUNK);
+        // The triangles of each block: those whose smallest vertex is in it (they are sorted so).
+        let mut tri_start = vec![0usize; blocks + 1];
+        {
+            let mut t = 0;
+            for (c, start) in tri_start.iter_mut().enumerate() {
+                let first_vertex = (c * CHUNK) as u32;
+                while t < self.tris.len() && smallest(&self.tris[t]) < first_vertex {
+                    t += 1;
+                }
+                *start = t;
+            }
+            tri_start[blocks] = self.tris.len();
+        }
         let mut st = PassState {
             deg: inc.start.windows(2).map(|w| w[1] - w[0]).collect(),
             alive: vec![true; self.tris.len()],
             changed: vec![false; nv],
             quiet: vec![true; nv],
-            out: Pass {
-                collapses: 0,
-                largest: 0.0,
-                largest_unsupported: 0.0,
-            },
+            out: Pass::default(),
         };
         scratch.locked.fill(false);
         scratch.best.fill((f64::INFINITY, u32::MAX));
-        let blocks = nv.div_ceil(CHUNK);
         for first in (0..blocks).step_by(BATCH) {
+            let last = (first + BATCH).min(blocks);
             // The costs of a batch of blocks in parallel, then its sweep while their vertices
             // are still in cache. Collapses of earlier batches lock their vertices, whose edges
             // are skipped; the other edges are as they were at the start of the pass.
-            let mut cands: Vec<Vec<Candidate>> = (first..(first + BATCH).min(blocks))
+            let mut cands: Vec<Vec<Candidate>> = (first..last)
                 .into_par_iter()
                 .map(|c| self.block_costs(c, &inc, &st.alive, &scratch.locked))
                 .collect();
@@ -757,9 +802,74 @@ impl Work {
                         .then(x.b.cmp(&y.b))
                 });
             });
-            for block in &cands {
-                self.sweep(&inc, block, scratch, &mut st);
+            // The blocks' sweeps in parallel, each taking the collapses whose triangles and
+            // vertices all lie in its own block; then the ones left, in block order.
+            let vertex_range = first * CHUNK..(last * CHUNK).min(nv);
+            let tri_range = tri_start[first]..tri_start[last];
+            let start_stamp = scratch.stamp;
+            let mut views = block_views(
+                View {
+                    v0: vertex_range.start,
+                    t0: tri_range.start,
+                    tris: &mut self.tris[tri_range.clone()],
+                    alive: &mut st.alive[tri_range.clone()],
+                    pos: &mut self.pos[vertex_range.clone()],
+                    quad: &mut self.quad[vertex_range.clone()],
+                    unsupported: &mut self.unsupported[vertex_range.clone()],
+                    dens: if self.dens.is_empty() {
+                        &mut []
+                    } else {
+                        &mut self.dens[vertex_range.clone()]
+                    },
+                    deg: &mut st.deg[vertex_range.clone()],
+                    locked: &mut scratch.locked[vertex_range.clone()],
+                    changed: &mut st.changed[vertex_range.clone()],
+                    mark: &mut scratch.mark[vertex_range.clone()],
+                    bound_s: self.bound_s,
+                    bound_u: self.bound_u,
+                },
+                &tri_start[first..=last],
+            );
+            let swept: Vec<(Pass, Vec<Candidate>, u32)> = views
+                .par_iter_mut()
+                .zip(&cands)
+                .map(|(view, block)| {
+                    let mut buffers = SweepBuffers {
+                        stamp: start_stamp,
+                        ..SweepBuffers::default()
+                    };
+                    let mut deferred = Vec::new();
+                    let out = sweep(view, &inc, block, &mut buffers, Some(&mut deferred));
+                    (out, deferred, buffers.stamp)
+                })
+                .collect();
+            drop(views);
+            let mut buffers = SweepBuffers::default();
+            for (out, _, stamp) in &swept {
+                st.out.add(out);
+                buffers.stamp = buffers.stamp.max(*stamp);
             }
+            let mut whole = View {
+                v0: 0,
+                t0: 0,
+                tris: &mut self.tris,
+                alive: &mut st.alive,
+                pos: &mut self.pos,
+                quad: &mut self.quad,
+                unsupported: &mut self.unsupported,
+                dens: &mut self.dens,
+                deg: &mut st.deg,
+                locked: &mut scratch.locked,
+                changed: &mut st.changed,
+                mark: &mut scratch.mark,
+                bound_s: self.bound_s,
+                bound_u: self.bound_u,
+            };
+            for (_, deferred, _) in &swept {
+                let out = sweep(&mut whole, &inc, deferred, &mut buffers, None);
+                st.out.add(&out);
+            }
+            scratch.stamp = buffers.stamp;
         }
         let mut k = 0;
         self.tris.retain(|_| {
@@ -840,141 +950,268 @@ impl Work {
         }
         out
     }
+}
 
-    /// Takes the candidates in order, each unless one of its vertices is already part of a
-    /// collapse of this pass or a check fails on the current triangles (see the module docs).
-    fn sweep(&mut self, inc: &Incidence, cands: &[Candidate], s: &mut Scratch, st: &mut PassState) {
-        let PassState {
-            deg,
-            alive,
-            changed,
-            out,
-            ..
-        } = st;
-        for c in cands {
-            let (a, b) = (c.a as usize, c.b as usize);
-            if s.locked[a] || s.locked[b] {
-                continue;
+/// The smallest vertex of a triangle.
+#[inline]
+fn smallest(t: &[u32; 3]) -> u32 {
+    t[0].min(t[1]).min(t[2])
+}
+
+/// Puts the triangles in the order of their smallest vertex (a stable counting sort), so that
+/// each block of vertices owns a contiguous range of them.
+fn sort_by_smallest_vertex(tris: &mut Vec<[u32; 3]>, nv: usize) {
+    let mut first = vec![0u32; nv + 1];
+    for t in tris.iter() {
+        first[smallest(t) as usize + 1] += 1;
+    }
+    for i in 0..nv {
+        first[i + 1] += first[i];
+    }
+    let mut sorted = vec![[0u32; 3]; tris.len()];
+    for t in tris.iter() {
+        let k = &mut first[smallest(t) as usize];
+        sorted[*k as usize] = *t;
+        *k += 1;
+    }
+    *tris = sorted;
+}
+
+/// Cuts `view` (the vertices of consecutive blocks of [`CHUNK`] and the triangles from
+/// `tri_start[0]` to its last entry) into one view per block.
+fn block_views<'a>(view: View<'a>, tri_start: &[usize]) -> Vec<View<'a>> {
+    let View {
+        v0,
+        mut tris,
+        mut alive,
+        mut pos,
+        mut quad,
+        mut unsupported,
+        mut dens,
+        mut deg,
+        mut locked,
+        mut changed,
+        mut mark,
+        bound_s,
+        bound_u,
+        ..
+    } = view;
+    fn cut<'a, T>(rest: &mut &'a mut [T], len: usize) -> &'a mut [T] {
+        let len = len.min(rest.len());
+        let (head, tail) = std::mem::take(rest).split_at_mut(len);
+        *rest = tail;
+        head
+    }
+    let mut out = Vec::with_capacity(tri_start.len().saturating_sub(1));
+    for (k, w) in tri_start.windows(2).enumerate() {
+        let nv = CHUNK.min(pos.len());
+        let nt = w[1] - w[0];
+        out.push(View {
+            v0: v0 + k * CHUNK,
+            t0: w[0],
+            tris: cut(&mut tris, nt),
+            alive: cut(&mut alive, nt),
+            pos: cut(&mut pos, nv),
+            quad: cut(&mut quad, nv),
+            unsupported: cut(&mut unsupported, nv),
+            dens: cut(&mut dens, nv),
+            deg: cut(&mut deg, nv),
+            locked: cut(&mut locked, nv),
+            changed: cut(&mut changed, nv),
+            mark: cut(&mut mark, nv),
+            bound_s,
+            bound_u,
+        });
+    }
+    out
+}
+
+/// The living triangles around global vertex `v` in `view`'s indices, or `false` if one of
+/// them or one of their vertices lies outside the view.
+fn gather_star(
+    view: &View<'_>,
+    inc: &Incidence,
+    v: usize,
+    star: &mut Vec<(u32, [u32; 3])>,
+) -> bool {
+    star.clear();
+    let nv = view.pos.len();
+    for &t in inc.of(v) {
+        let Some(lt) = (t as usize)
+            .checked_sub(view.t0)
+            .filter(|&lt| lt < view.tris.len())
+        else {
+            return false;
+        };
+        if !view.alive[lt] {
+            continue;
+        }
+        let mut tri = view.tris[lt];
+        for i in &mut tri {
+            match (*i as usize).checked_sub(view.v0).filter(|&l| l < nv) {
+                Some(l) => *i = l as u32,
+                None => return false,
             }
-            // The living triangles around a and b, gathered once.
-            s.star_a.clear();
-            s.star_a.extend(
-                inc.of(a)
-                    .iter()
-                    .filter(|&&t| alive[t as usize])
-                    .map(|&t| (t, self.tris[t as usize])),
-            );
-            s.star_b.clear();
-            s.star_b.extend(
-                inc.of(b)
-                    .iter()
-                    .filter(|&&t| alive[t as usize])
-                    .map(|&t| (t, self.tris[t as usize])),
-            );
-            // The triangles on the edge and their opposite corners.
-            let mut shared = [u32::MAX; 2];
-            let mut opposite = [u32::MAX; 2];
-            let mut n_shared = 0;
-            for (t, tri) in &s.star_a {
-                if tri.contains(&c.b) {
-                    if n_shared < 2 {
-                        shared[n_shared] = *t;
-                        opposite[n_shared] = tri[0] ^ tri[1] ^ tri[2] ^ c.a ^ c.b;
-                    }
-                    n_shared += 1;
-                }
+        }
+        star.push((lt as u32, tri));
+    }
+    true
+}
+
+/// Takes the candidates in order, each unless one of its vertices is already part of a
+/// collapse of this pass or a check fails on the current triangles (see the module docs).
+/// With `deferred`, a candidate that reaches outside the view (a triangle around its
+/// vertices, or one of their vertices) is put there instead, untouched.
+fn sweep(
+    view: &mut View<'_>,
+    inc: &Incidence,
+    cands: &[Candidate],
+    s: &mut SweepBuffers,
+    mut deferred: Option<&mut Vec<Candidate>>,
+) -> Pass {
+    let mut out = Pass::default();
+    let nv = view.pos.len();
+    for cand in cands {
+        let local = |v: u32| (v as usize).checked_sub(view.v0).filter(|&l| l < nv);
+        let (Some(a), Some(b)) = (local(cand.a), local(cand.b)) else {
+            if let Some(d) = deferred.as_deref_mut() {
+                d.push(*cand);
             }
-            if n_shared != 2 || deg[opposite[0] as usize] <= 3 || deg[opposite[1] as usize] <= 3 {
-                continue;
+            continue;
+        };
+        if view.locked[a] || view.locked[b] {
+            continue;
+        }
+        // The living triangles around a and b, gathered once.
+        let (mut star_a, mut star_b) =
+            (std::mem::take(&mut s.star_a), std::mem::take(&mut s.star_b));
+        let inside = gather_star(view, inc, cand.a as usize, &mut star_a)
+            && gather_star(view, inc, cand.b as usize, &mut star_b);
+        if !inside {
+            if let Some(d) = deferred.as_deref_mut() {
+                d.push(*cand);
             }
-            // Link condition: the only common neighbours are the two opposite corners.
-            s.stamp = s.stamp.wrapping_add(2);
-            if s.stamp < 2 {
-                s.mark.fill(0);
-                s.stamp = 2;
-            }
-            let stamp = s.stamp;
-            for (_, tri) in &s.star_a {
-                for &i in tri {
-                    s.mark[i as usize] = stamp;
-                }
-            }
-            let mut common = 0;
-            for (_, tri) in &s.star_b {
-                for &i in tri {
-                    if s.mark[i as usize] == stamp && i != c.a && i != c.b {
-                        s.mark[i as usize] = stamp + 1;
-                        common += 1;
-                    }
-                }
-            }
-            if common != 2 {
-                continue;
-            }
-            let q = self.quad[a].sum(&self.quad[b]);
-            let plane = volume_plane(&self.pos, &s.star_a, &s.star_b, c.a, c.b);
-            let bound = if self.unsupported[a] && self.unsupported[b] {
-                self.bound_u
+        } else if let Some(done) = try_collapse(view, s, &star_a, &star_b, a as u32, b as u32) {
+            if done.unsupported {
+                out.largest_unsupported = out.largest_unsupported.max(done.cost);
             } else {
-                self.bound_s
-            };
-            let (best, best_cost) = q.best(&self.pos[a], &self.pos[b], Some(plane));
-            // The best position, else (where it would fold a triangle, as the midpoint of a
-            // flat fan can) either end if it keeps the volume too.
-            let (g, h) = plane;
-            let keeps_volume = |x: &Point3<f64>| {
-                (g.dot(&x.coords) - h).abs()
-                    <= VOLUME_TOLERANCE * g.norm() * (self.pos[a] - self.pos[b]).norm()
-            };
-            let Some((x, cost)) = [
-                (best, best_cost),
-                (self.pos[a], f64::NAN),
-                (self.pos[b], f64::NAN),
-            ]
-            .into_iter()
-            .enumerate()
-            .filter_map(|(k, (x, cost))| {
-                let cost = if k == 0 { cost } else { q.mean(&x) };
-                (cost <= bound
-                    && (k == 0 || keeps_volume(&x))
-                    && !folds(&self.pos, &s.star_a, c.a, c.b, &x)
-                    && !folds(&self.pos, &s.star_b, c.b, c.a, &x))
-                .then_some((x, cost))
-            })
-            .next() else {
-                continue;
-            };
-            // Collapse b into a at x.
-            for t in shared {
-                alive[t as usize] = false;
+                out.largest = out.largest.max(done.cost);
             }
-            for (t, tri) in &s.star_b {
-                if !tri.contains(&c.a) {
-                    self.tris[*t as usize] = tri.map(|i| if i == c.b { c.a } else { i });
-                }
-            }
-            deg[a] = deg[a] + deg[b] - 4;
-            deg[b] = 0;
-            deg[opposite[0] as usize] -= 1;
-            deg[opposite[1] as usize] -= 1;
-            self.pos[a] = x;
-            self.quad[a] = q;
-            let both = self.unsupported[a] && self.unsupported[b];
-            if both {
-                out.largest_unsupported = out.largest_unsupported.max(cost);
-            } else {
-                out.largest = out.largest.max(cost);
-            }
-            self.unsupported[a] = both;
-            if !self.dens.is_empty() {
-                self.dens[a] = self.dens[a].max(self.dens[b]);
-            }
-            s.locked[a] = true;
-            s.locked[b] = true;
-            changed[a] = true;
             out.collapses += 1;
         }
+        (s.star_a, s.star_b) = (star_a, star_b);
     }
+    out
+}
+
+/// A collapse made: its mean squared error and whether both its vertices were unsupported.
+struct Collapsed {
+    cost: f64,
+    unsupported: bool,
+}
+
+/// The checks of a collapse of `b` into `a` (view indices; `star_a` and `star_b` their living
+/// triangles) and, if they pass, the collapse.
+fn try_collapse(
+    view: &mut View<'_>,
+    s: &mut SweepBuffers,
+    star_a: &[(u32, [u32; 3])],
+    star_b: &[(u32, [u32; 3])],
+    ca: u32,
+    cb: u32,
+) -> Option<Collapsed> {
+    let (a, b) = (ca as usize, cb as usize);
+    // The triangles on the edge and their opposite corners.
+    let mut shared = [u32::MAX; 2];
+    let mut opposite = [u32::MAX; 2];
+    let mut n_shared = 0;
+    for (t, tri) in star_a {
+        if tri.contains(&cb) {
+            if n_shared < 2 {
+                shared[n_shared] = *t;
+                opposite[n_shared] = tri[0] ^ tri[1] ^ tri[2] ^ ca ^ cb;
+            }
+            n_shared += 1;
+        }
+    }
+    if n_shared != 2 || view.deg[opposite[0] as usize] <= 3 || view.deg[opposite[1] as usize] <= 3 {
+        return None;
+    }
+    // Link condition: the only common neighbours are the two opposite corners.
+    s.stamp = s.stamp.wrapping_add(2);
+    if s.stamp < 2 {
+        view.mark.fill(0);
+        s.stamp = 2;
+    }
+    let stamp = s.stamp;
+    for (_, tri) in star_a {
+        for &i in tri {
+            view.mark[i as usize] = stamp;
+        }
+    }
+    let mut common = 0;
+    for (_, tri) in star_b {
+        for &i in tri {
+            if view.mark[i as usize] == stamp && i != ca && i != cb {
+                view.mark[i as usize] = stamp + 1;
+                common += 1;
+            }
+        }
+    }
+    if common != 2 {
+        return None;
+    }
+    let pos = &*view.pos;
+    let q = view.quad[a].sum(&view.quad[b]);
+    let plane = volume_plane(pos, star_a, star_b, ca, cb);
+    let both = view.unsupported[a] && view.unsupported[b];
+    let bound = if both { view.bound_u } else { view.bound_s };
+    let (best, best_cost) = q.best(&pos[a], &pos[b], Some(plane));
+    // The best position, else (where it would fold a triangle, as the midpoint of a flat fan
+    // can) either end if it keeps the volume too.
+    let (g, h) = plane;
+    let keeps_volume = |x: &Point3<f64>| {
+        (g.dot(&x.coords) - h).abs() <= VOLUME_TOLERANCE * g.norm() * (pos[a] - pos[b]).norm()
+    };
+    let (x, cost) = [(best, best_cost), (pos[a], f64::NAN), (pos[b], f64::NAN)]
+        .into_iter()
+        .enumerate()
+        .filter_map(|(k, (x, cost))| {
+            let cost = if k == 0 { cost } else { q.mean(&x) };
+            (cost <= bound
+                && (k == 0 || keeps_volume(&x))
+                && !folds(pos, star_a, ca, cb, &x)
+                && !folds(pos, star_b, cb, ca, &x))
+            .then_some((x, cost))
+        })
+        .next()?;
+    // Collapse b into a at x (triangles written back in the mesh's indices).
+    let v0 = view.v0 as u32;
+    for t in shared {
+        view.alive[t as usize] = false;
+    }
+    for (t, tri) in star_b {
+        if !tri.contains(&ca) {
+            view.tris[*t as usize] = tri.map(|i| if i == cb { ca + v0 } else { i + v0 });
+        }
+    }
+    view.deg[a] = view.deg[a] + view.deg[b] - 4;
+    view.deg[b] = 0;
+    view.deg[opposite[0] as usize] -= 1;
+    view.deg[opposite[1] as usize] -= 1;
+    view.pos[a] = x;
+    view.quad[a] = q;
+    view.unsupported[a] = both;
+    if !view.dens.is_empty() {
+        view.dens[a] = view.dens[a].max(view.dens[b]);
+    }
+    view.locked[a] = true;
+    view.locked[b] = true;
+    view.changed[a] = true;
+    Some(Collapsed {
+        cost,
+        unsupported: both,
+    })
 }
 
 /// The vertex indices sorted by the Morton code (Z-order) of their positions quantised to
