@@ -17,12 +17,11 @@
 //! got natural rims). Only the positions along the
 //! edges change, not which edges are cut, so the mesh stays closed.
 
-use std::collections::VecDeque;
-
 use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
 use sl_cloud::TriangleMesh;
 
-use crate::grid::IdMap;
+use crate::grid::NodeSet;
 
 /// The six tetrahedra of the Kuhn split of a cube, as corner numbers (bit 0: +x, bit 1: +y,
 /// bit 2: +z): each is a monotone path 0 → one axis → two axes → 7.
@@ -47,75 +46,170 @@ pub(crate) struct ContourInput<'a> {
 
 /// Extracts the zero set in unit-cube coordinates. Nodes on the faces of the grid count as
 /// outside, so every surface followed is closed.
+///
+/// In two parallel phases. The surface is followed breadth first from the seeds: each round
+/// takes the corner values of its cells in parallel and the next round is the unvisited
+/// neighbours across the faces the surface crosses, in the order of the round (so the result
+/// does not depend on the number of threads). Then every edge of the Kuhn split belongs to
+/// the cell whose first corner it leaves (the seven edges from corner 0 along one, two or three
+/// axes): a crossed edge's owner is itself a crossed cell reached through crossed faces, so the
+/// vertices are numbered cell by cell in the order of the cells' ids and each triangle finds its
+/// corners' numbers by the rank of the owning cell, without a shared map.
 pub(crate) fn contour(input: &ContourInput<'_>) -> TriangleMesh {
     let cells = input.cells;
-    let n = cells + 1;
     let h = 1.0 / cells as f64;
     let total = (cells * cells * cells) as usize;
     let mut visited = vec![0u64; total.div_ceil(64)];
-    let mut values: IdMap<u64, f64> = IdMap::default();
-    let mut edges: IdMap<u64, u32> = IdMap::default();
-    let mut mesh = TriangleMesh::default();
-    let mut queue: VecDeque<[i64; 3]> = VecDeque::new();
     let cell_id = |c: [i64; 3]| ((c[2] * cells + c[1]) * cells + c[0]) as usize;
+    let node_value = |q: [i64; 3]| -> f64 {
+        let v = (input.value)(q[0], q[1], q[2]);
+        let on_face = q.iter().any(|&c| c == 0 || c == cells);
+        if on_face || v.is_nan() {
+            v.abs().max(f64::MIN_POSITIVE)
+        } else {
+            v
+        }
+    };
+    let mut frontier: Vec<[i64; 3]> = Vec::new();
     for &s in input.seeds {
         let id = cell_id(s);
         if visited[id >> 6] & (1 << (id & 63)) == 0 {
             visited[id >> 6] |= 1 << (id & 63);
-            queue.push_back(s);
+            frontier.push(s);
         }
     }
-    let mut node_value = |q: [i64; 3]| -> f64 {
-        let id = ((q[2] * n + q[1]) * n + q[0]) as u64;
-        *values.entry(id).or_insert_with(|| {
-            let v = (input.value)(q[0], q[1], q[2]);
-            let on_face = q.iter().any(|&c| c == 0 || c == cells);
-            if on_face || v.is_nan() {
-                v.abs().max(f64::MIN_POSITIVE)
-            } else {
-                v
+    // The crossed cells with their corner values, in the order they were reached.
+    let mut crossed: Vec<([i64; 3], [f64; 8])> = Vec::new();
+    while !frontier.is_empty() {
+        let round: Vec<Option<([i64; 3], [f64; 8], u8)>> = frontier
+            .par_iter()
+            .map(|&c| {
+                let mut f = [0.0; 8];
+                for (k, fk) in f.iter_mut().enumerate() {
+                    *fk = node_value(corner(c, k));
+                }
+                let inside = f.iter().filter(|v| **v < 0.0).count();
+                if inside == 0 || inside == 8 {
+                    return None;
+                }
+                // The faces the surface crosses: bit 2·axis + side.
+                let mut faces = 0u8;
+                for axis in 0..3 {
+                    for side in 0..2usize {
+                        let (mut neg, mut pos) = (false, false);
+                        for (k, fk) in f.iter().enumerate() {
+                            if (k >> axis) & 1 == side {
+                                neg |= *fk < 0.0;
+                                pos |= *fk >= 0.0;
+                            }
+                        }
+                        if neg && pos {
+                            faces |= 1 << (2 * axis + side);
+                        }
+                    }
+                }
+                Some((c, f, faces))
+            })
+            .collect();
+        let mut next = Vec::new();
+        for (c, f, faces) in round.into_iter().flatten() {
+            crossed.push((c, f));
+            for axis in 0..3 {
+                for side in 0..2i64 {
+                    if faces & (1 << (2 * axis + side as usize)) == 0 {
+                        continue;
+                    }
+                    let mut nb = c;
+                    nb[axis] += 2 * side - 1;
+                    if nb[axis] < 0 || nb[axis] >= cells {
+                        continue;
+                    }
+                    let id = cell_id(nb);
+                    if visited[id >> 6] & (1 << (id & 63)) == 0 {
+                        visited[id >> 6] |= 1 << (id & 63);
+                        next.push(nb);
+                    }
+                }
             }
+        }
+        frontier = next;
+    }
+    drop(visited);
+
+    // The crossed cells by id, their values and the edges they own that the surface crosses.
+    let mut set = NodeSet::empty(cells as usize);
+    for (c, _) in &crossed {
+        set.insert(c[0] as usize, c[1] as usize, c[2] as usize);
+    }
+    set.finish();
+    let mut values = vec![[0.0; 8]; set.len()];
+    for (c, f) in crossed {
+        if let Some(r) = set.slot(c[0], c[1], c[2]) {
+            values[r as usize] = f;
+        }
+    }
+    // Bit d (1..=7) of a cell's mask: its edge from corner 0 to corner d is crossed.
+    let owned: Vec<u8> = values
+        .par_iter()
+        .map(|f| {
+            (1..8usize)
+                .filter(|&d| (f[0] < 0.0) != (f[d] < 0.0))
+                .fold(0u8, |m, d| m | (1 << d))
         })
-    };
-    while let Some(c) = queue.pop_front() {
-        let mut f = [0.0; 8];
-        for (k, fk) in f.iter_mut().enumerate() {
-            *fk = node_value(corner(c, k));
-        }
-        let inside = f.iter().filter(|v| **v < 0.0).count();
-        if inside == 0 || inside == 8 {
-            continue;
-        }
-        for tet in &TETS {
-            polygonise(c, tet, &f, n, h, &mut edges, &mut mesh);
-        }
-        // Follow the surface through the faces it crosses.
-        for axis in 0..3 {
-            for side in 0..2i64 {
-                let crosses = {
-                    let face: Vec<f64> = (0..8)
-                        .filter(|k| ((k >> axis) & 1) as i64 == side)
-                        .map(|k| f[k])
-                        .collect();
-                    face.iter().any(|v| *v < 0.0) && face.iter().any(|v| *v >= 0.0)
-                };
-                if !crosses {
-                    continue;
-                }
-                let mut nb = c;
-                nb[axis] += 2 * side - 1;
-                if nb[axis] < 0 || nb[axis] >= cells {
-                    continue;
-                }
-                let id = cell_id(nb);
-                if visited[id >> 6] & (1 << (id & 63)) == 0 {
-                    visited[id >> 6] |= 1 << (id & 63);
-                    queue.push_back(nb);
-                }
-            }
-        }
+        .collect();
+    let mut first_vertex = Vec::with_capacity(owned.len());
+    let mut count = 0u32;
+    for m in &owned {
+        first_vertex.push(count);
+        count += m.count_ones();
     }
-    mesh
+    let vertices: Vec<Point3<f64>> = (0..values.len())
+        .into_par_iter()
+        .flat_map_iter(|r| {
+            let c = set.coords(r);
+            let f = values[r];
+            let mask = owned[r];
+            let origin = Vector3::new(c[0] as f64, c[1] as f64, c[2] as f64) * h;
+            (1..8usize)
+                .filter(move |&d| mask & (1 << d) != 0)
+                .map(move |d| {
+                    // Along a cell edge the trilinear interpolant is linear; along a face or
+                    // the body diagonal it is quadratic or cubic, and its zero is found on
+                    // that curve.
+                    let t = if d.count_ones() > 1 {
+                        trilinear_root(&f, 0, d)
+                    } else {
+                        f[0] / (f[0] - f[d])
+                    };
+                    let step =
+                        Vector3::new((d & 1) as f64, ((d >> 1) & 1) as f64, ((d >> 2) & 1) as f64)
+                            * h;
+                    Point3::from(origin + step * t)
+                })
+        })
+        .collect();
+    // The number of the vertex on the edge from corner `lo` to corner `hi` of cell `c`.
+    let vertex_id = |c: [i64; 3], lo: usize, hi: usize| -> Option<u32> {
+        let q = corner(c, lo);
+        let r = set.slot(q[0], q[1], q[2])? as usize;
+        let below = owned[r] & ((1u8 << (lo ^ hi)) - 1);
+        Some(first_vertex[r] + below.count_ones())
+    };
+    let triangles: Vec<[u32; 3]> = (0..values.len())
+        .into_par_iter()
+        .flat_map_iter(|r| {
+            let c = set.coords(r);
+            let mut out = Vec::new();
+            for tet in &TETS {
+                polygonise(c, tet, &values[r], h, &vertex_id, &mut out);
+            }
+            out
+        })
+        .collect();
+    TriangleMesh {
+        vertices,
+        triangles,
+    }
 }
 
 /// The zero of the cell's trilinear interpolant of `f` along the segment from corner `lo` to
@@ -179,15 +273,14 @@ fn corner(c: [i64; 3], k: usize) -> [i64; 3] {
     ]
 }
 
-/// The triangles of one tetrahedron.
+/// The triangles of one tetrahedron, numbered by `vertex_id` (cell, corner, corner).
 fn polygonise(
     c: [i64; 3],
     tet: &[usize; 4],
     f: &[f64; 8],
-    n: i64,
     h: f64,
-    edges: &mut IdMap<u64, u32>,
-    mesh: &mut TriangleMesh,
+    vertex_id: &impl Fn([i64; 3], usize, usize) -> Option<u32>,
+    out: &mut Vec<[u32; 3]>,
 ) {
     let (mut ins, mut outs) = ([0usize; 4], [0usize; 4]);
     let (mut ni, mut no) = (0, 0);
@@ -207,26 +300,10 @@ fn polygonise(
         let q = corner(c, k);
         Vector3::new(q[0] as f64, q[1] as f64, q[2] as f64) * h
     };
-    let mut vertex = |a: usize, b: usize| -> (u32, Vector3<f64>) {
-        // Edges of a Kuhn tetrahedron join a corner to one whose axis bits include its own.
+    // Edges of a Kuhn tetrahedron join a corner to one whose axis bits include its own.
+    let vertex = |a: usize, b: usize| -> Option<(u32, Vector3<f64>)> {
         let (lo, hi) = if a & b == a { (a, b) } else { (b, a) };
-        let q = corner(c, lo);
-        let key = (((q[2] * n + q[1]) * n + q[0]) as u64) * 8 + (lo ^ hi) as u64;
-        let mid = (pos(a) + pos(b)) * 0.5;
-        let id = *edges.entry(key).or_insert_with(|| {
-            // Along a cell edge the trilinear interpolant is linear; along a face or the body
-            // diagonal it is quadratic or cubic, and its zero is found on that curve.
-            let t_lo = if (lo ^ hi).count_ones() > 1 {
-                trilinear_root(f, lo, hi)
-            } else {
-                f[lo] / (f[lo] - f[hi])
-            };
-            let t = if lo == a { t_lo } else { 1.0 - t_lo };
-            let p = pos(a) + (pos(b) - pos(a)) * t;
-            mesh.vertices.push(Point3::from(p));
-            (mesh.vertices.len() - 1) as u32
-        });
-        (id, mid)
+        Some((vertex_id(c, lo, hi)?, (pos(a) + pos(b)) * 0.5))
     };
     let inside_c: Vector3<f64> =
         ins[..ni].iter().map(|&k| pos(k)).sum::<Vector3<f64>>() / ni as f64;
@@ -234,34 +311,45 @@ fn polygonise(
         outs[..no].iter().map(|&k| pos(k)).sum::<Vector3<f64>>() / no as f64;
     let out_dir = outside_c - inside_c;
     let mut tris: [[(u32, Vector3<f64>); 3]; 2] = [[(0, Vector3::zeros()); 3]; 2];
-    let count = match (ni, no) {
-        (1, 3) => {
-            let i = ins[0];
-            tris[0] = [vertex(i, outs[0]), vertex(i, outs[1]), vertex(i, outs[2])];
-            1
-        }
-        (3, 1) => {
-            let o = outs[0];
-            tris[0] = [vertex(ins[0], o), vertex(ins[1], o), vertex(ins[2], o)];
-            1
-        }
-        _ => {
-            let e00 = vertex(ins[0], outs[0]);
-            let e01 = vertex(ins[0], outs[1]);
-            let e11 = vertex(ins[1], outs[1]);
-            let e10 = vertex(ins[1], outs[0]);
-            tris[0] = [e00, e01, e11];
-            tris[1] = [e00, e11, e10];
-            2
-        }
+    let mut corners = || -> Option<usize> {
+        Some(match (ni, no) {
+            (1, 3) => {
+                let i = ins[0];
+                tris[0] = [
+                    vertex(i, outs[0])?,
+                    vertex(i, outs[1])?,
+                    vertex(i, outs[2])?,
+                ];
+                1
+            }
+            (3, 1) => {
+                let o = outs[0];
+                tris[0] = [vertex(ins[0], o)?, vertex(ins[1], o)?, vertex(ins[2], o)?];
+                1
+            }
+            _ => {
+                let e00 = vertex(ins[0], outs[0])?;
+                let e01 = vertex(ins[0], outs[1])?;
+                let e11 = vertex(ins[1], outs[1])?;
+                let e10 = vertex(ins[1], outs[0])?;
+                tris[0] = [e00, e01, e11];
+                tris[1] = [e00, e11, e10];
+                2
+            }
+        })
+    };
+    // Every crossed edge has a crossed owner (see `contour`): `None` cannot happen.
+    let Some(count) = corners() else {
+        debug_assert!(false, "a crossed edge of cell {c:?} has no owner");
+        return;
     };
     for t in &tris[..count] {
         // Orientation from the edge midpoints, which never coincide.
         let nrm = (t[1].1 - t[0].1).cross(&(t[2].1 - t[0].1));
         if nrm.dot(&out_dir) >= 0.0 {
-            mesh.triangles.push([t[0].0, t[1].0, t[2].0]);
+            out.push([t[0].0, t[1].0, t[2].0]);
         } else {
-            mesh.triangles.push([t[0].0, t[2].0, t[1].0]);
+            out.push([t[0].0, t[2].0, t[1].0]);
         }
     }
 }

@@ -3,9 +3,8 @@
 //!
 //! A level-`d` grid has `2^d + 1` nodes per axis over the unit cube. At depth 10 the bitmap of
 //! the full grid is 135 MB; depth 9, the default, needs 17 MB: far less than a hash map of the
-//! few million nodes near the surface would.
-
-use std::hash::{BuildHasher, Hasher};
+//! few million nodes near the surface would. The extraction (`contour`) uses the same
+//! structure over the grid's cells to number the cells the surface crosses.
 
 /// The deepest octree level supported: the bitmap of its node grid takes 135 MB.
 pub(crate) const MAX_DEPTH: u32 = 10;
@@ -107,49 +106,6 @@ impl NodeSet {
         ]
     }
 }
-
-/// A fast hasher for integer keys (edge ids, node ids): one multiply and a fold. The keys are
-/// ours, never adversarial, so the denial-of-service resistance of the standard `SipHash` buys nothing and
-/// costs a third of the contouring time.
-#[derive(Debug, Default, Clone, Copy)]
-pub(crate) struct IdHasher(u64);
-
-/// Odd 64-bit constant of Fibonacci hashing (2^64 / golden ratio).
-const FIB: u64 = 0x9E37_79B9_7F4A_7C15;
-
-impl Hasher for IdHasher {
-    fn finish(&self) -> u64 {
-        self.0 ^ (self.0 >> 29)
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0 ^ u64::from(b)).wrapping_mul(FIB);
-        }
-    }
-    fn write_u64(&mut self, i: u64) {
-        self.0 = (self.0 ^ i).wrapping_mul(FIB);
-    }
-    fn write_u32(&mut self, i: u32) {
-        self.write_u64(u64::from(i));
-    }
-    fn write_usize(&mut self, i: usize) {
-        self.write_u64(i as u64);
-    }
-}
-
-/// Builds [`IdHasher`]s.
-#[derive(Debug, Default, Clone, Copy)]
-pub(crate) struct IdHash;
-
-impl BuildHasher for IdHash {
-    type Hasher = IdHasher;
-    fn build_hasher(&self) -> IdHasher {
-        IdHasher(0)
-    }
-}
-
-/// A hash map keyed by integer ids.
-pub(crate) type IdMap<K, V> = std::collections::HashMap<K, V, IdHash>;
 
 #[cfg(test)]
 mod tests {
