@@ -44,6 +44,15 @@ pub(crate) struct ContourInput<'a> {
     pub(crate) value: &'a (dyn Fn(i64, i64, i64) -> f64 + Sync),
 }
 
+/// A cell the surface crosses, as the breadth-first walk finds it.
+struct Crossed {
+    cell: [i64; 3],
+    /// The field at its eight corners.
+    values: [f64; 8],
+    /// The faces the surface crosses: bit `2 axis + side`.
+    faces: u8,
+}
+
 /// Extracts the zero set in unit-cube coordinates. Nodes on the faces of the grid count as
 /// outside, so every surface followed is closed.
 ///
@@ -81,7 +90,7 @@ pub(crate) fn contour(input: &ContourInput<'_>) -> TriangleMesh {
     // The crossed cells with their corner values, in the order they were reached.
     let mut crossed: Vec<([i64; 3], [f64; 8])> = Vec::new();
     while !frontier.is_empty() {
-        let round: Vec<Option<([i64; 3], [f64; 8], u8)>> = frontier
+        let round: Vec<Option<Crossed>> = frontier
             .par_iter()
             .map(|&c| {
                 let mut f = [0.0; 8];
@@ -108,11 +117,20 @@ pub(crate) fn contour(input: &ContourInput<'_>) -> TriangleMesh {
                         }
                     }
                 }
-                Some((c, f, faces))
+                Some(Crossed {
+                    cell: c,
+                    values: f,
+                    faces,
+                })
             })
             .collect();
         let mut next = Vec::new();
-        for (c, f, faces) in round.into_iter().flatten() {
+        for Crossed {
+            cell: c,
+            values: f,
+            faces,
+        } in round.into_iter().flatten()
+        {
             crossed.push((c, f));
             for axis in 0..3 {
                 for side in 0..2i64 {
