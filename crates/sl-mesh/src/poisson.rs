@@ -420,7 +420,15 @@ fn solve(cloud: &PointCloud, cfg: &PoissonConfig) -> Result<Solved, MeshError> {
         .collect();
 
     // Right-hand side at the finest level, restricted to the coarser ones.
-    finest_rhs(&mut levels[depth as usize], &units, &samples, &areas);
+    let finest_neighbours = neighbour_slots(&levels[depth as usize].nodes);
+    finest_rhs(
+        &mut levels[depth as usize],
+        &finest_neighbours,
+        &units,
+        &samples,
+        &areas,
+    );
+    let mut finest_neighbours = Some(finest_neighbours);
     for d in (1..=depth as usize).rev() {
         let (coarse, fine) = levels.split_at_mut(d);
         restrict(&fine[0], &mut coarse[d - 1]);
@@ -449,7 +457,14 @@ fn solve(cloud: &PointCloud, cfg: &PoissonConfig) -> Result<Solved, MeshError> {
         } else {
             cfg.iterations
         };
-        solve_level(&mut levels[d], &supers, alpha, iterations);
+        let nb = match finest_neighbours.take() {
+            Some(nb) if d == depth as usize => nb,
+            other => {
+                finest_neighbours = other;
+                neighbour_slots(&levels[d].nodes)
+            }
+        };
+        solve_level(&mut levels[d], &nb, &supers, alpha, iterations);
         nodes_per_level.push(levels[d].nodes.len());
     }
 
@@ -658,6 +673,7 @@ fn offsets() -> [[i64; 3]; 27] {
 /// the samples' area-weighted normals (`V = Σ_j v_j B_j`, `v_j = Σ_s a_s n_s B_j(s) / h³`).
 fn finest_rhs(
     level: &mut Level,
+    nb: &[[u32; 27]],
     units: &[[f64; 3]],
     samples: &[(Point3<f64>, Vector3<f64>)],
     areas: &[f64],
@@ -696,15 +712,15 @@ fn finest_rhs(
             ]
         })
         .collect();
-    let nodes = &level.nodes;
-    level.b = (0..nodes.len())
-        .into_par_iter()
-        .map(|s| {
-            let c = nodes.coords(s);
+    level.b = nb
+        .par_iter()
+        .enumerate()
+        .map(|(s, nb)| {
             let mut acc = 0.0;
-            for (o, gi) in offs.iter().zip(&g) {
-                if let Some(t) = nodes.slot(c[0] + o[0], c[1] + o[1], c[2] + o[2]) {
-                    let v = &w[t as usize];
+            for (i, gi) in g.iter().enumerate() {
+                // An absent neighbour's slot is the node's own.
+                if i == 13 || nb[i] != s as u32 {
+                    let v = &w[nb[i] as usize];
                     acc += gi[0] * v[0] + gi[1] * v[1] + gi[2] * v[2];
                 }
             }
@@ -755,58 +771,46 @@ fn element_stiffness(hamming: u32) -> f64 {
     }
 }
 
-/// Stiffness coefficients of node `p` towards its 27 neighbours on a grid of `n` nodes per
-/// axis, summed over the cells inside the grid (so faces of the cube get the natural, Neumann,
-/// condition), for unit spacing.
-fn stiffness_row(p: [i64; 3], n: i64) -> [f64; 27] {
+/// Stiffness coefficients of a node towards its 27 neighbours (unit spacing, [`offset_index`]
+/// order), summed over the cells around it whose bit is set in `cells` (bit `k`: the cell
+/// whose lower corner is at offset `(k & 1, k >> 1 & 1, k >> 2 & 1) − 1` from the node). With
+/// the cells that have all their corners, the rim of a band and the faces of the cube get the
+/// natural (Neumann) condition.
+fn stiffness_row(cells: u8) -> [f64; 27] {
     let mut row = [0.0; 27];
     for cell in 0..8usize {
-        // Lower corner of one of the eight cells around p.
-        let lo = [
-            p[0] - 1 + (cell & 1) as i64,
-            p[1] - 1 + ((cell >> 1) & 1) as i64,
-            p[2] - 1 + ((cell >> 2) & 1) as i64,
-        ];
-        if lo.iter().any(|&v| v < 0 || v > n - 2) {
+        if cells & (1 << cell) == 0 {
             continue;
         }
-        let pl = (0..3).fold(0u32, |acc, a| acc | (((p[a] - lo[a]) as u32) << a));
-        for q in 0..8u32 {
-            let d = [
-                lo[0] + i64::from(q & 1) - p[0],
-                lo[1] + i64::from((q >> 1) & 1) - p[1],
-                lo[2] + i64::from((q >> 2) & 1) - p[2],
-            ];
-            row[offset_index(d)] += element_stiffness((pl ^ q).count_ones());
-        }
-    }
-    row
-}
-
-/// Stiffness coefficients of a node towards its 27 neighbours (unit spacing), summed over the
-/// eight cells around it that have all their corners: `present` has bit `offset_index(d)` set
-/// for each neighbour `d` that exists. On the rim of a band this is the natural (Neumann)
-/// condition, as on the faces of the cube. `None` when no cell around the node is complete.
-fn band_stiffness_row(present: u32) -> Option<[f64; 27]> {
-    let mut row = [0.0; 27];
-    let mut any = false;
-    for cell in 0..8usize {
         // Lower corner of the cell relative to the node, in {-1, 0}³.
         let lo = [
             (cell & 1) as i64 - 1,
             ((cell >> 1) & 1) as i64 - 1,
             ((cell >> 2) & 1) as i64 - 1,
         ];
-        if (0..8).any(|q| present & (1 << offset_index(corner(lo, q))) == 0) {
-            continue;
-        }
-        any = true;
         let pl = (0..3).fold(0u32, |acc, a| acc | ((-lo[a] as u32) << a));
         for q in 0..8usize {
             row[offset_index(corner(lo, q))] += element_stiffness((pl ^ q as u32).count_ones());
         }
     }
-    any.then_some(row)
+    row
+}
+
+/// For each of the eight cells around a node (numbered as in [`stiffness_row`]), the bits
+/// (in [`offset_index`] order) of its eight corners.
+fn cell_corners() -> [u32; 8] {
+    let mut masks = [0u32; 8];
+    for (cell, mask) in masks.iter_mut().enumerate() {
+        let lo = [
+            (cell & 1) as i64 - 1,
+            ((cell >> 1) & 1) as i64 - 1,
+            ((cell >> 2) & 1) as i64 - 1,
+        ];
+        for q in 0..8 {
+            *mask |= 1 << offset_index(corner(lo, q));
+        }
+    }
+    masks
 }
 
 /// Nodes per chunk of the parallel construction of [`solve_level`]'s system.
@@ -819,6 +823,28 @@ fn ordered_sum(len: usize, f: impl Fn(usize) -> f64) -> f64 {
     (0..len).map(f).sum()
 }
 
+/// The slots of every node's 27 neighbours ([`offset_index`] order), the node's own where a
+/// neighbour is absent (outside the set or the grid).
+fn neighbour_slots(nodes: &NodeSet) -> Vec<[u32; 27]> {
+    let offs = offsets();
+    let mut nb = vec![[0u32; 27]; nodes.len()];
+    nb.par_chunks_mut(SOLVE_CHUNK)
+        .enumerate()
+        .for_each(|(chunk, nbs)| {
+            for (k, nb) in nbs.iter_mut().enumerate() {
+                let s = chunk * SOLVE_CHUNK + k;
+                let c = nodes.coords(s);
+                *nb = [s as u32; 27];
+                for (i, o) in offs.iter().enumerate() {
+                    if let Some(t) = nodes.slot(c[0] + o[0], c[1] + o[1], c[2] + o[2]) {
+                        nb[i] = t;
+                    }
+                }
+            }
+        });
+    nb
+}
+
 /// Relaxes one level with Jacobi-preconditioned conjugate gradients. Every node of a complete
 /// cell is free; on the rim of a band the stiffness sums only the complete cells (the natural
 /// condition); nodes of no complete cell keep their values.
@@ -827,52 +853,42 @@ fn ordered_sum(len: usize, f: impl Fn(usize) -> f64) -> f64 {
 /// a neighbour is absent) and their coefficients, all zero on a node that is not free, so that
 /// the vectors of the iteration are indexed like the level's and its products and updates run
 /// in parallel (its sums in order, see [`ordered_sum`]).
-fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations: usize) {
+fn solve_level(
+    level: &mut Level,
+    nb: &[[u32; 27]],
+    supers: &[SuperSample],
+    alpha: f64,
+    iterations: usize,
+) {
     let nodes = &level.nodes;
     let len = nodes.len();
-    let n = nodes.n as i64;
     let cells = level.cells();
     let h = 1.0 / cells as f64;
-    let offs = offsets();
-    let interior = stiffness_row([1, 1, 1], n.max(3)).map(|v| (v * h) as f32);
-    // Neighbour slots and stiffness coefficients (from the cells around the node that exist:
-    // all eight inside a band, fewer on its rim and on the cube's faces).
-    let mut nb = vec![[0u32; 27]; len];
+    // The row of every combination of complete cells around a node.
+    let corners_of = cell_corners();
+    let rows: Vec<[f32; 27]> = (0..=255u8)
+        .map(|cells| stiffness_row(cells).map(|v| (v * h) as f32))
+        .collect();
+    // Stiffness coefficients from the cells around each node that have all their corners (all
+    // eight inside a band, fewer on its rim and on the cube's faces; a node of no complete cell
+    // keeps a zero row).
     let mut coef = vec![[0.0f32; 27]; len];
-    nb.par_chunks_mut(SOLVE_CHUNK)
-        .zip(coef.par_chunks_mut(SOLVE_CHUNK))
+    coef.par_iter_mut()
+        .zip(nb)
         .enumerate()
-        .for_each(|(chunk, (nbs, cfs))| {
-            for (k, (nb, cf)) in nbs.iter_mut().zip(cfs.iter_mut()).enumerate() {
-                let s = chunk * SOLVE_CHUNK + k;
-                let c = nodes.coords(s);
-                *nb = [s as u32; 27];
-                let mut present = 0u32;
-                let mut complete = true;
-                for (i, o) in offs.iter().enumerate() {
-                    let q = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
-                    if q.iter().any(|&v| v < 0 || v >= n) {
-                        continue;
-                    }
-                    match nodes.slot(q[0], q[1], q[2]) {
-                        Some(t) => {
-                            nb[i] = t;
-                            present |= 1 << i;
-                        }
-                        None => complete = false,
-                    }
-                }
-                let row = if !complete {
-                    match band_stiffness_row(present) {
-                        Some(row) => row.map(|v| (v * h) as f32),
-                        None => continue,
-                    }
-                } else if c.iter().any(|&v| v == 0 || v == n - 1) {
-                    stiffness_row(c, n).map(|v| (v * h) as f32)
-                } else {
-                    interior
-                };
-                *cf = row;
+        .for_each(|(s, (cf, nb))| {
+            let present = nb
+                .iter()
+                .enumerate()
+                .filter(|&(i, &t)| i == 13 || t != s as u32)
+                .fold(0u32, |acc, (i, _)| acc | (1 << i));
+            let complete = corners_of
+                .iter()
+                .enumerate()
+                .filter(|(_, m)| present & **m == **m)
+                .fold(0u8, |acc, (cell, _)| acc | (1 << cell));
+            if complete != 0 {
+                *cf = rows[complete as usize];
             }
         });
     // Screening: α Σ_s a_s B_i(s) B_j(s), from the super-samples, on the free rows.
@@ -896,7 +912,7 @@ fn solve_level(level: &mut Level, supers: &[SuperSample], alpha: f64, iterations
     }
     // Zero the coefficients towards the grid outside (their slot is the node's own).
     coef.par_iter_mut()
-        .zip(&nb)
+        .zip(nb)
         .enumerate()
         .for_each(|(s, (cf, nb))| {
             for i in 0..27 {
@@ -986,11 +1002,11 @@ mod tests {
 
     #[test]
     fn interior_stiffness_row_sums_to_zero() {
-        let row = stiffness_row([3, 3, 3], 8);
+        let row = stiffness_row(0xFF);
         approx::assert_relative_eq!(row[13], 8.0 / 3.0, epsilon = 1e-12);
         approx::assert_relative_eq!(row.iter().sum::<f64>(), 0.0, epsilon = 1e-12);
-        // A corner of the cube: one cell only.
-        let corner_row = stiffness_row([0, 0, 0], 8);
+        // A corner of the cube: one cell only (the one on the +x +y +z side).
+        let corner_row = stiffness_row(1 << 7);
         approx::assert_relative_eq!(corner_row[13], 1.0 / 3.0, epsilon = 1e-12);
         approx::assert_relative_eq!(corner_row.iter().sum::<f64>(), 0.0, epsilon = 1e-12);
     }
