@@ -1,8 +1,10 @@
-//! Screened Poisson reconstruction of a sampled sphere.
+//! Screened Poisson reconstruction of a sampled sphere, and the simplification of its
+//! extraction.
+use criterion::BatchSize;
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{Point3, Vector3};
 use sl_cloud::PointCloud;
-use sl_mesh::{PoissonConfig, poisson_reconstruct};
+use sl_mesh::{PoissonConfig, SimplifyConfig, poisson_reconstruct, simplify};
 
 fn sphere(n: usize) -> PointCloud {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
@@ -31,6 +33,23 @@ fn bench(c: &mut Criterion) {
         };
         g.bench_function(format!("sphere_100k_depth{depth}"), |b| {
             b.iter(|| poisson_reconstruct(&cloud, &cfg))
+        });
+    }
+    // The extraction at depth 8 (1.5 million triangles on this sphere of radius 20, cells of
+    // 0.17), simplified with the defaults of `slscan mesh`.
+    if let Ok(surface) = poisson_reconstruct(
+        &cloud,
+        &PoissonConfig {
+            depth: 8,
+            ..PoissonConfig::default()
+        },
+    ) {
+        g.bench_function("simplify_sphere_depth8", |b| {
+            b.iter_batched(
+                || surface.mesh.clone(),
+                |mut mesh| simplify(&mut mesh, &surface.densities, &SimplifyConfig::default()),
+                BatchSize::LargeInput,
+            )
         });
     }
     g.finish();
