@@ -457,13 +457,12 @@ fn solve(cloud: &PointCloud, cfg: &PoissonConfig) -> Result<Solved, MeshError> {
         } else {
             cfg.iterations
         };
-        let nb = match finest_neighbours.take() {
-            Some(nb) if d == depth as usize => nb,
-            other => {
-                finest_neighbours = other;
-                neighbour_slots(&levels[d].nodes)
-            }
-        };
+        let nb = if d == depth as usize {
+            finest_neighbours.take()
+        } else {
+            None
+        }
+        .unwrap_or_else(|| neighbour_slots(&levels[d].nodes));
         solve_level(&mut levels[d], &nb, &supers, alpha, iterations);
         nodes_per_level.push(levels[d].nodes.len());
     }
