@@ -371,8 +371,9 @@ fn solve(cloud: &PointCloud, cfg: &PoissonConfig) -> Result<Solved, MeshError> {
         });
     }
 
-    // Node sets of every level.
+    // Node sets of every level (each level on its own, in parallel).
     let mut levels: Vec<Level> = (0..=depth)
+        .into_par_iter()
         .map(|d| {
             let n = (1usize << d) + 1;
             let mut nodes = NodeSet::empty(n);
@@ -468,7 +469,7 @@ fn solve(cloud: &PointCloud, cfg: &PoissonConfig) -> Result<Solved, MeshError> {
     }
 
     // Iso-values: the area-weighted mean of each level's χ over the samples.
-    for level in &mut levels[first..] {
+    levels[first..].par_iter_mut().for_each(|level| {
         let (mut num, mut den) = (0.0, 0.0);
         for sup in &supers {
             if let Some(v) = level_value(level, sup.u) {
@@ -477,7 +478,7 @@ fn solve(cloud: &PointCloud, cfg: &PoissonConfig) -> Result<Solved, MeshError> {
             }
         }
         level.iso = if den > 0.0 { num / den } else { 0.0 };
-    }
+    });
     Ok(Solved {
         levels,
         supers,
