@@ -503,14 +503,13 @@ pub fn simplify(
     for (i, &o) in order.iter().enumerate() {
         new_id[o as usize] = i as u32;
     }
-    pos = order.iter().map(|&o| pos[o as usize]).collect();
+    pos = order.par_iter().map(|&o| pos[o as usize]).collect();
     if !dens.is_empty() {
-        dens = order.iter().map(|&o| dens[o as usize]).collect();
+        dens = order.par_iter().map(|&o| dens[o as usize]).collect();
     }
-    unsupported = order.iter().map(|&o| unsupported[o as usize]).collect();
-    for t in &mut tris {
-        *t = t.map(|i| new_id[i as usize]);
-    }
+    unsupported = order.par_iter().map(|&o| unsupported[o as usize]).collect();
+    tris.par_iter_mut()
+        .for_each(|t| *t = t.map(|i| new_id[i as usize]));
     sort_by_smallest_vertex(&mut tris, nv);
     // Each vertex's quadric (the planes of its triangles, by area) and whether it never moves
     // (not one closed fan).
