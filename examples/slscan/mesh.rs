@@ -69,6 +69,13 @@ pub(crate) struct Args {
     /// curvature, which closes a gap in a sphere by the sphere).
     #[arg(long)]
     pub(crate) no_fair: bool,
+    /// Before the fairing, put the thinly sampled rim of each gap on the surface fitted to the
+    /// well-sampled vertices nearby (where Poisson bends past the last samples): closes gaps in
+    /// smooth, rounded objects much better (the default scan's unseen patch 0.063 → 0.040 mm),
+    /// but can move scanned surface of shapes a quadric over a few millimetres does not fit
+    /// (docs/meshing.md, "Fairing")
+    #[arg(long)]
+    pub(crate) fair_rim: bool,
     /// Remesh isotropically after the simplification and the fairing: near-equilateral
     /// triangles of about this edge length (mm; 0 keeps the number of vertices), every vertex
     /// on the surface and standing for the same area of it (docs/meshing.md, "Isotropic
@@ -173,7 +180,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         densities = s.densities;
     }
     if !args.no_simplify && !args.no_fair {
-        let cfg = FairConfig::default();
+        let cfg = FairConfig {
+            project_rim: args.fair_rim,
+            ..FairConfig::default()
+        };
         let t = std::time::Instant::now();
         let f = report
             .stage("fair", || fair_unsupported(&mut mesh, &densities, &cfg))
@@ -184,6 +194,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             serde_json::json!({
                 "support_ratio": cfg.support_ratio,
                 "vertices_moved": f.vertices_moved,
+                "project_rim": cfg.project_rim,
+                "rim_moved": f.rim_moved,
                 "largest_move_mm": f.largest_move,
                 "residual": f.residual,
                 "curvature_steps": f.curvature_steps,
@@ -508,6 +520,7 @@ mod tests {
     /// mm: the faired cap's vertices lie on the sphere, the middles of its large triangles
     /// 0.4 mm inside). The pictures look from where they are told:
     /// `--elevation -60` (negative, from below) gives another picture than the default.
+    /// `--fair-rim` closes the cap closer still (below 0.1 mm and half the default's).
     #[test]
     fn unseen_cap_is_closed_by_the_sphere() {
         let tmp = tempfile::tempdir().unwrap();
@@ -520,7 +533,10 @@ mod tests {
         let below = run("below", &["--elevation", "-60", "--azimuth", "10"]);
         let membrane = run("membrane", &["--no-fair"]);
         let remeshed = run("remeshed", &["--remesh", "0"]);
+        let rim = run("rim", &["--fair-rim"]);
         assert!(membrane["figures"]["fair"].is_null(), "--no-fair");
+        assert_eq!(rim["figures"]["fair"]["project_rim"], true);
+        assert_eq!(faired["figures"]["fair"]["rim_moved"], 0);
         let f = &faired["figures"];
         assert_eq!(f["watertight"], true, "{f}");
         assert_eq!(f["fair"]["curvature_converged"], true, "{f}");
@@ -540,14 +556,19 @@ mod tests {
             (e.iter().map(|e| e * e).sum::<f64>() / e.len() as f64).sqrt()
         };
         let (rms, rms_membrane) = (cap_rms("faired"), cap_rms("membrane"));
+        let rms_rim = cap_rms("rim");
         eprintln!(
-            "cap RMS: membrane {rms_membrane:.4} mm, faired {rms:.4} mm; {}",
-            f["fair"]
+            "cap RMS: membrane {rms_membrane:.4} mm, faired {rms:.4} mm, with the rim projected \
+             {rms_rim:.4} mm; {} / {}",
+            f["fair"], rim["figures"]["fair"]
         );
         assert!(
             rms * 2.0 < rms_membrane && rms < 0.3,
             "{rms} {rms_membrane}"
         );
+        // `--fair-rim`: the rim Poisson bent past the last samples put on the sphere first,
+        // the cap follows it (measured 0.042 mm against 0.197 mm).
+        assert!(rms_rim * 2.0 < rms && rms_rim < 0.1, "{rms_rim} {rms}");
         assert_eq!(below["figures"]["vertices"], f["vertices"]);
         let g = &remeshed["figures"];
         assert_eq!(g["watertight"], true, "{g}");

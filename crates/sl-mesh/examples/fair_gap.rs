@@ -1,6 +1,7 @@
 //! Reconstruction, simplification and fairing of the unsupported surface on a cloud, written
 //! as PLY meshes for `benches/peers/mesh_figures.py`:
-//! `cargo run --release -p sl-mesh --example fair_gap -- CLOUD.ply OUT_DIR [RATIO] [DEPTH] [CURVATURE_STEPS]`.
+//! `cargo run --release -p sl-mesh --example fair_gap -- CLOUD.ply OUT_DIR [RATIO] [DEPTH] [CURVATURE_STEPS]`
+//! (with `FAIR_RIM` set in the environment, `FairConfig::project_rim`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -50,6 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &FairConfig {
             support_ratio: ratio,
             curvature_iterations: curvature,
+            project_rim: std::env::var_os("FAIR_RIM").is_some(),
         },
     )?;
     println!("fair {:.1} ms: {f:?}", t.elapsed().as_secs_f64() * 1e3);

@@ -22,6 +22,59 @@ pub(crate) fn fit_curvature<'a>(
     radius: f64,
     min_vertices: usize,
 ) -> Option<f64> {
+    let q = fit_quadric(positions, ring, weight, v, normal, radius, min_vertices)?;
+    let mean = -2.0 * q.c[5];
+    mean.is_finite().then_some(mean)
+}
+
+/// The quadric of [`fit_curvature`] in the frame (`a`, `b`, `n`) at `p` (the fitted vertex),
+/// `c` its coefficients.
+pub(crate) struct LocalQuadric {
+    p: Point3<f64>,
+    a: Vector3<f64>,
+    b: Vector3<f64>,
+    n: Vector3<f64>,
+    c: Vector6<f64>,
+}
+
+impl LocalQuadric {
+    /// The point of the fitted surface above or below `q` along the frame's normal, if the
+    /// surface reaches it.
+    pub(crate) fn project(&self, q: &Point3<f64>) -> Option<Point3<f64>> {
+        let d = q - self.p;
+        let (x, y) = (d.dot(&self.a), d.dot(&self.b));
+        let c = &self.c;
+        let g = c[0]
+            + c[1] * x
+            + c[2] * y
+            + c[3] * (x * x - y * y)
+            + c[4] * x * y
+            + c[5] * (x * x + y * y);
+        // c5 z² − z + g = 0, the root nearest g.
+        let z = if (c[5] * g).abs() < 1e-12 {
+            g
+        } else {
+            let disc = 1.0 - 4.0 * c[5] * g;
+            if disc < 0.0 {
+                return None;
+            }
+            2.0 * g / (1.0 + disc.sqrt())
+        };
+        let out = self.p + self.a * x + self.b * y + self.n * z;
+        out.coords.iter().all(|v| v.is_finite()).then_some(out)
+    }
+}
+
+/// The fit of [`fit_curvature`], whole: the surface it describes, to evaluate elsewhere.
+pub(crate) fn fit_quadric<'a>(
+    positions: &[Point3<f64>],
+    ring: &dyn Fn(usize) -> &'a [u32],
+    weight: &dyn Fn(usize) -> f64,
+    v: usize,
+    normal: Vector3<f64>,
+    radius: f64,
+    min_vertices: usize,
+) -> Option<LocalQuadric> {
     let n = normal.try_normalize(0.0)?;
     let p = positions[v];
     let helper = if n.x.abs() < 0.9 {
@@ -57,8 +110,7 @@ pub(crate) fn fit_curvature<'a>(
         return None;
     }
     let c = normal_matrix.cholesky()?.solve(&rhs);
-    let mean = -2.0 * c[5];
-    mean.is_finite().then_some(mean)
+    Some(LocalQuadric { p, a, b, n, c })
 }
 
 #[cfg(test)]
@@ -90,6 +142,14 @@ mod tests {
         assert!((c - 0.125).abs() < 0.0025, "{c}");
         let s = fit_curvature(&sph, &ring, &one, 0, Vector3::z(), 3.5, 12).unwrap();
         assert!((s - 0.25).abs() < 1e-9, "{s}");
+        // The fitted sphere, whole: a point off it is put back on it along the frame's
+        // normal, also beyond the fitted points (4.5 from the top of a sphere of radius 4
+        // fitted out to 3 is past its side: no point; 3.8 is on it).
+        let q = fit_quadric(&sph, &ring, &one, 0, Vector3::z(), 3.5, 12).unwrap();
+        let on = q.project(&Point3::new(3.2, 1.0, 5.0)).unwrap();
+        assert!((on.coords.norm() - r).abs() < 1e-9, "{on}");
+        assert!((on.x - 3.2).abs() < 1e-12 && (on.y - 1.0).abs() < 1e-12 && on.z > 0.0);
+        assert!(q.project(&Point3::new(4.5, 0.0, 0.0)).is_none());
         // Too few vertices, or none weighing: no fit.
         assert!(fit_curvature(&sph, &ring, &one, 0, Vector3::z(), 3.5, 1000).is_none());
         assert!(fit_curvature(&sph, &ring, &|_| 0.0, 0, Vector3::z(), 3.5, 6).is_none());
