@@ -33,6 +33,12 @@
 //! default scan's unseen patch 0.063 mm over its area, the data's own accuracy, instead of
 //! 0.41 mm), a gap in a plane by the plane.
 //!
+//! The fairing continues the rim it is given, and Poisson bends the surface outwards for a
+//! millimetre or so past the last samples; with [`FairConfig::project_rim`] that rim is first
+//! put on the quadric fitted to the well-sampled surface nearby (the default scan's unseen
+//! patch 0.063 → 0.040 mm; off by default, as it can move scanned surface of shapes a quadric
+//! over a few millimetres does not describe: docs/meshing.md).
+//!
 //! Each system lives on the unsupported vertices only (the fixed ones enter its right-hand
 //! side through the two rings around them) and is factored once by sparse Cholesky (faer):
 //! the bi-Laplacian's condition grows with the fourth power of a hole's width in vertices,
@@ -68,7 +74,7 @@ pub struct FairConfig {
     /// gap in a smooth, rounded object much better (the default scan's unseen patch 0.063 →
     /// 0.040 mm over its area, the test sphere's cap 0.11 → 0.05 mm whatever the support
     /// ratio), but on a shape that a quadric over a few millimetres does not fit it moves
-    /// scanned surface (the two-placement pebble: 0.0600 → 0.0640 mm at the vertices). Off
+    /// scanned surface (the two-placement pebble: 0.0600 → 0.0641 mm at the vertices). Off
     /// by default.
     pub project_rim: bool,
 }
@@ -88,9 +94,10 @@ impl Default for FairConfig {
 pub struct Fairing {
     /// Vertices moved (the unsupported ones not on a rim or a non-manifold place).
     pub vertices_moved: usize,
-    /// Fixed vertices of the thinly sampled rim around them (density below the median, within
-    /// four rings) put on the surface fitted to the well-sampled vertices nearby before the
-    /// fairing (where Poisson bends the surface past the last samples).
+    /// Fixed vertices of the thinly sampled rim around them (density below half the median,
+    /// within four rings) put on the surface fitted to the well-sampled vertices nearby before
+    /// the fairing (where Poisson bends the surface past the last samples); 0 without
+    /// [`FairConfig::project_rim`].
     pub rim_moved: usize,
     /// The largest distance a vertex moved, in the mesh's units.
     pub largest_move: f64,
@@ -275,7 +282,8 @@ const RIM_DENSITY: f64 = 0.5;
 /// all, so that bend went into the whole patch (and, with the umbrella rows' own inward pull,
 /// made the result depend on where the support ratio cut: 0.20 / 0.11 / 0.47 / 0.53 mm on the
 /// test cap for 0.2 / 0.3 / 0.4 / 0.5 of the median). With the rim on the well-sampled
-/// surface: 0.062 / 0.049 / 0.071 / 0.068 mm.
+/// surface (and the fixed rows keeping their tangential part): 0.063 / 0.050 / 0.073 /
+/// 0.070 mm.
 fn project_rim(
     mesh: &mut TriangleMesh,
     op: &Operator,
