@@ -223,16 +223,7 @@ pub fn fair_unsupported(
         for (i, &v) in free_ids.iter().enumerate() {
             mesh.vertices[v] = Point3::from(x[i]);
         }
-        let well: Vec<bool> = densities.iter().map(|&d| d >= median).collect();
-        let support: Vec<f64> = (0..nv)
-            .map(|v| {
-                if free[v] {
-                    0.0
-                } else {
-                    (densities[v] / median).clamp(0.0, 1.0)
-                }
-            })
-            .collect();
+        let (well, support) = well_sampled(densities, &free, median);
         // Without well-sampled surface near the gap there is no curvature to continue.
         if let Some(h) = continued_curvature(mesh, &op, &free, &free_ids, &well, &support) {
             mean_curvature = free_ids.iter().map(|&v| h[v]).sum::<f64>() / free_ids.len() as f64;
@@ -261,6 +252,18 @@ pub fn fair_unsupported(
         curvature_converged,
         mean_curvature,
     })
+}
+
+/// Which vertices are well sampled (density at least the median) and how much each fixed one
+/// counts in a quadric fit (its density over the median, at most 1; the free ones 0).
+fn well_sampled(densities: &[f64], free: &[bool], median: f64) -> (Vec<bool>, Vec<f64>) {
+    let well = densities.iter().map(|&d| d >= median).collect();
+    let support = densities
+        .iter()
+        .zip(free)
+        .map(|(&d, &f)| if f { 0.0 } else { (d / median).clamp(0.0, 1.0) })
+        .collect();
+    (well, support)
 }
 
 /// Rings of thinly sampled fixed vertices around the free ones that [`project_rim`] puts on
@@ -293,7 +296,7 @@ fn project_rim(
     median: f64,
 ) -> usize {
     let nv = mesh.vertices.len();
-    let well: Vec<bool> = densities.iter().map(|&d| d >= median).collect();
+    let (well, support) = well_sampled(densities, free, median);
     let mut in_rim = vec![false; nv];
     let mut reached = free.to_vec();
     let mut frontier: Vec<usize> = free_ids.to_vec();
@@ -317,15 +320,6 @@ fn project_rim(
     }
     let normals = vertex_normals(mesh);
     let radius = CURVATURE_RADIUS_EDGES * op.edge_scale;
-    let support: Vec<f64> = (0..nv)
-        .map(|v| {
-            if free[v] {
-                0.0
-            } else {
-                (densities[v] / median).clamp(0.0, 1.0)
-            }
-        })
-        .collect();
     let vertices = &mesh.vertices;
     let moved: Vec<Option<Point3<f64>>> = rim
         .par_iter()
