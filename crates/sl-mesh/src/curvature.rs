@@ -3,31 +3,7 @@
 
 use nalgebra::{Matrix6, Point3, Vector3, Vector6};
 
-/// Fits `z = c0 + c1 x + c2 y + c3 (x² − y²) + c4 xy + c5 (x² + y² + z²)` by weighted least
-/// squares, in the frame of `normal` at vertex `v`, to the vertices within `radius` of it that
-/// are reached through the mesh (`ring`) and have a positive `weight`; `None` with fewer than
-/// `min_vertices` of them, a singular fit or a zero normal.
-///
-/// The isotropic term takes `z²` too, which makes the fit exact on a sphere at any radius (a
-/// point `d` from a sphere's point has `d·n = −|d|² / 2r`), where a height-field quadric reads
-/// a curvature too low once the radius is a fair part of `r`; the linear terms take up an
-/// error of the normal. The mean curvature `H = (κ1 + κ2) / 2` is `−2 c5`, positive where the
-/// surface bends away from its normal (`1/r` on a sphere with outward normals).
-pub(crate) fn fit_curvature<'a>(
-    positions: &[Point3<f64>],
-    ring: &dyn Fn(usize) -> &'a [u32],
-    weight: &dyn Fn(usize) -> f64,
-    v: usize,
-    normal: Vector3<f64>,
-    radius: f64,
-    min_vertices: usize,
-) -> Option<f64> {
-    let q = fit_quadric(positions, ring, weight, v, normal, radius, min_vertices)?;
-    let mean = -2.0 * q.c[5];
-    mean.is_finite().then_some(mean)
-}
-
-/// The quadric of [`fit_curvature`] in the frame (`a`, `b`, `n`) at `p` (the fitted vertex),
+/// The quadric of [`fit_quadric`] in the frame (`a`, `b`, `n`) at `p` (the fitted vertex),
 /// `c` its coefficients.
 pub(crate) struct LocalQuadric {
     p: Point3<f64>,
@@ -38,6 +14,13 @@ pub(crate) struct LocalQuadric {
 }
 
 impl LocalQuadric {
+    /// The mean curvature at the fitted vertex, `H = (κ1 + κ2) / 2 = −2 c5`: positive where the
+    /// surface bends away from its normal (`1/r` on a sphere with outward normals).
+    pub(crate) fn mean_curvature(&self) -> Option<f64> {
+        let mean = -2.0 * self.c[5];
+        mean.is_finite().then_some(mean)
+    }
+
     /// The point of the fitted surface above or below `q` along the frame's normal, if the
     /// surface reaches it.
     pub(crate) fn project(&self, q: &Point3<f64>) -> Option<Point3<f64>> {
@@ -65,7 +48,16 @@ impl LocalQuadric {
     }
 }
 
-/// The fit of [`fit_curvature`], whole: the surface it describes, to evaluate elsewhere.
+/// Fits `z = c0 + c1 x + c2 y + c3 (x² − y²) + c4 xy + c5 (x² + y² + z²)` by weighted least
+/// squares, in the frame of `normal` at vertex `v`, to the vertices within `radius` of it that
+/// are reached through the mesh (`ring`) and have a positive `weight`; `None` with fewer than
+/// `min_vertices` of them, a singular fit or a zero normal.
+///
+/// The isotropic term takes `z²` too, which makes the fit exact on a sphere at any radius (a
+/// point `d` from a sphere's point has `d·n = −|d|² / 2r`), where a height-field quadric reads
+/// a curvature too low once the radius is a fair part of `r`; the linear terms take up an
+/// error of the normal. The mean curvature is [`LocalQuadric::mean_curvature`]; the
+/// fitted surface can be evaluated elsewhere ([`LocalQuadric::project`]).
 pub(crate) fn fit_quadric<'a>(
     positions: &[Point3<f64>],
     ring: &dyn Fn(usize) -> &'a [u32],
@@ -138,20 +130,22 @@ mod tests {
         let all: Vec<u32> = (0..cyl.len() as u32).collect();
         let ring = |_: usize| all.as_slice();
         let one = |_: usize| 1.0;
-        let c = fit_curvature(&cyl, &ring, &one, 0, Vector3::z(), 1.6, 12).unwrap();
+        let c = fit_quadric(&cyl, &ring, &one, 0, Vector3::z(), 1.6, 12)
+            .and_then(|q| q.mean_curvature())
+            .unwrap();
         assert!((c - 0.125).abs() < 0.0025, "{c}");
-        let s = fit_curvature(&sph, &ring, &one, 0, Vector3::z(), 3.5, 12).unwrap();
+        let q = fit_quadric(&sph, &ring, &one, 0, Vector3::z(), 3.5, 12).unwrap();
+        let s = q.mean_curvature().unwrap();
         assert!((s - 0.25).abs() < 1e-9, "{s}");
         // The fitted sphere, whole: a point off it is put back on it along the frame's
         // normal, also beyond the fitted points (4.5 from the top of a sphere of radius 4
         // fitted out to 3 is past its side: no point; 3.8 is on it).
-        let q = fit_quadric(&sph, &ring, &one, 0, Vector3::z(), 3.5, 12).unwrap();
         let on = q.project(&Point3::new(3.2, 1.0, 5.0)).unwrap();
         assert!((on.coords.norm() - r).abs() < 1e-9, "{on}");
         assert!((on.x - 3.2).abs() < 1e-12 && (on.y - 1.0).abs() < 1e-12 && on.z > 0.0);
         assert!(q.project(&Point3::new(4.5, 0.0, 0.0)).is_none());
         // Too few vertices, or none weighing: no fit.
-        assert!(fit_curvature(&sph, &ring, &one, 0, Vector3::z(), 3.5, 1000).is_none());
-        assert!(fit_curvature(&sph, &ring, &|_| 0.0, 0, Vector3::z(), 3.5, 6).is_none());
+        assert!(fit_quadric(&sph, &ring, &one, 0, Vector3::z(), 3.5, 1000).is_none());
+        assert!(fit_quadric(&sph, &ring, &|_| 0.0, 0, Vector3::z(), 3.5, 6).is_none());
     }
 }

@@ -55,7 +55,7 @@ use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
 use crate::adjacency::check_indices;
-use crate::curvature::{fit_curvature, fit_quadric};
+use crate::curvature::{LocalQuadric, fit_quadric};
 use crate::measure::vertex_normals;
 
 /// Parameters of [`fair_unsupported`].
@@ -208,8 +208,17 @@ pub fn fair_unsupported(
     };
     // The thinly sampled rim around the gap, put on the well-sampled surface first (see
     // `project_rim`); the fairing continues it.
+    let (well, support) = well_sampled(densities, &free, median);
     let rim_moved = if cfg.project_rim {
-        project_rim(mesh, &op, &free, &free_ids, densities, median)
+        let rim = RimInput {
+            free: &free,
+            free_ids: &free_ids,
+            densities,
+            median,
+            well: &well,
+            support: &support,
+        };
+        project_rim(mesh, &op, &rim)
     } else {
         0
     };
@@ -223,7 +232,6 @@ pub fn fair_unsupported(
         for (i, &v) in free_ids.iter().enumerate() {
             mesh.vertices[v] = Point3::from(x[i]);
         }
-        let (well, support) = well_sampled(densities, &free, median);
         // Without well-sampled surface near the gap there is no curvature to continue.
         if let Some(h) = continued_curvature(mesh, &op, &free, &free_ids, &well, &support) {
             mean_curvature = free_ids.iter().map(|&v| h[v]).sum::<f64>() / free_ids.len() as f64;
@@ -266,6 +274,27 @@ fn well_sampled(densities: &[f64], free: &[bool], median: f64) -> (Vec<bool>, Ve
     (well, support)
 }
 
+/// The quadric fitted around vertex `v` over [`CURVATURE_RADIUS_EDGES`] mean edges, each
+/// fixed vertex weighing by its `support` to the power [`CURVATURE_SUPPORT_POWER`]: the fit
+/// the curvature is read from and the rim projected onto.
+fn fit_around(
+    vertices: &[Point3<f64>],
+    op: &Operator,
+    normals: &[Vector3<f64>],
+    support: &[f64],
+    v: usize,
+) -> Option<LocalQuadric> {
+    fit_quadric(
+        vertices,
+        &|i| op.ring(i),
+        &|i| support[i].powi(CURVATURE_SUPPORT_POWER),
+        v,
+        normals[v],
+        CURVATURE_RADIUS_EDGES * op.edge_scale,
+        CURVATURE_MIN_NEIGHBOURS,
+    )
+}
+
 /// Rings of thinly sampled fixed vertices around the free ones that [`project_rim`] puts on
 /// the well-sampled surface.
 const RIM_RINGS: usize = 4;
@@ -274,6 +303,18 @@ const RIM_RINGS: usize = 4;
 /// median: past the last samples, where Poisson bends the surface (1.0 moved scanned surface
 /// of the two-placement pebble: 0.0543 → 0.092 mm over its area; 0.5: 0.0556).
 const RIM_DENSITY: f64 = 0.5;
+
+/// What [`project_rim`] reads of the fairing's set-up.
+#[derive(Clone, Copy)]
+struct RimInput<'a> {
+    free: &'a [bool],
+    free_ids: &'a [usize],
+    densities: &'a [f64],
+    median: f64,
+    /// From [`well_sampled`].
+    well: &'a [bool],
+    support: &'a [f64],
+}
 
 /// Puts the fixed vertices within [`RIM_RINGS`] rings of the free ones whose sampling density
 /// is below [`RIM_DENSITY`] of the median onto the quadric fitted (as for the curvature, [`fit_quadric`]) around
@@ -287,39 +328,24 @@ const RIM_DENSITY: f64 = 0.5;
 /// test cap for 0.2 / 0.3 / 0.4 / 0.5 of the median). With the rim on the well-sampled
 /// surface (and the fixed rows keeping their tangential part): 0.063 / 0.050 / 0.073 /
 /// 0.070 mm.
-fn project_rim(
-    mesh: &mut TriangleMesh,
-    op: &Operator,
-    free: &[bool],
-    free_ids: &[usize],
-    densities: &[f64],
-    median: f64,
-) -> usize {
+fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> usize {
+    let RimInput {
+        free,
+        free_ids,
+        densities,
+        median,
+        well,
+        support,
+    } = *input;
     let nv = mesh.vertices.len();
-    let (well, support) = well_sampled(densities, free, median);
-    let mut in_rim = vec![false; nv];
-    let mut reached = free.to_vec();
-    let mut frontier: Vec<usize> = free_ids.to_vec();
-    for _ in 0..RIM_RINGS {
-        let mut next = Vec::new();
-        for &v in &frontier {
-            for &a in op.ring(v) {
-                let a = a as usize;
-                if !reached[a] && !op.boundary[a] && densities[a] < RIM_DENSITY * median {
-                    reached[a] = true;
-                    in_rim[a] = true;
-                    next.push(a);
-                }
-            }
-        }
-        frontier = next;
-    }
+    let in_rim = op.rings_around(free_ids, RIM_RINGS, |a| {
+        !free[a] && !op.boundary[a] && densities[a] < RIM_DENSITY * median
+    });
     let rim: Vec<usize> = (0..nv).filter(|&v| in_rim[v]).collect();
     if rim.is_empty() {
         return 0;
     }
     let normals = vertex_normals(mesh);
-    let radius = CURVATURE_RADIUS_EDGES * op.edge_scale;
     let vertices = &mesh.vertices;
     let moved: Vec<Option<Point3<f64>>> = rim
         .par_iter()
@@ -337,18 +363,7 @@ fn project_rim(
                     }
                 }
                 if let Some(&v) = next.iter().filter(|&&a| well[a]).min() {
-                    let weight = |i: usize| support[i].powi(CURVATURE_SUPPORT_POWER);
-                    let ring = |i: usize| op.ring(i);
-                    return fit_quadric(
-                        vertices,
-                        &ring,
-                        &weight,
-                        v,
-                        normals[v],
-                        radius,
-                        CURVATURE_MIN_NEIGHBOURS,
-                    )?
-                    .project(&vertices[u]);
+                    return fit_around(vertices, op, &normals, support, v)?.project(&vertices[u]);
                 }
                 layer = next;
             }
@@ -617,7 +632,7 @@ impl<'a> FreeSystem<'a> {
 ///
 /// - measured on the fixed vertices within [`CURVATURE_RINGS`] rings of the free ones whose
 ///   sampling density is at least the median (`well`): a quadric fitted to the fixed
-///   vertices within [`CURVATURE_RADIUS_EDGES`] mean edges ([`fit_curvature`]; a
+///   vertices within [`CURVATURE_RADIUS_EDGES`] mean edges ([`fit_around`]; a
 ///   vertex's discrete Laplacian is far noisier on a simplified mesh), each weighing by its
 ///   support (sampling density over the median, to the power [`CURVATURE_SUPPORT_POWER`]),
 ///   then smoothed over those vertices; the thinly sampled rim next to a gap is left out, as
@@ -641,43 +656,16 @@ fn continued_curvature(
 ) -> Option<Vec<f64>> {
     let nv = mesh.vertices.len();
     let normals = vertex_normals(mesh);
-    let mut near = vec![false; nv];
-    let mut frontier: Vec<usize> = free_ids.to_vec();
-    for _ in 0..CURVATURE_RINGS {
-        let mut next = Vec::new();
-        for &v in &frontier {
-            for &a in op.ring(v) {
-                let a = a as usize;
-                if !free[a] && !near[a] {
-                    near[a] = true;
-                    next.push(a);
-                }
-            }
-        }
-        frontier = next;
-    }
+    let near = op.rings_around(free_ids, CURVATURE_RINGS, |a| !free[a]);
     let mut measured: Vec<bool> = (0..nv).map(|v| near[v] && well[v]).collect();
     let mut unknown: Vec<bool> = (0..nv).map(|v| free[v] || (near[v] && !well[v])).collect();
     let measured_ids: Vec<usize> = (0..nv).filter(|&v| measured[v]).collect();
     if measured_ids.is_empty() {
         return None;
     }
-    let radius = CURVATURE_RADIUS_EDGES * op.edge_scale;
     let fitted: Vec<Option<f64>> = measured_ids
         .par_iter()
-        .map(|&v| {
-            let weight = |i: usize| support[i].powi(CURVATURE_SUPPORT_POWER);
-            let ring = |i: usize| op.ring(i);
-            fit_curvature(
-                &mesh.vertices,
-                &ring,
-                &weight,
-                v,
-                normals[v],
-                radius,
-                CURVATURE_MIN_NEIGHBOURS,
-            )
-        })
+        .map(|&v| fit_around(&mesh.vertices, op, &normals, support, v)?.mean_curvature())
         .collect();
     let mut h = vec![0.0; nv];
     // A vertex whose fit failed (too few well-sampled neighbours) takes the continued value.
@@ -911,6 +899,32 @@ impl Operator {
 
     fn ring(&self, v: usize) -> &[u32] {
         &self.ring[self.start[v]..self.start[v + 1]]
+    }
+
+    /// The vertices within `rings` rings of `seeds` reached through vertices that `accept`
+    /// (the seeds themselves not included unless reached again and accepted).
+    fn rings_around(
+        &self,
+        seeds: &[usize],
+        rings: usize,
+        accept: impl Fn(usize) -> bool,
+    ) -> Vec<bool> {
+        let mut reached = vec![false; self.area.len()];
+        let mut frontier = seeds.to_vec();
+        for _ in 0..rings {
+            let mut next = Vec::new();
+            for &v in &frontier {
+                for &a in self.ring(v) {
+                    let a = a as usize;
+                    if !reached[a] && accept(a) {
+                        reached[a] = true;
+                        next.push(a);
+                    }
+                }
+            }
+            frontier = next;
+        }
+        reached
     }
 
     /// `L x` at vertex `v`.
