@@ -1,7 +1,7 @@
 //! Reconstruction, simplification and fairing of the unsupported surface on a cloud, written
 //! as PLY meshes for `benches/peers/mesh_figures.py`:
 //! `cargo run --release -p sl-mesh --example fair_gap -- CLOUD.ply OUT_DIR [RATIO] [DEPTH] [CURVATURE_STEPS]`
-//! (with `FAIR_RIM` set in the environment, `FairConfig::project_rim`).
+//! (with `NO_FAIR_RIM` set in the environment, `FairConfig::project_rim` off).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -51,7 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &FairConfig {
             support_ratio: ratio,
             curvature_iterations: curvature,
-            project_rim: std::env::var_os("FAIR_RIM").is_some(),
+            project_rim: std::env::var_os("NO_FAIR_RIM").is_none(),
         },
     )?;
     println!("fair {:.1} ms: {f:?}", t.elapsed().as_secs_f64() * 1e3);

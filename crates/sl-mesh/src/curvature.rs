@@ -11,6 +11,7 @@ pub(crate) struct LocalQuadric {
     b: Vector3<f64>,
     n: Vector3<f64>,
     c: Vector6<f64>,
+    residual: f64,
 }
 
 impl LocalQuadric {
@@ -19,6 +20,13 @@ impl LocalQuadric {
     pub(crate) fn mean_curvature(&self) -> Option<f64> {
         let mean = -2.0 * self.c[5];
         mean.is_finite().then_some(mean)
+    }
+
+    /// The weighted RMS of the fitted vertices' residuals (their heights above the fitted
+    /// surface, to first order): about the surface's own roughness where a quadric describes
+    /// it, much more across a crease or a bend it does not follow.
+    pub(crate) fn residual(&self) -> f64 {
+        self.residual
     }
 
     /// The point of the fitted surface above or below `q` along the frame's normal, if the
@@ -51,7 +59,8 @@ impl LocalQuadric {
 /// Fits `z = c0 + c1 x + c2 y + c3 (x² − y²) + c4 xy + c5 (x² + y² + z²)` by weighted least
 /// squares, in the frame of `normal` at vertex `v`, to the vertices within `radius` of it that
 /// are reached through the mesh (`ring`) and have a positive `weight`; `None` with fewer than
-/// `min_vertices` of them, a singular fit or a zero normal.
+/// `min_vertices` of them, a singular fit or a zero normal. The fit's residual is
+/// [`LocalQuadric::residual`].
 ///
 /// The isotropic term takes `z²` too, which makes the fit exact on a sphere at any radius (a
 /// point `d` from a sphere's point has `d·n = −|d|² / 2r`), where a height-field quadric reads
@@ -78,7 +87,7 @@ pub(crate) fn fit_quadric<'a>(
     let b = n.cross(&a);
     let mut normal_matrix = Matrix6::<f64>::zeros();
     let mut rhs = Vector6::<f64>::zeros();
-    let mut count = 0usize;
+    let mut rows: Vec<(Vector6<f64>, f64, f64)> = Vec::new();
     let mut seen = std::collections::HashSet::from([v as u32]);
     let mut stack = vec![v as u32];
     let r2 = radius * radius;
@@ -90,7 +99,7 @@ pub(crate) fn fit_quadric<'a>(
             let row = Vector6::new(1.0, x, y, x * x - y * y, x * y, d.norm_squared());
             normal_matrix += row * row.transpose() * w;
             rhs += row * (z * w);
-            count += 1;
+            rows.push((row, z, w));
         }
         for &j in ring(i as usize) {
             if (positions[j as usize] - p).norm_squared() <= r2 && seen.insert(j) {
@@ -98,11 +107,23 @@ pub(crate) fn fit_quadric<'a>(
             }
         }
     }
-    if count < min_vertices {
+    if rows.len() < min_vertices {
         return None;
     }
     let c = normal_matrix.cholesky()?.solve(&rhs);
-    Some(LocalQuadric { p, a, b, n, c })
+    let (squares, weights) = rows.iter().fold((0.0, 0.0), |(s, sw), (row, z, w)| {
+        let r = row.dot(&c) - z;
+        (s + w * r * r, sw + w)
+    });
+    let residual = (squares / weights).sqrt();
+    Some(LocalQuadric {
+        p,
+        a,
+        b,
+        n,
+        c,
+        residual,
+    })
 }
 
 #[cfg(test)]
@@ -137,6 +158,7 @@ mod tests {
         let q = fit_quadric(&sph, &ring, &one, 0, Vector3::z(), 3.5, 12).unwrap();
         let s = q.mean_curvature().unwrap();
         assert!((s - 0.25).abs() < 1e-9, "{s}");
+        assert!(q.residual() < 1e-9, "{}", q.residual());
         // The fitted sphere, whole: a point off it is put back on it along the frame's
         // normal, also beyond the fitted points (4.5 from the top of a sphere of radius 4
         // fitted out to 3 is past its side: no point; 3.8 is on it).
@@ -144,6 +166,21 @@ mod tests {
         assert!((on.coords.norm() - r).abs() < 1e-9, "{on}");
         assert!((on.x - 3.2).abs() < 1e-12 && (on.y - 1.0).abs() < 1e-12 && on.z > 0.0);
         assert!(q.project(&Point3::new(4.5, 0.0, 0.0)).is_none());
+        // A roof (two planes meeting at 30° each side of the top) is no quadric: its residual
+        // is a fair part of the heights fitted, where a cylinder's is its quartic terms'.
+        let roof: Vec<Point3<f64>> = sph
+            .iter()
+            .map(|p| Point3::new(p.x, p.y, -0.577 * p.x.abs()))
+            .collect();
+        let roofed = fit_quadric(&roof, &ring, &one, 0, Vector3::z(), 3.5, 12).unwrap();
+        let cylinder = fit_quadric(&cyl, &ring, &one, 0, Vector3::z(), 1.6, 12).unwrap();
+        eprintln!(
+            "residuals: roof {} cylinder {}",
+            roofed.residual(),
+            cylinder.residual()
+        );
+        assert!(roofed.residual() > 0.05, "{}", roofed.residual());
+        assert!(cylinder.residual() < 1e-3, "{}", cylinder.residual());
         // Too few vertices, or none weighing: no fit.
         assert!(fit_quadric(&sph, &ring, &one, 0, Vector3::z(), 3.5, 1000).is_none());
         assert!(fit_quadric(&sph, &ring, &|_| 0.0, 0, Vector3::z(), 3.5, 6).is_none());

@@ -34,10 +34,10 @@
 //! 0.41 mm), a gap in a plane by the plane.
 //!
 //! The fairing continues the rim it is given, and Poisson bends the surface outwards for a
-//! millimetre or so past the last samples; with [`FairConfig::project_rim`] that rim is first
-//! put on the quadric fitted to the well-sampled surface nearby (the default scan's unseen
-//! patch 0.063 → 0.040 mm; off by default, as it can move scanned surface of shapes a quadric
-//! over a few millimetres does not describe: docs/meshing.md).
+//! millimetre or so past the last samples; so ([`FairConfig::project_rim`], on by default)
+//! that rim is first put on the quadric fitted to the well-sampled surface nearby, wherever
+//! such a quadric fits about as well as it does elsewhere on the mesh (not next to a crease):
+//! the default scan's unseen patch 0.063 → 0.040 mm over its area (docs/meshing.md).
 //!
 //! Each system lives on the unsupported vertices only (the fixed ones enter its right-hand
 //! side through the two rings around them) and is factored once by sparse Cholesky (faer):
@@ -70,12 +70,12 @@ pub struct FairConfig {
     /// only). 30: it settles in 7–9 on the default scan and on the test sphere.
     pub curvature_iterations: usize,
     /// Put the thinly sampled rim of each gap on the well-sampled surface first (see
-    /// `project_rim`), and let the fixed vertices' rows keep their tangential part: closes a
-    /// gap in a smooth, rounded object much better (the default scan's unseen patch 0.063 →
-    /// 0.040 mm over its area, the test sphere's cap 0.11 → 0.05 mm whatever the support
-    /// ratio), but on a shape that a quadric over a few millimetres does not fit it moves
-    /// scanned surface (the two-placement pebble: 0.0600 → 0.0637 mm at the vertices). Off
-    /// by default.
+    /// `project_rim`; only where a quadric fitted nearby fits about as well as elsewhere on
+    /// the mesh), and let the fixed vertices' rows keep their tangential part: closes a gap in
+    /// a smooth, rounded object much better (the default scan's unseen patch 0.063 → 0.040 mm
+    /// over its area, all its vertices 0.0662 → 0.0633 mm; the test sphere's cap 0.11 →
+    /// 0.05 mm whatever the support ratio) and leaves gaps next to a crease as they were (the
+    /// two-placement pebble: 0.0600 mm at the vertices either way). On by default.
     pub project_rim: bool,
 }
 
@@ -84,7 +84,7 @@ impl Default for FairConfig {
         Self {
             support_ratio: 0.3,
             curvature_iterations: 30,
-            project_rim: false,
+            project_rim: true,
         }
     }
 }
@@ -96,8 +96,8 @@ pub struct Fairing {
     pub vertices_moved: usize,
     /// Fixed vertices of the thinly sampled rim around them (density below half the median,
     /// within four rings) put on the surface fitted to the well-sampled vertices nearby before
-    /// the fairing (where Poisson bends the surface past the last samples); 0 without
-    /// [`FairConfig::project_rim`].
+    /// the fairing (where Poisson bends the surface past the last samples, and the fit is
+    /// good); 0 without [`FairConfig::project_rim`].
     pub rim_moved: usize,
     /// The largest distance a vertex moved, in the mesh's units.
     pub largest_move: f64,
@@ -198,7 +198,7 @@ pub fn fair_unsupported(
         }
     }
     let active_ids: Vec<usize> = (0..nv).filter(|&v| active[v]).collect();
-    let start: Vec<Vector3<f64>> = free_ids.iter().map(|&v| mesh.vertices[v].coords).collect();
+    let before: Vec<Vector3<f64>> = free_ids.iter().map(|&v| mesh.vertices[v].coords).collect();
 
     // The thin plate: `K_ff x_f = −K_fc x_c`, factored once (sparse Cholesky). Not positive
     // definite only where every triangle around a free vertex is degenerate (all its cotangent
@@ -206,40 +206,64 @@ pub fn fair_unsupported(
     let Some(plate) = FreeSystem::new(&op, &free_ids, &active_ids) else {
         return Ok(unchanged);
     };
-    // The thinly sampled rim around the gap, put on the well-sampled surface first (see
-    // `project_rim`); the fairing continues it.
-    let (well, support) = well_sampled(densities, &free, median);
-    let rim_moved = if cfg.project_rim {
-        let rim = RimInput {
-            free: &free,
-            free_ids: &free_ids,
-            densities,
-            median,
-            well: &well,
-            support: &support,
-        };
-        project_rim(mesh, &op, &rim)
-    } else {
-        0
-    };
     let pull = fixed_pull(&op, mesh, &free, &active_ids, &free_ids);
     let mut x = plate.solve(&pull);
     let residual = plate.relative_residual(&x, &pull);
     let mut curvature_steps = 0;
     let mut curvature_converged = false;
     let mut mean_curvature = 0.0;
+    let mut rim_moved = 0;
     if cfg.curvature_iterations > 0 {
+        // The thinly sampled rim around the gap, put on the well-sampled surface first (see
+        // `project_rim`); the curvature fairing continues it, from the thin plate under it.
+        let (well, support) = well_sampled(densities, &free, median);
+        let rim = if cfg.project_rim {
+            let input = RimInput {
+                free: &free,
+                densities,
+                median,
+                well: &well,
+                support: &support,
+            };
+            project_rim(mesh, &op, &input)
+        } else {
+            RimProjection {
+                originals: Vec::new(),
+                tangential: vec![false; nv],
+            }
+        };
+        let start = if rim.originals.is_empty() {
+            x.clone()
+        } else {
+            plate.solve(&fixed_pull(&op, mesh, &free, &active_ids, &free_ids))
+        };
         for (i, &v) in free_ids.iter().enumerate() {
-            mesh.vertices[v] = Point3::from(x[i]);
+            mesh.vertices[v] = Point3::from(start[i]);
         }
         // Without well-sampled surface near the gap there is no curvature to continue.
         if let Some(h) = continued_curvature(mesh, &op, &free, &free_ids, &well, &support) {
             mean_curvature = free_ids.iter().map(|&v| h[v]).sum::<f64>() / free_ids.len() as f64;
-            let faired = curvature_fairing(mesh, &op, &free, &free_ids, &active_ids, &h, cfg);
+            let system = FairingSystem {
+                free: &free,
+                free_ids: &free_ids,
+                active_ids: &active_ids,
+                tangential: &rim.tangential,
+            };
+            let faired = curvature_fairing(mesh, &op, &system, &h, cfg);
             curvature_steps = faired.steps;
             curvature_converged = faired.converged;
             if faired.converged {
                 x = faired.positions;
+            }
+        }
+        // The thin plate that stays is the one under Poisson's rim: a clamped plate sags into
+        // a curved surface, and the rim's outward bend makes up for part of that (the test
+        // sphere's cap 0.35 mm under Poisson's rim, 0.61 mm under the projected one).
+        if curvature_converged {
+            rim_moved = rim.originals.len();
+        } else {
+            for (v, p) in rim.originals {
+                mesh.vertices[v] = p;
             }
         }
     }
@@ -248,7 +272,7 @@ pub fn fair_unsupported(
     }
     let largest_move = x
         .iter()
-        .zip(&start)
+        .zip(&before)
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, f64::max);
     Ok(Fairing {
@@ -310,11 +334,32 @@ const RIM_DENSITY: f64 = 0.5;
 /// millimetres off, spikes in the mesh.
 const RIM_MAX_MOVE_EDGES: f64 = 0.5;
 
+/// A quadric fits "as well as is typical" ([`project_rim`]) when its residual is at most this
+/// many times the median residual of the fits at well-sampled vertices
+/// ([`typical_fit_residual`]). A quadric does not describe a crease, and one fitted next to
+/// it (the two-placement pebble's gaps lie where its flat bottom meets its side, 50–70° of
+/// bend within 4 mm) moved the rim inwards by 0.1–0.2 mm, which the fairing then carried into
+/// the gap. Measured: the default scan's rim fits 0.008–0.011 mm against a typical
+/// 0.0082 mm, the pebble's 0.012–0.09 mm against 0.0090 mm with none between 0.015 and
+/// 0.03 mm; 1.5 already lost a little of the scan's gain, 2–3 gave the same meshes
+/// (docs/meshing.md).
+const RIM_FIT_RESIDUAL: f64 = 2.0;
+
+/// A gap counts as in smooth surface ([`project_rim`]) when at least this share of the fixed
+/// vertices next to it find a quadric that fits as well as is typical. Measured: the default
+/// scan's two unseen patches 100 %, the test sphere's cap 94 % (77 % when the support ratio
+/// frees down to 0.2 of the median); gaps on a crease 48 % (`rim_next_to_a_crease_stays`)
+/// and 18 % (the two-placement pebble's).
+const SMOOTH_GAP_SHARE: f64 = 0.7;
+
+/// [`typical_fit_residual`] fits at every this many-th vertex (the vertices are numbered in
+/// cell order, so this samples the surface evenly).
+const TYPICAL_FIT_STRIDE: usize = 8;
+
 /// What [`project_rim`] reads of the fairing's set-up.
 #[derive(Clone, Copy)]
 struct RimInput<'a> {
     free: &'a [bool],
-    free_ids: &'a [usize],
     densities: &'a [f64],
     median: f64,
     /// From [`well_sampled`].
@@ -322,9 +367,25 @@ struct RimInput<'a> {
     support: &'a [f64],
 }
 
-/// Puts the fixed vertices within [`RIM_RINGS`] rings of the free ones whose sampling density
-/// is below [`RIM_DENSITY`] of the median onto the quadric fitted (as for the curvature, [`fit_quadric`]) around
-/// the nearest well-sampled vertex, along that vertex's normal; returns how many moved.
+/// What [`project_rim`] did: the rim vertices moved with their positions before, and which
+/// fixed vertices' curvature rows keep their tangential part.
+struct RimProjection {
+    originals: Vec<(usize, Point3<f64>)>,
+    tangential: Vec<bool>,
+}
+
+/// Puts the thinly sampled rim of every gap in smooth surface onto the surface fitted to the
+/// well-sampled vertices nearby; returns the vertices moved with their positions before, and
+/// the fixed vertices within two rings of those gaps (whose curvature rows then keep their
+/// tangential part, see [`curvature_fairing`]).
+///
+/// A gap (a piece of free vertices) is in smooth surface when, for at least
+/// [`SMOOTH_GAP_SHARE`] of the fixed vertices next to it, the quadric fitted (as for the
+/// curvature, [`fit_quadric`]) around the nearest well-sampled vertex has a residual of at most
+/// [`RIM_FIT_RESIDUAL`] times the typical one ([`typical_fit_residual`]). Its rim is the fixed
+/// vertices within [`RIM_RINGS`] rings whose sampling density is below [`RIM_DENSITY`] of the
+/// median; each is put on its fitted quadric along the fitted vertex's normal, when that fit
+/// passes the same test and the move is at most [`RIM_MAX_MOVE_EDGES`] mean edges.
 ///
 /// Poisson bends the surface outwards where the samples stop, over a millimetre or so that the
 /// density kernel still counts as supported: on the test sphere the fixed vertices just past
@@ -332,61 +393,115 @@ struct RimInput<'a> {
 /// all, so that bend went into the whole patch (and, with the umbrella rows' own inward pull,
 /// made the result depend on where the support ratio cut: 0.20 / 0.11 / 0.47 / 0.53 mm on the
 /// test cap for 0.2 / 0.3 / 0.4 / 0.5 of the median). With the rim on the well-sampled
-/// surface (and the fixed rows keeping their tangential part): 0.063 / 0.050 / 0.073 /
-/// 0.070 mm.
-fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> usize {
+/// surface (and the fixed rows keeping their tangential part): 0.040 / 0.028 / 0.051 /
+/// 0.029 mm. Next to a crease both hurt (`rim_next_to_a_crease_stays`), hence the test.
+fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> RimProjection {
     let RimInput {
         free,
-        free_ids,
         densities,
         median,
         well,
         support,
+        ..
     } = *input;
     let nv = mesh.vertices.len();
-    let in_rim = op.rings_around(free_ids, RIM_RINGS, |a| {
+    let nothing = || RimProjection {
+        originals: Vec::new(),
+        tangential: vec![false; nv],
+    };
+    let normals = vertex_normals(mesh);
+    let vertices = &mesh.vertices;
+    let Some(typical) = typical_fit_residual(vertices, op, &normals, well, support) else {
+        return nothing();
+    };
+    // The quadric fitted around the well-sampled vertex nearest to `u` through the mesh, if
+    // it fits as well as is typical.
+    let good_fit = |u: usize| -> Option<LocalQuadric> {
+        let mut seen = std::collections::HashSet::from([u]);
+        let mut layer = vec![u];
+        for _ in 0..CURVATURE_RINGS {
+            let mut next = Vec::new();
+            for &v in &layer {
+                for &a in op.ring(v) {
+                    if seen.insert(a as usize) {
+                        next.push(a as usize);
+                    }
+                }
+            }
+            if let Some(&v) = next.iter().filter(|&&a| well[a]).min() {
+                let quadric = fit_around(vertices, op, &normals, support, v)?;
+                return (quadric.residual() <= RIM_FIT_RESIDUAL * typical).then_some(quadric);
+            }
+            layer = next;
+        }
+        None
+    };
+    let mut smooth = Vec::new();
+    for piece in op.pieces(free) {
+        let mut next_to: Vec<usize> = piece
+            .iter()
+            .flat_map(|&v| op.ring(v).iter().map(|&a| a as usize))
+            .filter(|&a| !free[a] && !op.boundary[a])
+            .collect();
+        next_to.sort_unstable();
+        next_to.dedup();
+        let good = next_to
+            .par_iter()
+            .filter(|&&u| good_fit(u).is_some())
+            .count();
+        if !next_to.is_empty() && good as f64 >= SMOOTH_GAP_SHARE * next_to.len() as f64 {
+            smooth.extend(piece);
+        }
+    }
+    if smooth.is_empty() {
+        return nothing();
+    }
+    let in_rim = op.rings_around(&smooth, RIM_RINGS, |a| {
         !free[a] && !op.boundary[a] && densities[a] < RIM_DENSITY * median
     });
     let rim: Vec<usize> = (0..nv).filter(|&v| in_rim[v]).collect();
-    if rim.is_empty() {
-        return 0;
-    }
-    let normals = vertex_normals(mesh);
-    let vertices = &mesh.vertices;
     let moved: Vec<Option<Point3<f64>>> = rim
         .par_iter()
         .map(|&u| {
-            // The nearest well-sampled vertex through the mesh, ring by ring.
-            let mut seen = std::collections::HashSet::from([u]);
-            let mut layer = vec![u];
-            for _ in 0..CURVATURE_RINGS {
-                let mut next = Vec::new();
-                for &v in &layer {
-                    for &a in op.ring(v) {
-                        if seen.insert(a as usize) {
-                            next.push(a as usize);
-                        }
-                    }
-                }
-                if let Some(&v) = next.iter().filter(|&&a| well[a]).min() {
-                    let p =
-                        fit_around(vertices, op, &normals, support, v)?.project(&vertices[u])?;
-                    return ((p - vertices[u]).norm() <= RIM_MAX_MOVE_EDGES * op.edge_scale)
-                        .then_some(p);
-                }
-                layer = next;
-            }
-            None
+            let p = good_fit(u)?.project(&vertices[u])?;
+            ((p - vertices[u]).norm() <= RIM_MAX_MOVE_EDGES * op.edge_scale).then_some(p)
         })
         .collect();
-    let mut count = 0;
+    let mut originals = Vec::new();
     for (&u, p) in rim.iter().zip(moved) {
         if let Some(p) = p {
+            originals.push((u, mesh.vertices[u]));
             mesh.vertices[u] = p;
-            count += 1;
         }
     }
-    count
+    RimProjection {
+        originals,
+        tangential: op.rings_around(&smooth, 2, |a| !free[a]),
+    }
+}
+
+/// The median residual of the quadrics fitted ([`fit_around`]) at every
+/// [`TYPICAL_FIT_STRIDE`]-th well-sampled vertex not on a boundary: how far the surface
+/// departs from a quadric where nothing is wrong (its noise and small detail; 0.008 mm on the
+/// default scan, 0.06 mm on the Stanford bunny's scans). `None` without any such fit.
+fn typical_fit_residual(
+    vertices: &[Point3<f64>],
+    op: &Operator,
+    normals: &[Vector3<f64>],
+    well: &[bool],
+    support: &[f64],
+) -> Option<f64> {
+    let mut residuals: Vec<f64> = (0..vertices.len())
+        .into_par_iter()
+        .step_by(TYPICAL_FIT_STRIDE)
+        .filter(|&v| well[v] && !op.boundary[v])
+        .filter_map(|v| fit_around(vertices, op, normals, support, v).map(|q| q.residual()))
+        .collect();
+    if residuals.is_empty() {
+        return None;
+    }
+    let middle = residuals.len() / 2;
+    Some(*residuals.select_nth_unstable_by(middle, f64::total_cmp).1)
 }
 
 /// What [`curvature_fairing`] reached.
@@ -400,6 +515,17 @@ struct CurvatureFairing {
     converged: bool,
 }
 
+/// The vertices [`curvature_fairing`] works on.
+struct FairingSystem<'a> {
+    free: &'a [bool],
+    free_ids: &'a [usize],
+    /// The free vertices and the two rings of fixed ones around them.
+    active_ids: &'a [usize],
+    /// The fixed vertices whose rows keep their tangential part (next to a gap whose rim was
+    /// projected: [`project_rim`]).
+    tangential: &'a [bool],
+}
+
 /// The curvature fairing's steps from the mesh as it is (the thin plate): the free vertices
 /// placed, with the two fixed rings, so that their umbrella vectors carry the mean curvature
 /// `h` (see the module documentation), until they settle or `cfg.curvature_iterations`
@@ -407,14 +533,17 @@ struct CurvatureFairing {
 fn curvature_fairing(
     mesh: &mut TriangleMesh,
     op: &Operator,
-    free: &[bool],
-    free_ids: &[usize],
-    active_ids: &[usize],
+    system: &FairingSystem<'_>,
     h: &[f64],
     cfg: &FairConfig,
 ) -> CurvatureFairing {
+    let FairingSystem {
+        free,
+        free_ids,
+        active_ids,
+        tangential,
+    } = *system;
     let nv = mesh.vertices.len();
-    let project_rim = cfg.project_rim;
     let mut x: Vec<Vector3<f64>> = free_ids.iter().map(|&v| mesh.vertices[v].coords).collect();
     let mut curvature_steps = 0;
     let mut curvature_converged = false;
@@ -450,7 +579,7 @@ fn curvature_fairing(
             // sphere has one) and only the normal part, the curvature, pulls on the free
             // vertices. (Without the projection the bent rim's outward pull and this row's
             // inward one cancel in part, and keeping the tangential part alone is worse.)
-            if project_rim && !free[v] {
+            if tangential[v] {
                 let mean = ring
                     .iter()
                     .map(|&j| mesh.vertices[j as usize].coords)
@@ -971,7 +1100,9 @@ impl Operator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_shapes::{partial_sphere_surface, sphere_mesh};
+    use crate::test_shapes::{
+        cut_ball_distance, cut_ball_surface, partial_sphere_surface, sphere_mesh,
+    };
     use crate::{SimplifyConfig, check_topology, simplify};
 
     /// RMS of `|p| − r` over the vertices with `z > z_min`.
@@ -990,23 +1121,110 @@ mod tests {
 
     /// A sphere of radius 10 whose top (a cap of 60° around +z) has no samples, reconstructed
     /// and simplified as `slscan mesh` does: Poisson spans the gap as a membrane that sags
-    /// into the sphere (RMS 0.85 mm over the vertices of the cap z > 0.6 r). The thin plate
+    /// into the sphere (RMS 0.84 mm over the vertices of the cap z > 0.6 r). The thin plate
     /// alone (no curvature steps) continues the sphere's curvature but cannot be a sphere: a
     /// clamped plate of half-width `a` under the sphere's curvature misses its middle by about
-    /// `a⁴ / (16 r³)`, 0.35 mm here (measured 0.350). The curvature fairing continues the
+    /// `a⁴ / (16 r³)`, 0.35 mm here (measured 0.39). The curvature fairing continues the
     /// sphere's mean curvature `1/r` and so closes the gap by the sphere itself, up to the
     /// estimate of `H` (1 % of `H` is about 0.05 mm at the middle of this cap) and the
-    /// simplified mesh's facets: measured 0.11 mm, so it must be below 0.02 r and below half
-    /// the thin plate's; the curvature it continued is `1/r` within 2 % (measured 0.3 % low).
-    /// Allowed one step,
-    /// which does not settle, it leaves the thin plate exactly. The direct solve's residual is
-    /// round-off (below 1e-9). The supported vertices do not move, and the mesh stays closed
-    /// and manifold with the same triangles.
-    /// With `project_rim`, where the support ratio cuts hardly matters: on the 10 mm sphere
-    /// without its 60° cap, freeing the vertices below 0.2, 0.3, 0.4 or 0.5 of the median
-    /// density closes the cap within 0.01 r RMS each time (measured 0.063, 0.050, 0.073, 0.070
-    /// mm; without it 0.20, 0.11, 0.47, 0.53 mm — and only the rim moves besides the free
-    /// vertices, by less than 0.02 r).
+    /// simplified mesh's facets: measured 0.11 mm from Poisson's rim (`project_rim` off), so
+    /// it must be below 0.02 r and below half the thin plate's, and 0.028 mm with the rim put
+    /// on the sphere first (the default), which must be below 0.005 r; the curvature it
+    /// continued is `1/r` within 2 % (measured 0.3 % high). Allowed one step, which does not
+    /// settle, it leaves the thin plate under Poisson's rim exactly (the projected rim is put
+    /// back). The direct solve's residual is round-off (below 1e-9). Besides the free
+    /// vertices only the rim moves, and the mesh stays closed and manifold with the same
+    /// triangles.
+    #[test]
+    fn gap_follows_the_sphere() {
+        let r = 10.0;
+        let mut s = partial_sphere_surface(r, |_, n| n.z < 0.5);
+        let d = simplify(&mut s.mesh, &s.densities, &SimplifyConfig::default()).unwrap();
+        let before = s.mesh.clone();
+        let (rms0, n0) = cap_rms(&before, r, 0.6 * r);
+        let mut plate = before.clone();
+        let thin = FairConfig {
+            curvature_iterations: 0,
+            ..FairConfig::default()
+        };
+        let fp = fair_unsupported(&mut plate, &d.densities, &thin).unwrap();
+        let (rms_plate, _) = cap_rms(&plate, r, 0.6 * r);
+        let mut plain = before.clone();
+        let from_poisson_rim = FairConfig {
+            project_rim: false,
+            ..FairConfig::default()
+        };
+        let f0 = fair_unsupported(&mut plain, &d.densities, &from_poisson_rim).unwrap();
+        let (rms_plain, _) = cap_rms(&plain, r, 0.6 * r);
+        let f = fair_unsupported(&mut s.mesh, &d.densities, &FairConfig::default()).unwrap();
+        let (rms1, n1) = cap_rms(&s.mesh, r, 0.6 * r);
+        eprintln!(
+            "cap RMS {rms0:.4} mm ({n0} vertices) → thin plate {rms_plate:.4} mm → curvature \
+             {rms_plain:.4} mm, with the rim projected {rms1:.4} mm ({n1}); {f:?}"
+        );
+        assert!(n0 > 20 && n1 > 20, "{n0} {n1}");
+        assert_eq!(fp.curvature_steps, 0);
+        assert_eq!(fp.rim_moved, 0);
+        assert!(
+            rms_plate * 2.0 < rms0 && rms_plate < 0.05 * r,
+            "thin plate: cap RMS {rms0} → {rms_plate}"
+        );
+        for f in [&f, &f0] {
+            assert!(f.curvature_converged && f.curvature_steps > 0, "{f:?}");
+            assert!((f.mean_curvature * r - 1.0).abs() < 0.02, "{f:?}");
+            assert!(f.residual < 1e-9, "{f:?}");
+        }
+        assert!(
+            rms_plain * 2.0 < rms_plate && rms_plain < 0.02 * r,
+            "curvature: cap RMS {rms_plate} → {rms_plain}"
+        );
+        assert!(rms1 < 0.005 * r, "rim projected: cap RMS {rms1}");
+        assert!(f0.rim_moved == 0 && f.rim_moved > 0, "{f0:?} {f:?}");
+        // One step does not settle: the thin plate stays, exactly, under Poisson's rim.
+        let mut one = before.clone();
+        let cfg1 = FairConfig {
+            curvature_iterations: 1,
+            ..FairConfig::default()
+        };
+        let f1 = fair_unsupported(&mut one, &d.densities, &cfg1).unwrap();
+        assert!(!f1.curvature_converged && f1.curvature_steps == 1, "{f1:?}");
+        assert_eq!(f1.rim_moved, 0);
+        assert_eq!(one.vertices, plate.vertices);
+        assert!(fp.residual < 1e-9, "{fp:?}");
+        assert_eq!(s.mesh.triangles, before.triangles);
+        assert!(check_topology(&s.mesh).is_watertight_manifold());
+        let mut sorted = d.densities.clone();
+        sorted.sort_unstable_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        let threshold = FairConfig::default().support_ratio * median;
+        let (mut moved, mut rim) = (0, 0);
+        for (v, (a, b)) in before.vertices.iter().zip(&s.mesh.vertices).enumerate() {
+            let density = d.densities[v];
+            if density >= RIM_DENSITY * median {
+                assert_eq!(a, b, "supported vertex {v} moved");
+            } else if a != b {
+                if density >= threshold {
+                    rim += 1;
+                } else {
+                    moved += 1;
+                }
+            }
+            if density >= threshold {
+                assert_eq!(
+                    a, &plain.vertices[v],
+                    "vertex {v} moved without the rim's projection"
+                );
+            }
+        }
+        assert_eq!(moved, f.vertices_moved);
+        assert_eq!(rim, f.rim_moved);
+    }
+
+    /// With `project_rim` (the default), where the support ratio cuts hardly matters: on the
+    /// 10 mm sphere without its 60° cap, freeing the vertices below 0.2, 0.3, 0.4 or 0.5 of
+    /// the median density closes the cap within 0.0075 r RMS each time (measured 0.040,
+    /// 0.028, 0.051, 0.029 mm; from Poisson's rim 0.20, 0.11, 0.47, 0.53 mm) — and only the
+    /// rim moves besides the free vertices, by less than 0.02 r.
     #[test]
     fn support_ratio_hardly_matters() {
         let r = 10.0;
@@ -1022,7 +1240,7 @@ mod tests {
             let f = fair_unsupported(&mut m, &d.densities, &cfg).unwrap();
             let (rms, n) = cap_rms(&m, r, 0.6 * r);
             assert!(f.curvature_converged && n > 20, "{ratio}: {f:?}");
-            assert!(rms < 0.01 * r, "ratio {ratio}: cap RMS {rms}");
+            assert!(rms < 0.0075 * r, "ratio {ratio}: cap RMS {rms}");
             // Besides the free vertices only the rim moves (density below half the median),
             // onto the sphere by about the bend Poisson left there.
             let mut sorted = d.densities.clone();
@@ -1049,62 +1267,55 @@ mod tests {
         }
     }
 
+    /// A gap where a flat bottom meets a ball's side (radius 10, bottom at z = −5.5; the
+    /// two-placement pebble's gaps lie on such a crease): no quadric describes the surface
+    /// there. Projecting the rim and keeping the fixed rows' tangential part made the gap
+    /// twice as far off (0.138 → 0.277 mm RMS over the vertices near it, also with only
+    /// the rim fits that pass the residual test moved: 0.276 mm); less than half of the
+    /// fixed vertices next to it find a typical fit (29 of 60), so the gap is not taken
+    /// for smooth surface and is faired from Poisson's rim: the same mesh as with
+    /// `project_rim` off.
     #[test]
-    fn gap_follows_the_sphere() {
-        let r = 10.0;
-        let mut s = partial_sphere_surface(r, |_, n| n.z < 0.5);
+    fn rim_next_to_a_crease_stays() {
+        let (r, cut) = (10.0f64, -5.5f64);
+        let rho = (r * r - cut * cut).sqrt();
+        let in_gap = |p: &Point3<f64>| {
+            p.x > 0.0 && p.y.abs() < 0.6 * p.x && p.z < cut + 2.5 && p.x.hypot(p.y) > rho - 2.5
+        };
+        let mut s = cut_ball_surface(r, cut, |p, _| !in_gap(p));
         let d = simplify(&mut s.mesh, &s.densities, &SimplifyConfig::default()).unwrap();
-        let before = s.mesh.clone();
-        let (rms0, n0) = cap_rms(&before, r, 0.6 * r);
-        let mut plate = before.clone();
-        let thin = FairConfig {
-            curvature_iterations: 0,
+        let near = |p: &Point3<f64>| {
+            p.x > 0.0 && p.y.abs() < 0.9 * p.x && p.z < cut + 4.0 && p.x.hypot(p.y) > rho - 4.0
+        };
+        let rms = |m: &TriangleMesh| {
+            let e: Vec<f64> = m
+                .vertices
+                .iter()
+                .filter(|p| near(p))
+                .map(|p| cut_ball_distance(p, r, cut))
+                .collect();
+            (
+                (e.iter().map(|e| e * e).sum::<f64>() / e.len() as f64).sqrt(),
+                e.len(),
+            )
+        };
+        let mut plain = s.mesh.clone();
+        let cfg = FairConfig {
+            project_rim: false,
             ..FairConfig::default()
         };
-        let fp = fair_unsupported(&mut plate, &d.densities, &thin).unwrap();
-        let (rms_plate, _) = cap_rms(&plate, r, 0.6 * r);
-        let f = fair_unsupported(&mut s.mesh, &d.densities, &FairConfig::default()).unwrap();
-        let (rms1, n1) = cap_rms(&s.mesh, r, 0.6 * r);
-        eprintln!(
-            "cap RMS {rms0:.4} mm ({n0} vertices) → thin plate {rms_plate:.4} mm → curvature \
-             {rms1:.4} mm ({n1}); {f:?}"
-        );
-        assert!(n0 > 20 && n1 > 20, "{n0} {n1}");
-        assert_eq!(fp.curvature_steps, 0);
+        let f0 = fair_unsupported(&mut plain, &d.densities, &cfg).unwrap();
+        let mut m = s.mesh.clone();
+        let f = fair_unsupported(&mut m, &d.densities, &FairConfig::default()).unwrap();
+        let (before, n) = rms(&s.mesh);
+        let (rms0, _) = rms(&plain);
+        eprintln!("near the gap ({n} vertices): {before:.4} → {rms0:.4}; {f0:?} {f:?}");
         assert!(
-            rms_plate * 2.0 < rms0 && rms_plate < 0.05 * r,
-            "thin plate: cap RMS {rms0} → {rms_plate}"
+            n > 100 && f.vertices_moved > 50 && rms0 < before,
+            "{n} {f:?}"
         );
-        assert!(f.curvature_converged && f.curvature_steps > 0, "{f:?}");
-        assert!((f.mean_curvature * r - 1.0).abs() < 0.02, "{f:?}");
-        // One step does not settle: the thin plate stays, exactly.
-        let mut one = before.clone();
-        let cfg1 = FairConfig {
-            curvature_iterations: 1,
-            ..FairConfig::default()
-        };
-        let f1 = fair_unsupported(&mut one, &d.densities, &cfg1).unwrap();
-        assert!(!f1.curvature_converged && f1.curvature_steps == 1, "{f1:?}");
-        assert_eq!(one.vertices, plate.vertices);
-        assert!(
-            rms1 * 2.0 < rms_plate && rms1 < 0.02 * r,
-            "curvature: cap RMS {rms_plate} → {rms1}"
-        );
-        assert!(f.residual < 1e-9 && fp.residual < 1e-9, "{f:?} {fp:?}");
-        assert_eq!(s.mesh.triangles, before.triangles);
-        assert!(check_topology(&s.mesh).is_watertight_manifold());
-        let mut sorted = d.densities.clone();
-        sorted.sort_unstable_by(f64::total_cmp);
-        let threshold = FairConfig::default().support_ratio * sorted[sorted.len() / 2];
-        let mut moved = 0;
-        for (v, (a, b)) in before.vertices.iter().zip(&s.mesh.vertices).enumerate() {
-            if d.densities[v] >= threshold {
-                assert_eq!(a, b, "supported vertex {v} moved");
-            } else if a != b {
-                moved += 1;
-            }
-        }
-        assert_eq!(moved, f.vertices_moved);
+        assert_eq!(f.rim_moved, 0);
+        assert_eq!(m.vertices, plain.vertices);
     }
 
     /// An open mesh: the vertices on its rim stay even when unsupported; a mesh whose vertices

@@ -55,6 +55,64 @@ pub(crate) fn partial_sphere_surface(
     poisson_reconstruct(&cloud, &cfg).unwrap()
 }
 
+/// The Poisson surface (depth 6) of a ball of radius `radius` at the origin with a flat
+/// bottom at `z = cut` (a pebble: a crease all round where the bottom meets the side),
+/// sampled about as densely as `partial_sphere_surface`'s sphere (sphere part and disc, with
+/// outward normals), without the samples for which `keep(position, normal)` fails.
+pub(crate) fn cut_ball_surface(
+    radius: f64,
+    cut: f64,
+    keep: impl Fn(&Point3<f64>, &Vector3<f64>) -> bool,
+) -> crate::PoissonSurface {
+    let n = 20_000;
+    let sphere = sphere_cloud(n, radius, Point3::origin());
+    let mut pts = Vec::new();
+    let mut nrm = Vec::new();
+    for (p, v) in sphere.positions().iter().zip(sphere.normals().unwrap()) {
+        if p.z >= cut {
+            pts.push(*p);
+            nrm.push(*v);
+        }
+    }
+    // The disc, a sunflower of the sphere's density.
+    let rho = (radius * radius - cut * cut).sqrt();
+    let disc = (n as f64 * rho * rho / (4.0 * radius * radius)) as usize;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    for i in 0..disc {
+        let r = rho * ((i as f64 + 0.5) / disc as f64).sqrt();
+        let t = golden * i as f64;
+        pts.push(Point3::new(r * t.cos(), r * t.sin(), cut));
+        nrm.push(-Vector3::z());
+    }
+    let (pts, nrm): (Vec<_>, Vec<_>) = pts.into_iter().zip(nrm).filter(|(p, n)| keep(p, n)).unzip();
+    let cloud = PointCloud::from_positions(pts).with_normals(nrm).unwrap();
+    let cfg = PoissonConfig {
+        depth: 6,
+        ..PoissonConfig::default()
+    };
+    poisson_reconstruct(&cloud, &cfg).unwrap()
+}
+
+/// Signed distance from `p` to the surface of `cut_ball_surface`'s ball (negative inside).
+pub(crate) fn cut_ball_distance(p: &Point3<f64>, radius: f64, cut: f64) -> f64 {
+    let (to_sphere, to_plane) = (p.coords.norm() - radius, cut - p.z);
+    if to_sphere <= 0.0 && to_plane <= 0.0 {
+        return to_sphere.max(to_plane);
+    }
+    let rho = (radius * radius - cut * cut).sqrt();
+    let planar = (p.x * p.x + p.y * p.y).sqrt();
+    // The nearest of the sphere part (where the radial projection is above the cut), the
+    // disc (where the point is above it) and the crease's circle.
+    let mut best = ((planar - rho).powi(2) + (p.z - cut).powi(2)).sqrt();
+    if p.z / p.coords.norm().max(f64::MIN_POSITIVE) * radius >= cut {
+        best = best.min(to_sphere.abs());
+    }
+    if planar <= rho {
+        best = best.min(to_plane.abs());
+    }
+    best
+}
+
 /// A closed mesh of a sphere of radius `radius` at the origin (Poisson at `depth`).
 pub(crate) fn sphere_mesh(radius: f64, depth: u32) -> TriangleMesh {
     let cloud = sphere_cloud(20_000, radius, Point3::origin());
