@@ -3,6 +3,11 @@
 
 use nalgebra::{Matrix6, Point3, Vector3, Vector6};
 
+/// A set of vertex ids for the ring walks: foldhash's fixed-seed hasher instead of the
+/// standard library's `SipHash`, which took most of the time of a fit's walk (the fairing fits
+/// some ten thousand quadrics on the default scan).
+pub(crate) type IdSet<T> = std::collections::HashSet<T, foldhash::fast::FixedState>;
+
 /// The quadric of [`fit_quadric`] in the frame (`a`, `b`, `n`) at `p` (the fitted vertex),
 /// `c` its coefficients.
 pub(crate) struct LocalQuadric {
@@ -87,8 +92,9 @@ pub(crate) fn fit_quadric<'a>(
     let b = n.cross(&a);
     let mut normal_matrix = Matrix6::<f64>::zeros();
     let mut rhs = Vector6::<f64>::zeros();
-    let mut rows: Vec<(Vector6<f64>, f64, f64)> = Vec::new();
-    let mut seen = std::collections::HashSet::from([v as u32]);
+    let (mut count, mut weights, mut squares) = (0usize, 0.0, 0.0);
+    let mut seen: IdSet<u32> = IdSet::default();
+    seen.insert(v as u32);
     let mut stack = vec![v as u32];
     let r2 = radius * radius;
     while let Some(i) = stack.pop() {
@@ -99,7 +105,9 @@ pub(crate) fn fit_quadric<'a>(
             let row = Vector6::new(1.0, x, y, x * x - y * y, x * y, d.norm_squared());
             normal_matrix += row * row.transpose() * w;
             rhs += row * (z * w);
-            rows.push((row, z, w));
+            count += 1;
+            weights += w;
+            squares += w * z * z;
         }
         for &j in ring(i as usize) {
             if (positions[j as usize] - p).norm_squared() <= r2 && seen.insert(j) {
@@ -107,15 +115,12 @@ pub(crate) fn fit_quadric<'a>(
             }
         }
     }
-    if rows.len() < min_vertices {
+    if count < min_vertices {
         return None;
     }
     let c = normal_matrix.cholesky()?.solve(&rhs);
-    let (squares, weights) = rows.iter().fold((0.0, 0.0), |(s, sw), (row, z, w)| {
-        let r = row.dot(&c) - z;
-        (s + w * r * r, sw + w)
-    });
-    let residual = (squares / weights).sqrt();
+    // `Σ w (row·c − z)² = Σ w z² − c·rhs` at the least-squares solution.
+    let residual = ((squares - c.dot(&rhs)).max(0.0) / weights).sqrt();
     Some(LocalQuadric {
         p,
         a,

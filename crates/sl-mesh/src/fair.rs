@@ -55,7 +55,7 @@ use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
 use crate::adjacency::check_indices;
-use crate::curvature::{LocalQuadric, fit_quadric};
+use crate::curvature::{IdSet, LocalQuadric, fit_quadric};
 use crate::measure::vertex_normals;
 
 /// Parameters of [`fair_unsupported`].
@@ -417,7 +417,8 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
     // The quadric fitted around the well-sampled vertex nearest to `u` through the mesh, if
     // it fits as well as is typical.
     let good_fit = |u: usize| -> Option<LocalQuadric> {
-        let mut seen = std::collections::HashSet::from([u]);
+        let mut seen: IdSet<usize> = IdSet::default();
+        seen.insert(u);
         let mut layer = vec![u];
         for _ in 0..CURVATURE_RINGS {
             let mut next = Vec::new();
