@@ -74,8 +74,8 @@ pub struct FairConfig {
     /// the mesh), and let the fixed vertices' rows keep their tangential part: closes a gap in
     /// a smooth, rounded object much better (the default scan's unseen patch 0.063 → 0.040 mm
     /// over its area, all its vertices 0.0662 → 0.0633 mm; the test sphere's cap 0.11 →
-    /// 0.05 mm whatever the support ratio) and leaves gaps next to a crease as they were (the
-    /// two-placement pebble: 0.0600 mm at the vertices either way). On by default.
+    /// 0.028 mm, 0.03–0.05 mm whatever the support ratio) and leaves gaps next to a crease as
+    /// they were (the two-placement pebble: the same mesh either way). On by default.
     pub project_rim: bool,
 }
 
@@ -97,7 +97,8 @@ pub struct Fairing {
     /// Fixed vertices of the thinly sampled rim around them (density below half the median,
     /// within four rings) put on the surface fitted to the well-sampled vertices nearby before
     /// the fairing (where Poisson bends the surface past the last samples, and the fit is
-    /// good); 0 without [`FairConfig::project_rim`].
+    /// good); 0 without [`FairConfig::project_rim`], and when the curvature fairing did not
+    /// settle (the rim is then put back under the thin plate).
     pub rim_moved: usize,
     /// The largest distance a vertex moved, in the mesh's units.
     pub largest_move: f64,
@@ -258,7 +259,7 @@ pub fn fair_unsupported(
         }
         // The thin plate that stays is the one under Poisson's rim: a clamped plate sags into
         // a curved surface, and the rim's outward bend makes up for part of that (the test
-        // sphere's cap 0.35 mm under Poisson's rim, 0.61 mm under the projected one).
+        // sphere's cap 0.39 mm under Poisson's rim, 0.61 mm under the projected one).
         if curvature_converged {
             rim_moved = rim.originals.len();
         } else {
@@ -402,7 +403,6 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
         median,
         well,
         support,
-        ..
     } = *input;
     let nv = mesh.vertices.len();
     let nothing = || RimProjection {
