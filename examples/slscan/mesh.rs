@@ -194,6 +194,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             serde_json::json!({
                 "support_ratio": cfg.support_ratio,
                 "vertices_moved": f.vertices_moved,
+                "gaps": f.gaps,
+                "smooth_gaps": f.smooth_gaps,
                 "project_rim": cfg.project_rim,
                 "rim_moved": f.rim_moved,
                 "largest_move_mm": f.largest_move,
@@ -203,6 +205,19 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 "mean_curvature_per_mm": f.mean_curvature,
             }),
         );
+        if f.curvature_converged {
+            println!(
+                "faired {} unseen vertices in {} gap(s), {} of them in smooth surface ({} rim \
+                 vertices put on the surface nearby first)",
+                f.vertices_moved, f.gaps, f.smooth_gaps, f.rim_moved
+            );
+        } else if f.vertices_moved > 0 {
+            println!(
+                "faired {} unseen vertices in {} gap(s) by the thin plate (the curvature steps \
+                 did not settle)",
+                f.vertices_moved, f.gaps
+            );
+        }
     }
     if let Some(edge) = args.remesh {
         let cfg = RemeshConfig {
@@ -539,6 +554,9 @@ mod tests {
         assert_eq!(faired["figures"]["fair"]["project_rim"], true);
         assert_eq!(plain["figures"]["fair"]["project_rim"], false);
         assert_eq!(plain["figures"]["fair"]["rim_moved"], 0);
+        assert_eq!(plain["figures"]["fair"]["smooth_gaps"], 0);
+        assert_eq!(faired["figures"]["fair"]["gaps"], 1);
+        assert_eq!(faired["figures"]["fair"]["smooth_gaps"], 1);
         assert!(faired["figures"]["fair"]["rim_moved"].as_u64().unwrap() > 0);
         let f = &faired["figures"];
         assert_eq!(f["watertight"], true, "{f}");

@@ -94,6 +94,12 @@ impl Default for FairConfig {
 pub struct Fairing {
     /// Vertices moved (the unsupported ones not on a rim or a non-manifold place).
     pub vertices_moved: usize,
+    /// Gaps: the pieces of moved vertices (connected through the mesh).
+    pub gaps: usize,
+    /// Of those, the gaps in smooth surface, whose rim was projected (see
+    /// [`FairConfig::project_rim`]); 0 without it, and when the curvature fairing did not
+    /// settle.
+    pub smooth_gaps: usize,
     /// Fixed vertices of the thinly sampled rim around them (density below half the median,
     /// within four rings) put on the surface fitted to the well-sampled vertices nearby before
     /// the fairing (where Poisson bends the surface past the last samples, and the fit is
@@ -154,6 +160,8 @@ pub fn fair_unsupported(
     }
     let unchanged = Fairing {
         vertices_moved: 0,
+        gaps: 0,
+        smooth_gaps: 0,
         rim_moved: 0,
         largest_move: 0.0,
         residual: 0.0,
@@ -173,11 +181,14 @@ pub fn fair_unsupported(
         .collect();
     // A piece of free vertices that touches no fixed one (an island the data never reached)
     // has nothing to span: it stays as it is.
+    let mut gaps = 0;
     for piece in op.pieces(&free) {
         let anchored = piece
             .iter()
             .any(|&v| op.ring(v).iter().any(|&a| !free[a as usize]));
-        if !anchored {
+        if anchored {
+            gaps += 1;
+        } else {
             for v in piece {
                 free[v] = false;
             }
@@ -213,7 +224,7 @@ pub fn fair_unsupported(
     let mut curvature_steps = 0;
     let mut curvature_converged = false;
     let mut mean_curvature = 0.0;
-    let mut rim_moved = 0;
+    let (mut rim_moved, mut smooth_gaps) = (0, 0);
     if cfg.curvature_iterations > 0 {
         // The thinly sampled rim around the gap, put on the well-sampled surface first (see
         // `project_rim`); the curvature fairing continues it, from the thin plate under it.
@@ -231,6 +242,7 @@ pub fn fair_unsupported(
             RimProjection {
                 originals: Vec::new(),
                 tangential: vec![false; nv],
+                smooth_gaps: 0,
             }
         };
         let start = if rim.originals.is_empty() {
@@ -262,6 +274,7 @@ pub fn fair_unsupported(
         // sphere's cap 0.39 mm under Poisson's rim, 0.61 mm under the projected one).
         if curvature_converged {
             rim_moved = rim.originals.len();
+            smooth_gaps = rim.smooth_gaps;
         } else {
             for (v, p) in rim.originals {
                 mesh.vertices[v] = p;
@@ -278,6 +291,8 @@ pub fn fair_unsupported(
         .fold(0.0, f64::max);
     Ok(Fairing {
         vertices_moved: free_ids.len(),
+        gaps,
+        smooth_gaps,
         rim_moved,
         largest_move,
         residual,
@@ -372,11 +387,12 @@ struct RimInput<'a> {
     support: &'a [f64],
 }
 
-/// What [`project_rim`] did: the rim vertices moved with their positions before, and which
-/// fixed vertices' curvature rows keep their tangential part.
+/// What [`project_rim`] did: the rim vertices moved with their positions before, which fixed
+/// vertices' curvature rows keep their tangential part, and how many gaps were smooth.
 struct RimProjection {
     originals: Vec<(usize, Point3<f64>)>,
     tangential: Vec<bool>,
+    smooth_gaps: usize,
 }
 
 /// Puts the thinly sampled rim of every gap in smooth surface onto the surface fitted to the
@@ -412,6 +428,7 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
     let nothing = || RimProjection {
         originals: Vec::new(),
         tangential: vec![false; nv],
+        smooth_gaps: 0,
     };
     let normals = vertex_normals(mesh);
     let vertices = &mesh.vertices;
@@ -444,7 +461,7 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
         }
         None
     };
-    let mut smooth = Vec::new();
+    let (mut smooth, mut smooth_gaps) = (Vec::new(), 0);
     for piece in op.pieces(free) {
         let mut next_to: Vec<usize> = piece
             .iter()
@@ -459,6 +476,7 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
             .count();
         if !next_to.is_empty() && good as f64 >= SMOOTH_GAP_SHARE * next_to.len() as f64 {
             smooth.extend(piece);
+            smooth_gaps += 1;
         }
     }
     if smooth.is_empty() {
@@ -485,6 +503,7 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
     RimProjection {
         originals,
         tangential: op.rings_around(&smooth, 2, |a| !free[a]),
+        smooth_gaps,
     }
 }
 
@@ -1188,6 +1207,10 @@ mod tests {
         );
         assert!(rms1 < 0.005 * r, "rim projected: cap RMS {rms1}");
         assert!(f0.rim_moved == 0 && f.rim_moved > 0, "{f0:?} {f:?}");
+        assert!(
+            f.gaps == 1 && f.smooth_gaps == 1 && f0.smooth_gaps == 0,
+            "{f0:?} {f:?}"
+        );
         // One step does not settle: the thin plate stays, exactly, under Poisson's rim.
         let mut one = before.clone();
         let cfg1 = FairConfig {
@@ -1196,7 +1219,7 @@ mod tests {
         };
         let f1 = fair_unsupported(&mut one, &d.densities, &cfg1).unwrap();
         assert!(!f1.curvature_converged && f1.curvature_steps == 1, "{f1:?}");
-        assert_eq!(f1.rim_moved, 0);
+        assert!(f1.rim_moved == 0 && f1.smooth_gaps == 0, "{f1:?}");
         assert_eq!(one.vertices, plate.vertices);
         assert!(fp.residual < 1e-9, "{fp:?}");
         assert_eq!(s.mesh.triangles, before.triangles);
@@ -1323,6 +1346,7 @@ mod tests {
             "{n} {f:?}"
         );
         assert_eq!(f.rim_moved, 0);
+        assert!(f.gaps == 1 && f.smooth_gaps == 0, "{f:?}");
         assert_eq!(m.vertices, plain.vertices);
     }
 
