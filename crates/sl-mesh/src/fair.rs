@@ -181,13 +181,13 @@ pub fn fair_unsupported(
         .collect();
     // A piece of free vertices that touches no fixed one (an island the data never reached)
     // has nothing to span: it stays as it is.
-    let mut gaps = 0;
+    let mut gaps = Vec::new();
     for piece in op.pieces(&free) {
         let anchored = piece
             .iter()
             .any(|&v| op.ring(v).iter().any(|&a| !free[a as usize]));
         if anchored {
-            gaps += 1;
+            gaps.push(piece);
         } else {
             for v in piece {
                 free[v] = false;
@@ -232,6 +232,7 @@ pub fn fair_unsupported(
         let rim = if cfg.project_rim {
             let input = RimInput {
                 free: &free,
+                gaps: &gaps,
                 densities,
                 median,
                 well: &well,
@@ -291,7 +292,7 @@ pub fn fair_unsupported(
         .fold(0.0, f64::max);
     Ok(Fairing {
         vertices_moved: free_ids.len(),
-        gaps,
+        gaps: gaps.len(),
         smooth_gaps,
         rim_moved,
         largest_move,
@@ -380,6 +381,8 @@ const TYPICAL_FIT_STRIDE: usize = 8;
 #[derive(Clone, Copy)]
 struct RimInput<'a> {
     free: &'a [bool],
+    /// The pieces of free vertices.
+    gaps: &'a [Vec<usize>],
     densities: &'a [f64],
     median: f64,
     /// From [`well_sampled`].
@@ -419,6 +422,7 @@ struct RimProjection {
 fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> RimProjection {
     let RimInput {
         free,
+        gaps,
         densities,
         median,
         well,
@@ -462,7 +466,7 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
         None
     };
     let (mut smooth, mut smooth_gaps) = (Vec::new(), 0);
-    for piece in op.pieces(free) {
+    for piece in gaps {
         let mut next_to: Vec<usize> = piece
             .iter()
             .flat_map(|&v| op.ring(v).iter().map(|&a| a as usize))
@@ -518,17 +522,13 @@ fn typical_fit_residual(
     well: &[bool],
     support: &[f64],
 ) -> Option<f64> {
-    let mut residuals: Vec<f64> = (0..vertices.len())
+    let residuals: Vec<f64> = (0..vertices.len())
         .into_par_iter()
         .step_by(TYPICAL_FIT_STRIDE)
         .filter(|&v| well[v] && !op.boundary[v])
         .filter_map(|v| fit_around(vertices, op, normals, support, v).map(|q| q.residual()))
         .collect();
-    if residuals.is_empty() {
-        return None;
-    }
-    let middle = residuals.len() / 2;
-    Some(*residuals.select_nth_unstable_by(middle, f64::total_cmp).1)
+    (!residuals.is_empty()).then(|| crate::trim::median_density(&residuals))
 }
 
 /// What [`curvature_fairing`] reached.

@@ -1011,12 +1011,6 @@ mod tests {
         approx::assert_relative_eq!(corner_row.iter().sum::<f64>(), 0.0, epsilon = 1e-12);
     }
 
-    /// A sphere of radius 20 mm sampled with 20 000 exact points (0.5 mm apart): the mesh is
-    /// closed, manifold, oriented outwards, and its vertices lie within 2.5 % of a finest cell
-    /// (depth 7: cells of 0.34 mm) of the sphere in RMS, unbiased to 1 % of a cell. Measured:
-    /// 1.7 % and 0.1 % (3.2 % with the bands' rim nodes fixed to the coarser solution, 6.0 %
-    /// with vertices also interpolated linearly along the tetrahedra's diagonals); a wrong
-    /// screening or a misplaced iso-value costs tens of per cent.
     /// The solve's sums run in order and the extraction's rounds are merged in order: a sphere
     /// without its top (so the extraction follows the surface into a gap, where coarser levels
     /// give the values) comes out the same, vertex for vertex and in the same order, on 1 and
@@ -1043,6 +1037,12 @@ mod tests {
         assert!(check_topology(&one.mesh).is_watertight_manifold());
     }
 
+    /// A sphere of radius 20 mm sampled with 20 000 exact points (0.5 mm apart): the mesh is
+    /// closed, manifold, oriented outwards, and its vertices lie within 2.5 % of a finest cell
+    /// (depth 7: cells of 0.34 mm) of the sphere in RMS, unbiased to 1 % of a cell. Measured:
+    /// 1.7 % and 0.1 % (3.2 % with the bands' rim nodes fixed to the coarser solution, 6.0 %
+    /// with vertices also interpolated linearly along the tetrahedra's diagonals); a wrong
+    /// screening or a misplaced iso-value costs tens of per cent.
     #[test]
     fn sphere_mesh_is_close_to_the_sphere() {
         let centre = Point3::new(5.0, -3.0, 300.0);
