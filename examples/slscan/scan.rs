@@ -10,8 +10,10 @@
 
 use std::path::PathBuf;
 
+use structured_light::mesh::{FairConfig, SimplifyConfig};
 use structured_light::scan::{
-    VirtualScanConfig, check_placements, scan_virtual, scan_virtual_placements, write_summary_html,
+    MeshOptions, VirtualScanConfig, check_placements, scan_virtual, scan_virtual_placements,
+    write_summary_html,
 };
 
 use crate::capture::HardwareArgs;
@@ -64,6 +66,15 @@ pub(crate) struct Args {
     /// on by default: see `slscan mesh --no-simplify`).
     #[arg(long)]
     pub(crate) no_simplify: bool,
+    /// Leave the surface that closes what the scanner never saw as the reconstruction made it
+    /// (see `slscan mesh --no-fair`; the fairing follows the simplification, so
+    /// `--no-simplify` leaves it too).
+    #[arg(long)]
+    pub(crate) no_fair: bool,
+    /// Fair every gap from Poisson's rim as it is, without first putting the rim of a gap in
+    /// smooth surface on its local quadric (see `slscan mesh --no-fair-rim`).
+    #[arg(long)]
+    pub(crate) no_fair_rim: bool,
     /// Do not capture the flat plate (no flatness figure).
     #[arg(long)]
     pub(crate) no_plate: bool,
@@ -179,8 +190,19 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         flatness_plate: false,
         smoothing_neighbours: args.smoothing_neighbours,
         edge_erosion_px: args.edge_erosion,
-        mesh_simplify: (!args.no_simplify).then(sl_mesh::SimplifyConfig::default),
+        mesh_options: mesh_options(args),
         ..VirtualScanConfig::default()
+    }
+}
+
+/// The mesh stage's steps as the flags ask, the same on the virtual rig and on real devices.
+pub(crate) fn mesh_options(args: &Args) -> MeshOptions {
+    MeshOptions {
+        simplify: (!args.no_simplify).then(SimplifyConfig::default),
+        fair: (!args.no_fair).then(|| FairConfig {
+            project_rim: !args.no_fair_rim,
+            ..FairConfig::default()
+        }),
     }
 }
 
@@ -258,4 +280,42 @@ fn run_placements(args: &Args) -> anyhow::Result<()> {
         println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::{Cli, Command};
+
+    fn options(flags: &[&str]) -> MeshOptions {
+        let argv = ["slscan", "scan", "--out", "x"].iter().chain(flags);
+        match Cli::try_parse_from(argv).map(|c| c.command) {
+            Ok(Command::Scan(a)) => mesh_options(&a),
+            other => panic!("parsed as {other:?}"),
+        }
+    }
+
+    /// The mesh flags of `slscan scan` turn off the steps `slscan mesh`'s flags of the same
+    /// names do, and nothing else.
+    #[test]
+    fn mesh_flags_turn_off_their_step() {
+        assert_eq!(options(&[]), MeshOptions::default());
+        let o = options(&["--no-fair-rim"]);
+        assert_eq!(o.simplify, Some(SimplifyConfig::default()));
+        let fair = o.fair.expect("still faired");
+        assert!(!fair.project_rim && FairConfig::default().project_rim);
+        assert_eq!(
+            fair,
+            FairConfig {
+                project_rim: false,
+                ..FairConfig::default()
+            }
+        );
+        let o = options(&["--no-fair"]);
+        assert!(o.fair.is_none() && o.simplify.is_some());
+        let o = options(&["--no-simplify"]);
+        assert!(o.simplify.is_none() && o.fair.is_some());
+    }
 }

@@ -26,9 +26,10 @@ use std::time::Duration;
 use sl_cloud::PointCloud;
 use structured_light::mesh::PoissonConfig;
 use structured_light::scan::{
-    MergeStageConfig, MeshFiles, MeshSummary, PlacementConfig, PlacementRig, ReconstructConfig,
-    ScanError, SessionScanConfig, capture_placements, load_scan_calibration, mesh_stage,
-    placement_dir_name, scan_placements, scan_poisson_config, scan_session, write_scan_cloud,
+    MergeStageConfig, MeshFiles, MeshOptions, MeshSummary, PlacementConfig, PlacementRig,
+    ReconstructConfig, ScanError, SessionScanConfig, capture_placements, load_scan_calibration,
+    mesh_stage_with, placement_dir_name, scan_placements, scan_poisson_config, scan_session,
+    write_scan_cloud,
 };
 
 use crate::capture;
@@ -287,7 +288,9 @@ fn run_placements(
     }
     let merged = &scan.merge.merged;
     let files = report.stage("write", || write_scan_cloud(&out, merged, |_| {}))?;
-    let meshed = report.stage("mesh", || mesh_without_truth(merged, &config, &out));
+    let meshed = report.stage("mesh", || {
+        mesh_without_truth(merged, &config, &crate::scan::mesh_options(args), &out)
+    });
     report.figure("rig", "hardware");
     report.figure("calibration", calib_path.display().to_string());
     report.figure("placements", args.placements);
@@ -316,6 +319,7 @@ fn run_placements(
 fn mesh_without_truth(
     merged: &PointCloud,
     config: &SessionScanConfig,
+    options: &MeshOptions,
     out: &Path,
 ) -> Result<(MeshSummary, MeshFiles), ScanError> {
     let poisson = scan_poisson_config(
@@ -323,7 +327,7 @@ fn mesh_without_truth(
         config.merge.merge.output_voxel_size,
         PoissonConfig::default().depth,
     );
-    mesh_stage(merged, None, None, &poisson, out)
+    mesh_stage_with(merged, None, None, &poisson, options, out)
 }
 
 /// Records the mesh stage's outcome in the report and writes it. A mesh that failed keeps the
@@ -385,7 +389,14 @@ fn reconstruct(
     report.add_stages(&scan.stages);
     // The same mesh stage as the virtual scan, without a truth to measure it against. The
     // merged cloud is on disk already; a cloud that cannot be meshed keeps it and its report.
-    let meshed = report.stage("mesh", || mesh_without_truth(&scan.merged, &config, &out));
+    let meshed = report.stage("mesh", || {
+        mesh_without_truth(
+            &scan.merged,
+            &config,
+            &crate::scan::mesh_options(args),
+            &out,
+        )
+    });
     report.figure("rig", "hardware");
     report.figure("calibration", calib_path.display().to_string());
     report.figure("views", scan.view_points.len());

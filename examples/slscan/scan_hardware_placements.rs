@@ -300,11 +300,12 @@ fn two_placements(extra: &[&str], keys: &mut &[u8]) -> String {
 
 /// One placement on the devices, through the same seam: one session in `session/`, no
 /// question asked, the keyboard not read; the merged cloud lies on the pebble and covers all
-/// but its flat bottom.
+/// but its flat bottom. `--no-fair` reaches the mesh stage of the devices' path as it does the
+/// virtual rig's: simplified, not faired.
 #[test]
 fn one_placement_on_devices() {
     let mut keys: &[u8] = b"not read\n";
-    let scan = scan_on_virtual_devices(&[], &mut keys);
+    let scan = scan_on_virtual_devices(&["--no-fair"], &mut keys);
     assert_eq!(scan.sessions, 1);
     assert_eq!(scan.replaced, 0);
     assert!(!scan.screen.contains(LAY_ON_SIDE), "{}", scan.screen);
@@ -321,6 +322,13 @@ fn one_placement_on_devices() {
     let fig = figures(&scan.out);
     assert_eq!(fig["rig"], "hardware");
     assert_eq!(fig["views"], 8);
+    let mesh = &fig["mesh"];
+    assert!(mesh["simplify_ms"].as_f64().is_some(), "{mesh}");
+    assert!(mesh["fair_ms"].is_null(), "{mesh}");
+    assert!(
+        mesh["vertices"].as_u64().unwrap() < mesh["vertices_extracted"].as_u64().unwrap(),
+        "{mesh}"
+    );
     let (c, d) = measure(
         &read_ply(&scan.out.join("merged.ply")).unwrap(),
         &scan.truth,

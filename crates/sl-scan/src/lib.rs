@@ -82,7 +82,8 @@ pub use measure::{
 };
 pub use merge::{MergeStageConfig, merge_scan};
 pub use mesh::{
-    MESH_CELL_PER_SPACING, MeshFiles, MeshSummary, mesh_stage, mesh_stage_with, scan_poisson_config,
+    MESH_CELL_PER_SPACING, MeshFiles, MeshOptions, MeshSummary, mesh_stage, mesh_stage_with,
+    scan_poisson_config,
 };
 pub use placements::{
     MAX_PLACEMENTS, PLACEMENT_SESSION_DIR, PlacementAlignment, PlacementConfig, PlacementRig,

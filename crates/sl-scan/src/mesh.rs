@@ -113,8 +113,33 @@ pub fn scan_poisson_config(
     PoissonConfig { depth, ..base }
 }
 
-/// Runs the mesh stage on `merged` into `out`, simplified with the default
-/// [`SimplifyConfig`]: [`mesh_stage_with`] with `Some(&SimplifyConfig::default())`.
+/// What the mesh stage does to the reconstructed surface before it writes it: the steps
+/// `slscan mesh` runs by default, each of which can be left out (`slscan scan --no-simplify`,
+/// `--no-fair`, `--no-fair-rim`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshOptions {
+    /// The error-bounded simplification (`sl_mesh::simplify`); `None` keeps every vertex of
+    /// the extraction. Default: `SimplifyConfig::default()` (0.01 mm where samples support the
+    /// surface, 0.03 mm where they do not).
+    pub simplify: Option<SimplifyConfig>,
+    /// The fairing of the surface no sample supports (`sl_mesh::fair_unsupported`), which
+    /// works on the simplified mesh and so is made only with `simplify`; `None` leaves
+    /// Poisson's membrane there. Default: `FairConfig::default()` (the rim of a gap in smooth
+    /// surface put on its local quadric first).
+    pub fair: Option<FairConfig>,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        Self {
+            simplify: Some(SimplifyConfig::default()),
+            fair: Some(FairConfig::default()),
+        }
+    }
+}
+
+/// Runs the mesh stage on `merged` into `out` with the default [`MeshOptions`]
+/// (simplified, then faired): [`mesh_stage_with`] with `&MeshOptions::default()`.
 ///
 /// # Errors
 /// As [`mesh_stage_with`].
@@ -125,13 +150,19 @@ pub fn mesh_stage(
     cfg: &PoissonConfig,
     out: &Path,
 ) -> Result<(MeshSummary, MeshFiles), ScanError> {
-    let simplify = SimplifyConfig::default();
-    mesh_stage_with(merged, merged_errors_mm, truth, cfg, Some(&simplify), out)
+    mesh_stage_with(
+        merged,
+        merged_errors_mm,
+        truth,
+        cfg,
+        &MeshOptions::default(),
+        out,
+    )
 }
 
-/// Runs the mesh stage on `merged` into `out`: the reconstruction, then (with `simplify`) the
-/// error-bounded simplification and the fairing of the unsupported surface
-/// (`sl_mesh::fair_unsupported`), the files, the measures and the 3-D page.
+/// Runs the mesh stage on `merged` into `out`: the reconstruction, then what `options` asks
+/// for (the error-bounded simplification, and after it the fairing of the unsupported
+/// surface), the files, the measures and the 3-D page.
 ///
 /// # Errors
 /// [`ScanError::Mesh`] when the cloud cannot be meshed (no normals, too few points),
@@ -142,25 +173,25 @@ pub fn mesh_stage_with(
     merged_errors_mm: Option<&[f32]>,
     truth: Option<&Truth>,
     cfg: &PoissonConfig,
-    simplify_cfg: Option<&SimplifyConfig>,
+    options: &MeshOptions,
     out: &Path,
 ) -> Result<(MeshSummary, MeshFiles), ScanError> {
     let mut surface = poisson_reconstruct(merged, cfg)?;
     let (vertices_extracted, triangles_extracted) =
         (surface.mesh.vertices.len(), surface.mesh.triangles.len());
-    let (simplify_ms, fair_ms) = match simplify_cfg {
-        Some(s) => {
+    let (mut simplify_ms, mut fair_ms) = (None, None);
+    if let Some(s) = &options.simplify {
+        let t = std::time::Instant::now();
+        let done = simplify(&mut surface.mesh, &surface.densities, s)?;
+        simplify_ms = Some(t.elapsed().as_secs_f64() * 1e3);
+        // The surface that closes the unseen part, faired on the simplified mesh (few
+        // vertices there, so the bi-Laplacian system is small).
+        if let Some(f) = &options.fair {
             let t = std::time::Instant::now();
-            let done = simplify(&mut surface.mesh, &surface.densities, s)?;
-            let simplify_ms = t.elapsed().as_secs_f64() * 1e3;
-            // The surface that closes the unseen part, faired on the simplified mesh (few
-            // vertices there, so the bi-Laplacian system is small).
-            let t = std::time::Instant::now();
-            fair_unsupported(&mut surface.mesh, &done.densities, &FairConfig::default())?;
-            (Some(simplify_ms), Some(t.elapsed().as_secs_f64() * 1e3))
+            fair_unsupported(&mut surface.mesh, &done.densities, f)?;
+            fair_ms = Some(t.elapsed().as_secs_f64() * 1e3);
         }
-        None => (None, None),
-    };
+    }
     let mesh = &surface.mesh;
     let topo = check_topology(mesh);
     let files = MeshFiles {

@@ -259,14 +259,8 @@ pub fn scan_virtual_placements(
             let t = Instant::now();
             let poisson =
                 scan_poisson_config(&merged, session_cfg.merge.merge.output_voxel_size, depth);
-            let (summary, files) = mesh_stage_with(
-                &merged,
-                None,
-                None,
-                &poisson,
-                cfg.mesh_simplify.as_ref(),
-                out,
-            )?;
+            let (summary, files) =
+                mesh_stage_with(&merged, None, None, &poisson, &cfg.mesh_options, out)?;
             stages.push(StageTime::since("mesh", t));
             (Some(summary), Some(files))
         }

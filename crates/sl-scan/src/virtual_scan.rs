@@ -23,7 +23,7 @@ use sl_tri::Triangulator;
 
 use crate::calibrate::calibrate_virtual_stage;
 use crate::error::{io, stage_err};
-use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
+use crate::mesh::{MeshFiles, MeshOptions, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::{
     CalibrationSummary, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX, ScanError,
     ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan, plate_scene,
@@ -88,10 +88,9 @@ pub struct VirtualScanConfig {
     /// would be much finer than the merged cloud's samples); `None` makes no mesh. Default 9
     /// (cells of 0.37 mm on the dumbbell).
     pub mesh_depth: Option<u32>,
-    /// The simplification of the mesh (`sl_mesh::simplify`); `None` keeps every vertex of the
-    /// extraction. Default: `SimplifyConfig::default()` (0.01 mm where the data supports the
-    /// surface, 0.1 mm where it does not).
-    pub mesh_simplify: Option<sl_mesh::SimplifyConfig>,
+    /// What the mesh stage does after the reconstruction: the simplification and the
+    /// fairing of the unseen surface, both on by default ([`MeshOptions`]).
+    pub mesh_options: MeshOptions,
 }
 
 impl Default for VirtualScanConfig {
@@ -112,7 +111,7 @@ impl Default for VirtualScanConfig {
             smoothing_neighbours: 16,
             edge_erosion_px: 3,
             mesh_depth: Some(sl_mesh::PoissonConfig::default().depth),
-            mesh_simplify: Some(sl_mesh::SimplifyConfig::default()),
+            mesh_options: MeshOptions::default(),
         }
     }
 }
@@ -380,7 +379,7 @@ pub fn scan_virtual(
                 Some(&measured.accuracy.signed_distances_mm),
                 Some(&truth),
                 &poisson,
-                cfg.mesh_simplify.as_ref(),
+                &cfg.mesh_options,
                 out,
             )?;
             stages.push(StageTime::since("mesh", t));
