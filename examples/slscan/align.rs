@@ -8,14 +8,13 @@
 
 use std::path::PathBuf;
 
-use sl_cloud::{
-    MergePolicy, NormalConfig, NormalOrientation, PlyFormat, PointCloud, PreviewColoring,
-    estimate_normals, write_ply,
-};
+use sl_cloud::{MergePolicy, PlyFormat, PointCloud, PreviewColoring, write_ply};
 use sl_icp::{GlobalConfig, MultiwayConfig, align_unordered};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
-use crate::register::{check_units, matrix_rows, read_scaled, write_preview};
+use crate::register::{
+    check_units, matrix_rows, normals_viewpoint, read_scaled, with_normals_towards, write_preview,
+};
 
 /// Default voxel size of the descriptors (mm), [`GlobalConfig::default`]'s.
 const DEFAULT_VOXEL_MM: f64 = 2.0;
@@ -59,9 +58,6 @@ pub(crate) struct Args {
     pub(crate) normals_towards: Option<Vec<f64>>,
 }
 
-/// Neighbours of the normals `--normals-towards` estimates.
-const NORMAL_NEIGHBOURS: usize = 20;
-
 fn config(voxel: f64) -> MultiwayConfig {
     let d = GlobalConfig::default();
     let k = voxel / d.voxel_size;
@@ -87,15 +83,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     if !(args.voxel.is_finite() && args.voxel > 0.0) {
         anyhow::bail!("--voxel {}: must be finite and > 0 (mm)", args.voxel);
     }
-    let viewpoint = match args.normals_towards.as_deref() {
-        None => None,
-        Some(&[x, y, z]) if [x, y, z].iter().all(|c| c.is_finite()) => {
-            Some(nalgebra::Point3::new(x, y, z))
-        }
-        Some(v) => anyhow::bail!(
-            "--normals-towards {v:?}: needs three finite coordinates X,Y,Z (mm, in each scan's frame)"
-        ),
-    };
+    let viewpoint = normals_viewpoint(args.normals_towards.as_deref())?;
     let config = config(args.voxel);
     let bar = progress(3, "align");
     let clouds: Vec<PointCloud> = report.stage("read", || {
@@ -121,15 +109,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         let Some(pose) = pose else { continue };
         // The scan's own attributes (colours, quality) stay; estimated normals replace its own.
         let mut moved = match viewpoint {
-            Some(v) => {
-                let cfg = NormalConfig {
-                    k: NORMAL_NEIGHBOURS,
-                    orientation: NormalOrientation::TowardViewpoint(v),
-                };
-                let est = estimate_normals(c, &cfg)
-                    .map_err(|e| anyhow::anyhow!("{}: cannot estimate normals: {e}", name(i)))?;
-                c.clone().with_normals(est.normals)?
-            }
+            Some(v) => with_normals_towards(c, v, &name(i))?,
             None => c.clone(),
         };
         moved.transform(pose);

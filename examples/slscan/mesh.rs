@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use sl_cloud::{PreviewConfig, read_ply};
+use sl_cloud::PreviewConfig;
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
     BilateralConfig, FairConfig, MeshColoring, PoissonConfig, RemeshConfig, SimplifyConfig,
@@ -20,6 +20,12 @@ use sl_mesh::{
 use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
 
 use crate::common::{Report, ensure_out_dir, write_atomically};
+use crate::register::{check_units, normals_viewpoint, read_scaled, with_normals_towards};
+
+/// A cloud spanning less than this (mm, the diagonal of its box, after `--scale`) is taken for
+/// one in metres and refused with the hint `--scale 1000`: nothing this scanner meshes is
+/// smaller than a millimetre.
+const UNITS_CHECK_MM: f64 = 1.0;
 
 /// Smoothing applied after the reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -35,11 +41,29 @@ pub(crate) enum Smooth {
 /// Arguments of `slscan mesh`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
-    /// The cloud (PLY with normals, e.g. `merged.ply` of `slscan merge` or `slscan scan`).
+    /// The cloud (PLY with normals, e.g. `merged.ply` of `slscan merge` or `slscan scan`; one
+    /// without normals with `--normals-towards`).
     pub(crate) cloud: PathBuf,
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Multiply the cloud's coordinates by this on reading: 1000 for a cloud in metres (the
+    /// mesh's bounds and figures are in mm; a cloud spanning less than 1 unit is refused with
+    /// this hint).
+    #[arg(long, default_value_t = 1.0)]
+    pub(crate) scale: f64,
+    /// Estimate the normals (20 neighbours) and turn them towards this point X,Y,Z: where the
+    /// scanner stood, in mm in the cloud's frame after `--scale` (`0,0,0` for a cloud in the
+    /// camera frame as `slscan reconstruct` writes it, `0,0,1000` for the Stanford scans). The
+    /// cloud's own normals, if any, are replaced. For a cloud seen from one side; merge
+    /// several views first (`slscan merge`, `slscan align`), whose normals face out.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        num_args = 1,
+        allow_negative_numbers = true
+    )]
+    pub(crate) normals_towards: Option<Vec<f64>>,
     /// Octree depth: the finest cells are the cloud's box (×1.1) over 2^depth.
     #[arg(long, default_value_t = PoissonConfig::default().depth)]
     pub(crate) depth: u32,
@@ -127,11 +151,20 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             "--remesh {edge}: must be an edge length ≥ 0 in mm (0 keeps the number of vertices)"
         );
     }
+    let viewpoint = normals_viewpoint(args.normals_towards.as_deref())?;
     let mut report = Report::new("mesh");
     let out = ensure_out_dir(&args.out)?;
-    let cloud = report
-        .stage("read", || read_ply(&args.cloud))
+    let mut cloud = report
+        .stage("read", || read_scaled(&args.cloud, args.scale))
         .with_context(|| format!("cannot read {}", args.cloud.display()))?;
+    // The bounds of the simplification and the fairing are in mm: a cloud in metres would be
+    // simplified to nothing.
+    check_units(&cloud, &args.cloud, UNITS_CHECK_MM)?;
+    if let Some(v) = viewpoint {
+        cloud = report.stage("normals", || {
+            with_normals_towards(&cloud, v, &args.cloud.display().to_string())
+        })?;
+    }
     let cfg = PoissonConfig {
         depth: args.depth,
         screening: args.screening,
@@ -267,6 +300,14 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         let d = report.stage("decimate", || decimate(&mut mesh, n))?;
         report.figure("decimation_max_error_mm2", d.max_error);
     }
+    anyhow::ensure!(
+        !mesh.triangles.is_empty(),
+        "{}: no triangle is left of the mesh ({} extracted; pieces of fewer than --min-piece {} \
+         triangles are removed): is the cloud in mm (--scale)?",
+        args.cloud.display(),
+        surface.mesh.triangles.len(),
+        args.min_piece
+    );
     let topo = report.stage("check", || check_topology(&mesh));
     let (ply, stl) = (out.join("mesh.ply"), out.join("mesh.stl"));
     report.stage("write", || -> anyhow::Result<()> {
@@ -675,6 +716,131 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A cloud in metres (the test ball, written with its coordinates over 1000) is refused
+    /// before anything is computed, with the flag that reads it; until 2026-11-27 it was
+    /// simplified with the bounds in mm (0.01 "mm" = 10 mm, on a ball of 0.025) to a handful of
+    /// vertices, those were removed as a small piece and an empty mesh was written without a
+    /// word. `--scale 1000` reads it as the ball in mm: the same closed mesh, as close to the
+    /// sphere.
+    #[test]
+    fn cloud_in_metres_is_refused_then_read_with_scale() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (ply_mm, truth_path) = ball_files(tmp.path(), |_| true, 2.0);
+        let mm = sl_cloud::read_ply(&ply_mm).unwrap();
+        let mut metres = mm.clone();
+        for p in metres.positions_mut() {
+            p.coords /= 1000.0;
+        }
+        let ply = tmp.path().join("ball_in_metres.ply");
+        write_ply(&ply, &metres, sl_cloud::PlyFormat::default()).unwrap();
+        let out = tmp.path().join("refused");
+        let o = out.to_str().unwrap();
+        let err = slscan(&[ply.to_str().unwrap(), "--out", o]).unwrap_err();
+        let text = format!("{err:#}");
+        assert!(
+            text.contains("ball_in_metres.ply") && text.contains("--scale 1000"),
+            "{text}"
+        );
+        assert!(!out.join("report.json").exists() && !out.join("mesh.ply").exists());
+        let err = slscan(&[ply.to_str().unwrap(), "--out", o, "--scale", "0"]).unwrap_err();
+        assert!(format!("{err:#}").contains("--scale 0"), "{err:#}");
+
+        let scaled = mesh_at_depth_7(
+            &ply,
+            Some(&truth_path),
+            &tmp.path().join("scaled"),
+            &["--scale", "1000"],
+        );
+        let direct = mesh_at_depth_7(&ply_mm, Some(&truth_path), &tmp.path().join("mm"), &[]);
+        let (s, d) = (&scaled["figures"], &direct["figures"]);
+        assert_eq!(s["watertight"], true, "{s}");
+        let ratio = s["vertices"].as_f64().unwrap() / d["vertices"].as_f64().unwrap();
+        assert!((0.95..1.05).contains(&ratio), "{ratio}");
+        let (rs, rd) = (
+            s["rms_to_truth_area_mm"].as_f64().unwrap(),
+            d["rms_to_truth_area_mm"].as_f64().unwrap(),
+        );
+        assert!((rs - rd).abs() < 0.1 * rd + 1e-3, "{rs} {rd}");
+        // A mesh of which nothing is left is an error, not an empty file.
+        let out = tmp.path().join("nothing");
+        let err = slscan(&[
+            ply_mm.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--depth",
+            "6",
+            "--min-piece",
+            "1000000000",
+        ])
+        .unwrap_err();
+        assert!(
+            format!("{err:#}").contains("no triangle is left"),
+            "{err:#}"
+        );
+        assert!(!out.join("mesh.ply").exists());
+    }
+
+    /// A ball seen from one side, as one view of a scanner at the origin sees it (the
+    /// hemisphere facing the camera, without the last 15° before its rim, which a scanner
+    /// sees at grazing angles and drops), written without normals: `--normals-towards 0,0,0`
+    /// estimates them facing the camera, that is outwards. The mesh is closed, its triangles
+    /// face out (a positive volume, within 10 % of the mesh's from the true normals: the
+    /// unseen half is closed the same way), and where the data is (the vertices more than
+    /// 20° inside the seen hemisphere's rim) it lies on the sphere as closely as the mesh from
+    /// the true normals.
+    #[test]
+    fn normals_are_estimated_towards_the_scanner() {
+        let tmp = tempfile::tempdir().unwrap();
+        let towards_camera = (Point3::origin() - BALL_CENTRE).normalize();
+        let seen = |n: &Vector3<f64>| n.dot(&towards_camera) > 15f64.to_radians().sin();
+        let (with_normals, truth_path) = ball_files(tmp.path(), seen, 2.0);
+        let bare = tmp.path().join("bare.ply");
+        let cloud = sl_cloud::read_ply(&with_normals).unwrap();
+        write_ply(
+            &bare,
+            &PointCloud::from_positions(cloud.positions().to_vec()),
+            sl_cloud::PlyFormat::default(),
+        )
+        .unwrap();
+        let run = |ply: &std::path::Path, name: &str, extra: &[&str]| {
+            let out = tmp.path().join(name);
+            let r = mesh_at_depth_7(ply, Some(&truth_path), &out, extra);
+            (r, sl_mesh::read_mesh(&out.join("mesh.ply")).unwrap())
+        };
+        let (est, est_mesh) = run(&bare, "estimated", &["--normals-towards", "0,0,0"]);
+        let (_, true_mesh) = run(&with_normals, "true", &[]);
+        assert_eq!(est["figures"]["watertight"], true, "{}", est["figures"]);
+        let (ve, vt) = (
+            sl_mesh::signed_volume(&est_mesh),
+            sl_mesh::signed_volume(&true_mesh),
+        );
+        assert!(ve > 0.0 && (ve / vt - 1.0).abs() < 0.1, "{ve} vs {vt}");
+        let seen_rms = |mesh: &sl_cloud::TriangleMesh| {
+            let sin20 = 20f64.to_radians().sin();
+            let e: Vec<f64> = mesh
+                .vertices
+                .iter()
+                .map(|p| p - BALL_CENTRE)
+                .filter(|d| d.dot(&towards_camera) > sin20 * d.norm())
+                .map(|d| d.norm() - 25.0)
+                .collect();
+            assert!(e.len() > 1000, "{} vertices", e.len());
+            (e.iter().map(|e| e * e).sum::<f64>() / e.len() as f64).sqrt()
+        };
+        let (re, rt) = (seen_rms(&est_mesh), seen_rms(&true_mesh));
+        eprintln!("RMS where the data is: estimated normals {re:.4} mm, true normals {rt:.4} mm");
+        assert!(re < 1.5 * rt + 0.005 && re < 0.05, "{re} {rt}");
+        let err = slscan(&[
+            bare.to_str().unwrap(),
+            "--out",
+            "x",
+            "--normals-towards",
+            "0,0",
+        ])
+        .unwrap_err();
+        assert!(format!("{err:#}").contains("--normals-towards"), "{err:#}");
     }
 
     #[test]

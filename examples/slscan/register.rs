@@ -4,10 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use nalgebra::{Isometry3, Matrix4};
+use nalgebra::{Isometry3, Matrix4, Point3};
 use sl_cloud::{
-    MergePolicy, PlyFormat, PointCloud, PreviewColoring, PreviewConfig, read_ply, render_preview,
-    write_ply,
+    MergePolicy, NormalConfig, NormalOrientation, PlyFormat, PointCloud, PreviewColoring,
+    PreviewConfig, estimate_normals, read_ply, render_preview, write_ply,
 };
 use sl_icp::{
     IcpConfig, Metric, NormalSource, PrepareConfig, PreparedCloud, RobustKernel, Trimming, register,
@@ -101,16 +101,52 @@ pub(crate) fn read_scaled(path: &Path, scale: f64) -> anyhow::Result<PointCloud>
 const METRES_EXTENT_VOXELS: f64 = 1.0;
 
 /// Fails with a hint when `cloud` (read from `path`) spans only a fraction of `voxel` mm (the
-/// command's default voxel size): it is almost surely in metres and needs `--scale 1000`.
+/// command's default voxel size, or for `slscan mesh` a millimetre): it is almost surely in
+/// metres and needs `--scale 1000`.
 pub(crate) fn check_units(cloud: &PointCloud, path: &Path, voxel: f64) -> anyhow::Result<()> {
     let extent = cloud.bounding_box().map_or(0.0, |b| b.extent().norm());
-    if extent < METRES_EXTENT_VOXELS * voxel {
+    let limit = METRES_EXTENT_VOXELS * voxel;
+    if extent < limit {
         anyhow::bail!(
-            "{}: the cloud spans {extent:.4} units, a fraction of the {voxel} mm voxel size: its coordinates are probably metres; read it with --scale 1000",
+            "{}: the cloud spans {extent:.4} units (the diagonal of its box), less than {limit} mm: its coordinates are probably metres; read it with --scale 1000",
             path.display()
         );
     }
     Ok(())
+}
+
+/// Neighbours of the normals `--normals-towards` estimates (`slscan align`, `slscan mesh`).
+pub(crate) const NORMAL_NEIGHBOURS: usize = 20;
+
+/// The point `--normals-towards X,Y,Z` gives, if any: three finite coordinates (mm, in the
+/// clouds' frame after `--scale`).
+pub(crate) fn normals_viewpoint(arg: Option<&[f64]>) -> anyhow::Result<Option<Point3<f64>>> {
+    match arg {
+        None => Ok(None),
+        Some(&[x, y, z]) if [x, y, z].iter().all(|c| c.is_finite()) => {
+            Ok(Some(Point3::new(x, y, z)))
+        }
+        Some(v) => anyhow::bail!(
+            "--normals-towards {v:?}: needs three finite coordinates X,Y,Z (mm, in the cloud's frame)"
+        ),
+    }
+}
+
+/// `cloud` with normals estimated from [`NORMAL_NEIGHBOURS`] neighbours and turned towards
+/// `viewpoint` (where the scanner stood), in place of its own; its other attributes stay.
+/// `name` names the cloud in the error.
+pub(crate) fn with_normals_towards(
+    cloud: &PointCloud,
+    viewpoint: Point3<f64>,
+    name: &str,
+) -> anyhow::Result<PointCloud> {
+    let cfg = NormalConfig {
+        k: NORMAL_NEIGHBOURS,
+        orientation: NormalOrientation::TowardViewpoint(viewpoint),
+    };
+    let est = estimate_normals(cloud, &cfg)
+        .map_err(|e| anyhow::anyhow!("{name}: cannot estimate normals: {e}"))?;
+    Ok(cloud.clone().with_normals(est.normals)?)
 }
 
 /// A pose as a row-major 4x4 matrix.

@@ -27,7 +27,7 @@ pub enum MeshError {
     },
     /// Surface reconstruction needs one oriented normal per point.
     #[error(
-        "the cloud of {points} points has no normals: surface reconstruction needs oriented normals (estimate them first: `slscan merge` writes them, `slscan align --normals-towards X,Y,Z` estimates them)"
+        "the cloud of {points} points has no normals: surface reconstruction needs oriented normals (estimate them first: `slscan merge` writes them, `--normals-towards X,Y,Z` of `slscan mesh` or `slscan align` estimates them, facing where the scanner stood)"
     )]
     NoNormals {
         /// Number of points of the cloud.
