@@ -13,9 +13,9 @@ use sl_codec::write_png_rgb8;
 use sl_mesh::{
     BilateralConfig, FairConfig, MeshColoring, PoissonConfig, RemeshConfig, SimplifyConfig,
     TaubinConfig, ViewerConfig, ViewerLayer, check_topology, decimate, fair_unsupported,
-    fill_holes, poisson_reconstruct, remesh_isotropic, remove_small_components, render_mesh,
-    simplify, smooth_bilateral, smooth_taubin, trim_by_density, viewer_html, write_ply_mesh,
-    write_stl,
+    fill_holes, inconsistent_normal_fraction, poisson_reconstruct, remesh_isotropic,
+    remove_small_components, render_mesh, simplify, smooth_bilateral, smooth_taubin,
+    trim_by_density, viewer_html, write_ply_mesh, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
 
@@ -26,6 +26,14 @@ use crate::register::{check_units, normals_viewpoint, read_scaled, with_normals_
 /// one in metres and refused with the hint `--scale 1000`: nothing this scanner meshes is
 /// smaller than a millimetre.
 const UNITS_CHECK_MM: f64 = 1.0;
+
+/// The orientation check of the normals (`sl_mesh::inconsistent_normal_fraction`): every
+/// `ORIENTATION_STRIDE`-th point with its `ORIENTATION_NEIGHBOURS` nearest among those, and the
+/// fraction outside the largest consistently oriented patch above which the normals are taken
+/// for unoriented and a warning is printed.
+const ORIENTATION_NEIGHBOURS: usize = 8;
+const ORIENTATION_STRIDE: usize = 4;
+const UNORIENTED_FRACTION: f64 = 0.1;
 
 /// Smoothing applied after the reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -164,6 +172,23 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         cloud = report.stage("normals", || {
             with_normals_towards(&cloud, v, &args.cloud.display().to_string())
         })?;
+    }
+    let inconsistent = report.stage("orientation", || {
+        inconsistent_normal_fraction(&cloud, ORIENTATION_NEIGHBOURS, ORIENTATION_STRIDE)
+    })?;
+    if let Some(f) = inconsistent {
+        report.figure("normals_inconsistent", f);
+        if f > UNORIENTED_FRACTION {
+            eprintln!(
+                "warning: {}: {:.0} % of the points have normals facing the other way from the \
+                 largest consistently oriented patch of their part of the cloud (an oriented \
+                 scan: under {:.0} %): the normals look unoriented, and the surface made from \
+                 them will be wrong; --normals-towards X,Y,Z estimates them facing the scanner",
+                args.cloud.display(),
+                100.0 * f,
+                100.0 * UNORIENTED_FRACTION
+            );
+        }
     }
     let cfg = PoissonConfig {
         depth: args.depth,
@@ -841,6 +866,35 @@ mod tests {
         ])
         .unwrap_err();
         assert!(format!("{err:#}").contains("--normals-towards"), "{err:#}");
+    }
+
+    /// The orientation check on the test ball: outward normals are consistent (0); with the
+    /// normals of its upper quarter (a cap above half the radius, as unoriented PCA normals
+    /// flip in patches) turned inwards the report gives the cap's share, above the warning's
+    /// threshold, and the mesh is still written.
+    #[test]
+    fn unoriented_normals_are_reported() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (good, _) = ball_files(tmp.path(), |_| true, 2.0);
+        let r = mesh_at_depth_7(&good, None, &tmp.path().join("good"), &[]);
+        assert_eq!(r["figures"]["normals_inconsistent"], 0.0);
+        let (p, n) = sphere(20_000, 25.0, BALL_CENTRE);
+        let flipped: Vec<_> = p
+            .iter()
+            .zip(&n)
+            .map(|(q, m)| if q.z > BALL_CENTRE.z + 12.5 { -m } else { *m })
+            .collect();
+        let ply = tmp.path().join("capped.ply");
+        let cloud = PointCloud::from_positions(p).with_normals(flipped).unwrap();
+        write_ply(&ply, &cloud, sl_cloud::PlyFormat::default()).unwrap();
+        let out = tmp.path().join("capped");
+        let r = mesh_at_depth_7(&ply, None, &out, &[]);
+        let f = r["figures"]["normals_inconsistent"].as_f64().unwrap();
+        assert!(
+            (f - 0.25).abs() < 0.02 && f > super::UNORIENTED_FRACTION,
+            "{f}"
+        );
+        assert!(out.join("mesh.ply").is_file());
     }
 
     #[test]

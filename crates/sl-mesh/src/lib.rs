@@ -70,6 +70,7 @@ mod files;
 mod grid;
 mod holes;
 mod measure;
+mod orientation;
 mod poisson;
 mod remesh;
 mod render;
@@ -91,6 +92,7 @@ pub use files::{
 };
 pub use holes::{HoleFilling, fill_holes};
 pub use measure::{sample_surface, signed_volume, surface_area, vertex_normals};
+pub use orientation::inconsistent_normal_fraction;
 pub use poisson::{MIN_POISSON_POINTS, PoissonConfig, PoissonSurface, poisson_reconstruct};
 pub use remesh::{RemeshConfig, Remeshing, remesh_isotropic};
 pub use render::{MeshColoring, render_mesh};
