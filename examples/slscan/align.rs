@@ -13,7 +13,7 @@ use sl_icp::{GlobalConfig, MultiwayConfig, align_unordered};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
 use crate::register::{
-    check_units, matrix_rows, normals_viewpoint, read_scaled, with_normals_towards, write_preview,
+    NormalsTowards, check_units, matrix_rows, read_scaled, with_normals_towards, write_preview,
 };
 
 /// Default voxel size of the descriptors (mm), [`GlobalConfig::default`]'s.
@@ -45,17 +45,8 @@ pub(crate) struct Args {
     /// distances follow it (5, 1.5 and 1.5 voxels).
     #[arg(long, default_value_t = DEFAULT_VOXEL_MM)]
     pub(crate) voxel: f64,
-    /// Estimate each scan's normals (20 neighbours) facing this point of its own frame (mm,
-    /// after `--scale`): where the scanner stood, e.g. `0,0,0` for clouds in the camera frame
-    /// as `slscan reconstruct` writes them, `0,0,1000` for the Stanford scans. Without it the
-    /// scans' own normals are kept, if they have them.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        num_args = 1,
-        allow_negative_numbers = true
-    )]
-    pub(crate) normals_towards: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub(crate) normals: NormalsTowards,
 }
 
 fn config(voxel: f64) -> MultiwayConfig {
@@ -83,7 +74,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     if !(args.voxel.is_finite() && args.voxel > 0.0) {
         anyhow::bail!("--voxel {}: must be finite and > 0 (mm)", args.voxel);
     }
-    let viewpoint = normals_viewpoint(args.normals_towards.as_deref())?;
+    let viewpoint = args.normals.viewpoint()?;
     let config = config(args.voxel);
     let bar = progress(3, "align");
     let clouds: Vec<PointCloud> = report.stage("read", || {

@@ -20,7 +20,7 @@ use sl_mesh::{
 use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
 
 use crate::common::{Report, ensure_out_dir, write_atomically};
-use crate::register::{check_units, normals_viewpoint, read_scaled, with_normals_towards};
+use crate::register::{NormalsTowards, check_units, read_scaled, with_normals_towards};
 
 /// A cloud spanning less than this (mm, the diagonal of its box, after `--scale`) is taken for
 /// one in metres and refused with the hint `--scale 1000`: nothing this scanner meshes is
@@ -60,18 +60,10 @@ pub(crate) struct Args {
     /// this hint).
     #[arg(long, default_value_t = 1.0)]
     pub(crate) scale: f64,
-    /// Estimate the normals (20 neighbours) and turn them towards this point X,Y,Z: where the
-    /// scanner stood, in mm in the cloud's frame after `--scale` (`0,0,0` for a cloud in the
-    /// camera frame as `slscan reconstruct` writes it, `0,0,1000` for the Stanford scans). The
-    /// cloud's own normals, if any, are replaced. For a cloud seen from one side; merge
-    /// several views first (`slscan merge`, `slscan align`), whose normals face out.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        num_args = 1,
-        allow_negative_numbers = true
-    )]
-    pub(crate) normals_towards: Option<Vec<f64>>,
+    /// `--normals-towards X,Y,Z`: for a cloud without normals seen from one side (merge several
+    /// views first: `slscan merge`, `slscan align`).
+    #[command(flatten)]
+    pub(crate) normals: NormalsTowards,
     /// Octree depth: the finest cells are the cloud's box (×1.1) over 2^depth.
     #[arg(long, default_value_t = PoissonConfig::default().depth)]
     pub(crate) depth: u32,
@@ -159,7 +151,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             "--remesh {edge}: must be an edge length ≥ 0 in mm (0 keeps the number of vertices)"
         );
     }
-    let viewpoint = normals_viewpoint(args.normals_towards.as_deref())?;
+    let viewpoint = args.normals.viewpoint()?;
     let mut report = Report::new("mesh");
     let out = ensure_out_dir(&args.out)?;
     let mut cloud = report

@@ -118,17 +118,34 @@ pub(crate) fn check_units(cloud: &PointCloud, path: &Path, voxel: f64) -> anyhow
 /// Neighbours of the normals `--normals-towards` estimates (`slscan align`, `slscan mesh`).
 pub(crate) const NORMAL_NEIGHBOURS: usize = 20;
 
-/// The point `--normals-towards X,Y,Z` gives, if any: three finite coordinates (mm, in the
-/// clouds' frame after `--scale`).
-pub(crate) fn normals_viewpoint(arg: Option<&[f64]>) -> anyhow::Result<Option<Point3<f64>>> {
-    match arg {
-        None => Ok(None),
-        Some(&[x, y, z]) if [x, y, z].iter().all(|c| c.is_finite()) => {
-            Ok(Some(Point3::new(x, y, z)))
+/// `--normals-towards X,Y,Z` of `slscan align` and `slscan mesh`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct NormalsTowards {
+    /// Estimate each cloud's normals (20 neighbours) facing this point of its own frame (mm,
+    /// after `--scale`): where the scanner stood, e.g. `0,0,0` for clouds in the camera frame
+    /// as `slscan reconstruct` writes them, `0,0,1000` for the Stanford scans. Without it the
+    /// clouds' own normals are kept, if they have them.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        num_args = 1,
+        allow_negative_numbers = true
+    )]
+    pub(crate) normals_towards: Option<Vec<f64>>,
+}
+
+impl NormalsTowards {
+    /// The point given, if any: three finite coordinates.
+    pub(crate) fn viewpoint(&self) -> anyhow::Result<Option<Point3<f64>>> {
+        match self.normals_towards.as_deref() {
+            None => Ok(None),
+            Some(&[x, y, z]) if [x, y, z].iter().all(|c| c.is_finite()) => {
+                Ok(Some(Point3::new(x, y, z)))
+            }
+            Some(v) => anyhow::bail!(
+                "--normals-towards {v:?}: needs three finite coordinates X,Y,Z (mm, in the cloud's frame)"
+            ),
         }
-        Some(v) => anyhow::bail!(
-            "--normals-towards {v:?}: needs three finite coordinates X,Y,Z (mm, in the cloud's frame)"
-        ),
     }
 }
 

@@ -123,21 +123,12 @@ mod tests {
 
     use super::*;
 
-    /// A unit sphere sampled on a golden spiral, with outward normals.
+    /// The test sphere (radius 10 mm, Fibonacci spiral, outward normals): positions and
+    /// normals.
     fn sphere(n: usize) -> (Vec<Point3<f64>>, Vec<Vector3<f64>>) {
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        (0..n)
-            .map(|i| {
-                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let t = golden * i as f64;
-                let v = Vector3::new(
-                    (1.0 - z * z).sqrt() * t.cos(),
-                    (1.0 - z * z).sqrt() * t.sin(),
-                    z,
-                );
-                (Point3::from(v * 10.0), v)
-            })
-            .unzip()
+        let c = crate::test_shapes::sphere_cloud(n, 10.0, Point3::origin());
+        let normals = c.normals().map(<[_]>::to_vec).unwrap_or_default();
+        (c.positions().to_vec(), normals)
     }
 
     /// Outward normals: one patch. The upper cap flipped (as unoriented PCA normals flip in
