@@ -116,7 +116,7 @@ pub(crate) fn check_units(cloud: &PointCloud, path: &Path, voxel: f64) -> anyhow
 }
 
 /// Neighbours of the normals `--normals-towards` estimates (`slscan align`, `slscan mesh`).
-pub(crate) const NORMAL_NEIGHBOURS: usize = 20;
+const NORMAL_NEIGHBOURS: usize = 20;
 
 /// `--normals-towards X,Y,Z` of `slscan align` and `slscan mesh`.
 #[derive(Debug, clap::Args)]
