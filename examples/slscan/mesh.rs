@@ -187,11 +187,13 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         screening: args.screening,
         ..PoissonConfig::default()
     };
-    let surface = report
+    let mut surface = report
         .stage("reconstruct", || poisson_reconstruct(&cloud, &cfg))
         .with_context(|| format!("cannot reconstruct a surface from {}", args.cloud.display()))?;
-    let mut mesh = surface.mesh.clone();
-    let mut densities = surface.densities.clone();
+    let (vertices_extracted, triangles_extracted) =
+        (surface.mesh.vertices.len(), surface.mesh.triangles.len());
+    let mut mesh = std::mem::take(&mut surface.mesh);
+    let mut densities = std::mem::take(&mut surface.densities);
     if let Some(ratio) = args.trim {
         let t = report.stage("trim", || trim_by_density(&mesh, &densities, ratio))?;
         report.figure("trimmed_triangles", t.triangles_removed);
@@ -322,7 +324,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         "{}: no triangle is left of the mesh ({} extracted; pieces of fewer than --min-piece {} \
          triangles are removed): is the cloud in mm (--scale)?",
         args.cloud.display(),
-        surface.mesh.triangles.len(),
+        triangles_extracted,
         args.min_piece
     );
     let topo = report.stage("check", || check_topology(&mesh));
@@ -391,8 +393,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("samples", surface.samples);
     report.figure("depth", args.depth);
     report.figure("cell_size_mm", surface.cell_size);
-    report.figure("vertices_extracted", surface.mesh.vertices.len());
-    report.figure("triangles_extracted", surface.mesh.triangles.len());
+    report.figure("vertices_extracted", vertices_extracted);
+    report.figure("triangles_extracted", triangles_extracted);
     report.figure("vertices", mesh.vertices.len());
     report.figure("triangles", mesh.triangles.len());
     report.figure("watertight", topo.is_watertight());

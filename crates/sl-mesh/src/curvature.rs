@@ -8,6 +8,9 @@ use nalgebra::{Matrix6, Point3, Vector3, Vector6};
 /// some ten thousand quadrics on the default scan).
 pub(crate) type IdSet<T> = std::collections::HashSet<T, foldhash::fast::FixedState>;
 
+/// A map from vertex ids, with the hasher of [`IdSet`].
+pub(crate) type IdMap<K, V> = std::collections::HashMap<K, V, foldhash::fast::FixedState>;
+
 /// The quadric of [`fit_quadric`] in the frame (`a`, `b`, `n`) at `p` (the fitted vertex),
 /// `c` its coefficients.
 pub(crate) struct LocalQuadric {

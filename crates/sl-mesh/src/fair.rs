@@ -55,7 +55,7 @@ use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
 use crate::adjacency::check_indices;
-use crate::curvature::{IdSet, LocalQuadric, fit_quadric};
+use crate::curvature::{IdMap, IdSet, LocalQuadric, fit_quadric};
 use crate::measure::vertex_normals;
 
 /// Parameters of [`fair_unsupported`].
@@ -240,11 +240,7 @@ pub fn fair_unsupported(
             };
             project_rim(mesh, &op, &input)
         } else {
-            RimProjection {
-                originals: Vec::new(),
-                tangential: vec![false; nv],
-                smooth_gaps: 0,
-            }
+            RimProjection::none(nv)
         };
         let start = if rim.originals.is_empty() {
             x.clone()
@@ -398,6 +394,17 @@ struct RimProjection {
     smooth_gaps: usize,
 }
 
+impl RimProjection {
+    /// Nothing moved, no row tangential, on a mesh of `nv` vertices.
+    fn none(nv: usize) -> Self {
+        Self {
+            originals: Vec::new(),
+            tangential: vec![false; nv],
+            smooth_gaps: 0,
+        }
+    }
+}
+
 /// Puts the thinly sampled rim of every gap in smooth surface onto the surface fitted to the
 /// well-sampled vertices nearby; returns the vertices moved with their positions before, and
 /// the fixed vertices within two rings of those gaps (whose curvature rows then keep their
@@ -429,15 +436,10 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
         support,
     } = *input;
     let nv = mesh.vertices.len();
-    let nothing = || RimProjection {
-        originals: Vec::new(),
-        tangential: vec![false; nv],
-        smooth_gaps: 0,
-    };
     let normals = vertex_normals(mesh);
     let vertices = &mesh.vertices;
     let Some(typical) = typical_fit_residual(vertices, op, &normals, well, support) else {
-        return nothing();
+        return RimProjection::none(nv);
     };
     // On an exact surface (a test's plane or sphere) every residual is round-off, and which
     // fits pass would be chance: round-off passes.
@@ -465,6 +467,9 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
         }
         None
     };
+    // The fits of the fixed vertices next to the smooth gaps, kept for the rim (most of them
+    // are rim vertices too): `None` where there is no typical fit.
+    let mut fits: IdMap<usize, Option<LocalQuadric>> = IdMap::default();
     let (mut smooth, mut smooth_gaps) = (Vec::new(), 0);
     for piece in gaps {
         let mut next_to: Vec<usize> = piece
@@ -474,17 +479,17 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
             .collect();
         next_to.sort_unstable();
         next_to.dedup();
-        let good = next_to
-            .par_iter()
-            .filter(|&&u| good_fit(u).is_some())
-            .count();
+        let found: Vec<(usize, Option<LocalQuadric>)> =
+            next_to.par_iter().map(|&u| (u, good_fit(u))).collect();
+        let good = found.iter().filter(|(_, q)| q.is_some()).count();
         if !next_to.is_empty() && good as f64 >= SMOOTH_GAP_SHARE * next_to.len() as f64 {
             smooth.extend(piece);
             smooth_gaps += 1;
+            fits.extend(found);
         }
     }
     if smooth.is_empty() {
-        return nothing();
+        return RimProjection::none(nv);
     }
     let in_rim = op.rings_around(&smooth, RIM_RINGS, |a| {
         !free[a] && !op.boundary[a] && densities[a] < RIM_DENSITY * median
@@ -493,7 +498,10 @@ fn project_rim(mesh: &mut TriangleMesh, op: &Operator, input: &RimInput<'_>) -> 
     let moved: Vec<Option<Point3<f64>>> = rim
         .par_iter()
         .map(|&u| {
-            let p = good_fit(u)?.project(&vertices[u])?;
+            let p = match fits.get(&u) {
+                Some(known) => known.as_ref()?.project(&vertices[u])?,
+                None => good_fit(u)?.project(&vertices[u])?,
+            };
             ((p - vertices[u]).norm() <= RIM_MAX_MOVE_EDGES * op.edge_scale).then_some(p)
         })
         .collect();
