@@ -4,6 +4,7 @@ use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
 use crate::SimError;
+use crate::footprint::Footprint;
 
 /// Albedo of the black squares of a printed board (matte black ink reflects a few percent).
 pub const BOARD_DARK_ALBEDO: f64 = 0.05;
@@ -136,6 +137,24 @@ impl Checkerboard {
         } else {
             self.light_albedo
         }
+    }
+}
+
+impl Checkerboard {
+    /// The albedo averaged over a camera sub-sample's footprint on the board (board frame, mm):
+    /// the printed area is the box `[−s, cols·s) × [−s, rows·s)` (`s` the square), its dark
+    /// squares those where the square waves of `x` and `y` agree; each factor is averaged
+    /// exactly over the footprint's spread along its axis (see [`crate::footprint`]).
+    pub(crate) fn albedo_over(&self, fp: &Footprint) -> f64 {
+        let s = self.square_mm;
+        let (u, v) = (fp.axis(0), fp.axis(1));
+        let bu = (-s, f64::from(self.inner_cols) * s);
+        let bv = (-s, f64::from(self.inner_rows) * s);
+        // Dark share: E[B_u B_v (1 + S_u S_v) / 2], the footprint's axes taken as independent.
+        let boxes = u.mean_box(bu.0, bu.1) * v.mean_box(bv.0, bv.1);
+        let waves = u.mean_square_wave(s, Some(bu)) * v.mean_square_wave(s, Some(bv));
+        let dark = (0.5 * (boxes + waves)).clamp(0.0, 1.0);
+        self.light_albedo + (self.dark_albedo - self.light_albedo) * dark
     }
 }
 

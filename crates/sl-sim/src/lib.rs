@@ -79,6 +79,7 @@ mod calibration_captures;
 mod config;
 mod error;
 mod files;
+mod footprint;
 mod geometry;
 mod placement;
 mod raycast;

@@ -5,6 +5,7 @@ use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use parry3d_f64::query::{Ray, RayCast};
 use parry3d_f64::shape::{Ball, Cuboid, Cylinder};
 
+use crate::footprint::Footprint;
 use crate::{Mount, Scene, Shape, Texture};
 
 /// Offset (mm) along the surface normal of a shadow ray's origin, so that the ray does not
@@ -140,6 +141,34 @@ impl PlacedScene {
             object: k,
             albedo: o.texture.albedo_at(&local),
         })
+    }
+
+    /// The albedo of `hit`'s surface averaged over the parallelogram centred on the hit point
+    /// with edges `edge_x` and `edge_y` (camera frame, mm; a camera sub-sample's footprint on
+    /// the tangent plane), instead of the point sample in [`Hit::albedo`].
+    pub(crate) fn albedo_over(
+        &self,
+        hit: &Hit,
+        edge_x: &Vector3<f64>,
+        edge_y: &Vector3<f64>,
+    ) -> f64 {
+        let Some(o) = self.objects.get(hit.object) else {
+            return hit.albedo;
+        };
+        if o.texture.is_uniform() {
+            return hit.albedo;
+        }
+        let fp = Footprint {
+            centre: o.t_cam_object.inverse_transform_point(&hit.point),
+            edge_x: o.t_cam_object.inverse_transform_vector(edge_x),
+            edge_y: o.t_cam_object.inverse_transform_vector(edge_y),
+        };
+        o.texture.albedo_over(&fp)
+    }
+
+    /// Whether object `k` has a texture that varies over its surface.
+    pub(crate) fn is_textured(&self, k: usize) -> bool {
+        self.objects.get(k).is_some_and(|o| !o.texture.is_uniform())
     }
 
     /// `true` when something lies between the surface point `point` (with facing normal

@@ -5,6 +5,7 @@ use std::sync::Arc;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use parry3d_f64::shape::TriMesh;
 
+use crate::footprint::Footprint;
 use crate::{Checkerboard, SimError};
 
 /// Geometry of one object, in its own frame (millimetres).
@@ -166,6 +167,32 @@ impl Texture {
             }
             Self::Board(b) => b.albedo_at(p.x, p.y),
         }
+    }
+
+    /// The albedo averaged over a camera sub-sample's footprint (object frame, mm): what the
+    /// sub-sample's square integrates, without point sampling's bias at the texture's edges.
+    pub(crate) fn albedo_over(&self, fp: &Footprint) -> f64 {
+        match self {
+            Self::Uniform(a) => *a,
+            Self::Checker3d {
+                period_mm,
+                dark,
+                light,
+            } => {
+                // Dark where floor(x/p) + floor(y/p) + floor(z/p) is even, i.e. where the
+                // product of the three axes' square waves is +1.
+                let product: f64 = (0..3)
+                    .map(|k| fp.axis(k).mean_square_wave(*period_mm, None))
+                    .product();
+                light + (dark - light) * (0.5 * (1.0 + product)).clamp(0.0, 1.0)
+            }
+            Self::Board(b) => b.albedo_over(fp),
+        }
+    }
+
+    /// Whether the albedo varies over the surface (so that a footprint matters).
+    pub(crate) fn is_uniform(&self) -> bool {
+        matches!(self, Self::Uniform(_))
     }
 
     fn validate(&self, name: &str) -> Result<(), SimError> {
