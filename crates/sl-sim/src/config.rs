@@ -190,7 +190,7 @@ impl RigConfig {
             ));
         }
         self.render.illumination.validate()?;
-        self.render.effects.sensor.validate()
+        self.render.effects.validate()
     }
 
     /// The platter angle (degrees) for a motor reading (degrees).

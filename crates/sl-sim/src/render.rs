@@ -37,6 +37,12 @@ pub struct Illumination {
     /// projectors do not show because their optics do not resolve the pixel grid that sharply.
     #[serde(default = "default_projector_blur_px")]
     pub projector_blur_px: f64,
+    /// Share of a projector pixel's pitch that emits light, along each axis (the rest is the
+    /// dark gap between micromirrors or LCD cells): 1 for gapless pixels. The pixel's light is
+    /// spread over its lit square, so a full-white image still delivers
+    /// [`projector_power`](Self::projector_power).
+    #[serde(default = "default_projector_fill")]
+    pub projector_fill: f64,
 }
 
 impl Illumination {
@@ -50,6 +56,15 @@ impl Illumination {
     /// the kernel (and its cost) grows with it.
     pub const MAX_PROJECTOR_BLUR_PX: f64 = 8.0;
 
+    /// Default of [`Illumination::projector_fill`]: a DLP's micromirrors fill about 90 % of
+    /// their pitch along each axis (the gap and the mirror's via, 0.3–0.7 µm of a 5.4–7.6 µm
+    /// pitch).
+    pub const DEFAULT_PROJECTOR_FILL: f64 = 0.9;
+
+    /// Smallest projector fill accepted: below, the pixel is a point source, a projector
+    /// that does not exist.
+    pub const MIN_PROJECTOR_FILL: f64 = 0.1;
+
     /// Light that one projector pixel sends to the point `d` pixels from its centre (along
     /// one axis), as a fraction of its value: its square (a box one pixel wide) blurred by a
     /// Gaussian of standard deviation `σ =` [`projector_blur_px`](Self::projector_blur_px),
@@ -62,12 +77,51 @@ impl Illumination {
     /// assert!((total - 1.0).abs() < 1e-6);
     /// ```
     pub fn pixel_spread(&self, d: f64) -> f64 {
-        pixel_spread(d, self.projector_blur_px)
+        self.spread().at(d)
+    }
+
+    /// The shape of one projector pixel's light.
+    fn spread(&self) -> PixelSpread {
+        PixelSpread {
+            sigma: self.projector_blur_px,
+            fill: self.projector_fill,
+        }
+    }
+
+    /// Whether the projector's pixels are shown as ideal touching squares (no lens blur, no
+    /// gap), which renders as a lookup of the pixel under each sub-sample.
+    fn hard_pixels(&self) -> bool {
+        self.projector_blur_px <= 0.0 && self.projector_fill >= 1.0
     }
 }
 
 fn default_projector_blur_px() -> f64 {
     Illumination::DEFAULT_PROJECTOR_BLUR_PX
+}
+
+fn default_projector_fill() -> f64 {
+    Illumination::DEFAULT_PROJECTOR_FILL
+}
+
+/// The light of one projector pixel along one axis: a lit box of width `fill` (pixels)
+/// blurred by a Gaussian of standard deviation `sigma`, normalised to a unit total.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PixelSpread {
+    pub(crate) sigma: f64,
+    pub(crate) fill: f64,
+}
+
+impl PixelSpread {
+    /// Light sent `d` pixels from the pixel's centre.
+    pub(crate) fn at(self, d: f64) -> f64 {
+        pixel_spread(d, self.sigma, self.fill)
+    }
+
+    /// Half-width (pixels) of the light that is kept: half a pixel of box plus the Gaussian's
+    /// [`PSF_TRUNCATE_SIGMAS`].
+    fn radius(self) -> isize {
+        (PSF_TRUNCATE_SIGMAS * self.sigma + 0.5).ceil() as isize
+    }
 }
 
 /// The kernel is cut where the Gaussian's tail holds under 1e-4 of the light (4σ), well below
@@ -80,15 +134,20 @@ const PSF_TRUNCATE_SIGMAS: f64 = 4.0;
 const FIELD_SAMPLES_PER_PIXEL: usize = 16;
 
 /// Light that projector pixel `i` sends to the projector coordinate `i + d` (pixels), as a
-/// fraction of its value: a box of one pixel blurred by a Gaussian of standard deviation
-/// `sigma`, `Φ((d + ½)/σ) − Φ((d − ½)/σ)`. Sums to 1 over any grid of unit spacing. `sigma <= 0`
-/// gives the box itself.
-pub(crate) fn pixel_spread(d: f64, sigma: f64) -> f64 {
+/// fraction of its value: a lit box of width `fill` (≤ 1 pixel, centred) blurred by a Gaussian
+/// of standard deviation `sigma`, `(Φ((d + f/2)/σ) − Φ((d − f/2)/σ)) / f`. Sums to 1 over any
+/// grid of unit spacing. `sigma <= 0` gives the box itself.
+pub(crate) fn pixel_spread(d: f64, sigma: f64, fill: f64) -> f64 {
+    let half = 0.5 * fill;
     if sigma <= 0.0 {
-        return if (-0.5..0.5).contains(&d) { 1.0 } else { 0.0 };
+        return if (-half..half).contains(&d) {
+            1.0 / fill
+        } else {
+            0.0
+        };
     }
     let z = std::f64::consts::FRAC_1_SQRT_2 / sigma;
-    0.5 * (erfc(-(d + 0.5) * z) - erfc(-(d - 0.5) * z))
+    0.5 * (erfc(-(d + half) * z) - erfc(-(d - half) * z)) / fill
 }
 
 /// Complementary error function, with a fractional error below 1.2e-7 everywhere (the
@@ -119,6 +178,7 @@ impl Default for Illumination {
             gamma: 1.0,
             black_level: 0.001,
             projector_blur_px: Self::DEFAULT_PROJECTOR_BLUR_PX,
+            projector_fill: Self::DEFAULT_PROJECTOR_FILL,
         }
     }
 }
@@ -151,6 +211,16 @@ impl Illumination {
                     "{} is not in [0, {}]",
                     self.projector_blur_px,
                     Self::MAX_PROJECTOR_BLUR_PX
+                ),
+            ));
+        }
+        if !(Self::MIN_PROJECTOR_FILL..=1.0).contains(&self.projector_fill) {
+            return Err(SimError::param(
+                "illumination projector_fill",
+                format!(
+                    "{} is not in [{}, 1]",
+                    self.projector_fill,
+                    Self::MIN_PROJECTOR_FILL
                 ),
             ));
         }
@@ -199,9 +269,9 @@ impl ViewGeometry {
             }
             .into());
         }
-        if light.projector_blur_px > 0.0 {
+        if !light.hard_pixels() {
             let (w, h) = (image.width as usize, image.height as usize);
-            let sigma = light.projector_blur_px;
+            let sigma = light.spread();
             let field = match &image.pixels {
                 Pixels::U8(p) => {
                     let lut = output_lut(light, u8::MAX.into());
@@ -255,7 +325,7 @@ impl ViewGeometry {
     where
         F: Fn(f64, f64) -> f64 + Sync,
     {
-        if sampling == ProjectorSampling::Nearest && light.projector_blur_px > 0.0 {
+        if sampling == ProjectorSampling::Nearest && !light.hard_pixels() {
             let pw = self.projector_width.max(1) as usize;
             let n = pw * self.projector_height as usize;
             let out: Vec<f32> = (0..n)
@@ -266,7 +336,7 @@ impl ViewGeometry {
                 &out,
                 pw,
                 self.projector_height as usize,
-                light.projector_blur_px,
+                light.spread(),
                 |v| v,
             );
             return self.render_light(&field, light);
@@ -397,10 +467,10 @@ struct LightField {
 
 impl LightField {
     /// The field of a `width × height` projector whose pixel `i` holds `pixels[i]` and emits
-    /// `emit(pixels[i])`, blurred by a Gaussian of standard deviation `sigma` (> 0) pixels.
+    /// `emit(pixels[i])`, each pixel's light spread by `sigma` (its fill and lens blur).
     /// Whether the image varies along one axis only is decided on the raw pixels, so that a
     /// stripe pattern converts one line, not the whole image.
-    fn new<T, E>(pixels: &[T], width: usize, height: usize, sigma: f64, emit: E) -> Self
+    fn new<T, E>(pixels: &[T], width: usize, height: usize, sigma: PixelSpread, emit: E) -> Self
     where
         T: PartialEq + Copy + Sync,
         E: Fn(T) -> f32 + Sync,
@@ -431,10 +501,8 @@ impl LightField {
                 scale_y: u as f32,
             };
         }
-        let r = kernel_radius(sigma);
-        let kernel: Vec<f32> = (-r..=r)
-            .map(|m| pixel_spread(m as f64, sigma) as f32)
-            .collect();
+        let r = sigma.radius();
+        let kernel: Vec<f32> = (-r..=r).map(|m| sigma.at(m as f64) as f32).collect();
         let out: Vec<f32> = pixels.par_iter().map(|&v| emit(v)).collect();
         Self {
             data: blur::separable(&out, width, height, &kernel),
@@ -471,24 +539,18 @@ impl LightField {
     }
 }
 
-/// Half-width (pixels) of the blurred pixel's footprint that is kept: half a pixel of box plus
-/// the Gaussian's [`PSF_TRUNCATE_SIGMAS`].
-fn kernel_radius(sigma: f64) -> isize {
-    (PSF_TRUNCATE_SIGMAS * sigma + 0.5).ceil() as isize
-}
-
 /// The light of a one-dimensional projector line (`v[i]` from pixel `i`) blurred by
 /// [`pixel_spread`], at [`FIELD_SAMPLES_PER_PIXEL`] points per pixel; beyond the ends the
 /// edge pixels are repeated.
-fn upsample(v: &[f32], sigma: f64) -> Vec<f32> {
+fn upsample(v: &[f32], sigma: PixelSpread) -> Vec<f32> {
     let u = FIELD_SAMPLES_PER_PIXEL;
-    let r = kernel_radius(sigma);
+    let r = sigma.radius();
     // weights[p][m + r]: light of pixel i + m at sub-position p of pixel i.
     let weights: Vec<Vec<f32>> = (0..u)
         .map(|p| {
             let offset = (p as f64 + 0.5) / u as f64 - 0.5;
             (-r..=r)
-                .map(|m| pixel_spread(offset - m as f64, sigma) as f32)
+                .map(|m| sigma.at(offset - m as f64) as f32)
                 .collect()
         })
         .collect();
@@ -517,33 +579,44 @@ mod tests {
 
     #[test]
     fn pixel_spread_is_a_blurred_box() {
-        for sigma in [0.2, 0.5, 1.0, 2.5] {
-            for shift in [0.0, 0.25, 0.5, 0.9] {
-                let taps: Vec<(f64, f64)> = (-40..=40)
-                    .map(|m| {
-                        let d = f64::from(m) + shift;
-                        (d, pixel_spread(d, sigma))
-                    })
-                    .collect();
-                let sum: f64 = taps.iter().map(|t| t.1).sum();
-                // Φ differences telescope to Φ(+∞) − Φ(−∞) = 1; erfc's fit is good to 1.2e-7
-                // relative, and each tap's two errors do not all cancel.
-                assert_abs_diff_eq!(sum, 1.0, epsilon = 1e-6);
+        for fill in [1.0, 0.9, 0.6] {
+            for sigma in [0.2, 0.5, 1.0, 2.5] {
+                // A full-white image: the grid sum at any point is 1 for touching pixels (Φ
+                // differences telescope; 1e-6 is the erfc fit's error); with gaps the white
+                // field has the dark grid in it, and only its mean over a pixel is 1.
+                let sum_at = |shift: f64| -> f64 {
+                    (-40..=40)
+                        .map(|m| pixel_spread(f64::from(m) + shift, sigma, fill))
+                        .sum()
+                };
+                if fill >= 1.0 {
+                    for shift in [0.0, 0.25, 0.5, 0.9] {
+                        assert_abs_diff_eq!(sum_at(shift), 1.0, epsilon = 1e-6);
+                    }
+                }
+                let mean = (0..1000)
+                    .map(|k| sum_at((k as f64 + 0.5) / 1000.0))
+                    .sum::<f64>()
+                    / 1000.0;
+                assert_abs_diff_eq!(mean, 1.0, epsilon = 1e-5);
+                // Variance of box ⊗ Gaussian = fill²/12 + σ² (variances add); integrated finely.
+                let h = 1e-3;
+                let (mut m0, mut m2) = (0.0, 0.0);
+                for i in -20_000..=20_000 {
+                    let d = f64::from(i) * h;
+                    let k = pixel_spread(d, sigma, fill);
+                    m0 += k * h;
+                    m2 += k * d * d * h;
+                }
+                assert_abs_diff_eq!(m0, 1.0, epsilon = 1e-6);
+                assert_abs_diff_eq!(m2, fill * fill / 12.0 + sigma * sigma, epsilon = 1e-5);
             }
-            // Variance of box ⊗ Gaussian = 1/12 + σ² (variances add); integrated finely.
-            let h = 1e-3;
-            let (mut m0, mut m2) = (0.0, 0.0);
-            for i in -20_000..=20_000 {
-                let d = f64::from(i) * h;
-                let k = pixel_spread(d, sigma);
-                m0 += k * h;
-                m2 += k * d * d * h;
-            }
-            assert_abs_diff_eq!(m0, 1.0, epsilon = 1e-6);
-            assert_abs_diff_eq!(m2, 1.0 / 12.0 + sigma * sigma, epsilon = 1e-5);
         }
-        assert_abs_diff_eq!(pixel_spread(0.49, 0.0), 1.0);
-        assert_abs_diff_eq!(pixel_spread(0.5, 0.0), 0.0);
+        assert_abs_diff_eq!(pixel_spread(0.49, 0.0, 1.0), 1.0);
+        assert_abs_diff_eq!(pixel_spread(0.5, 0.0, 1.0), 0.0);
+        // A gap: 0.45 px from the centre of a 0.8-wide lit square is dark, 0.39 lit at 1/0.8.
+        assert_abs_diff_eq!(pixel_spread(0.45, 0.0, 0.8), 0.0);
+        assert_abs_diff_eq!(pixel_spread(0.39, 0.0, 0.8), 1.25);
     }
 
     #[test]
@@ -559,7 +632,7 @@ mod tests {
             .map(|i| (0.5 + 0.5 * (std::f64::consts::TAU * i as f64 / lambda).cos()) as f32)
             .collect();
         let out: Vec<f32> = (0..4).flat_map(|_| row.iter().copied()).collect();
-        let field = LightField::new(&out, width, 4, sigma, |v| v);
+        let field = LightField::new(&out, width, 4, PixelSpread { sigma, fill: 1.0 }, |v| v);
         assert_eq!(
             (field.height, field.width),
             (1, width * FIELD_SAMPLES_PER_PIXEL)
@@ -599,11 +672,12 @@ mod tests {
         let mut out = vec![0.0f32; w * h];
         out[7 * w + 10] = 1.0;
         let sigma = 0.7;
-        let field = LightField::new(&out, w, h, sigma, |v| v);
+        let field = LightField::new(&out, w, h, PixelSpread { sigma, fill: 1.0 }, |v| v);
         assert_eq!((field.width, field.height), (w, h));
         for dy in -3i32..=3 {
             for dx in -3i32..=3 {
-                let want = pixel_spread(f64::from(dx), sigma) * pixel_spread(f64::from(dy), sigma);
+                let want = pixel_spread(f64::from(dx), sigma, 1.0)
+                    * pixel_spread(f64::from(dy), sigma, 1.0);
                 let got = field.at((10 + dx) as f32, (7 + dy) as f32);
                 // f32 storage: 1e-7 relative, plus the erfc fit.
                 assert_abs_diff_eq!(f64::from(got), want, epsilon = 1e-6);

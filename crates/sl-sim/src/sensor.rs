@@ -158,14 +158,61 @@ impl Default for GlobalIllumination {
 }
 
 /// Everything that happens between the direct image and the frame.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct CameraEffects {
     /// The sensor.
     pub sensor: SensorConfig,
+    /// Standard deviation (camera pixels) of the lens's point spread in focus: a Gaussian
+    /// applied to the pixel-integrated image (diffraction, aberrations, the sensor's
+    /// cross-talk); the defocus, when there is one, adds to it in quadrature. 0 for an ideal
+    /// lens.
+    #[serde(default = "default_lens_blur_px")]
+    pub lens_blur_px: f64,
     /// Depth-dependent defocus; `None` for a pinhole (everything sharp).
     pub defocus: Option<Defocus>,
     /// Global illumination; `None` for direct light only.
     pub global_illumination: Option<GlobalIllumination>,
+}
+
+impl CameraEffects {
+    /// Default of [`CameraEffects::lens_blur_px`], measured on real captures (see
+    /// `docs/virtual-rig.md`, "Renders against real captures").
+    pub const DEFAULT_LENS_BLUR_PX: f64 = 0.7;
+
+    /// Largest lens blur accepted (px).
+    pub const MAX_LENS_BLUR_PX: f64 = 8.0;
+
+    /// Checks the sensor and the lens blur.
+    pub fn validate(&self) -> Result<(), SimError> {
+        if !(0.0..=Self::MAX_LENS_BLUR_PX).contains(&self.lens_blur_px) {
+            return Err(SimError::param(
+                "camera lens_blur_px",
+                format!(
+                    "{} is not in [0, {}]",
+                    self.lens_blur_px,
+                    Self::MAX_LENS_BLUR_PX
+                ),
+            ));
+        }
+        self.sensor.validate()
+    }
+}
+
+impl Default for CameraEffects {
+    /// The default sensor, a lens spread of [`CameraEffects::DEFAULT_LENS_BLUR_PX`], no defocus,
+    /// no global illumination.
+    fn default() -> Self {
+        Self {
+            sensor: SensorConfig::default(),
+            lens_blur_px: Self::DEFAULT_LENS_BLUR_PX,
+            defocus: None,
+            global_illumination: None,
+        }
+    }
+}
+
+fn default_lens_blur_px() -> f64 {
+    CameraEffects::DEFAULT_LENS_BLUR_PX
 }
 
 /// Identifies one frame's noise: the same `(seed, view, frame)` always gives the same noise,
@@ -216,9 +263,18 @@ pub(crate) fn expose(
             .zip(&blurred)
             .for_each(|(r, b)| *r += w * b);
     }
-    if let Some(d) = effects.defocus {
-        radiance = defocus(&radiance, width, height, depth_mm, fx, &d);
-    }
+    radiance = match effects.defocus {
+        Some(d) => defocus(
+            &radiance,
+            width,
+            height,
+            depth_mm,
+            fx,
+            &d,
+            effects.lens_blur_px,
+        ),
+        None => blur::point_spread(&radiance, width, height, effects.lens_blur_px),
+    };
     let s = &effects.sensor;
     let gain_e = s.exposure * s.full_well_electrons;
     let max_dn = s.bit_depth.max_value();
@@ -277,7 +333,8 @@ pub(crate) fn expose(
 }
 
 /// Depth-dependent blur by a stack of Gaussian blurs at σ = 0, 0.5, 1, ... px, each pixel
-/// interpolating linearly between the two levels around its own σ.
+/// interpolating linearly between the two levels around its own σ, the defocus at its depth
+/// and the lens's own spread `lens_px` added in quadrature.
 fn defocus(
     src: &[f32],
     width: usize,
@@ -285,15 +342,17 @@ fn defocus(
     depth_mm: &[f32],
     fx: f64,
     d: &Defocus,
+    lens_px: f64,
 ) -> Vec<f32> {
     let sigmas: Vec<f64> = depth_mm
         .iter()
         .map(|&z| {
-            if z.is_finite() {
+            let s = if z.is_finite() {
                 d.sigma_px(fx, f64::from(z))
             } else {
                 0.0
-            }
+            };
+            s.hypot(lens_px).min(MAX_DEFOCUS_SIGMA_PX)
         })
         .collect();
     let max_sigma = sigmas.iter().copied().fold(0.0, f64::max);
@@ -302,7 +361,7 @@ fn defocus(
         return src.to_vec();
     }
     let stack: Vec<Vec<f32>> = (0..=levels)
-        .map(|l| blur::gaussian(src, width, height, l as f64 * DEFOCUS_LEVEL_STEP_PX))
+        .map(|l| blur::point_spread(src, width, height, l as f64 * DEFOCUS_LEVEL_STEP_PX))
         .collect();
     (0..src.len())
         .into_par_iter()
@@ -462,6 +521,7 @@ mod tests {
         let blur = CameraEffects {
             sensor: quiet,
             defocus: Some(d),
+            lens_blur_px: 0.0,
             ..CameraEffects::default()
         };
         let sharp = expose(edge.clone(), w, h, &vec![450.0; w * h], fx, &blur, key);

@@ -231,6 +231,11 @@ fn white_frame_radiance_matches_lambert() {
     // DN = exposure · 65535 · albedo · (ambient + power · (black + (1 − black) · v^γ) · cos).
     let mut config = small_rig();
     config.render.illumination.gamma = 2.2;
+    // Touching projector pixels: with gaps (the default fill) a uniform image carries the
+    // pixel grid's faint screen-door ripple, which this closed form leaves out.
+    config.render.illumination.projector_fill = 1.0;
+    // The direct image's closed form, pixel by pixel: no lens spread.
+    config.render.effects.lens_blur_px = 0.0;
     config.render.effects.sensor = SensorConfig {
         photon_noise: false,
         read_noise_electrons: 0.0,
@@ -353,6 +358,10 @@ fn board_texture_matches_the_printed_squares() {
     // square edges, each pixel has the closed-form value of its square's albedo.
     let mut config = small_rig();
     config.render.supersampling = 4;
+    // Touching projector pixels (no screen-door ripple, as in the test above).
+    config.render.illumination.projector_fill = 1.0;
+    // The direct image's closed form, pixel by pixel: no lens spread.
+    config.render.effects.lens_blur_px = 0.0;
     config.render.effects.sensor = SensorConfig {
         photon_noise: false,
         read_noise_electrons: 0.0,
@@ -431,6 +440,10 @@ fn frames_do_not_depend_on_the_number_of_threads() {
 fn fringe_column_error(blur_px: f64) -> (f64, f64) {
     let mut config = small_rig();
     config.render.illumination.projector_blur_px = blur_px;
+    // The projector's blur alone: touching pixels and a sharp camera lens (both also damp
+    // the grid's harmonics).
+    config.render.illumination.projector_fill = 1.0;
+    config.render.effects.lens_blur_px = 0.0;
     config.render.effects.sensor = SensorConfig {
         photon_noise: false,
         read_noise_electrons: 0.0,
