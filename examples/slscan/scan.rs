@@ -78,6 +78,10 @@ pub(crate) struct Args {
     /// Do not capture the flat plate (no flatness figure).
     #[arg(long)]
     pub(crate) no_plate: bool,
+    /// How the simulated calibration refines the board's corners: `junction` or `saddle`
+    /// (see `slscan calibrate camera --corners`).
+    #[arg(long, default_value_t = structured_light::calib::CornerRefiner::default())]
+    pub(crate) corners: structured_light::calib::CornerRefiner,
     /// Turntable sessions of the object, re-placed in between: 1, or 2 to scan it standing
     /// and then laid on its side and merge both into one complete model (on the virtual rig:
     /// the pebble, an object with a flat bottom; on real devices the command waits for you to
@@ -148,6 +152,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         c.axis_direction_error_deg,
         c.axis_position_error_mm
     );
+    if let Some(p) = &c.predicted_error {
+        println!("calibration: {}", p.sentence());
+    }
     println!(
         "{}: {} points merged from {} views",
         out.join(&result.files.merged).display(),
@@ -191,6 +198,7 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         smoothing_neighbours: args.smoothing_neighbours,
         edge_erosion_px: args.edge_erosion,
         mesh_options: mesh_options(args),
+        corners: args.corners,
         ..VirtualScanConfig::default()
     }
 }

@@ -14,29 +14,31 @@ use sl_calib::sl_codec::{
     BitDepth, CaptureSet, DecodeConfig, Frame, Frames, ProjectorSize, decode,
 };
 use sl_calib::{
-    BoardSize, DetectorConfig, ProcamConfig, ProcamView, calibrate_procam, detect_checkerboard,
-    sl_camera::ImageSize,
+    BoardSize, CornerRefiner, DetectorConfig, ProcamConfig, ProcamView, calibrate_procam,
+    detect_checkerboard, sl_camera::ImageSize,
 };
 use sl_sim::{
     BoardTruth, CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig,
     calibration_sequence,
 };
 
-/// The settings compared: the default (saddle points) and those named in `CONFIGS`
-/// (comma-separated; default `junction`): `junction` ([`DetectorConfig::with_junction_fit`]),
+/// The settings compared: the default (the junction fit) and those named in `CONFIGS`
+/// (comma-separated; default `saddle`): `saddle` (the saddle points alone), `junction`
+/// ([`DetectorConfig::with_junction_fit`]),
 /// `jr8`, `jr12`, `jr16` (the junction fit with that largest radius), `jf03` (fraction 0.3).
 fn configs() -> Vec<(&'static str, DetectorConfig)> {
     let d = DetectorConfig::default();
     let j = DetectorConfig::with_junction_fit();
     let mut out = vec![("default", d)];
     let names: Vec<String> = std::env::var("CONFIGS")
-        .unwrap_or_else(|_| "junction".to_owned())
+        .unwrap_or_else(|_| "saddle".to_owned())
         .split(',')
         .map(str::to_owned)
         .collect();
     for n in names {
         let c = match n.as_str() {
             "junction" => j,
+            "saddle" => DetectorConfig::with_refiner(CornerRefiner::Saddle),
             "jr12" => DetectorConfig {
                 max_junction_radius: 12.0,
                 ..j
@@ -320,6 +322,18 @@ fn main() {
             e3.rms(),
             depth.bias().x
         );
+        if let Some(p) = r.predicted_error {
+            println!(
+                "{n}: predicted by the calibration's covariance: ±{:.4} mm (2σ), RMS {:.4} mm, depth RMS {:.4} mm, largest {:.4} mm over {} corners at {:.0}–{:.0} mm",
+                p.bound_mm,
+                p.rms_mm,
+                p.depth_rms_mm,
+                p.max_mm,
+                p.points,
+                p.depth_range_mm[0],
+                p.depth_range_mm[1]
+            );
+        }
         println!(
             "{n}: RMS {:.4}/{:.4}/{:.4} px; camera fx {:+.4} % fy {:+.4} % cx {:+.3} cy {:+.3}; projector fx {:+.4} % fy {:+.4} % cx {:+.3} cy {:+.3}; baseline error {:.4} mm; projector corners bias ({:+.4}, {:+.4}) RMS {:.4}",
             r.rms_camera,

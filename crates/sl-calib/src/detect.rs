@@ -80,17 +80,15 @@ pub struct DetectorConfig {
     /// Largest half-width (px) of the saddle-fit window (bounds the time on big squares).
     pub max_refine_radius: usize,
     /// Radius of the junction-model fit (a second refinement, on the raw image) as a
-    /// fraction of the distance to the nearest grid neighbour; `0` (the default) turns the
-    /// junction fit off (saddle points only), [`DetectorConfig::with_junction_fit`] sets 0.6.
-    /// The model (two blurred straight edges with an offset and a contrast that vary linearly)
-    /// holds up to the neighbouring corners, so the window can be wide and average much noise;
-    /// less than one half keeps the neighbours' blurred junctions out of it. It puts corners
-    /// closer to the truth on every measured set (realistic renders, OpenCV's samples, the
-    /// virtual rig's calibration captures), but the virtual rig calibrated from its corners
-    /// reconstructs further from the truth (RMS 0.083 against 0.065 mm over four seeds of
-    /// `slscan scan`): its remaining errors are correlated along the board's lines, which a
-    /// calibration absorbs into its parameters. Measured with `examples/corner_harness.rs` and
-    /// `examples/rig_corner_truth.rs` (see `docs/performance.md`).
+    /// fraction of the distance to the nearest grid neighbour: 0.6 by default
+    /// ([`CornerRefiner::Junction`]); `0` turns the junction fit off and keeps the saddle
+    /// points ([`CornerRefiner::Saddle`]). The model (two blurred straight edges with an
+    /// offset and a contrast that vary linearly) holds up to the neighbouring corners, so the
+    /// window can be wide and average much noise; less than one half keeps the neighbours'
+    /// blurred junctions out of it. It gives the lower calibration RMS on the real board sets
+    /// (OpenCV's samples, `procam_kamino`'s white frames and fringe means) and corners closer
+    /// to the truth on renders whose pixels integrate the light over their area (see
+    /// `docs/performance.md`, "The corner default").
     pub junction_fraction: f64,
     /// Smallest radius (px) of the junction-fit window.
     pub min_junction_radius: f64,
@@ -112,7 +110,7 @@ impl Default for DetectorConfig {
             refine_fraction: 0.15,
             min_refine_radius: 2,
             max_refine_radius: 10,
-            junction_fraction: 0.0,
+            junction_fraction: JUNCTION_FRACTION,
             min_junction_radius: 4.0,
             max_junction_radius: 24.0,
         }
@@ -121,14 +119,81 @@ impl Default for DetectorConfig {
 
 impl DetectorConfig {
     /// The defaults with the junction-model fit on (`junction_fraction` 0.6, windows of 4–24
-    /// px): for defocused, noisy or fringe-mean boards, where it is 1.5–16 times more
-    /// accurate than OpenCV's `cornerSubPix` and up to 7 times more than the saddle points
+    /// px; the default since 2026-11-28): 1.5–16 times more accurate than OpenCV's
+    /// `cornerSubPix` on realistic renders and up to 7 times more than the saddle points
     /// (`docs/performance.md`).
     pub fn with_junction_fit() -> Self {
         Self {
             junction_fraction: JUNCTION_FRACTION,
             ..Self::default()
         }
+    }
+
+    /// The defaults with the corners refined by `refiner`.
+    pub fn with_refiner(refiner: CornerRefiner) -> Self {
+        match refiner {
+            CornerRefiner::Saddle => Self {
+                junction_fraction: 0.0,
+                ..Self::default()
+            },
+            CornerRefiner::Junction => Self::with_junction_fit(),
+        }
+    }
+
+    /// The refinement these settings run: the junction fit when its window is on.
+    pub fn refiner(&self) -> CornerRefiner {
+        if self.junction_fraction > 0.0 {
+            CornerRefiner::Junction
+        } else {
+            CornerRefiner::Saddle
+        }
+    }
+}
+
+/// How the corners of a checkerboard are refined to sub-pixel positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CornerRefiner {
+    /// The saddle point of a quadratic fitted to the blurred image in a small window around
+    /// the corner (`refine_fraction` of the grid step).
+    Saddle,
+    /// The saddle point, then a model of two blurred straight edges crossing, fitted to the
+    /// raw image in a wide window (`junction_fraction` of the grid step).
+    #[default]
+    Junction,
+}
+
+impl CornerRefiner {
+    /// Both refiners, in the order the command line lists them.
+    pub const ALL: [CornerRefiner; 2] = [CornerRefiner::Saddle, CornerRefiner::Junction];
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Saddle => "saddle",
+            Self::Junction => "junction",
+        }
+    }
+}
+
+impl std::fmt::Display for CornerRefiner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for CornerRefiner {
+    type Err = CalibError;
+
+    /// `saddle` or `junction`.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|r| r.name() == s)
+            .ok_or_else(|| CalibError::InvalidParameter {
+                name: "corner refiner".to_owned(),
+                reason: format!("{s:?} is neither \"saddle\" nor \"junction\""),
+            })
     }
 }
 

@@ -41,13 +41,14 @@ mod homography;
 mod junction;
 mod local_homography;
 mod pictures;
+mod predicted;
 mod procam;
 mod saddle;
 mod stereo;
 mod turntable;
 mod zhang;
 
-pub use detect::{BoardCorners, BoardSize, DetectorConfig, detect_checkerboard};
+pub use detect::{BoardCorners, BoardSize, CornerRefiner, DetectorConfig, detect_checkerboard};
 pub use error::CalibError;
 pub use grey::load_grey;
 pub use local_homography::{
@@ -57,6 +58,7 @@ pub use pictures::{
     BAR, BarChart, FIRST_CORNER, OUTLIER_BAR, OUTLIER_FACTOR, PALETTE, PictureConfig, ResidualPlot,
     draw_corners, error_bars, residual_plot, save_png,
 };
+pub use predicted::{PREDICTED_BOUND_SIGMAS, PredictedError};
 pub use procam::{
     ProcamCalibration, ProcamConfig, ProcamView, ProcamViewReport, SkippedView, calibrate_procam,
 };

@@ -3,12 +3,13 @@
 //! calibrated by Zhang's method, then everything refined jointly.
 
 use image::GrayImage;
-use nalgebra::{Isometry3, Matrix3, Point2, Vector2, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point2, Point3, Vector2, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use sl_camera::{Calibration, ImageSize, RmsErrors, RvecTvec, isometry_from_rt};
 use sl_codec::CorrespondenceMap;
 
+use crate::predicted::PredictedError;
 use crate::stereo::{StereoOptions, StereoStart, StereoView, refine_stereo};
 use crate::zhang::calibrate_camera_subsets;
 use crate::{
@@ -151,6 +152,10 @@ pub struct ProcamCalibration {
     pub skipped_views: Vec<SkippedView>,
     /// Levenberg–Marquardt iterations of the joint refinement.
     pub iterations: usize,
+    /// The 3-D error the calibration predicts for itself over the volume of its board poses
+    /// (its parameters' covariance carried through triangulation); `None` when the joint
+    /// refinement's normal equations are singular.
+    pub predicted_error: Option<PredictedError>,
 }
 
 impl ProcamCalibration {
@@ -453,7 +458,20 @@ fn calibrate_from_corners(
         std_dev: sol.projector_std,
         iterations: sol.iterations,
     };
+    // The calibrated volume: every used view's board corners, where the poses put them.
+    let volume: Vec<Point3<f64>> = sol
+        .poses
+        .iter()
+        .flat_map(|p| {
+            let pose = p.to_isometry();
+            object.iter().map(move |x| pose * x)
+        })
+        .collect();
+    let predicted_error = sol.covariance.as_ref().and_then(|cov| {
+        crate::predicted::predict(&sol.camera, &sol.projector, &sol.extrinsics, cov, &volume)
+    });
     Ok(ProcamCalibration {
+        predicted_error,
         camera,
         projector,
         t_cam_proj: t_proj_cam.inverse(),

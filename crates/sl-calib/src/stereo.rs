@@ -13,8 +13,7 @@ use crate::zhang::{
 };
 use crate::{ParameterStdDev, ZhangConfig};
 
-/// Full shared vector: camera (13), projector (13), `T_proj_cam` (rvec, tvec).
-const SHARED: usize = 2 * FULL + 6;
+use crate::predicted::SHARED;
 
 /// One board view: the board points, their camera pixels and (where mapped) projector pixels.
 pub(crate) struct StereoView<'a> {
@@ -55,6 +54,10 @@ pub(crate) struct StereoSolution {
     pub(crate) projector_std: ParameterStdDev,
     /// `T_proj_cam`: rvec (rad) then tvec (board units).
     pub(crate) extrinsics_std: [f64; 6],
+    /// Covariance of the full shared vector (camera 13, projector 13, `T_proj_cam` rvec and
+    /// tvec), scaled by the residuals' variance; `None` when the normal equations are
+    /// singular.
+    pub(crate) covariance: Option<DMatrix<f64>>,
     pub(crate) iterations: usize,
 }
 
@@ -312,8 +315,10 @@ pub(crate) fn refine_stereo(
         poses: Vec::new(),
     };
     let mut extrinsics_std = [0.0; 6];
+    let mut covariance = None;
     if let Some(cov) = unscaled_covariance(&normal) {
         let full = &problem.t * &cov.shared * problem.t.transpose();
+        covariance = Some(&full * sigma2);
         let sd = |i: usize| (sigma2 * full[(i, i)]).max(0.0).sqrt();
         for i in 0..5 {
             camera_std.intrinsics[i] = sd(i);
@@ -342,6 +347,7 @@ pub(crate) fn refine_stereo(
         camera_std,
         projector_std,
         extrinsics_std,
+        covariance,
         iterations,
     })
 }

@@ -44,6 +44,10 @@ pub struct CalibrationSummary {
     pub axis_direction_error_deg: f64,
     /// Distance of the true axis point to the fitted axis line, near the object (mm).
     pub axis_position_error_mm: f64,
+    /// The 3-D error the camera–projector calibration predicts for itself over the volume of
+    /// its board poses (`sl_calib::ProcamCalibration::predicted_error`); `None` when not
+    /// estimated.
+    pub predicted_error: Option<sl_calib::PredictedError>,
 }
 
 fn grey_image(img: GreyImage, what: &str) -> Result<sl_calib::image::GrayImage, ScanError> {
@@ -94,9 +98,13 @@ pub fn calibrate_virtual(
         });
     }
     let size = BoardSize::new(board.inner_cols, board.inner_rows);
+    let detector = sl_calib::DetectorConfig::with_refiner(cfg.corners);
     let procam = calibrate_procam(
         &views,
-        &ProcamConfig::new(size, board.square_mm, config.projector.size),
+        &ProcamConfig {
+            detector,
+            ..ProcamConfig::new(size, board.square_mm, config.projector.size)
+        },
     )?;
     drop(views);
     let mut table_views = Vec::new();
@@ -109,7 +117,7 @@ pub fn calibrate_virtual(
             angle,
             size,
             board.square_mm,
-            &sl_calib::DetectorConfig::default(),
+            &detector,
         )?);
         progress(ScanProgress {
             stage: "calibrate",
@@ -163,6 +171,7 @@ pub fn calibrate_virtual(
             .norm(),
         axis_direction_error_deg: direction_error,
         axis_position_error_mm: position_error,
+        predicted_error: procam.predicted_error,
     };
     Ok((calibration, summary))
 }
@@ -203,6 +212,7 @@ pub(crate) fn true_calibration(rig: &VirtualRig) -> (Calibration, CalibrationSum
         baseline_error_mm: 0.0,
         axis_direction_error_deg: 0.0,
         axis_position_error_mm: 0.0,
+        predicted_error: None,
     };
     (rig.config().calibration(), summary)
 }

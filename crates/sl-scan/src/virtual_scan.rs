@@ -91,6 +91,9 @@ pub struct VirtualScanConfig {
     /// What the mesh stage does after the reconstruction: the simplification and the
     /// fairing of the unseen surface, both on by default ([`MeshOptions`]).
     pub mesh_options: MeshOptions,
+    /// How the calibration's board corners are refined (`sl_calib::CornerRefiner`; the
+    /// junction fit by default).
+    pub corners: sl_calib::CornerRefiner,
 }
 
 impl Default for VirtualScanConfig {
@@ -112,6 +115,7 @@ impl Default for VirtualScanConfig {
             edge_erosion_px: 3,
             mesh_depth: Some(sl_mesh::PoissonConfig::default().depth),
             mesh_options: MeshOptions::default(),
+            corners: sl_calib::CornerRefiner::default(),
         }
     }
 }
