@@ -78,6 +78,11 @@ pub(crate) struct Args {
     /// Do not capture the flat plate (no flatness figure).
     #[arg(long)]
     pub(crate) no_plate: bool,
+    /// Half-width (pixels) of the window that smooths each view's decoded projector
+    /// coordinates before triangulation (a local plane fitted to the valid neighbours, 1 =
+    /// 3 × 3); 0 triangulates each pixel's own decode.
+    #[arg(long, default_value_t = 1)]
+    pub(crate) smooth: usize,
     /// How the simulated calibration refines the board's corners: `junction` or `saddle`
     /// (see `slscan calibrate camera --corners`).
     #[arg(long, default_value_t = structured_light::calib::CornerRefiner::default())]
@@ -101,6 +106,12 @@ pub(crate) struct Args {
 /// Runs `slscan scan`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     check_placements(args.placements).map_err(|e| anyhow::anyhow!("--placements: {e}"))?;
+    anyhow::ensure!(
+        args.smooth <= structured_light::codec::MAX_SMOOTH_RADIUS,
+        "--smooth {}: the window's half-width is at most {} px (0 turns the smoothing off)",
+        args.smooth,
+        structured_light::codec::MAX_SMOOTH_RADIUS
+    );
     if crate::scan_hardware::wanted(args)? {
         return crate::scan_hardware::run(args);
     }
@@ -199,8 +210,17 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         edge_erosion_px: args.edge_erosion,
         mesh_options: mesh_options(args),
         corners: args.corners,
+        smoothing: smoothing(args),
         ..VirtualScanConfig::default()
     }
+}
+
+/// The smoothing `--smooth` asks for, the same on the virtual rig and on real devices.
+pub(crate) fn smoothing(args: &Args) -> Option<structured_light::codec::SmoothConfig> {
+    (args.smooth > 0).then(|| structured_light::codec::SmoothConfig {
+        radius: args.smooth,
+        ..structured_light::codec::SmoothConfig::default()
+    })
 }
 
 /// The mesh stage's steps as the flags ask, the same on the virtual rig and on real devices.

@@ -362,6 +362,7 @@ fn session_config(args: &Args) -> SessionScanConfig {
         reconstruct: ReconstructConfig {
             edge_erosion_px: args.edge_erosion,
             max_view_angle_deg: args.max_view_angle,
+            smoothing: crate::scan::smoothing(args),
         },
         merge: MergeStageConfig::scan(
             !args.no_average,

@@ -82,6 +82,7 @@ mod pattern;
 mod phase_shift;
 mod pictures;
 mod sequence;
+mod smooth;
 mod synthetic;
 mod texture;
 mod unwrap;
@@ -113,6 +114,7 @@ pub use pictures::{
     INVALID_PALETTE, MapFormat, OutputFiles, false_color, invalid_colors, turbo, write_outputs,
 };
 pub use sequence::{PatternSequence, render_pattern};
+pub use smooth::{MAX_SMOOTH_RADIUS, SmoothConfig, smooth_correspondences};
 pub use synthetic::SyntheticScene;
 pub use texture::{CaptureTexture, TextureSource, capture_texture};
 pub use unwrap::Unwrap;

@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Point3, Vector3};
 use sl_camera::{Calibration, TurntableAxis};
 use sl_cloud::PointCloud;
-use sl_codec::{CaptureSet, DecodeConfig, MANIFEST_FILE, decode};
+use sl_codec::{
+    CaptureSet, DecodeConfig, MANIFEST_FILE, SmoothConfig, decode, smooth_correspondences,
+};
 use sl_rig::{read_session_plan, view_dir_name};
 use sl_tri::{TriOptions, Triangulator};
 
@@ -30,6 +32,11 @@ pub struct ReconstructConfig {
     /// camera or to the projector are dropped from each view ([`drop_grazing`]). Default 90:
     /// every point is kept.
     pub max_view_angle_deg: f64,
+    /// Smoothing of the decoded projector coordinates before triangulation
+    /// ([`sl_codec::smooth_correspondences`]); `None` triangulates each pixel's own decode.
+    /// Default: a 3 × 3 binomial window, which divides the per-point noise by 2.7 for half a
+    /// pixel of lateral resolution (`docs/triangulation.md`).
+    pub smoothing: Option<SmoothConfig>,
 }
 
 impl Default for ReconstructConfig {
@@ -37,6 +44,18 @@ impl Default for ReconstructConfig {
         Self {
             edge_erosion_px: 3,
             max_view_angle_deg: 90.0,
+            smoothing: Some(SmoothConfig::default()),
+        }
+    }
+}
+
+impl ReconstructConfig {
+    /// Each pixel's own decode, every point kept: what [`reconstruct_view`] does.
+    pub fn raw() -> Self {
+        Self {
+            edge_erosion_px: 0,
+            max_view_angle_deg: 90.0,
+            smoothing: None,
         }
     }
 }
@@ -54,21 +73,27 @@ pub struct ReconstructedViews {
     pub clouds: Vec<PointCloud>,
 }
 
-/// Decodes and triangulates one capture set (folder with `manifest.json`).
+/// Decodes and triangulates one capture set (folder with `manifest.json`): each pixel's own
+/// decode, every point kept ([`ReconstructConfig::raw`]).
 pub fn reconstruct_view(dir: &Path, triangulator: &Triangulator) -> Result<PointCloud, ScanError> {
-    reconstruct_view_eroded(dir, triangulator, 0)
+    reconstruct_view_eroded(dir, triangulator, &ReconstructConfig::raw())
 }
 
-/// [`reconstruct_view`], then drops the points within `edge_erosion_px` pixels of an invalid
-/// pixel (see [`ReconstructConfig::edge_erosion_px`]).
+/// Decodes one capture set, smooths the decoded coordinates
+/// ([`ReconstructConfig::smoothing`]), triangulates, then drops the points within
+/// [`ReconstructConfig::edge_erosion_px`] pixels of an invalid pixel.
 pub fn reconstruct_view_eroded(
     dir: &Path,
     triangulator: &Triangulator,
-    edge_erosion_px: usize,
+    config: &ReconstructConfig,
 ) -> Result<PointCloud, ScanError> {
+    let edge_erosion_px = config.edge_erosion_px;
     let set = CaptureSet::load(&dir.join(MANIFEST_FILE))?;
-    let map = decode(&set, &DecodeConfig::default())?;
+    let mut map = decode(&set, &DecodeConfig::default())?;
     drop(set);
+    if let Some(smooth) = &config.smoothing {
+        map = smooth_correspondences(&map, smooth)?;
+    }
     let tri = triangulator.triangulate(&map, &TriOptions::default())?;
     if edge_erosion_px == 0 {
         return Ok(tri.cloud);
@@ -196,7 +221,7 @@ pub fn reconstruct_session(
                 ),
             ));
         }
-        let cloud = reconstruct_view_eroded(&dir, &triangulator, config.edge_erosion_px).map_err(|e| {
+        let cloud = reconstruct_view_eroded(&dir, &triangulator, config).map_err(|e| {
             stage_err(
                 "reconstruct",
                 format!(

@@ -25,9 +25,9 @@ use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::virtual_scan::capture_virtual;
 use crate::{
-    CalibrationSummary, MergeStageConfig, ReconstructConfig, ScanError, ScanProgress,
-    SessionScanConfig, StageTime, VirtualScanConfig, capture_placements, placement_dir_name,
-    scaled_rig_config, scan_placements, write_scan_cloud,
+    CalibrationSummary, MergeStageConfig, ScanError, ScanProgress, SessionScanConfig, StageTime,
+    VirtualScanConfig, capture_placements, placement_dir_name, scaled_rig_config, scan_placements,
+    write_scan_cloud,
 };
 
 /// The virtual rig's placements: captures each session of the current scene, and lays the
@@ -183,10 +183,7 @@ pub fn scan_virtual_placements(
 
     // 3. Reconstruct and merge each placement, align the placements, merge them.
     let session_cfg = SessionScanConfig {
-        reconstruct: ReconstructConfig {
-            edge_erosion_px: cfg.edge_erosion_px,
-            max_view_angle_deg: cfg.max_view_angle_deg,
-        },
+        reconstruct: cfg.reconstruct(),
         merge: MergeStageConfig::scan(cfg.average_overlaps, cfg.smoothing_neighbours, true),
         poses: None,
     };

@@ -94,6 +94,20 @@ pub struct VirtualScanConfig {
     /// How the calibration's board corners are refined (`sl_calib::CornerRefiner`; the
     /// junction fit by default).
     pub corners: sl_calib::CornerRefiner,
+    /// Smoothing of each view's decoded coordinates before triangulation
+    /// ([`ReconstructConfig::smoothing`]; a 3 × 3 window by default, `None` for none).
+    pub smoothing: Option<sl_codec::SmoothConfig>,
+}
+
+impl VirtualScanConfig {
+    /// The reconstruction settings of the turntable views and the plate.
+    pub fn reconstruct(&self) -> ReconstructConfig {
+        ReconstructConfig {
+            edge_erosion_px: self.edge_erosion_px,
+            max_view_angle_deg: self.max_view_angle_deg,
+            smoothing: self.smoothing,
+        }
+    }
 }
 
 impl Default for VirtualScanConfig {
@@ -116,6 +130,7 @@ impl Default for VirtualScanConfig {
             mesh_depth: Some(sl_mesh::PoissonConfig::default().depth),
             mesh_options: MeshOptions::default(),
             corners: sl_calib::CornerRefiner::default(),
+            smoothing: ReconstructConfig::default().smoothing,
         }
     }
 }
@@ -293,10 +308,7 @@ pub fn scan_virtual(
             .collect::<Vec<Isometry3<f64>>>()
     });
     let scan_config = SessionScanConfig {
-        reconstruct: ReconstructConfig {
-            edge_erosion_px: cfg.edge_erosion_px,
-            max_view_angle_deg: cfg.max_view_angle_deg,
-        },
+        reconstruct: cfg.reconstruct(),
         merge: MergeStageConfig::scan(
             cfg.average_overlaps,
             cfg.smoothing_neighbours,
@@ -331,7 +343,7 @@ pub fn scan_virtual(
         let cloud = reconstruct_view_eroded(
             &plate_dir.join(view_dir_name(0)),
             &triangulator,
-            cfg.edge_erosion_px,
+            &cfg.reconstruct(),
         )?;
         write_ply(&out.join("plate.ply"), &cloud, PlyFormat::default())?;
         plate_truth().save(&out.join("plate_truth.json"))?;
