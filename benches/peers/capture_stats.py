@@ -732,7 +732,7 @@ def iqr(q):
     return f"{q['p25']:.2f}–{q['p75']:.2f}" if q.get("n", 0) else "–"
 
 
-def print_tables(res):
+def print_tables(res, per_bit=False):
     print("\n## Edge spread of board edges (sigma of the line spread, px)\n")
     print("| set | boards | edges | median | quartiles | inner | outer | across x | across y |")
     print("|---|---|---|---|---|---|---|---|---|")
@@ -744,29 +744,35 @@ def print_tables(res):
         print(f"| {name} | {e['boards_found']}/{e['images']} | {s['n']} | {fmt(s)} | {iqr(s)} | "
               f"{fmt(e['sigma_inner_px'])} | {fmt(e['sigma_outer_px'])} | "
               f"{fmt(e['sigma_across_x_px'])} | {fmt(e['sigma_across_y_px'])} |")
-    print("\n## Gray codes: stripe width (camera px), contrast |P-I|/M (p10/p50/p90), "
-          "projected-edge sigma (px, median [quartiles] n)\n")
-    print("| set | axis | bit | stripe px | contrast p10 / p50 / p90 | edge sigma |")
-    print("|---|---|---|---|---|---|")
+    print("\n## Gray codes: projected-edge spread, contrast of the fine bits, and the PSF fitted "
+          "to the contrast (camera px)\n")
+    print("| set | axis | projected-edge sigma (median over bits >= 20 px) | stripe width -> median "
+          "contrast, bits under 60 px | PSF core sigma / tail share / tail sigma (misfit) |")
+    print("|---|---|---|---|---|")
     for name, r in res.items():
         for g in r.get("gray", []):
-            for b in g["bits"]:
-                c = b["contrast"]
-                es = b.get("edge_sigma_px")
-                edge = f"{fmt(es)} [{iqr(es)}] n={es['n']}" if es and es.get("n") else "–"
-                print(f"| {name} | {g['axis']} | {b['bit']} | {b['stripe_width_px']:.1f} | "
-                      f"{fmt(c, 'p10')} / {fmt(c)} / {fmt(c, 'p90')} | {edge} |")
-    f = lambda v, k=3: "–" if v is None else f"{v:.{k}f}"  # noqa: E731
-    print("\n## Projector + camera blur from the Gray bits' contrast: a two-Gaussian PSF "
-          "(core sigma, tail share, tail sigma; camera px)\n")
-    print("| set | axis | core sigma | tail share | tail sigma | misfit | bits |")
-    print("|---|---|---|---|---|---|---|")
-    for name, r in res.items():
-        for g in r.get("gray", []):
+            sig = [b["edge_sigma_px"]["p50"] for b in g["bits"] if b.get("edge_sigma_px", {}).get("n")]
+            fine = ", ".join(f"{b['stripe_width_px']:.1f} -> {b['contrast']['p50']:.2f}"
+                             for b in g["bits"] if b["stripe_width_px"] < 60 and b["contrast"].get("n"))
             p = g.get("psf_from_contrast")
-            if p:
-                print(f"| {name} | {g['axis']} | {p['core_sigma_px']:.2f} | {p['tail_share']:.3f} | "
-                      f"{p['tail_sigma_px']:.1f} | {p['rms_misfit']:.3f} | {p['bits_used']} |")
+            psf = (f"{p['core_sigma_px']:.2f} / {p['tail_share']:.3f} / {p['tail_sigma_px']:.1f} "
+                   f"({p['rms_misfit']:.3f})" if p else "–")
+            print(f"| {name} | {g['axis']} | {np.median(sig) if sig else float('nan'):.2f} "
+                  f"({len(sig)} bits) | {fine} | {psf} |")
+    if per_bit:
+        print("\n## Gray codes per bit: stripe width (camera px), contrast |P-I|/M (p10/p50/p90), "
+              "projected-edge sigma (px, median [quartiles] n)\n")
+        print("| set | axis | bit | stripe px | contrast p10 / p50 / p90 | edge sigma |")
+        print("|---|---|---|---|---|---|")
+        for name, r in res.items():
+            for g in r.get("gray", []):
+                for b in g["bits"]:
+                    c = b["contrast"]
+                    es = b.get("edge_sigma_px")
+                    edge = f"{fmt(es)} [{iqr(es)}] n={es['n']}" if es and es.get("n") else "–"
+                    print(f"| {name} | {g['axis']} | {b['bit']} | {b['stripe_width_px']:.1f} | "
+                          f"{fmt(c, 'p10')} / {fmt(c)} / {fmt(c, 'p90')} | {edge} |")
+    f = lambda v, k=3: "–" if v is None else f"{v:.{k}f}"  # noqa: E731
     print("\n## Phase shifts: fringe contrast, the projector's departure from a sinusoid, "
           "noise (sigma^2 = a + b A, grey levels^2)\n")
     print("| set | periods | lit px | B p5/p50/p95 | B/A p50 | B/(A-floor) p50 | B2/B p50 | "
@@ -867,6 +873,7 @@ def main():
                     help="COLSxROWS=DIR_OR_GLOB: board images (edge spread and levels)")
     ap.add_argument("--json", help="write every figure (with its method) here")
     ap.add_argument("--selftest", action="store_true", help="the estimators on synthetic truth")
+    ap.add_argument("--per-bit", action="store_true", help="also print every Gray bit's figures")
     args = ap.parse_args()
     if args.selftest:
         selftest()
@@ -888,7 +895,7 @@ def main():
                                   "levels": levels(files)}
     if not res:
         ap.error("nothing to measure: give --real, --sim, --manifest or --boards")
-    print_tables(res)
+    print_tables(res, args.per_bit)
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=1))
         print(f"\nwritten {args.json}", file=sys.stderr)
