@@ -66,13 +66,15 @@ impl Illumination {
     pub const MIN_PROJECTOR_FILL: f64 = 0.1;
 
     /// Light that one projector pixel sends to the point `d` pixels from its centre (along
-    /// one axis), as a fraction of its value: its square (a box one pixel wide) blurred by a
-    /// Gaussian of standard deviation `σ =` [`projector_blur_px`](Self::projector_blur_px),
-    /// `Φ((d + ½)/σ) − Φ((d − ½)/σ)` (`Φ` the normal distribution function); the box itself
-    /// when `σ = 0`. Sums to 1 over any grid of unit spacing.
+    /// one axis), as a fraction of its value: its lit square (a box of width `f =`
+    /// [`projector_fill`](Self::projector_fill), scaled by `1/f`) blurred by a Gaussian of
+    /// standard deviation `σ =` [`projector_blur_px`](Self::projector_blur_px),
+    /// `(Φ((d + f/2)/σ) − Φ((d − f/2)/σ)) / f` (`Φ` the normal distribution function); the box
+    /// itself when `σ = 0`. For touching pixels (`f = 1`) it sums to 1 over any grid of unit
+    /// spacing; with gaps, on average over the pixel (the gaps are darker).
     ///
     /// ```
-    /// let light = sl_sim::Illumination::default();
+    /// let light = sl_sim::Illumination { projector_fill: 1.0, ..Default::default() };
     /// let total: f64 = (-5..=5).map(|m| light.pixel_spread(m as f64 + 0.3)).sum();
     /// assert!((total - 1.0).abs() < 1e-6);
     /// ```

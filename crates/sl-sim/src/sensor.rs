@@ -48,19 +48,41 @@ pub struct SensorConfig {
     pub exposure: f64,
     /// Bits per pixel of the frames.
     pub bit_depth: BitDepth,
+    /// The sensor's black level (pedestal), in grey levels of an 8-bit frame (scaled for 16
+    /// bits): what a pixel reads in the dark, so that noise is not clipped at 0.
+    #[serde(default = "default_dark_level_dn")]
+    pub dark_level_dn: f64,
+}
+
+impl SensorConfig {
+    /// Default of [`SensorConfig::full_well_electrons`]: fitted to the noise of a real
+    /// capture (`procam_kamino`: variance 0.056 grey level² per grey level, 18 e⁻ a level,
+    /// `benches/peers/capture_stats.py`), the small pixels of the cameras such rigs use.
+    pub const DEFAULT_FULL_WELL_ELECTRONS: f64 = 5_000.0;
+
+    /// Default of [`SensorConfig::dark_level_dn`]: a real camera's black frame reads 6–8
+    /// grey levels (`procam_kamino`), of which a few are the sensor's pedestal.
+    pub const DEFAULT_DARK_LEVEL_DN: f64 = 5.0;
+}
+
+fn default_dark_level_dn() -> f64 {
+    SensorConfig::DEFAULT_DARK_LEVEL_DN
 }
 
 impl Default for SensorConfig {
-    /// A 10 000 e⁻ full well, 5 e⁻ read noise, photon noise on, an exposure that puts white
-    /// paper (albedo 0.9) lit head-on at 75 % of full scale with the default ambient light,
-    /// 8-bit frames: about 1.5 grey levels of noise at mid-scale, like a machine-vision camera.
+    /// A [`SensorConfig::DEFAULT_FULL_WELL_ELECTRONS`] full well, 5 e⁻ read noise, photon
+    /// noise on, an exposure that puts white paper (albedo 0.9) lit head-on at 75 % of full
+    /// scale with the default ambient light, 8-bit frames with a black level of
+    /// [`SensorConfig::DEFAULT_DARK_LEVEL_DN`]: about 2.6 grey levels of noise at mid-scale,
+    /// as measured on a real capture.
     fn default() -> Self {
         Self {
-            full_well_electrons: 10_000.0,
+            full_well_electrons: Self::DEFAULT_FULL_WELL_ELECTRONS,
             read_noise_electrons: 5.0,
             photon_noise: true,
             exposure: 0.75,
             bit_depth: BitDepth::Eight,
+            dark_level_dn: Self::DEFAULT_DARK_LEVEL_DN,
         }
     }
 }
@@ -78,6 +100,12 @@ impl SensorConfig {
             return Err(SimError::param(
                 "sensor read_noise_electrons",
                 format!("{} is not a non-negative number", self.read_noise_electrons),
+            ));
+        }
+        if !(self.dark_level_dn.is_finite() && (0.0..255.0).contains(&self.dark_level_dn)) {
+            return Err(SimError::param(
+                "sensor dark_level_dn",
+                format!("{} is not in [0, 255)", self.dark_level_dn),
             ));
         }
         if !(self.exposure.is_finite() && self.exposure > 0.0) {
@@ -175,9 +203,20 @@ pub struct CameraEffects {
 }
 
 impl CameraEffects {
-    /// Default of [`CameraEffects::lens_blur_px`], measured on real captures (see
-    /// `docs/virtual-rig.md`, "Renders against real captures").
-    pub const DEFAULT_LENS_BLUR_PX: f64 = 0.7;
+    /// Default of [`CameraEffects::lens_blur_px`]: fitted so that the renders' board edges
+    /// spread as real ones do, σ = 0.93–0.97 px (an erf fitted across the edges of OpenCV's
+    /// samples and `procam_kamino`'s white frames by `benches/peers/capture_stats.py`, the
+    /// same tool on both; see `docs/virtual-rig.md`, "Renders against real captures").
+    pub const DEFAULT_LENS_BLUR_PX: f64 = 0.75;
+
+    /// The default global light: light scattered far from where it should land (projector and
+    /// camera optics, the room). The contrast of `procam_kamino`'s Gray-code stripes against
+    /// their width fits a point spread with 16–20 % of the light in a tail of σ = 16–37 px;
+    /// this weight gives the renders the same fit.
+    pub const DEFAULT_SCATTER: GlobalIllumination = GlobalIllumination {
+        weight: 0.3,
+        sigma_px: 25.0,
+    };
 
     /// Largest lens blur accepted (px).
     pub const MAX_LENS_BLUR_PX: f64 = 8.0;
@@ -200,13 +239,13 @@ impl CameraEffects {
 
 impl Default for CameraEffects {
     /// The default sensor, a lens spread of [`CameraEffects::DEFAULT_LENS_BLUR_PX`], no defocus,
-    /// no global illumination.
+    /// and the measured scatter [`CameraEffects::DEFAULT_SCATTER`] as the global light.
     fn default() -> Self {
         Self {
             sensor: SensorConfig::default(),
             lens_blur_px: Self::DEFAULT_LENS_BLUR_PX,
             defocus: None,
-            global_illumination: None,
+            global_illumination: Some(Self::DEFAULT_SCATTER),
         }
     }
 }
@@ -279,6 +318,7 @@ pub(crate) fn expose(
     let gain_e = s.exposure * s.full_well_electrons;
     let max_dn = s.bit_depth.max_value();
     let dn_per_e = max_dn / s.full_well_electrons;
+    let dark_dn = s.dark_level_dn * max_dn / f64::from(u8::MAX);
     let to_dn = |row_index: usize, row: &[f32], out: &mut dyn FnMut(usize, f64)| {
         let mut rng = Pcg64Mcg::seed_from_u64(key.row_seed(row_index as u64));
         for (x, &r) in row.iter().enumerate() {
@@ -292,7 +332,10 @@ pub(crate) fn expose(
                 e
             };
             let electrons = noisy.clamp(0.0, s.full_well_electrons);
-            out(x, (electrons * dn_per_e).round().clamp(0.0, max_dn));
+            out(
+                x,
+                (dark_dn + electrons * dn_per_e).round().clamp(0.0, max_dn),
+            );
         }
     };
     let pixels = match s.bit_depth {
@@ -409,6 +452,7 @@ mod tests {
             };
             let effects = CameraEffects {
                 sensor,
+                global_illumination: None,
                 ..CameraEffects::default()
             };
             let radiance = 0.5f32;
@@ -430,7 +474,7 @@ mod tests {
             // g = max / full_well, plus 1/12 for uniform rounding.
             let e = sensor.exposure * sensor.full_well_electrons * f64::from(radiance);
             let g = bit_depth.max_value() / sensor.full_well_electrons;
-            let want_mean = e * g;
+            let want_mean = sensor.dark_level_dn * bit_depth.max_value() / 255.0 + e * g;
             let want_var =
                 (if photon { e } else { 0.0 } + sensor.read_noise_electrons.powi(2)) * g * g
                     + 1.0 / 12.0;
@@ -481,6 +525,7 @@ mod tests {
             photon_noise: false,
             read_noise_electrons: 0.0,
             bit_depth: BitDepth::Sixteen,
+            dark_level_dn: 0.0,
             ..SensorConfig::default()
         };
         let key = NoiseKey {
@@ -522,7 +567,7 @@ mod tests {
             sensor: quiet,
             defocus: Some(d),
             lens_blur_px: 0.0,
-            ..CameraEffects::default()
+            global_illumination: None,
         };
         let sharp = expose(edge.clone(), w, h, &vec![450.0; w * h], fx, &blur, key);
         let soft = expose(edge.clone(), w, h, &vec![600.0; w * h], fx, &blur, key);

@@ -27,9 +27,15 @@ fn small_rig() -> RigConfig {
 fn simulated_gray_code_scan_decodes_to_the_truth() {
     let mut config = small_rig();
     // A per-pixel Gray code puts ~1.5 projector stripes on a camera pixel here: only a lens
-    // sharper than any real one (none) resolves its finest bit everywhere, which is what this
-    // test of the files needs. (Real rigs code with wider stripes; see the hybrid codes.)
+    // sharper than any real one (none) and no scattered light resolve its finest bit
+    // everywhere, which is what this test of the files needs. (Real rigs code with wider
+    // stripes; see the hybrid codes.)
     config.render.effects.lens_blur_px = 0.0;
+    config.render.effects.global_illumination = None;
+    // ... and no sensor pedestal: the Gray decoder counts a camera's black level as global
+    // light (Lg = 2 Lmin), and at 1.5 stripes a pixel the finest bit's contrast is too small
+    // for the weak rules' margin (93.6 % of the pixels decode with the default 5 grey levels).
+    config.render.effects.sensor.dark_level_dn = 0.0;
     let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
     let sequence = PatternSequence::new(p)
         .with(Pattern::Gray(GrayCodeSpec::per_pixel(

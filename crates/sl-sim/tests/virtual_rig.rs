@@ -240,8 +240,11 @@ fn white_frame_radiance_matches_lambert() {
         photon_noise: false,
         read_noise_electrons: 0.0,
         bit_depth: sl_sim::BitDepth::Sixteen,
+        dark_level_dn: 0.0,
         ..SensorConfig::default()
     };
+    // Direct light only: no scatter.
+    config.render.effects.global_illumination = None;
     let rig = VirtualRig::new(
         config.clone(),
         plane_scene(Isometry3::translation(0.0, 0.0, 450.0)),
@@ -366,8 +369,11 @@ fn board_texture_matches_the_printed_squares() {
         photon_noise: false,
         read_noise_electrons: 0.0,
         bit_depth: sl_sim::BitDepth::Sixteen,
+        dark_level_dn: 0.0,
         ..SensorConfig::default()
     };
+    // Direct light only: no scatter.
+    config.render.effects.global_illumination = None;
     let board = sl_sim::Checkerboard::default();
     let t_cam_board = Isometry3::translation(-80.0, -50.0, 450.0);
     let rig = VirtualRig::new(config.clone(), Scene::plane()).unwrap();
@@ -448,8 +454,11 @@ fn fringe_column_error(blur_px: f64) -> (f64, f64) {
         photon_noise: false,
         read_noise_electrons: 0.0,
         bit_depth: sl_sim::BitDepth::Sixteen,
+        dark_level_dn: 0.0,
         ..SensorConfig::default()
     };
+    // Direct light only: no scatter.
+    config.render.effects.global_illumination = None;
     let rig = VirtualRig::new(config, Scene::plane()).unwrap();
     let view = rig.view(0.0, 0).unwrap();
     let (lambda, steps) = (30.0f64, 8usize);
