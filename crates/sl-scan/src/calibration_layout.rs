@@ -254,7 +254,10 @@ impl CalibrationLayout {
         if let Some(f) = &file.format
             && f != LAYOUT_FORMAT
         {
-            return Err(key("format", format!("must be \"{LAYOUT_FORMAT}\", got \"{f}\"")));
+            return Err(key(
+                "format",
+                format!("must be \"{LAYOUT_FORMAT}\", got \"{f}\""),
+            ));
         }
         if let Some(v) = file.version
             && v != LAYOUT_VERSION
@@ -419,7 +422,10 @@ impl CalibrationLayout {
 
     /// The projector size of the manifest.
     pub fn projector_size(&self) -> ImageSize {
-        ImageSize::new(self.manifest.projector.width, self.manifest.projector.height)
+        ImageSize::new(
+            self.manifest.projector.width,
+            self.manifest.projector.height,
+        )
     }
 }
 
@@ -591,13 +597,19 @@ pub fn check_pose_files(poses: &[PoseCapture]) -> Result<(), LayoutError> {
             (Some(d), _) => d.clone(),
             (None, frames_dir) => {
                 let base = pose.manifest.parent().unwrap_or(Path::new(""));
-                frames_dir.as_ref().map_or_else(|| base.to_path_buf(), |d| base.join(d))
+                frames_dir
+                    .as_ref()
+                    .map_or_else(|| base.to_path_buf(), |d| base.join(d))
             }
         };
         let mut files: Vec<(String, String, PathBuf)> = Vec::new();
         for (b, block) in manifest.blocks.iter().enumerate() {
             for (i, file) in block.frames.iter().enumerate() {
-                files.push((format!("frame {i} of block {b}"), file.clone(), dir.join(file)));
+                files.push((
+                    format!("frame {i} of block {b}"),
+                    file.clone(),
+                    dir.join(file),
+                ));
             }
         }
         for (what, path) in [("white frame", &pose.white), ("black frame", &pose.black)] {
@@ -648,4 +660,265 @@ fn image_size(path: &Path) -> Result<(u32, u32), LayoutError> {
         .map_err(|e| bad(&e))?
         .into_dimensions()
         .map_err(|e| bad(&e))
+}
+
+#[cfg(test)]
+mod tests {
+    //! The layout on small sessions written here: OpenCV-style per-pixel Gray codes of a 20x12
+    //! projector, whose "capture" is the pattern images themselves (so every decoded pixel
+    //! must be its own projector pixel), in pose folders without manifests.
+    #![allow(clippy::unwrap_used, clippy::expect_used)]
+
+    use std::path::{Path, PathBuf};
+
+    use sl_calib::image::{GrayImage, Luma};
+    use sl_codec::{
+        Axis, BitDepth, DecodeConfig, GrayCodeSpec, MANIFEST_FILE, Pattern, PatternSequence,
+        ProjectorSize,
+    };
+
+    use super::{CalibrationLayout, LayoutError, MIN_POSES, projector_size};
+
+    const W: u32 = 20;
+    const H: u32 = 12;
+
+    /// A session of `poses` folders `capture_K` holding the pattern frames and `bright.png`,
+    /// and `layout/` holding `manifest.json` and `layout.json` (poses `capture_*`, white
+    /// `bright.png`). Returns (session, layout file).
+    fn session(root: &Path, poses: usize) -> (PathBuf, PathBuf) {
+        let p = ProjectorSize::new(W, H);
+        let seq = PatternSequence::new(p)
+            .with(Pattern::Gray(GrayCodeSpec::per_pixel(
+                Axis::Column,
+                p,
+                false,
+            )))
+            .with(Pattern::Gray(GrayCodeSpec::per_pixel(Axis::Row, p, false)));
+        let session = root.join("session");
+        for k in 0..poses {
+            let dir = session.join(format!("capture_{k}"));
+            seq.write(&dir, BitDepth::Eight).unwrap();
+            std::fs::remove_file(dir.join(MANIFEST_FILE)).unwrap();
+            GrayImage::from_pixel(W, H, Luma([255]))
+                .save(dir.join("bright.png"))
+                .unwrap();
+        }
+        let layout_dir = root.join("layout");
+        std::fs::create_dir_all(&layout_dir).unwrap();
+        seq.manifest(BitDepth::Eight)
+            .save(&layout_dir.join("manifest.json"))
+            .unwrap();
+        let layout = layout_dir.join("layout.json");
+        std::fs::write(
+            &layout,
+            r#"{"format": "sl-calibration-layout", "version": 1, "poses": "capture_*",
+                "manifest": "manifest.json", "white": "bright.png"}"#,
+        )
+        .unwrap();
+        (session, layout)
+    }
+
+    #[test]
+    fn poses_are_the_matching_folders_in_name_order_and_decode_in_place() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (session, layout) = session(tmp.path(), 3);
+        // A file that matches the pattern and a folder that does not are not poses.
+        std::fs::write(session.join("capture_notes.txt"), "x").unwrap();
+        std::fs::create_dir_all(session.join("other")).unwrap();
+        let l = CalibrationLayout::load(&layout).unwrap();
+        let poses = l.poses(&session).unwrap();
+        let names: Vec<&str> = poses.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["capture_0", "capture_1", "capture_2"]);
+        assert_eq!(
+            poses[1].white.as_deref(),
+            Some(session.join("capture_1/bright.png").as_path())
+        );
+        assert_eq!(l.projector_size(), sl_camera::ImageSize::new(W, H));
+        let v = poses[2].load(&DecodeConfig::default()).unwrap();
+        assert!(v.white_frame);
+        assert_eq!(v.board_image, "bright.png");
+        assert_eq!(v.view.name, "capture_2");
+        // The frames are the patterns: every pixel decodes to itself (OpenCV's convention).
+        let map = &v.view.map;
+        for y in 0..H as usize {
+            for x in 0..W as usize {
+                let i = y * map.width + x;
+                assert_eq!((map.col[i], map.row[i]), (x as f32, y as f32), "({x}, {y})");
+            }
+        }
+        // No layout needed beside the frames: nothing was written into the session.
+        assert!(!session.join("capture_0").join(MANIFEST_FILE).exists());
+    }
+
+    #[test]
+    fn a_pattern_matching_no_folder_is_an_error_naming_it() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (session, layout) = session(tmp.path(), 3);
+        std::fs::write(session.join("shot_1.png"), "x").unwrap();
+        let text = std::fs::read_to_string(&layout)
+            .unwrap()
+            .replace("capture_*", "shot_*");
+        let l = CalibrationLayout::from_json_str(&text, &layout).unwrap();
+        let err = l.poses(&session).unwrap_err();
+        assert!(
+            matches!(&err, LayoutError::NoPoses { pattern, files: 1, .. } if pattern == "shot_*"),
+            "{err:?}"
+        );
+        assert!(
+            err.to_string().contains("'shot_*' matches no folder"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_frame_missing_in_one_pose_folder_names_the_folder_and_the_file() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (session, layout) = session(tmp.path(), 3);
+        std::fs::remove_file(session.join("capture_1/003.png")).unwrap();
+        let err = CalibrationLayout::load(&layout)
+            .unwrap()
+            .poses(&session)
+            .unwrap_err();
+        match &err {
+            LayoutError::MissingFile {
+                pose, file, what, ..
+            } => {
+                assert_eq!(pose, &session.join("capture_1"));
+                assert_eq!(file, "003.png");
+                assert_eq!(what, "frame 3 of block 0");
+            }
+            other => panic!("{other:?}"),
+        }
+        let text = err.to_string();
+        assert!(
+            text.contains("capture_1") && text.contains("003.png"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn a_missing_white_frame_is_named() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (session, layout) = session(tmp.path(), 3);
+        std::fs::remove_file(session.join("capture_2/bright.png")).unwrap();
+        let err = CalibrationLayout::load(&layout)
+            .unwrap()
+            .poses(&session)
+            .unwrap_err();
+        assert!(
+            matches!(&err, LayoutError::MissingFile { what, file, .. } if what == "white frame" && file == "bright.png"),
+            "{err:?}"
+        );
+    }
+
+    #[test]
+    fn an_image_of_another_size_is_named() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (session, layout) = session(tmp.path(), 3);
+        let odd = session.join("capture_2/bright.png");
+        GrayImage::from_pixel(W + 1, H, Luma([255]))
+            .save(&odd)
+            .unwrap();
+        let err = CalibrationLayout::load(&layout)
+            .unwrap()
+            .poses(&session)
+            .unwrap_err();
+        match &err {
+            LayoutError::ImageSize {
+                file,
+                width,
+                first_width,
+                ..
+            } => {
+                assert_eq!(file, &odd);
+                assert_eq!((*width, *first_width), (W + 1, W));
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn fewer_pose_folders_than_a_calibration_needs_are_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (session, layout) = session(tmp.path(), MIN_POSES - 1);
+        let err = CalibrationLayout::load(&layout)
+            .unwrap()
+            .poses(&session)
+            .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                LayoutError::TooFewPoses {
+                    found: 2,
+                    needed: 3,
+                    ..
+                }
+            ),
+            "{err:?}"
+        );
+    }
+
+    #[test]
+    fn keys_are_checked_and_named() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (_, layout) = session(tmp.path(), 3);
+        let parse = |text: &str| CalibrationLayout::from_json_str(text, &layout).unwrap_err();
+        let base = r#""poses": "capture_*", "manifest": "manifest.json""#;
+        // A misspelt key, a missing key: serde's message names them.
+        let e = parse(r#"{"pose": "capture_*", "manifest": "manifest.json"}"#);
+        assert!(e.to_string().contains("unknown field `pose`"), "{e}");
+        let e = parse(r#"{"poses": "capture_*"}"#);
+        assert!(e.to_string().contains("missing field `manifest`"), "{e}");
+        let key = |text: &str| match parse(text) {
+            LayoutError::Key { key, .. } => key,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(
+            key(&format!(r#"{{"format": "sl-capture", {base}}}"#)),
+            "format"
+        );
+        assert_eq!(key(&format!(r#"{{"version": 2, {base}}}"#)), "version");
+        assert_eq!(
+            key(r#"{"poses": "capture_[", "manifest": "manifest.json"}"#),
+            "poses"
+        );
+        assert_eq!(
+            key(r#"{"poses": "/abs/capture_*", "manifest": "manifest.json"}"#),
+            "poses"
+        );
+        assert_eq!(key(&format!(r#"{{"white": "", {base}}}"#)), "white");
+        // A manifest that says where its frames are contradicts the layout.
+        let dir = layout.parent().unwrap();
+        let mut m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).unwrap())
+                .unwrap();
+        m["frames_dir"] = serde_json::json!("frames");
+        std::fs::write(dir.join("manifest.json"), m.to_string()).unwrap();
+        assert_eq!(key(&format!("{{{base}}}")), "manifest");
+        // A manifest that is not there: the codec's error, naming the file.
+        let e = parse(r#"{"poses": "capture_*", "manifest": "nowhere.json"}"#);
+        assert!(
+            matches!(&e, LayoutError::Codec(_)) && e.to_string().contains("nowhere.json"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn the_projector_size_is_the_manifests_and_another_one_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (session, layout) = session(tmp.path(), 3);
+        let poses = CalibrationLayout::load(&layout)
+            .unwrap()
+            .poses(&session)
+            .unwrap();
+        let size = sl_camera::ImageSize::new(W, H);
+        assert_eq!(projector_size(&poses, None).unwrap(), size);
+        assert_eq!(projector_size(&poses, Some(size)).unwrap(), size);
+        let err = projector_size(&poses, Some(sl_camera::ImageSize::new(1920, 1080))).unwrap_err();
+        assert!(
+            matches!(err, LayoutError::ProjectorSize { given, manifest_size, .. }
+                if given.width == 1920 && manifest_size == size),
+            "{err:?}"
+        );
+    }
 }

@@ -60,12 +60,12 @@ pub use calibration_capture::{
     PoseGates, PoseRecord, Refusal, TURNTABLE_DIR, TableView, TakeOutcome, WHITE_IMAGE,
     angle_dir_name, calibration_patterns, calibration_turntable_angles, pose_dir_name,
 };
+pub use calibration_coverage::{
+    COVERAGE_COLS, COVERAGE_ROWS, Coverage, FLAT_TILT_DEG, TILT_NAMES, tilt_class,
+};
 pub use calibration_layout::{
     CalibrationLayout, LAYOUT_FORMAT, LAYOUT_VERSION, LayoutError, MIN_POSES, PoseCapture,
     PoseView, check_pose_files, default_turntable_dir, projector_size,
-};
-pub use calibration_coverage::{
-    COVERAGE_COLS, COVERAGE_ROWS, Coverage, FLAT_TILT_DEG, TILT_NAMES, tilt_class,
 };
 pub use pose_quality::{
     BoardGeometry, NOMINAL_FOCAL_PER_WIDTH, SATURATION_LEVEL, board_outline, edge_width_px,
