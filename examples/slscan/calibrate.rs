@@ -1027,7 +1027,12 @@ fn procam(
         .stage("calibrate", || calibrate_procam(&views, &cfg))
         .with_context(|| format!("projector calibration from {} board poses", views.len()))?;
     for s in &cal.skipped_views {
-        eprintln!("slscan: skipping board pose {}: {}", s.name, s.reason);
+        // The detector's reasons begin with the view's name.
+        if s.reason.starts_with(&s.name) {
+            eprintln!("slscan: skipping board pose {}", s.reason);
+        } else {
+            eprintln!("slscan: skipping board pose {}: {}", s.name, s.reason);
+        }
     }
     let magnification = report.stage("pictures", || -> anyhow::Result<serde_json::Value> {
         let pics = ensure_out_dir(&out.join("pictures"))?;
@@ -1149,7 +1154,7 @@ mod tests {
     /// Quarter resolution: a 20 mm square still spans ~15 camera pixels at 450 mm.
     const DOWNSCALE: u32 = 4;
 
-    fn slscan(args: &[&str]) -> anyhow::Result<()> {
+    pub(super) fn slscan(args: &[&str]) -> anyhow::Result<()> {
         let mut argv = vec!["slscan"];
         argv.extend_from_slice(args);
         match Cli::try_parse_from(argv)?.command {
@@ -1161,6 +1166,19 @@ mod tests {
     /// Renders a calibration session (`board/` poses with both projector axes coded,
     /// `turntable/` views) and its `rig.json`, as `slscan simulate --scene board` does.
     fn simulate(dir: &Path, poses: usize) -> VirtualRig {
+        simulate_with(
+            dir,
+            poses,
+            CalibrationSession::default().turntable_angles_deg,
+        )
+    }
+
+    /// [`simulate`] with the turntable at `turntable_angles_deg` (none: no `turntable/`).
+    pub(super) fn simulate_with(
+        dir: &Path,
+        poses: usize,
+        turntable_angles_deg: Vec<f64>,
+    ) -> VirtualRig {
         let mut config = scaled_rig_config(DOWNSCALE);
         config.render.supersampling = 4;
         config.angle_scale = 1.02;
@@ -1180,7 +1198,10 @@ mod tests {
             .with(code(Axis::Column, p.width))
             .with(code(Axis::Row, p.height))
             .manifest(BitDepth::Eight);
-        let mut session = CalibrationSession::default();
+        let mut session = CalibrationSession {
+            turntable_angles_deg,
+            ..CalibrationSession::default()
+        };
         session.poses.count = poses;
         simulate_calibration(&rig, &session, &manifest, dir, |_| {}).unwrap();
         std::fs::write(
@@ -1471,3 +1492,7 @@ mod tests {
         assert!(!out.join("calibration.json").exists());
     }
 }
+
+#[cfg(test)]
+#[path = "calibrate_layout_tests.rs"]
+mod layout_tests;
