@@ -468,7 +468,7 @@ fn the_kamino_set_with_each_corner_refiner() {
         let p = c.projector.unwrap().intrinsics;
         let t = cal.t_cam_proj.inverse().translation.vector;
         eprintln!(
-            "{name}: camera fx {:.1} fy {:.1} cx {:.1} cy {:.1} {:?}; projector fx {:.1} fy {:.1} cx {:.1} cy {:.1} {:?}; T_proj_cam ({:.2}, {:.2}, {:.2}), |T| {:.2}",
+            "{name}: camera fx {:.1} fy {:.1} cx {:.1} cy {:.1} {:?}; projector fx {:.1} fy {:.1} cx {:.1} cy {:.1} {:?}; T_proj_cam ({:.2}, {:.2}, {:.2}), |T| {:.2}, rotation {:.3} deg",
             i.fx,
             i.fy,
             i.cx,
@@ -482,7 +482,8 @@ fn the_kamino_set_with_each_corner_refiner() {
             t.x,
             t.y,
             t.z,
-            t.norm()
+            t.norm(),
+            cal.t_cam_proj.rotation.angle().to_degrees()
         );
         check_against_peer(&c, &f);
     }
