@@ -175,7 +175,7 @@ def main():
     ap.add_argument("--slscan", default=str(REPO / "target" / "release" / "examples" / "slscan"))
     ap.add_argument("--mirror", default="/work/.mirror/kamino410+procam-calibration/repo")
     ap.add_argument("--slscan-arg", action="append", default=[],
-                    help="extra argument for slscan calibrate all (repeat), e.g. --corners junction")
+                    help="extra argument for slscan calibrate all (repeat; write --slscan-arg=--corners --slscan-arg=junction)")
     args = ap.parse_args()
     extra = os.environ.get("SL_DATA_EXTRA")
     if not extra:
