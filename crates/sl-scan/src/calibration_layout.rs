@@ -353,6 +353,15 @@ impl CalibrationLayout {
 
     /// The folders of `session` the `poses` pattern matches, in name order.
     fn pose_folders(&self, session: &Path) -> Result<Vec<PathBuf>, LayoutError> {
+        if !session.is_dir() {
+            return Err(LayoutError::Io {
+                path: session.to_path_buf(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    "no such folder (the session folder the layout describes)",
+                ),
+            });
+        }
         let root = session.to_str().ok_or_else(|| LayoutError::Key {
             path: self.source.clone(),
             key: "poses",
