@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use serde_json::json;
 use sl_calib::sl_camera::{Calibration, ImageSize};
-use sl_calib::sl_codec::{CaptureSet, DecodeConfig, capture_texture, decode};
+use sl_calib::sl_codec::DecodeConfig;
 use sl_calib::{
     BoardCorners, BoardSize, CalibError, CalibrationView, CameraCalibration, CornerRefiner,
     DetectorConfig, PictureConfig, ProcamCalibration, ProcamConfig, ProcamView, ResidualPlot,
@@ -16,6 +16,8 @@ use sl_calib::{
     calibrate_procam, calibrate_turntable, detect_checkerboard, draw_corners, error_bars,
     load_grey, residual_plot, save_png,
 };
+
+use sl_scan::{CalibrationLayout, PoseCapture, check_pose_files, default_turntable_dir};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
 
@@ -52,19 +54,23 @@ pub(crate) enum What {
     /// `SESSION/turntable/`, as `calibrate all` reads them). Interactive, or `--auto`.
     Capture(crate::calibrate_capture::Args),
     /// The camera (Zhang's method) from checkerboard pictures: image files, folders of
-    /// images, folders of capture folders holding `white.png`, or an `slscan simulate`
-    /// calibration session (its `board/` poses).
+    /// images, folders of capture folders holding `white.png`, an `slscan simulate`
+    /// calibration session (its `board/` poses), or the white frames of a session described
+    /// by `--layout`.
     Camera(CameraArgs),
     /// The projector and the camera together (Moreno & Taubin): one capture folder per board
     /// pose, each with the decoded pattern sequence's `manifest.json` and frames (as `slscan
     /// simulate --scene board` writes them) and, if the capture has one, `white.png`; without
-    /// it the board is found in the capture's own texture (the fringe mean).
+    /// it the board is found in the capture's own texture (the fringe mean). Another
+    /// program's session is read through `--layout`.
     Projector(ProjectorArgs),
     /// The turntable axis from a board standing on the platter at several motor angles, added
     /// to an existing calibration.
     Turntable(TurntableArgs),
     /// Camera and projector, then the turntable axis, on an `slscan simulate --scene board`
-    /// session (camera alone when the pose folders hold no pattern captures).
+    /// session (camera alone when the pose folders hold no pattern captures), or on another
+    /// program's session described by `--layout`; without a turntable folder, camera and
+    /// projector only.
     All(AllArgs),
 }
 
@@ -114,19 +120,45 @@ pub(crate) struct CameraArgs {
     /// Estimate the 8-coefficient rational distortion model.
     #[arg(long)]
     pub(crate) rational: bool,
+    #[command(flatten)]
+    pub(crate) layout: LayoutArgs,
+}
+
+/// A session written by another program.
+#[derive(Debug, clap::Args)]
+pub(crate) struct LayoutArgs {
+    /// Layout file (`"format": "sl-calibration-layout"`) describing the session folder: which
+    /// subfolders are the board poses (a pattern such as `capture_*`), the capture manifest
+    /// of every pose folder, and its white (and black) frame. The files are read where they
+    /// are. See docs/capture-format.md.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) layout: Option<PathBuf>,
+}
+
+impl LayoutArgs {
+    fn load(&self) -> anyhow::Result<Option<CalibrationLayout>> {
+        self.layout
+            .as_deref()
+            .map(CalibrationLayout::load)
+            .transpose()
+            .map_err(Into::into)
+    }
 }
 
 /// Arguments of `slscan calibrate projector`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct ProjectorArgs {
     /// Session folder: its `board/` subfolder, or the folder itself, holds one capture folder
-    /// per board pose.
+    /// per board pose (or the folders `--layout` names).
     pub(crate) session: PathBuf,
-    /// Projector size, `WIDTHxHEIGHT`.
-    #[arg(long, default_value = "1920x1080")]
-    pub(crate) projector: String,
+    /// Projector size, `WIDTHxHEIGHT` (default: the capture manifest's; another size is an
+    /// error, the decoded coordinates being in the manifest's pixels).
+    #[arg(long)]
+    pub(crate) projector: Option<String>,
     #[command(flatten)]
     pub(crate) common: BoardArgs,
+    #[command(flatten)]
+    pub(crate) layout: LayoutArgs,
 }
 
 /// Arguments of `slscan calibrate turntable`.
@@ -154,10 +186,12 @@ pub(crate) struct TurntableArgs {
 #[derive(Debug, clap::Args)]
 pub(crate) struct AllArgs {
     /// An `slscan calibrate capture` or `slscan simulate --scene board` session (with
-    /// `board/` and `turntable/`).
+    /// `board/` and, for the turntable axis, `turntable/`), or the folder `--layout` describes.
     pub(crate) session: PathBuf,
     #[command(flatten)]
     pub(crate) common: BoardArgs,
+    #[command(flatten)]
+    pub(crate) layout: LayoutArgs,
 }
 
 /// Runs `slscan calibrate`.
@@ -171,7 +205,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 rational_model: a.rational,
                 ..ZhangConfig::default()
             };
-            let images = camera_images(&a.inputs)?;
+            let images = match a.layout.load()? {
+                Some(layout) => layout_white_frames(&layout, &a.inputs)?,
+                None => camera_images(&a.inputs)?,
+            };
             let (calib, cal) = camera(&images, &a.common, &zhang, "calibrate camera")?;
             println!(
                 "camera calibrated: RMS {:.4} px over {} views ({} without a board skipped); {}",
@@ -183,9 +220,17 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             Ok(())
         }
         What::Projector(a) => {
-            let folders = pose_folders(&a.session)?;
-            let projector_size = parse_size(&a.projector)?;
-            let (_, cal) = procam(&folders, &a.common, projector_size, "calibrate projector")?;
+            let layout = a.layout.load()?;
+            let poses = session_poses(&a.session, layout.as_ref())?;
+            let given = a.projector.as_deref().map(parse_size).transpose()?;
+            let projector_size = sl_scan::projector_size(&poses, given)?;
+            let (_, cal) = procam(
+                &poses,
+                &a.common,
+                projector_size,
+                "calibrate projector",
+                layout.as_ref(),
+            )?;
             println!(
                 "camera RMS {:.4} px, projector RMS {:.4} px, stereo RMS {:.4} px over {} views; {}",
                 cal.rms_camera,
@@ -210,56 +255,50 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             Ok(())
         }
         What::All(a) => {
-            let board_dir = a.session.join("board");
-            anyhow::ensure!(
-                board_dir.is_dir(),
-                "{}: no board/ folder: expected an `slscan simulate --scene board` session",
-                a.session.display()
-            );
+            let layout = a.layout.load()?;
+            let turntable_dir = match &layout {
+                Some(l) => l.turntable_dir(&a.session)?,
+                None => default_turntable_dir(&a.session),
+            };
+            // With a turntable step the camera and projector files go to a subfolder and the
+            // whole calibration to OUT; without one, OUT is theirs.
             let sub = |name: &str| BoardArgs {
-                out: a.common.out.join(name),
+                out: if turntable_dir.is_some() {
+                    a.common.out.join(name)
+                } else {
+                    a.common.out.clone()
+                },
                 board: a.common.board.clone(),
                 square: a.common.square,
                 yaml: a.common.yaml,
                 corners: a.common.corners,
             };
-            let folders = pose_folders(&a.session)?;
-            let with_patterns = folders
-                .iter()
-                .all(|f| f.join(sl_calib::sl_codec::MANIFEST_FILE).is_file());
-            let calib = if with_patterns {
-                let size = rig_projector_size(&a.session)?;
-                let (calib, cal) = procam(
-                    &folders,
-                    &sub("projector"),
-                    size,
-                    "calibrate all: projector",
-                )?;
-                println!(
-                    "camera RMS {:.4} px, projector RMS {:.4} px, stereo RMS {:.4} px over {} views",
-                    cal.rms_camera,
-                    cal.rms_projector,
-                    cal.rms_stereo,
-                    cal.views.len()
-                );
-                print_predicted(&cal);
-                calib
-            } else {
-                let images = camera_images(std::slice::from_ref(&board_dir))?;
-                let (calib, cam) = camera(
-                    &images,
-                    &sub("camera"),
-                    &ZhangConfig::default(),
-                    "calibrate all: camera",
-                )?;
-                println!(
-                    "camera: RMS {:.4} px over {} views",
-                    cam.rms,
-                    cam.view_rms.len()
-                );
-                calib
+            let (calib, what) = match &layout {
+                Some(l) => {
+                    let poses = l.poses(&a.session)?;
+                    let (calib, cal) = procam(
+                        &poses,
+                        &sub("projector"),
+                        l.projector_size(),
+                        "calibrate all: projector",
+                        Some(l),
+                    )?;
+                    print_procam(&cal);
+                    (calib, "camera and projector")
+                }
+                None => all_from_session_folders(&a.session, &sub)?,
             };
-            let views = turntable_views(&a.session, None)?;
+            let Some(dir) = turntable_dir else {
+                println!(
+                    "no turntable folder ({}): {what} only; {}. Add the turntable axis with \
+                     `slscan calibrate turntable TURNTABLE_FOLDER --calib {} --out DIR`",
+                    a.session.join(sl_scan::TURNTABLE_DIR).display(),
+                    a.common.out.join("calibration.json").display(),
+                    a.common.out.join("calibration.json").display()
+                );
+                return Ok(());
+            };
+            let views = turntable_views(&dir, None)?;
             let fit = turntable(
                 calib,
                 &views,
@@ -271,6 +310,119 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+/// The camera and projector steps of `calibrate all` on an `slscan simulate --scene board` or
+/// `slscan calibrate capture` session: projector and camera from the `board/` capture
+/// folders, or the camera alone when they hold no pattern captures.
+fn all_from_session_folders(
+    session: &Path,
+    sub: &dyn Fn(&str) -> BoardArgs,
+) -> anyhow::Result<(Calibration, &'static str)> {
+    let board_dir = session.join(sl_scan::BOARD_DIR);
+    anyhow::ensure!(
+        board_dir.is_dir(),
+        "{}: no board/ folder: expected an `slscan simulate --scene board` session, or a \
+         layout file (--layout) describing the session's folders",
+        session.display()
+    );
+    let folders = pose_folders(session)?;
+    let with_patterns = folders
+        .iter()
+        .all(|f| f.join(sl_calib::sl_codec::MANIFEST_FILE).is_file());
+    if with_patterns {
+        let poses = session_poses(session, None)?;
+        let size = rig_projector_size(session)?;
+        let (calib, cal) = procam(
+            &poses,
+            &sub("projector"),
+            size,
+            "calibrate all: projector",
+            None,
+        )?;
+        print_procam(&cal);
+        Ok((calib, "camera and projector"))
+    } else {
+        let images = camera_images(std::slice::from_ref(&board_dir))?;
+        let (calib, cam) = camera(
+            &images,
+            &sub("camera"),
+            &ZhangConfig::default(),
+            "calibrate all: camera",
+        )?;
+        println!(
+            "camera: RMS {:.4} px over {} views",
+            cam.rms,
+            cam.view_rms.len()
+        );
+        Ok((calib, "camera"))
+    }
+}
+
+fn print_procam(cal: &ProcamCalibration) {
+    println!(
+        "camera RMS {:.4} px, projector RMS {:.4} px, stereo RMS {:.4} px over {} views",
+        cal.rms_camera,
+        cal.rms_projector,
+        cal.rms_stereo,
+        cal.views.len()
+    );
+    print_predicted(cal);
+}
+
+/// The board poses of a session: the folders a layout names, or the capture folders of an
+/// `slscan` session (`board/pose_NNN/` with `manifest.json` and `white.png`); their files are
+/// checked before anything is decoded.
+fn session_poses(
+    session: &Path,
+    layout: Option<&CalibrationLayout>,
+) -> anyhow::Result<Vec<PoseCapture>> {
+    if let Some(l) = layout {
+        return Ok(l.poses(session)?);
+    }
+    let poses: Vec<PoseCapture> = pose_folders(session)?
+        .iter()
+        .map(|folder| {
+            // The view's name: `pose_000/white.png`, or the folder's name without a white frame.
+            let name = white_image(folder).map_or_else(
+                || {
+                    folder.file_name().map_or_else(
+                        || folder.display().to_string(),
+                        |f| f.to_string_lossy().into_owned(),
+                    )
+                },
+                |w| short_name(&w),
+            );
+            PoseCapture::capture_folder(folder, name)
+        })
+        .collect();
+    check_pose_files(&poses)?;
+    Ok(poses)
+}
+
+/// The white frames of the poses of a session described by a layout (`calibrate camera
+/// --layout`): one input, the session folder.
+fn layout_white_frames(
+    layout: &CalibrationLayout,
+    inputs: &[PathBuf],
+) -> anyhow::Result<Vec<PathBuf>> {
+    let [session] = inputs else {
+        anyhow::bail!(
+            "--layout: give one session folder, not {} inputs",
+            inputs.len()
+        );
+    };
+    anyhow::ensure!(
+        layout.white.is_some(),
+        "{}: no white frame named (\"white\"): the camera is calibrated from the board under \
+         white light",
+        layout.source.display()
+    );
+    Ok(layout
+        .poses(session)?
+        .into_iter()
+        .filter_map(|p| p.white)
+        .collect())
 }
 
 fn print_axis(fit: &TurntableCalibration, out: &Path) {
@@ -422,37 +574,6 @@ fn camera_images(inputs: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
     Ok(images)
 }
 
-/// The board picture of a pose folder, its view name and where the picture came from:
-/// `white.png` when the folder has one, else the capture's own texture (the fringe mean of its
-/// phase frames, or the mean of its Gray patterns and inverses: `sl_codec::capture_texture`),
-/// for captures made without a white frame (SLStudio's calibration sequences).
-fn board_image(
-    folder: &Path,
-    set: &CaptureSet,
-) -> anyhow::Result<(String, sl_calib::image::GrayImage, String)> {
-    if let Some(white) = white_image(folder) {
-        let file = white.file_name().map_or_else(
-            || WHITE_IMAGE.to_owned(),
-            |f| f.to_string_lossy().into_owned(),
-        );
-        return Ok((short_name(&white), load_grey(&white)?, file));
-    }
-    let texture = capture_texture(set).with_context(|| {
-        format!(
-            "{}: no {WHITE_IMAGE} and no texture in the capture",
-            folder.display()
-        )
-    })?;
-    let (w, h) = (texture.width as u32, texture.height as u32);
-    let image = sl_calib::image::GrayImage::from_raw(w, h, texture.to_u8())
-        .with_context(|| format!("{}: texture of {w}x{h} px", folder.display()))?;
-    let name = folder.file_name().map_or_else(
-        || folder.display().to_string(),
-        |f| f.to_string_lossy().into_owned(),
-    );
-    Ok((name, image, texture.source.to_string()))
-}
-
 /// A short name of an image for messages and picture file names: the file name, or
 /// `folder/white.png` for capture folders.
 fn short_name(path: &Path) -> String {
@@ -464,6 +585,26 @@ fn short_name(path: &Path) -> String {
         Some(parent) if is_white_name(&file) => format!("{}/{file}", parent.to_string_lossy()),
         _ => file,
     }
+}
+
+/// The images' short names ([`short_name`]), with the folder added to those that would
+/// otherwise repeat (the white frames `capture_0/graycode_40.png`, `capture_1/graycode_40.png`
+/// of a layout's pose folders).
+fn view_names(paths: &[PathBuf]) -> Vec<String> {
+    let short: Vec<String> = paths.iter().map(|p| short_name(p)).collect();
+    short
+        .iter()
+        .zip(paths)
+        .map(|(name, path)| {
+            let repeated = short.iter().filter(|n| *n == name).count() > 1;
+            match path.parent().and_then(|p| p.file_name()) {
+                Some(parent) if repeated && !is_white_name(name) => {
+                    format!("{}/{name}", parent.to_string_lossy())
+                }
+                _ => name.clone(),
+            }
+        })
+        .collect()
 }
 
 fn picture_name(k: usize, name: &str) -> String {
@@ -503,9 +644,9 @@ fn detect_all(
     let mut dims: Option<(u32, u32, String)> = None;
     report.figure("corners", cfg.refiner().name());
     report.stage("read and detect", || -> anyhow::Result<()> {
-        for (index, path) in paths.iter().enumerate() {
+        let names = view_names(paths);
+        for ((index, path), name) in paths.iter().enumerate().zip(names) {
             bar.inc(1);
-            let name = short_name(path);
             let image = load_grey(path)?;
             match &dims {
                 None => dims = Some((image.width(), image.height(), name.clone())),
@@ -862,48 +1003,53 @@ fn turntable(
     Ok(fit)
 }
 
-/// Projector–camera calibration of the capture folders, with its files in `common.out`.
+/// Projector–camera calibration of the board poses, with its files in `common.out`.
 fn procam(
-    folders: &[PathBuf],
+    poses: &[PoseCapture],
     common: &BoardArgs,
     projector_size: ImageSize,
     command: &str,
+    layout: Option<&CalibrationLayout>,
 ) -> anyhow::Result<(Calibration, ProcamCalibration)> {
     let mut report = Report::new(command);
     let out = ensure_out_dir(&common.out)?;
     let size = parse_board(&common.board)?;
-    let bar = progress(folders.len() as u64, "decoding");
-    let mut board_images = Vec::with_capacity(folders.len());
+    let bar = progress(poses.len() as u64, "decoding");
+    let mut board_images = Vec::with_capacity(poses.len());
+    let mut textured = Vec::new();
     let views = report.stage("read and decode", || -> anyhow::Result<Vec<ProcamView>> {
-        let mut views = Vec::with_capacity(folders.len());
-        for folder in folders {
+        let mut views = Vec::with_capacity(poses.len());
+        for pose in poses {
             bar.inc(1);
-            let manifest = folder.join(sl_calib::sl_codec::MANIFEST_FILE);
-            let set = CaptureSet::load(&manifest)
-                .with_context(|| format!("cannot read the capture set {}", manifest.display()))?;
-            let map = decode(&set, &DecodeConfig::default())
-                .with_context(|| format!("cannot decode {}", manifest.display()))?;
-            let (name, lit, source) = board_image(folder, &set)?;
-            board_images.push(json!({ "view": name, "board_image": source }));
-            views.push(ProcamView { name, lit, map });
+            let v = pose
+                .load(&DecodeConfig::default())
+                .with_context(|| format!("board pose {}", pose.folder.display()))?;
+            board_images.push(json!({ "view": v.view.name, "board_image": v.board_image }));
+            if !v.white_frame {
+                textured.push(v.board_image);
+            }
+            views.push(v.view);
         }
         Ok(views)
     })?;
     bar.finish_and_clear();
-    let textured: Vec<&str> = board_images
-        .iter()
-        .filter_map(|b| b["board_image"].as_str())
-        .filter(|s| !is_white_name(s))
-        .collect();
     if let Some(first) = textured.first() {
         println!(
-            "board images: {} of {} poses have no {WHITE_IMAGE}; their corners are found in the \
+            "board images: {} of {} poses have no white frame; their corners are found in the \
              capture's own texture ({first})",
             textured.len(),
             board_images.len()
         );
     }
     report.figure("board_images", board_images);
+    report.figure(
+        "session",
+        json!({
+            "layout": layout.map(|l| l.source.display().to_string()),
+            "manifest": layout.map(|l| l.manifest_path.display().to_string()),
+            "pose_folders": poses.iter().map(|p| p.folder.display().to_string()).collect::<Vec<_>>(),
+        }),
+    );
     let cfg = ProcamConfig {
         detector: common.detector(),
         ..ProcamConfig::new(size, common.square, projector_size)
@@ -912,6 +1058,14 @@ fn procam(
     let cal = report
         .stage("calibrate", || calibrate_procam(&views, &cfg))
         .with_context(|| format!("projector calibration from {} board poses", views.len()))?;
+    for s in &cal.skipped_views {
+        // The detector's reasons begin with the view's name.
+        if s.reason.starts_with(&s.name) {
+            eprintln!("slscan: skipping board pose {}", s.reason);
+        } else {
+            eprintln!("slscan: skipping board pose {}: {}", s.name, s.reason);
+        }
+    }
     let magnification = report.stage("pictures", || -> anyhow::Result<serde_json::Value> {
         let pics = ensure_out_dir(&out.join("pictures"))?;
         let pc = PictureConfig::default();
@@ -1036,7 +1190,7 @@ mod tests {
     /// Quarter resolution: a 20 mm square still spans ~15 camera pixels at 450 mm.
     const DOWNSCALE: u32 = 4;
 
-    fn slscan(args: &[&str]) -> anyhow::Result<()> {
+    pub(super) fn slscan(args: &[&str]) -> anyhow::Result<()> {
         let mut argv = vec!["slscan"];
         argv.extend_from_slice(args);
         match Cli::try_parse_from(argv)?.command {
@@ -1048,6 +1202,19 @@ mod tests {
     /// Renders a calibration session (`board/` poses with both projector axes coded,
     /// `turntable/` views) and its `rig.json`, as `slscan simulate --scene board` does.
     fn simulate(dir: &Path, poses: usize) -> VirtualRig {
+        simulate_with(
+            dir,
+            poses,
+            CalibrationSession::default().turntable_angles_deg,
+        )
+    }
+
+    /// [`simulate`] with the turntable at `turntable_angles_deg` (none: no `turntable/`).
+    pub(super) fn simulate_with(
+        dir: &Path,
+        poses: usize,
+        turntable_angles_deg: Vec<f64>,
+    ) -> VirtualRig {
         let mut config = scaled_rig_config(DOWNSCALE);
         config.render.supersampling = 4;
         config.angle_scale = 1.02;
@@ -1067,7 +1234,10 @@ mod tests {
             .with(code(Axis::Column, p.width))
             .with(code(Axis::Row, p.height))
             .manifest(BitDepth::Eight);
-        let mut session = CalibrationSession::default();
+        let mut session = CalibrationSession {
+            turntable_angles_deg,
+            ..CalibrationSession::default()
+        };
         session.poses.count = poses;
         simulate_calibration(&rig, &session, &manifest, dir, |_| {}).unwrap();
         std::fs::write(
@@ -1358,3 +1528,7 @@ mod tests {
         assert!(!out.join("calibration.json").exists());
     }
 }
+
+#[cfg(test)]
+#[path = "calibrate_layout_tests.rs"]
+mod layout_tests;

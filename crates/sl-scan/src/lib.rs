@@ -6,6 +6,7 @@
 //! |---|---|---|
 //! | capture a calibration session | `calibration_capture.rs`, `calibration_auto.rs` | [`CalibrationCapture`], [`capture_poses_auto`] |
 //! | calibrate | `calibrate.rs` | [`calibrate_virtual`], [`load_scan_calibration`] |
+//! | read a calibration session (own or another program's layout) | `calibration_layout.rs` | [`CalibrationLayout`], [`PoseCapture`] |
 //! | capture a scan session | `capture.rs` | [`capture_session`], [`scan_patterns`], [`full_turn_motor_angles`] |
 //! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`drop_grazing`] |
 //! | merge | `merge.rs` | [`merge_scan`] |
@@ -31,6 +32,7 @@
 #![deny(missing_docs)]
 
 mod calibrate;
+mod calibration_layout;
 mod capture;
 mod error;
 mod measure;
@@ -60,6 +62,10 @@ pub use calibration_capture::{
 };
 pub use calibration_coverage::{
     COVERAGE_COLS, COVERAGE_ROWS, Coverage, FLAT_TILT_DEG, TILT_NAMES, tilt_class,
+};
+pub use calibration_layout::{
+    CalibrationLayout, LAYOUT_FORMAT, LAYOUT_VERSION, LayoutError, MIN_POSES, PoseCapture,
+    PoseView, check_pose_files, default_turntable_dir, projector_size,
 };
 pub use pose_quality::{
     BoardGeometry, NOMINAL_FOCAL_PER_WIDTH, SATURATION_LEVEL, board_outline, edge_width_px,
