@@ -282,6 +282,7 @@ fn main() {
         // through the true camera and projector, triangulated (midpoint of the two rays) with
         // the estimated models and T_cam_proj.
         let mut e3 = Acc::default();
+        let mut pairs: Vec<(nalgebra::Point3<f64>, nalgebra::Point3<f64>)> = Vec::new();
         let mut depth = Acc::default();
         let (tcam, tproj) = (&config.camera, &config.projector);
         let (ecam, eproj) = (&r.camera.camera, &r.projector.camera);
@@ -313,6 +314,7 @@ fn main() {
                 let s2 = (aa * ee - bb * dd) / den;
                 let p = nalgebra::center(&(o1 + d1 * s1), &(o2 + d2 * s2));
                 let err = p - x;
+                pairs.push((p, *x));
                 e3.add(Vector2::new(err.norm(), 0.0));
                 depth.add(Vector2::new(err.z, 0.0));
             }
@@ -322,11 +324,16 @@ fn main() {
             e3.rms(),
             depth.bias().x
         );
+        println!(
+            "{n}: the same after the best rigid alignment (shape error): RMS {:.4} mm",
+            shape_error_mm(&pairs)
+        );
         if let Some(p) = r.predicted_error {
             println!(
-                "{n}: predicted by the calibration's covariance: ±{:.4} mm (2σ), RMS {:.4} mm, depth RMS {:.4} mm, largest {:.4} mm over {} corners at {:.0}–{:.0} mm",
+                "{n}: predicted by the calibration's covariance: shape ±{:.4} mm (2σ), RMS {:.4} mm (camera frame {:.4} mm), depth RMS {:.4} mm, largest {:.4} mm over {} corners at {:.0}–{:.0} mm",
                 p.bound_mm,
                 p.rms_mm,
+                p.absolute_rms_mm,
                 p.depth_rms_mm,
                 p.max_mm,
                 p.points,
@@ -353,4 +360,33 @@ fn main() {
             pacc.rms()
         );
     }
+}
+
+/// RMS distance (mm) between the estimated and the true points once the estimated ones are
+/// moved by the rigid motion that fits them best (Kabsch): the error of shape.
+fn shape_error_mm(pairs: &[(nalgebra::Point3<f64>, nalgebra::Point3<f64>)]) -> f64 {
+    let n = pairs.len().max(1) as f64;
+    let ca = pairs
+        .iter()
+        .fold(nalgebra::Vector3::zeros(), |a, p| a + p.0.coords)
+        / n;
+    let cb = pairs
+        .iter()
+        .fold(nalgebra::Vector3::zeros(), |a, p| a + p.1.coords)
+        / n;
+    let h = pairs.iter().fold(nalgebra::Matrix3::zeros(), |m, (a, b)| {
+        m + (a.coords - ca) * (b.coords - cb).transpose()
+    });
+    let svd = h.svd(true, true);
+    let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
+    let mut d = nalgebra::Matrix3::identity();
+    if (vt.transpose() * u.transpose()).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = vt.transpose() * d * u.transpose();
+    let sq: f64 = pairs
+        .iter()
+        .map(|(a, b)| (r * (a.coords - ca) + cb - b.coords).norm_squared())
+        .sum();
+    (sq / n).sqrt()
 }

@@ -7,9 +7,12 @@
 //! calibration triangulates `(u, v)` back to `X` (midpoint of the two rays); a change `δθ` of
 //! its parameters moves the triangulated point by `J δθ`, `J = ∂X/∂θ` (central differences).
 //! With the parameters' covariance `Σθ`, the point's is `Σx = J Σθ Jᵀ`, and `sqrt(trace Σx)`
-//! is its expected 3-D error. This is the error the calibration's own noise leaves — what
-//! another draw of the same captures would change — not a bias the model cannot see (a lens
-//! the distortion model does not describe, a board that is not flat).
+//! is its expected 3-D error. What a scanner's user measures are shapes — lengths, forms,
+//! spacings — which a rigid motion of the whole volume does not change, so the headline figure
+//! takes out of each parameter's displacement field the rigid motion that fits it best (the
+//! camera-frame figure is kept beside it). This is the error the calibration's own noise
+//! leaves — what another draw of the same captures would change — not a bias the model cannot
+//! see (a lens the distortion model does not describe, a board that is not flat).
 
 use nalgebra::{DMatrix, Isometry3, Matrix3, Point3, SMatrix, Vector3};
 use serde::{Deserialize, Serialize};
@@ -31,15 +34,21 @@ const STEP_OF_STD_DEV: f64 = 1e-2;
 /// The 3-D error a calibration predicts over the volume it was calibrated in.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PredictedError {
-    /// `PREDICTED_BOUND_SIGMAS` × the RMS over the volume of the points' expected 3-D error
-    /// (mm): "this rig is expected to measure to ± `bound_mm` over its volume".
+    /// `PREDICTED_BOUND_SIGMAS` × `rms_mm`: the calibration is expected to add at most
+    /// ± `bound_mm` to the shapes the rig measures over its volume.
     pub bound_mm: f64,
-    /// RMS over the volume of the points' expected 3-D error, `sqrt(trace Σx)` (mm).
+    /// RMS over the volume of the points' expected error of *shape* (mm): the 3-D error
+    /// `sqrt(trace Σx)` once the rigid motion of the whole volume that best explains each
+    /// parameter's effect is taken out. A shift or turn of the whole measurement (a principal
+    /// point's uncertainty moves every point alike) changes no length, form or spacing.
     pub rms_mm: f64,
-    /// The largest point's expected 3-D error (mm), usually at the volume's far corners.
+    /// RMS over the volume of the points' expected 3-D error in the camera frame, rigid
+    /// motion included (mm).
+    pub absolute_rms_mm: f64,
+    /// The largest point's expected shape error (mm), usually at the volume's far corners.
     pub max_mm: f64,
-    /// RMS over the volume of the expected error along the camera's line of sight (mm): the
-    /// depth part of `rms_mm`.
+    /// RMS over the volume of the expected shape error along the camera's line of sight
+    /// (mm): the depth part of `rms_mm`.
     pub depth_rms_mm: f64,
     /// Points of the volume the prediction was made on (the calibration's board corners).
     pub points: usize,
@@ -48,12 +57,14 @@ pub struct PredictedError {
 }
 
 impl PredictedError {
-    /// The figure for a person: "this rig is expected to measure to ±0.059 mm over its volume
-    /// (2σ of the calibration's own uncertainty, 648 board corners at 348–547 mm)".
+    /// The figure for a person: "the calibration is expected to add at most ±0.003 mm to the
+    /// shapes this rig measures over its volume (±0.077 mm to positions in the camera frame;
+    /// 2σ of its own uncertainty, 648 board corners at 348–547 mm from the camera)".
     pub fn sentence(&self) -> String {
         format!(
-            "this rig is expected to measure to ±{:.3} mm over its volume ({:.0}σ of the calibration's own uncertainty, {} board corners at {:.0}–{:.0} mm from the camera)",
+            "the calibration is expected to add at most ±{:.4} mm to the shapes this rig measures over its volume (±{:.4} mm to positions in the camera frame; {:.0}σ of its own uncertainty, {} board corners at {:.0}–{:.0} mm from the camera)",
             self.bound_mm,
+            PREDICTED_BOUND_SIGMAS * self.absolute_rms_mm,
             PREDICTED_BOUND_SIGMAS,
             self.points,
             self.depth_range_mm[0],
@@ -178,8 +189,9 @@ pub(crate) fn predict(
     let sub = DMatrix::from_fn(free.len(), free.len(), |a, b| {
         covariance[(free[a].0, free[b].0)]
     });
-    let (mut sum_sq, mut sum_depth_sq, mut max_sq, mut n) = (0.0, 0.0, 0.0f64, 0usize);
-    let (mut z_min, mut z_max) = (f64::INFINITY, f64::NEG_INFINITY);
+    // The displacement of every point per unit change of each free parameter.
+    let mut points: Vec<Point3<f64>> = Vec::with_capacity(volume.len());
+    let mut jacobians: Vec<DMatrix<f64>> = Vec::with_capacity(volume.len());
     for x in volume {
         let Some(u) = nominal.camera.project(x) else {
             continue;
@@ -198,29 +210,63 @@ pub(crate) fn predict(
                 _ => ok = false,
             }
         }
-        if !ok {
-            continue;
+        if ok {
+            points.push(*x);
+            jacobians.push(jac);
         }
-        let cov: Matrix3<f64> = {
-            let c = &jac * &sub * jac.transpose();
+    }
+    let n = points.len();
+    if n == 0 {
+        return None;
+    }
+    // The shape part: each parameter's displacement field less the rigid motion that fits it
+    // best (a translation and a small rotation about the volume's centroid), which moves the
+    // whole measurement without changing any length in it.
+    let centroid = points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n as f64;
+    let mut rigid = DMatrix::<f64>::zeros(3 * n, 6);
+    for (i, p) in points.iter().enumerate() {
+        let r = p.coords - centroid;
+        // d = t + ω × r = [I | −[r]×] (t, ω).
+        for k in 0..3 {
+            rigid[(3 * i + k, k)] = 1.0;
+        }
+        let skew = Matrix3::new(0.0, -r.z, r.y, r.z, 0.0, -r.x, -r.y, r.x, 0.0);
+        rigid.view_mut((3 * i, 3), (3, 3)).copy_from(&(-skew));
+    }
+    let mut stacked = DMatrix::<f64>::zeros(3 * n, free.len());
+    for (i, j) in jacobians.iter().enumerate() {
+        stacked.view_mut((3 * i, 0), (3, free.len())).copy_from(j);
+    }
+    let shape = match (rigid.transpose() * &rigid).try_inverse() {
+        Some(inv) => {
+            let fit = &inv * rigid.transpose() * &stacked;
+            &stacked - &rigid * fit
+        }
+        None => stacked.clone(),
+    };
+    let (mut sum_sq, mut abs_sq, mut sum_depth_sq, mut max_sq) = (0.0, 0.0, 0.0, 0.0f64);
+    let (mut z_min, mut z_max) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (i, (x, jac)) in points.iter().zip(&jacobians).enumerate() {
+        let block = |m: &DMatrix<f64>| -> Matrix3<f64> {
+            let rows = m.rows(3 * i, 3);
+            let c = &rows * &sub * rows.transpose();
             Matrix3::from_fn(|r, s| c[(r, s)])
         };
+        let cov = block(&shape);
         let sq = cov.trace().max(0.0);
         let los = x.coords.normalize();
         sum_sq += sq;
+        abs_sq += (jac * &sub * jac.transpose()).trace().max(0.0);
         sum_depth_sq += (los.transpose() * cov * los)[(0, 0)].max(0.0);
         max_sq = max_sq.max(sq);
-        n += 1;
         z_min = z_min.min(x.z);
         z_max = z_max.max(x.z);
-    }
-    if n == 0 {
-        return None;
     }
     let rms = (sum_sq / n as f64).sqrt();
     Some(PredictedError {
         bound_mm: PREDICTED_BOUND_SIGMAS * rms,
         rms_mm: rms,
+        absolute_rms_mm: (abs_sq / n as f64).sqrt(),
         max_mm: max_sq.sqrt(),
         depth_rms_mm: (sum_depth_sq / n as f64).sqrt(),
         points: n,
