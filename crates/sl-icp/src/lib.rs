@@ -71,6 +71,7 @@ mod icp;
 mod merge;
 mod metric;
 mod normals;
+mod pair_information;
 mod pose_error;
 mod pose_graph;
 mod prepared;
@@ -89,9 +90,10 @@ pub use global::{
 };
 pub use icp::{Evaluation, Icp, IcpStep, Registration, register};
 pub use merge::{
-    MergeConfig, MergedScan, PairRegistration, ViewAlignment, align_views, merge_aligned,
-    merge_views,
+    MergeConfig, MergedScan, PairRegistration, ViewAlignment, ViewPoseSource, align_views,
+    merge_aligned, merge_views,
 };
+pub use pair_information::FreeMotion;
 pub use pose_error::PoseError;
 pub use pose_graph::{
     PoseGraph, PoseGraphConfig, PoseGraphEdge, PoseGraphSolution, optimize_pose_graph,
