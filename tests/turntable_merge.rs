@@ -213,11 +213,9 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
         }
         worst
     };
-    // The turntable model (opt-in: `PoseModel::default` is the free pose graph).
-    let config = MergeConfig {
-        pose_model: PoseModel::Turntable(TurntablePrior::default()),
-        ..MergeConfig::default()
-    };
+    // The default merge: the turntable model, the calibration kept where the registrations
+    // agree with it.
+    let config = MergeConfig::default();
     let report = |name: &str, cloud: &PointCloud, poses: &[Isometry3<f64>]| -> f64 {
         let (r, p99) = surface(cloud);
         let (deg, mm) = pose_errors(poses);
@@ -245,7 +243,7 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     };
     let old = merge_views(&views, &initial, &free).unwrap();
     let old_rms = report(
-        "pairwise ICP + free pose graph (before)",
+        "pairwise ICP + free pose graph",
         &old.cloud,
         &old.alignment.poses,
     );
@@ -253,32 +251,34 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     let merged = merge_views(&views, &initial, &config).unwrap();
     let merge_s = t.elapsed().as_secs_f64();
     let merged_rms = report(
-        "pairwise ICP + turntable model",
+        "default merge (turntable model)",
         &merged.cloud,
         &merged.alignment.poses,
     );
+    eprintln!("  {}", merged.alignment.pose_summary());
 
     // A poorly calibrated axis: the registrations must correct it.
     let poor = perturbed(&axis, POOR_TILT_DEG, POOR_SHIFT_MM);
     let poor_initial = turntable_poses(&poor, &angles).unwrap();
     let poor_odometry = merge_aligned(&views, &poor_initial, &config).unwrap();
-    report(
+    let poor_odometry_rms = report(
         "turntable poses, axis off 0.5° / 1 mm",
         &poor_odometry,
         &poor_initial,
     );
     let poor_default = merge_views(&views, &poor_initial, &config).unwrap();
     report(
-        "  + turntable model, default priors",
+        "  + default merge",
         &poor_default.cloud,
         &poor_default.alignment.poses,
     );
+    eprintln!("  {}", poor_default.alignment.pose_summary());
     let loose = MergeConfig {
         pose_model: PoseModel::Turntable(TurntablePrior::none()),
         ..config
     };
     let poor_loose = merge_views(&views, &poor_initial, &loose).unwrap();
-    let poor_rms_loose = report(
+    report(
         "  + turntable model, no priors",
         &poor_loose.cloud,
         &poor_loose.alignment.poses,
@@ -286,12 +286,6 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     let (poor_deg, poor_mm) = pose_errors(&poor_default.alignment.poses);
     let poor_rms = surface(&poor_default.cloud).0;
     let fit = poor_default.alignment.turntable.as_ref().unwrap();
-    eprintln!(
-        "poor axis: confirmed {} (must not be), angle scale {:.6}; calibrated axis: confirmed {}",
-        fit.axis_confirmed,
-        fit.angle_scale,
-        merged.alignment.turntable.as_ref().unwrap().axis_confirmed
-    );
     eprintln!(
         "merge_views {merge_s:.2} s (target {TARGET_MERGE_S} s) for {VIEWS} x {per_view} points, \
          {} merged points",
@@ -310,21 +304,25 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
         old_rms <= OLD_RMS_BOUND_MM,
         "free pose graph merge RMS {old_rms} mm"
     );
-    // The issue's target, met by keeping the confirmed calibration.
+    // Issue 28: the default merge is at least as good as the calibrated turntable's poses
+    // (0.2 % for the rounding of a re-generated pose), and meets issue 7's target.
+    assert!(
+        merged_rms <= odometry_rms * 1.002,
+        "default merge RMS {merged_rms} mm, calibrated turntable {odometry_rms} mm"
+    );
     assert!(merged_rms <= TARGET_RMS_MM, "merged RMS {merged_rms} mm");
     assert!(merged.alignment.turntable.as_ref().unwrap().axis_confirmed);
     // The poorly calibrated axis is rejected and corrected by the registrations, down to
-    // their own bias (measured 0.0552 mm RMS, worst view 0.059° / 0.114 mm, from 0.561 mm).
+    // their own bias.
     assert!(!fit.axis_confirmed);
     assert!(
-        poor_rms <= POOR_RMS_BOUND_MM,
-        "poor-axis merge RMS {poor_rms} mm"
+        poor_rms <= POOR_RMS_BOUND_MM && poor_rms < poor_odometry_rms / 5.0,
+        "poor-axis merge RMS {poor_rms} mm (turntable poses {poor_odometry_rms} mm)"
     );
     assert!(
         poor_deg < 0.08 && poor_mm < 0.15,
         "poor axis not corrected: {poor_deg}° / {poor_mm} mm"
     );
-    let _ = poor_rms_loose;
 }
 
 /// `axis` tilted by `tilt_deg` (about a direction perpendicular to it) and moved by
