@@ -1,6 +1,6 @@
 //! The 360° merge of a turntable scan: pairwise registration of neighbouring views, a loop
-//! closure, a pose graph that spreads the drift, then one merged, downsampled cloud with
-//! normals.
+//! closure, the poses from the turntable model (or a free pose graph), then one merged,
+//! downsampled cloud with normals.
 
 use nalgebra::{Isometry3, Matrix6, Point3, Vector3};
 use rayon::prelude::*;
