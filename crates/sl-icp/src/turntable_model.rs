@@ -409,9 +409,10 @@ const WEAK_ANGLE_SIGMA_DEG: f64 = 10.0;
 const WEAK_AXIS_DIRECTION_SIGMA_DEG: f64 = 10.0;
 const WEAK_AXIS_POSITION_SIGMA_MM: f64 = 100.0;
 
-/// A view's angle counts as measured by the registrations when they bring its standard
-/// deviation below this (degrees, with the weak priors alone it is 10°): ten times the weak
-/// prior's precision, and still a hundred times a working registration's (~0.01°).
+/// A view's angle counts as measured by the registrations when they alone (their
+/// information on it, scaled by their scatter) put its standard deviation below this
+/// (degrees): a hundred times a working registration's (~0.01°), and far below what a
+/// registration degenerate about the turntable's rotation gives (nothing).
 const CONSTRAINED_ANGLE_DEG: f64 = 1.0;
 
 /// The 99.73 % quantile of χ² with 4 degrees of freedom (the 3-sigma level of a
@@ -805,26 +806,42 @@ pub(crate) fn fit_turntable_gated(
             }
             let i = ANGLES + k - 1;
             let unit = unit_cov[(i, i)];
-            let constrained = unit.sqrt() < CONSTRAINED_ANGLE_DEG.to_radians();
+            // What the registrations alone say of the angle: the fit's information less the
+            // weak prior's, scaled by their scatter.
+            let weak_info = 1.0 / WEAK_ANGLE_SIGMA_DEG.to_radians().powi(2);
+            let registered_info = (1.0 / unit.max(f64::MIN_POSITIVE) - weak_info).max(0.0);
+            let constrained = registered_info > 0.0
+                && s2_angles / registered_info < CONSTRAINED_ANGLE_DEG.to_radians().powi(2);
             (x_ang[i], unit * s2_angles, constrained)
         })
         .collect();
-    // The angle scale: weighted least squares of (registered - motor) = κ motor.
+    // The angle scale: (registered - motor) = κ motor, by the median of the views' ratios
+    // (a motor that stopped short at a few views, or a platter that slipped over less than half
+    // the turn, moves a least-squares κ but not the median), with the least-squares standard
+    // deviation times 1.2533 (the median's efficiency).
     let (mut kappa, mut scale_corrected) = (0.0, false);
     if let Some(sa) = motor {
-        let (mut num, mut den) = (0.0, 0.0);
+        let mut ratios = Vec::new();
+        let (mut sum_a2, mut sum_var) = (0.0, 0.0);
         for (k, &(theta, var, constrained)) in views.iter().enumerate().skip(1) {
             let a0 = calibrated.angles[k];
-            if constrained {
-                let w = 1.0 / (var + sa * sa + systematic * systematic);
-                num += w * a0 * (theta - a0);
-                den += w * a0 * a0;
+            if constrained && a0.abs() > 1e-9 {
+                ratios.push((theta - a0) / a0);
+                sum_a2 += a0 * a0;
+                sum_var += var + sa * sa + systematic * systematic;
             }
         }
-        if den > 0.0 {
-            let k = num / den;
-            if k.abs() * den.sqrt() > SCALE_GATE {
-                kappa = k;
+        if !ratios.is_empty() && sum_a2 > 0.0 {
+            ratios.sort_by(f64::total_cmp);
+            let m = ratios.len();
+            let median = if m % 2 == 1 {
+                ratios[m / 2]
+            } else {
+                0.5 * (ratios[m / 2 - 1] + ratios[m / 2])
+            };
+            let sigma = 1.2533 * (sum_var / m as f64).sqrt() / sum_a2.sqrt();
+            if median.abs() > SCALE_GATE * sigma {
+                kappa = median;
                 scale_corrected = true;
             }
         }
