@@ -464,14 +464,17 @@ pub fn align_views(
         initial.to_vec()
     };
     let graph = PoseGraph { nodes, edges };
+    // A pair placed by the global fallback contradicts the initial poses beyond ICP's reach:
+    // they are no turntable prior to hold views to, so the free pose graph places the views.
+    let fallback_used = pairs.iter().any(|p| p.used && p.global);
     let calibrated = match &config.pose_model {
-        PoseModel::Turntable(prior) => {
+        PoseModel::Turntable(prior) if !fallback_used => {
             let centre = prepared
                 .first()
                 .map_or_else(Point3::origin, PreparedCloud::centroid);
             Turntable::from_poses(initial, &centre).map(|t| (t, *prior))
         }
-        PoseModel::Free => None,
+        PoseModel::Turntable(_) | PoseModel::Free => None,
     };
     let Some((calibrated, prior)) = calibrated else {
         let pose_graph = optimize_pose_graph(&graph, &config.pose_graph)?;

@@ -141,7 +141,8 @@ pub enum PoseModel {
     /// The views are one turntable's: the initial poses are read as an axis and one platter
     /// angle per view (as [`turntable_poses`](crate::turntable_poses) makes them), and the
     /// registrations refine the axis line and the angles, held near their calibrated values by
-    /// the priors. When the initial poses are not rotations about one axis, the merge falls
+    /// the priors. When the initial poses are not rotations about one axis, or a pair had to
+    /// be placed by the global fallback (the initial poses are then far off), the merge falls
     /// back to [`PoseModel::Free`] (and [`ViewAlignment::turntable`](crate::ViewAlignment)
     /// is `None`).
     Turntable(TurntablePrior),
