@@ -10,9 +10,8 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use sl_camera::{Calibration, TurntableAxis};
 use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
 use sl_icp::{
-    IcpError, MergeConfig, PairRegistration, PoseModel, TurntablePrior, ViewPoseSource, align_views,
-    merge_aligned,
-    turntable_poses,
+    IcpError, MergeConfig, PairRegistration, PoseModel, TurntablePrior, ViewPoseSource,
+    align_views, merge_aligned, turntable_poses,
 };
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};

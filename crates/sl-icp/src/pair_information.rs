@@ -128,7 +128,8 @@ pub(crate) fn project_degenerate(
 ) -> PairInformation {
     // A motion (ω, v) about the centre is (ω, v + c × ω) about the origin: x = A y.
     let mut a = Matrix6::<f64>::identity();
-    a.fixed_view_mut::<3, 3>(3, 0).copy_from(&skew(&centre.coords));
+    a.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&skew(&centre.coords));
     // Rotations in mm at the radius: y = D z with D = diag(I / r, I).
     let mut d = Matrix6::<f64>::identity();
     for i in 0..3 {
@@ -194,7 +195,12 @@ mod tests {
     use super::*;
 
     /// Points and outward normals of a sphere (Fibonacci lattice), a part of it.
-    fn sphere(centre: Point3<f64>, radius: f64, n: usize, cap: f64) -> Vec<(Point3<f64>, Vector3<f64>)> {
+    fn sphere(
+        centre: Point3<f64>,
+        radius: f64,
+        n: usize,
+        cap: f64,
+    ) -> Vec<(Point3<f64>, Vector3<f64>)> {
         let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
         (0..n)
             .filter_map(|i| {
@@ -216,7 +222,10 @@ mod tests {
         assert_eq!(info.free.len(), 3, "{:?}", info.free);
         for f in &info.free {
             match f {
-                FreeMotion::Rotation { point_mm, direction } => {
+                FreeMotion::Rotation {
+                    point_mm,
+                    direction,
+                } => {
                     // The line passes through the centre.
                     let off = (point_mm - c) - direction * (point_mm - c).dot(direction);
                     assert!(off.norm() < 1e-6, "{f}");
@@ -238,13 +247,20 @@ mod tests {
 
     #[test]
     fn two_spheres_leave_only_the_turn_about_their_line_free() {
-        let (a, b) = (Point3::new(-60.0, 0.0, 450.0), Point3::new(60.0, 5.0, 450.0));
+        let (a, b) = (
+            Point3::new(-60.0, 0.0, 450.0),
+            Point3::new(60.0, 5.0, 450.0),
+        );
         let mut pts = sphere(a, 25.0, 3000, 0.3);
         pts.extend(sphere(b, 25.0, 3000, 0.3));
         let centre = Point3::from((a.coords + b.coords) / 2.0);
         let info = project_degenerate(&information_of(&pts), &centre, 60.0);
         assert_eq!(info.free.len(), 1, "{:?}", info.free);
-        let FreeMotion::Rotation { direction, point_mm } = info.free[0] else {
+        let FreeMotion::Rotation {
+            direction,
+            point_mm,
+        } = info.free[0]
+        else {
             panic!("{:?}", info.free);
         };
         let line = (b - a).normalize();

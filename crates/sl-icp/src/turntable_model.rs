@@ -584,7 +584,11 @@ impl Problem<'_> {
         if !self.free.scale {
             held.push(SCALE);
         }
-        held.extend((1..self.prior_angles.len()).filter(|&k| !self.angle_free(k)).map(|k| ANGLES + k - 1));
+        held.extend(
+            (1..self.prior_angles.len())
+                .filter(|&k| !self.angle_free(k))
+                .map(|k| ANGLES + k - 1),
+        );
         for i in held {
             for j in 0..dim {
                 h[(i, j)] = 0.0;
@@ -651,7 +655,9 @@ impl Problem<'_> {
 fn rank(m: &Matrix6<f64>) -> usize {
     let e = SymmetricEigen::new(*m).eigenvalues;
     let largest = e.iter().copied().fold(0.0, f64::max);
-    e.iter().filter(|&&v| largest > 0.0 && v > 1e-9 * largest).count()
+    e.iter()
+        .filter(|&&v| largest > 0.0 && v > 1e-9 * largest)
+        .count()
 }
 
 /// Result of `fit_turntable`.
@@ -1142,7 +1148,9 @@ mod tests {
     fn registrations_overrule_only_the_motor_readings_they_contradict() {
         let axis = true_axis();
         let truth_angles: Vec<f64> = (0..36)
-            .map(|i| 10.0 * i as f64 + if i == 7 { 0.5 } else { 0.0 } + if i >= 20 { 0.3 } else { 0.0 })
+            .map(|i| {
+                10.0 * i as f64 + if i == 7 { 0.5 } else { 0.0 } + if i >= 20 { 0.3 } else { 0.0 }
+            })
             .collect();
         let truth = turntable_poses(&axis, &truth_angles).unwrap();
         let centre = Point3::new(0.0, 0.0, 470.0);

@@ -38,7 +38,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     while let Some(a) = it.next() {
         match a.as_str() {
             "--downscale" => downscale = it.next().ok_or("--downscale needs a value")?.parse()?,
-            "--placements" => placements = it.next().ok_or("--placements needs a value")?.parse()?,
+            "--placements" => {
+                placements = it.next().ok_or("--placements needs a value")?.parse()?
+            }
             other => dir = Some(PathBuf::from(other)),
         }
     }
@@ -154,7 +156,11 @@ fn describe(a: &sl_icp::ViewAlignment) -> String {
     let count = |f: fn(&sl_icp::ViewPoseSource) -> bool| a.sources.iter().filter(|s| f(s)).count();
     format!(
         "axis {} ({:.1} σ), s² {:.3}, scale {:.6}; angles: motor {}, prior only {}, registrations {}",
-        if t.axis_confirmed { "calibrated" } else { "registered" },
+        if t.axis_confirmed {
+            "calibrated"
+        } else {
+            "registered"
+        },
         t.axis_distance,
         t.variance_factor,
         t.angle_scale,

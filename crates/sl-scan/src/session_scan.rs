@@ -27,8 +27,8 @@ use sl_camera::Calibration;
 use sl_cloud::PointCloud;
 
 use crate::{
-    MergeReport, MergeStageConfig, ReconstructConfig, ScanError, ScanProgress, StageTime, merge_scan,
-    reconstruct_session,
+    MergeReport, MergeStageConfig, ReconstructConfig, ScanError, ScanProgress, StageTime,
+    merge_scan, reconstruct_session,
 };
 
 /// Options of [`scan_session`].

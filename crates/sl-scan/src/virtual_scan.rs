@@ -25,10 +25,10 @@ use crate::calibrate::calibrate_virtual_stage;
 use crate::error::{io, stage_err};
 use crate::mesh::{MeshFiles, MeshOptions, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::{
-    CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX, ScanError,
-    ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan, plate_scene,
-    plate_truth, reconstruct_view_eroded, scan_patterns, scan_session, scene_truth, write_heat_map,
-    write_scan_cloud,
+    CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX,
+    ScanError, ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan,
+    plate_scene, plate_truth, reconstruct_view_eroded, scan_patterns, scan_session, scene_truth,
+    write_heat_map, write_scan_cloud,
 };
 
 /// Options of [`scan_virtual`].

@@ -326,7 +326,12 @@ fn a_dense_session_with_an_approximate_axis_is_refined_onto_the_true_spheres() {
         refined.merged.len(),
         refined.merge.summary
     );
-    assert_eq!(refined.merge.axis_confirmed, Some(false), "{:?}", refined.merge);
+    assert_eq!(
+        refined.merge.axis_confirmed,
+        Some(false),
+        "{:?}",
+        refined.merge
+    );
     // The error the refinement has to remove is there...
     assert!(rms_placed > 0.15, "{rms_placed}");
     // ...and mostly removed (0.035 mm measured with 8-step captures, the free pose graph and
@@ -430,8 +435,18 @@ fn the_default_merge_of_a_dumbbell_is_not_worse_than_the_calibrated_turntable() 
     // Every view says where its pose came from; the calibrated axis is confirmed.
     assert_eq!(merged.merge.views.len(), 18);
     assert_eq!(merged.merge.views[0].source, "reference");
-    assert_eq!(merged.merge.axis_confirmed, Some(true), "{:?}", merged.merge);
-    assert!(merged.merge.summary.starts_with("18 views: axis from the calibration"));
+    assert_eq!(
+        merged.merge.axis_confirmed,
+        Some(true),
+        "{:?}",
+        merged.merge
+    );
+    assert!(
+        merged
+            .merge
+            .summary
+            .starts_with("18 views: axis from the calibration")
+    );
 }
 
 #[test]
