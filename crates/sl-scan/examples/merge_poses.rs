@@ -9,7 +9,8 @@
 //! cargo run --release -p sl-scan --example merge_poses -- /tmp/p0 --placements 2
 //! ```
 //!
-//! Options: `--downscale D` (as the scan's), `--placements 2`. The dumbbell is measured
+//! Options: `--downscale D` (as the scan's), `--placements 2`, `--only-default` (sl-icp's
+//! default merge alone). The dumbbell is measured
 //! against the scan's `truth.json` (RMS to the true surface, probing size and form, sphere
 //! spacing), each pebble placement against its true triangle mesh (RMS distance).
 
@@ -34,6 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut dir = None;
     let mut downscale = 1u32;
     let mut placements = 1usize;
+    let mut only_default = false;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -51,7 +53,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let truth = Truth::load(&dir.join("truth.json"))?;
         let views = reconstruct(&dir.join("session"), &calibration)?;
         let true_poses = true_poses(&rig, &views.motor_angles_deg);
-        for (name, cloud, sources) in merges(&views, &true_poses)? {
+        for (name, cloud, sources) in merges(&views, &true_poses, only_default)? {
             let r = evaluate(&cloud, &truth)?;
             let spheres: Vec<String> = r
                 .spheres
@@ -78,7 +80,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &calibration,
             )?;
             let true_poses = true_poses(&rig, &views.motor_angles_deg);
-            for (name, cloud, sources) in merges(&views, &true_poses)? {
+            for (name, cloud, sources) in merges(&views, &true_poses, only_default)? {
                 let d = distance_to_surface(
                     &cloud,
                     &truth,
@@ -119,9 +121,18 @@ fn true_poses(rig: &sl_sim::RigConfig, motor_deg: &[f64]) -> Vec<Isometry3<f64>>
 fn merges(
     views: &sl_scan::ReconstructedViews,
     truth: &[Isometry3<f64>],
+    only_default: bool,
 ) -> Result<Vec<(String, PointCloud, String)>, Box<dyn std::error::Error>> {
     let base = MergeStageConfig::scan(true, 16, true).merge;
     let calibrated = turntable_poses(&views.axis, &views.motor_angles_deg)?;
+    if only_default {
+        let m = merge_views(&views.clouds, &calibrated, &base)?;
+        return Ok(vec![(
+            "sl-icp default".to_owned(),
+            m.cloud,
+            describe(&m.alignment),
+        )]);
+    }
     let mut out = vec![
         (
             "true poses".to_owned(),
