@@ -43,6 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--placements" => {
                 placements = it.next().ok_or("--placements needs a value")?.parse()?
             }
+            "--only-default" => only_default = true,
             other => dir = Some(PathBuf::from(other)),
         }
     }
