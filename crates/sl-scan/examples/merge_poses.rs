@@ -118,12 +118,15 @@ fn true_poses(rig: &sl_sim::RigConfig, motor_deg: &[f64]) -> Vec<Isometry3<f64>>
         .collect()
 }
 
+/// One merge: its name, its cloud, and what it says of its poses.
+type Merged = (String, PointCloud, String);
+
 /// Each merge: name, cloud, and what the merge says of its poses.
 fn merges(
     views: &sl_scan::ReconstructedViews,
     truth: &[Isometry3<f64>],
     only_default: bool,
-) -> Result<Vec<(String, PointCloud, String)>, Box<dyn std::error::Error>> {
+) -> Result<Vec<Merged>, Box<dyn std::error::Error>> {
     let base = MergeStageConfig::scan(true, 16, true).merge;
     let calibrated = turntable_poses(&views.axis, &views.motor_angles_deg)?;
     if only_default {
