@@ -9,14 +9,11 @@
 //! camera frame) is known exactly, so the merged cloud's distance to it is the figure.
 //!
 //! Issue 7 targets: RMS distance to the true surface ≤ 0.03 mm, merge of 36 views of ~100k
-//! points ≤ 5 s on 2 cores. Measured 2026-11-23 (release, load ≈ 6 on 2 cores), views of
-//! 144k points, per-view RMS 0.0241 mm; merged RMS with the true poses 0.0166 mm; with the
-//! turntable poses of the calibrated axis (off by 0.005° / 0.03 mm, sl-calib's accuracy)
-//! 0.0249 mm; pairwise ICP + free pose graph 0.0597 mm; the default turntable model (the
-//! registrations confirm the calibrated axis, angles and angle scale refitted) 0.0278 mm. From
-//! an axis off by 0.5° / 1 mm (0.561 mm) the registrations reject the axis and bring it to
-//! 0.0552 mm. `merge_views` took 3.8 s for 36 × 144k points at load ≈ 4, 6–16 s at load 5–7. Rendering
-//! 36 views takes minutes in the dev profile, so the test is ignored there; run it with
+//! points ≤ 5 s on 2 cores. Issue 28: the default merge (the turntable model: the calibrated
+//! turntable kept where the registrations confirm it) is at least as good as the calibrated
+//! turntable's poses alone, and corrects an axis off by 0.5° / 1 mm. The figures are in
+//! `docs/registration.md`. Rendering 36 views takes minutes in the dev profile, so the test is
+//! ignored there; run it with
 //!
 //! ```sh
 //! cargo test --release --test turntable_merge -- --nocapture
@@ -49,7 +46,7 @@ const STEP_DEG: f64 = 10.0;
 const TARGET_RMS_MM: f64 = 0.03;
 
 /// Bound on the RMS of the merge with `PoseModel::Free` (pairwise ICP + free pose graph, the
-/// merge before the turntable model). Measured 0.0597 mm: the pairwise registrations are
+/// default before issue 28). Measured 0.0597 mm: the pairwise registrations are
 /// biased by ~0.1 mm / ~0.02° on these views (decoder ripple, grazing faces), and a free pose
 /// graph keeps the bias. Held to 0.075 mm (25 % over) so a regression fails.
 const OLD_RMS_BOUND_MM: f64 = 0.075;
@@ -213,11 +210,9 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
         }
         worst
     };
-    // The turntable model (opt-in: `PoseModel::default` is the free pose graph).
-    let config = MergeConfig {
-        pose_model: PoseModel::Turntable(TurntablePrior::default()),
-        ..MergeConfig::default()
-    };
+    // The default merge: the turntable model, the calibration kept where the registrations
+    // agree with it.
+    let config = MergeConfig::default();
     let report = |name: &str, cloud: &PointCloud, poses: &[Isometry3<f64>]| -> f64 {
         let (r, p99) = surface(cloud);
         let (deg, mm) = pose_errors(poses);
@@ -245,7 +240,7 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     };
     let old = merge_views(&views, &initial, &free).unwrap();
     let old_rms = report(
-        "pairwise ICP + free pose graph (before)",
+        "pairwise ICP + free pose graph",
         &old.cloud,
         &old.alignment.poses,
     );
@@ -253,32 +248,34 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     let merged = merge_views(&views, &initial, &config).unwrap();
     let merge_s = t.elapsed().as_secs_f64();
     let merged_rms = report(
-        "pairwise ICP + turntable model",
+        "default merge (turntable model)",
         &merged.cloud,
         &merged.alignment.poses,
     );
+    eprintln!("  {}", merged.alignment.pose_summary());
 
     // A poorly calibrated axis: the registrations must correct it.
     let poor = perturbed(&axis, POOR_TILT_DEG, POOR_SHIFT_MM);
     let poor_initial = turntable_poses(&poor, &angles).unwrap();
     let poor_odometry = merge_aligned(&views, &poor_initial, &config).unwrap();
-    report(
+    let poor_odometry_rms = report(
         "turntable poses, axis off 0.5° / 1 mm",
         &poor_odometry,
         &poor_initial,
     );
     let poor_default = merge_views(&views, &poor_initial, &config).unwrap();
     report(
-        "  + turntable model, default priors",
+        "  + default merge",
         &poor_default.cloud,
         &poor_default.alignment.poses,
     );
+    eprintln!("  {}", poor_default.alignment.pose_summary());
     let loose = MergeConfig {
         pose_model: PoseModel::Turntable(TurntablePrior::none()),
         ..config
     };
     let poor_loose = merge_views(&views, &poor_initial, &loose).unwrap();
-    let poor_rms_loose = report(
+    report(
         "  + turntable model, no priors",
         &poor_loose.cloud,
         &poor_loose.alignment.poses,
@@ -286,12 +283,6 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     let (poor_deg, poor_mm) = pose_errors(&poor_default.alignment.poses);
     let poor_rms = surface(&poor_default.cloud).0;
     let fit = poor_default.alignment.turntable.as_ref().unwrap();
-    eprintln!(
-        "poor axis: confirmed {} (must not be), angle scale {:.6}; calibrated axis: confirmed {}",
-        fit.axis_confirmed,
-        fit.angle_scale,
-        merged.alignment.turntable.as_ref().unwrap().axis_confirmed
-    );
     eprintln!(
         "merge_views {merge_s:.2} s (target {TARGET_MERGE_S} s) for {VIEWS} x {per_view} points, \
          {} merged points",
@@ -310,21 +301,25 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
         old_rms <= OLD_RMS_BOUND_MM,
         "free pose graph merge RMS {old_rms} mm"
     );
-    // The issue's target, met by keeping the confirmed calibration.
+    // Issue 28: the default merge is at least as good as the calibrated turntable's poses
+    // (0.2 % for the rounding of a re-generated pose), and meets issue 7's target.
+    assert!(
+        merged_rms <= odometry_rms * 1.002,
+        "default merge RMS {merged_rms} mm, calibrated turntable {odometry_rms} mm"
+    );
     assert!(merged_rms <= TARGET_RMS_MM, "merged RMS {merged_rms} mm");
     assert!(merged.alignment.turntable.as_ref().unwrap().axis_confirmed);
     // The poorly calibrated axis is rejected and corrected by the registrations, down to
-    // their own bias (measured 0.0552 mm RMS, worst view 0.059° / 0.114 mm, from 0.561 mm).
+    // their own bias.
     assert!(!fit.axis_confirmed);
     assert!(
-        poor_rms <= POOR_RMS_BOUND_MM,
-        "poor-axis merge RMS {poor_rms} mm"
+        poor_rms <= POOR_RMS_BOUND_MM && poor_rms < poor_odometry_rms / 5.0,
+        "poor-axis merge RMS {poor_rms} mm (turntable poses {poor_odometry_rms} mm)"
     );
     assert!(
         poor_deg < 0.08 && poor_mm < 0.15,
         "poor axis not corrected: {poor_deg}° / {poor_mm} mm"
     );
-    let _ = poor_rms_loose;
 }
 
 /// `axis` tilted by `tilt_deg` (about a direction perpendicular to it) and moved by

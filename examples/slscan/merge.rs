@@ -10,8 +10,8 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use sl_camera::{Calibration, TurntableAxis};
 use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
 use sl_icp::{
-    IcpError, MergeConfig, PairRegistration, PoseModel, TurntablePrior, align_views, merge_aligned,
-    turntable_poses,
+    IcpError, MergeConfig, PairRegistration, PoseModel, TurntablePrior, ViewPoseSource,
+    align_views, merge_aligned, turntable_poses,
 };
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
@@ -56,11 +56,13 @@ pub(crate) struct Args {
     /// Do not register the first view onto the last (for a scan that is not a full turn).
     #[arg(long)]
     pub(crate) no_loop: bool,
-    /// Fit the turntable model (an axis and one angle per view, the calibrated axis kept when
-    /// the registrations confirm it) instead of giving each view its own 6-degree-of-freedom
-    /// pose (the free pose graph, the default). More accurate on well-conditioned objects;
-    /// wrong on nearly symmetric ones (docs/registration.md).
-    #[arg(long)]
+    /// Give each view its own 6-degree-of-freedom pose (the free pose graph) instead of the
+    /// default turntable model (an axis and one angle per view; the calibrated turntable
+    /// kept wherever the registrations agree with it, docs/registration.md).
+    #[arg(long, conflicts_with = "turntable_model")]
+    pub(crate) free_pose_graph: bool,
+    /// The turntable model: the default since issue 28; accepted for old scripts.
+    #[arg(long, hide = true)]
     pub(crate) turntable_model: bool,
     /// Multiply coordinates by this when reading (1000 for clouds in metres).
     #[arg(long, default_value_t = 1.0)]
@@ -195,10 +197,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         output_voxel_size: (args.voxel > 0.0).then_some(args.voxel),
         average_overlaps: args.average,
         loop_closure: !args.no_loop,
-        pose_model: if args.turntable_model {
-            PoseModel::Turntable(TurntablePrior::default())
-        } else {
+        pose_model: if args.free_pose_graph {
             PoseModel::Free
+        } else {
+            PoseModel::Turntable(TurntablePrior::default())
         },
         ..MergeConfig::default()
     };
@@ -314,6 +316,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             "turntable",
             serde_json::json!({
                 "axis_confirmed": t.axis_confirmed,
+                "axis_distance_sigma": t.axis_distance.is_finite().then_some(t.axis_distance),
+                "variance_factor": t.variance_factor,
+                "angle_scale_corrected": t.angle_scale_corrected,
                 "initial_axis": axis(&t.initial_axis),
                 "registered_axis": axis(&t.registered_axis),
                 "axis": axis(&t.axis),
@@ -322,7 +327,37 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             }),
         );
     }
+    report.figure("pose_summary", alignment.pose_summary());
+    report.figure(
+        "pose_sources",
+        serde_json::Value::Array(
+            alignment
+                .sources
+                .iter()
+                .enumerate()
+                .map(|(k, s)| pose_source_figure(k, s))
+                .collect(),
+        ),
+    );
+    report.figure(
+        "pair_free_motions",
+        serde_json::Value::Array(
+            alignment
+                .pairs
+                .iter()
+                .filter(|p| !p.free_motions.is_empty())
+                .map(|p| {
+                    serde_json::json!({
+                        "target": p.target,
+                        "source": p.source,
+                        "free": p.free_motions.iter().map(ToString::to_string).collect::<Vec<_>>(),
+                    })
+                })
+                .collect(),
+        ),
+    );
     let path = report.write(&dir)?;
+    println!("poses: {}", alignment.pose_summary());
     println!(
         "{}: {} views ({} pairs used of {}, {} by global registration), {} points; largest pose correction {:.3} deg",
         ply.display(),
@@ -335,4 +370,25 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     );
     println!("report: {}", path.display());
     Ok(())
+}
+
+/// One view's pose source for `report.json`.
+fn pose_source_figure(view: usize, s: &ViewPoseSource) -> serde_json::Value {
+    match s {
+        ViewPoseSource::Reference => serde_json::json!({"view": view, "source": "reference"}),
+        ViewPoseSource::Turntable => serde_json::json!({"view": view, "source": "turntable"}),
+        ViewPoseSource::TurntablePriorOnly { why } => {
+            serde_json::json!({"view": view, "source": "turntable prior only", "why": why})
+        }
+        ViewPoseSource::Registrations {
+            motor_off_deg,
+            sigmas,
+        } => serde_json::json!({
+            "view": view,
+            "source": "registrations",
+            "motor_off_deg": motor_off_deg,
+            "sigmas": sigmas.is_finite().then_some(*sigmas),
+        }),
+        ViewPoseSource::PoseGraph => serde_json::json!({"view": view, "source": "pose graph"}),
+    }
 }

@@ -150,6 +150,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("flatness", serde_json::to_value(&result.flatness)?);
     report.figure("first_view", serde_json::to_value(&result.first_view)?);
     report.figure("mesh", serde_json::to_value(&result.mesh)?);
+    report.figure("merge", serde_json::to_value(&result.merge)?);
     report.figure("files", serde_json::to_value(&result.files)?);
     report.add_stages(&result.stages);
     report.write(&out)?;
@@ -172,6 +173,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         result.merged.len(),
         args.views
     );
+    println!("  poses: {}", result.merge.summary);
     for line in result.accuracy.summary() {
         println!("  {line}");
     }
@@ -281,6 +283,7 @@ fn run_placements(args: &Args) -> anyhow::Result<()> {
             100.0 * p.coverage.covered_fraction,
             p.distance.rms_mm
         );
+        println!("  poses: {}", p.merge.summary);
     }
     println!(
         "{}: {} points merged from {} placements: covers {:.2} % of the true surface (within {:.2} mm), RMS {:.4} mm to it ({} points beyond {} mm)",

@@ -282,6 +282,7 @@ fn run_placements(
             "views": s.view_points.len(),
             "view_points": s.view_points,
             "merged_points": s.merged.len(),
+            "merge": s.merge,
             "merged": format!("{}/{}", placement_dir_name(k + 1), files.merged),
             "alignment": k.checked_sub(1).and_then(|i| scan.merge.alignments.get(i)),
         }));
@@ -406,6 +407,8 @@ fn reconstruct(
     report.figure("view_points", scan.view_points.clone());
     report.figure("merged_points", scan.merged.len());
     report.figure("icp_refinement", config.merge.icp_refinement);
+    report.figure("merge", serde_json::to_value(&scan.merge)?);
+    println!("poses: {}", scan.merge.summary);
     report.figure(
         "accuracy",
         "no truth for a real object: run `slscan report merged.ply --truth …` on a scan of a known sphere or plane",

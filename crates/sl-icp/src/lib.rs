@@ -12,13 +12,15 @@
 //!   Iterations run in parallel on the rayon pool and allocate nothing.
 //! - **Turntable merge** ([`turntable_poses`], [`align_views`], [`merge_aligned`],
 //!   [`merge_views`]): initial poses from the calibrated axis and the motor angles, pairwise
-//!   registration of neighbouring views with a loop closure, then the poses: by default a free
-//!   pose graph ([`optimize_pose_graph`]) that spreads the drift, or on request the turntable
-//!   model ([`PoseModel::Turntable`]: the axis and one angle per view, the calibrated axis
-//!   kept when the registrations confirm it, see [`TurntablePrior`]; wrong on nearly
-//!   symmetric objects, see [`PoseModel::default`]); then merge, voxel downsampling,
-//!   normals and optional averaging of overlapping points. `docs/registration.md` has the
-//!   figures.
+//!   registration of neighbouring views with a loop closure, then the poses: by default the
+//!   turntable model ([`PoseModel::Turntable`]: the axis and one angle per view; the
+//!   calibrated turntable kept wherever the registrations agree with it within both
+//!   uncertainties and corrected where they do not, each registration weighted by what it
+//!   measures along the surface normals, with the motions it leaves free — a sphere turning
+//!   on itself — given no weight; [`ViewAlignment::sources`] says where each view's pose came
+//!   from), or a free pose graph ([`optimize_pose_graph`], [`PoseModel::Free`]); then
+//!   merge, voxel downsampling, normals and optional averaging of overlapping points.
+//!   `docs/registration.md` has the figures.
 //!
 //! ```
 //! use nalgebra::{Isometry3, Point3, Vector3};
@@ -71,6 +73,7 @@ mod icp;
 mod merge;
 mod metric;
 mod normals;
+mod pair_information;
 mod pose_error;
 mod pose_graph;
 mod prepared;
@@ -89,9 +92,10 @@ pub use global::{
 };
 pub use icp::{Evaluation, Icp, IcpStep, Registration, register};
 pub use merge::{
-    MergeConfig, MergedScan, PairRegistration, ViewAlignment, align_views, merge_aligned,
-    merge_views,
+    MergeConfig, MergedScan, PairRegistration, ViewAlignment, ViewPoseSource, align_views,
+    merge_aligned, merge_views,
 };
+pub use pair_information::FreeMotion;
 pub use pose_error::PoseError;
 pub use pose_graph::{
     PoseGraph, PoseGraphConfig, PoseGraphEdge, PoseGraphSolution, optimize_pose_graph,

@@ -1,15 +1,16 @@
 //! The 360° merge of a turntable scan: pairwise registration of neighbouring views, a loop
-//! closure, a pose graph that spreads the drift, then one merged, downsampled cloud with
-//! normals.
+//! closure, the poses from the turntable model (or a free pose graph), then one merged,
+//! downsampled cloud with normals.
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Matrix6, Point3, Vector3};
 use rayon::prelude::*;
 use sl_cloud::{KdIndex, MergePolicy, NormalConfig, PointCloud, VoxelGridConfig, voxel_downsample};
 
 use crate::global::{GlobalCloud, GlobalConfig, register_global_prepared};
 use crate::normals::{local_planes, quadric_projection};
+use crate::pair_information::{FreeMotion, pair_information};
 use crate::pose_graph::unreachable;
-use crate::turntable_model::{Turntable, fit_turntable_gated};
+use crate::turntable_model::{AngleFrom, Turntable, fit_turntable_gated};
 use crate::{
     IcpConfig, IcpError, Metric, NormalSource, PoseGraph, PoseGraphConfig, PoseGraphEdge,
     PoseGraphSolution, PoseModel, PrepareConfig, PreparedCloud, Registration, TurntableFit,
@@ -44,9 +45,10 @@ pub struct MergeConfig {
     pub min_fitness: f64,
     /// The pose-graph optimisation (of [`PoseModel::Free`]).
     pub pose_graph: PoseGraphConfig,
-    /// How the registrations become poses. Default: the free pose graph
-    /// ([`PoseModel::default`] says why); `PoseModel::Turntable(TurntablePrior::default())`
-    /// fits an axis and one angle per view held near a calibrated turntable's values.
+    /// How the registrations become poses. Default: the turntable model with the default
+    /// priors ([`PoseModel::default`]): the calibrated turntable, kept where the
+    /// registrations agree with it and corrected where they do not; [`PoseModel::Free`] for
+    /// a free 6-degree-of-freedom pose graph.
     pub pose_model: PoseModel,
     /// Voxel size of the merged cloud; `None` keeps every point. Default 0.5 mm: averages the
     /// 10 to 40 overlapping samples of a dense 36-view scan, about the scanner's resolution.
@@ -173,6 +175,11 @@ pub struct PairRegistration {
     /// ([`MergeConfig::global_fallback`]) because ICP from the initial poses failed; `failure`
     /// then still says why that ICP failed when the fallback failed too.
     pub global: bool,
+    /// The motions this registration does not measure (its surfaces barely change under
+    /// them: a sphere turning about its centre, a bar about its axis), in the target view's
+    /// frame. The turntable model gives its pose no weight along them; empty for a failed
+    /// pair.
+    pub free_motions: Vec<FreeMotion>,
 }
 
 /// Result of [`align_views`].
@@ -187,6 +194,90 @@ pub struct ViewAlignment {
     pub pose_graph: PoseGraphSolution,
     /// The fitted turntable model, when [`PoseModel::Turntable`] was used.
     pub turntable: Option<TurntableFit>,
+    /// Which constraint each view's pose came from, one per view.
+    pub sources: Vec<ViewPoseSource>,
+}
+
+/// Which constraint a view's pose came from in [`align_views`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum ViewPoseSource {
+    /// View 0: it defines the world frame.
+    Reference,
+    /// The calibrated turntable (the axis of [`TurntableFit::axis`] and the motor reading
+    /// times [`TurntableFit::angle_scale`]), which the view's registrations confirm.
+    Turntable,
+    /// The calibrated turntable alone: the view's registrations do not measure its angle
+    /// (they failed, or are degenerate about the turntable's rotation); `why` says which.
+    TurntablePriorOnly {
+        /// The view's pairs and what each left free or why it failed.
+        why: String,
+    },
+    /// The view's angle from its registrations: they put it `motor_off_deg` away from the
+    /// motor reading, `sigmas` standard deviations (beyond the gate), so the reading is
+    /// overruled. The axis is still [`TurntableFit::axis`].
+    Registrations {
+        /// Registered angle minus the motor reading (× the angle scale), degrees.
+        motor_off_deg: f64,
+        /// That difference in standard deviations (infinite without an angle prior).
+        sigmas: f64,
+    },
+    /// The free pose graph ([`PoseModel::Free`], or initial poses that are not a
+    /// turntable's): a 6-degree-of-freedom pose from the registrations.
+    PoseGraph,
+}
+
+impl ViewAlignment {
+    /// One line saying where the poses came from, e.g. "36 views: axis from the calibration
+    /// (confirmed, 1.2 σ), angle scale 1 (confirmed); 35 angles from the motor (confirmed by
+    /// the registrations); view 17: turntable prior only (with view 16: degenerate: rotation
+    /// about …)".
+    pub fn pose_summary(&self) -> String {
+        let n = self.sources.len();
+        let Some(fit) = &self.turntable else {
+            return format!("{n} views: free pose graph (6 degrees of freedom per view)");
+        };
+        let axis = if fit.axis_confirmed {
+            format!(
+                "axis from the calibration (confirmed by the registrations, {:.1} σ)",
+                fit.axis_distance
+            )
+        } else if fit.axis_distance.is_finite() {
+            format!(
+                "axis from the registrations (the calibration is {:.1} σ off)",
+                fit.axis_distance
+            )
+        } else {
+            "axis from the registrations (no axis prior)".to_owned()
+        };
+        let scale = if fit.angle_scale_corrected {
+            format!("angle scale corrected to {:.6}", fit.angle_scale)
+        } else {
+            "angle scale 1".to_owned()
+        };
+        let motor = self
+            .sources
+            .iter()
+            .filter(|s| matches!(s, ViewPoseSource::Turntable))
+            .count();
+        let mut parts = vec![format!(
+            "{n} views: {axis}, {scale}; {motor} angles from the motor (confirmed by the registrations)"
+        )];
+        for (k, s) in self.sources.iter().enumerate() {
+            match s {
+                ViewPoseSource::TurntablePriorOnly { why } => {
+                    parts.push(format!("view {k}: turntable prior only ({why})"));
+                }
+                ViewPoseSource::Registrations {
+                    motor_off_deg,
+                    sigmas,
+                } => parts.push(format!(
+                    "view {k}: angle from the registrations (motor reading {motor_off_deg:+.3}° off, {sigmas:.1} σ)"
+                )),
+                _ => {}
+            }
+        }
+        parts.join("; ")
+    }
 }
 
 /// Result of [`merge_views`].
@@ -274,6 +365,7 @@ pub fn align_views(
                         failure: Some("view index out of range".into()),
                         used: false,
                         global: false,
+                        free_motions: Vec::new(),
                     };
                 };
                 let start = pt.inverse() * ps;
@@ -290,6 +382,7 @@ pub fn align_views(
                         }),
                         registration: Some(r),
                         global: false,
+                        free_motions: Vec::new(),
                     },
                     Err(e) => PairRegistration {
                         target: t,
@@ -298,11 +391,12 @@ pub fn align_views(
                         failure: Some(e.to_string()),
                         used: false,
                         global: false,
+                        free_motions: Vec::new(),
                     },
                 }
             })
             .collect();
-    let pairs = match &config.global_fallback {
+    let mut pairs = match &config.global_fallback {
         Some(global) => with_global_fallback(views, &prepared, pairs, global, config),
         None => pairs,
     };
@@ -314,6 +408,23 @@ pub fn align_views(
             pairs,
         });
     }
+    // What each used registration measures along the normals, and what it leaves free.
+    let gate = config.icp.max_correspondence_distance;
+    let plane: Vec<Option<Matrix6<f64>>> = pairs
+        .par_iter_mut()
+        .map(|p| {
+            let (Some(r), Some(s), Some(t)) = (
+                p.registration.as_ref().filter(|_| p.used),
+                prepared.get(p.source),
+                prepared.get(p.target),
+            ) else {
+                return None;
+            };
+            let info = pair_information(s, t, &r.pose, gate)?;
+            p.free_motions = info.free;
+            Some(info.information)
+        })
+        .collect();
     let edges: Vec<PoseGraphEdge> = pairs
         .iter()
         .filter(|p| p.used)
@@ -353,22 +464,35 @@ pub fn align_views(
         initial.to_vec()
     };
     let graph = PoseGraph { nodes, edges };
+    // A pair placed by the global fallback contradicts the initial poses beyond ICP's reach:
+    // they are no turntable prior to hold views to, so the free pose graph places the views.
+    let fallback_used = pairs.iter().any(|p| p.used && p.global);
     let calibrated = match &config.pose_model {
-        PoseModel::Turntable(prior) => {
+        PoseModel::Turntable(prior) if !fallback_used => {
             let centre = prepared
                 .first()
                 .map_or_else(Point3::origin, PreparedCloud::centroid);
             Turntable::from_poses(initial, &centre).map(|t| (t, *prior))
         }
-        PoseModel::Free => None,
+        PoseModel::Turntable(_) | PoseModel::Free => None,
     };
     let Some((calibrated, prior)) = calibrated else {
         let pose_graph = optimize_pose_graph(&graph, &config.pose_graph)?;
+        let sources = (0..views.len())
+            .map(|k| {
+                if k == 0 {
+                    ViewPoseSource::Reference
+                } else {
+                    ViewPoseSource::PoseGraph
+                }
+            })
+            .collect();
         return Ok(ViewAlignment {
             poses: pose_graph.nodes.clone(),
             pairs,
             pose_graph,
             turntable: None,
+            sources,
         });
     };
     // Without an angle prior, a view no registration reaches has a free angle.
@@ -377,8 +501,38 @@ pub fn align_views(
     {
         return Err(IcpError::PoseGraphDisconnected { node });
     }
-    let fit = fit_turntable_gated(&calibrated, &graph.edges, &prior);
+    // The turntable model weighs each registration by what it measures along the normals.
+    let plane_edges: Vec<PoseGraphEdge> = pairs
+        .iter()
+        .zip(&plane)
+        .filter(|(p, _)| p.used)
+        .filter_map(|(p, info)| {
+            Some(PoseGraphEdge {
+                from: p.target,
+                to: p.source,
+                measurement: p.registration.as_ref()?.pose,
+                information: (*info)?,
+            })
+        })
+        .collect();
+    let fit = fit_turntable_gated(&calibrated, &plane_edges, &prior);
     let poses = fit.solution.turntable.poses();
+    let sources = fit
+        .angles_from
+        .iter()
+        .enumerate()
+        .map(|(k, a)| match a {
+            AngleFrom::Reference => ViewPoseSource::Reference,
+            AngleFrom::Motor => ViewPoseSource::Turntable,
+            AngleFrom::MotorUnconstrained => ViewPoseSource::TurntablePriorOnly {
+                why: why_unconstrained(k, &pairs),
+            },
+            AngleFrom::Registrations { off_deg, sigmas } => ViewPoseSource::Registrations {
+                motor_off_deg: *off_deg,
+                sigmas: *sigmas,
+            },
+        })
+        .collect();
     Ok(ViewAlignment {
         poses: poses.clone(),
         pairs,
@@ -394,6 +548,9 @@ pub fn align_views(
             registered_axis: fit.registered.axis(),
             axis: fit.solution.turntable.axis(),
             axis_confirmed: fit.axis_confirmed,
+            axis_distance: fit.axis_distance,
+            variance_factor: fit.variance_factor,
+            angle_scale_corrected: fit.scale_corrected,
             angle_scale: fit.solution.angle_scale,
             initial_angles_deg: calibrated.angles.iter().map(|a| a.to_degrees()).collect(),
             angles_deg: fit
@@ -404,7 +561,40 @@ pub fn align_views(
                 .map(|a| a.to_degrees())
                 .collect(),
         }),
+        sources,
     })
+}
+
+/// Why the registrations of view `v` do not measure its angle: each of its pairs, failed or
+/// with the motions it leaves free.
+fn why_unconstrained(v: usize, pairs: &[PairRegistration]) -> String {
+    let mine: Vec<String> = pairs
+        .iter()
+        .filter(|p| p.source == v || p.target == v)
+        .map(|p| {
+            let other = if p.source == v { p.target } else { p.source };
+            match (&p.failure, p.used) {
+                (Some(f), _) => format!("with view {other}: failed, {f}"),
+                (None, true) if p.free_motions.is_empty() => {
+                    format!("with view {other}: weak")
+                }
+                (None, true) => format!(
+                    "with view {other}: degenerate about {}",
+                    p.free_motions
+                        .iter()
+                        .map(ToString::to_string)
+                        .collect::<Vec<_>>()
+                        .join(" and ")
+                ),
+                (None, false) => format!("with view {other}: not used"),
+            }
+        })
+        .collect();
+    if mine.is_empty() {
+        "no registration".to_owned()
+    } else {
+        format!("registrations {}", mine.join(", "))
+    }
 }
 
 /// Retries the failed pairs by global registration (each view described once, in parallel),

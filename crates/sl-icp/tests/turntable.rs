@@ -56,6 +56,13 @@ fn thirty_six_views_merge_onto_the_true_surface() {
         "poses: worst {:.4} deg, {:.4} mm (initial {worst_initial:.3} mm)",
         worst.0, worst.1
     );
+    let fit = merged.alignment.turntable.as_ref().unwrap();
+    eprintln!(
+        "{}; variance factor {:.3e}, angle scale {:.6}",
+        merged.alignment.pose_summary(),
+        fit.variance_factor,
+        fit.angle_scale
+    );
     assert!(
         worst_initial > 1.0,
         "the miscalibration should matter: {worst_initial}"

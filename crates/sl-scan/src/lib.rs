@@ -86,7 +86,7 @@ pub use measure::{
     Measurements, PLATE_SIZE_MM, PLATE_TILT_DEG, SELECT_MM, measure_scan, plate_pose, plate_scene,
     plate_truth, scene_truth,
 };
-pub use merge::{MergeStageConfig, merge_scan};
+pub use merge::{MergeReport, MergeStageConfig, MergedViews, ViewPoseReport, merge_scan};
 pub use mesh::{
     MESH_CELL_PER_SPACING, MeshFiles, MeshOptions, MeshSummary, mesh_stage, mesh_stage_with,
     scan_poisson_config,

@@ -3,8 +3,11 @@
 //! (`sl-icp`).
 
 use nalgebra::Isometry3;
+use serde::Serialize;
 use sl_cloud::PointCloud;
-use sl_icp::{MergeConfig, PoseModel, merge_aligned, merge_views, turntable_poses};
+use sl_icp::{
+    MergeConfig, ViewAlignment, ViewPoseSource, merge_aligned, merge_views, turntable_poses,
+};
 
 use crate::{ReconstructedViews, ScanError, ScanProgress};
 
@@ -24,18 +27,16 @@ pub struct MergeStageConfig {
 }
 
 impl MergeStageConfig {
-    /// The merge of `slscan scan`, on the virtual and the real rig alike: the free pose graph
-    /// (sl-icp's default, said explicitly: with sl-icp's turntable pose model the virtual
-    /// scan's spheres came out 0.5 mm too small in diameter, form 0.9 mm, at full resolution
-    /// and 0.77 mm at half; 2026-11-23 19:52 UTC, `sl_icp::PoseModel::default`), overlapping
-    /// views averaged when `average_overlaps`, `smoothing_neighbours` neighbours for the
-    /// normals and the averaging surface, registration refinement when `icp_refinement`.
+    /// The merge of `slscan scan`, on the virtual and the real rig alike: sl-icp's default
+    /// pose model (the calibrated turntable, kept where the registrations agree with it and
+    /// corrected where they do not), overlapping views averaged when `average_overlaps`,
+    /// `smoothing_neighbours` neighbours for the normals and the averaging surface,
+    /// registration refinement when `icp_refinement`.
     pub fn scan(average_overlaps: bool, smoothing_neighbours: usize, icp_refinement: bool) -> Self {
         Self {
             merge: MergeConfig {
                 average_overlaps,
                 output_normal_neighbours: smoothing_neighbours,
-                pose_model: PoseModel::Free,
                 ..MergeConfig::default()
             },
             icp_refinement,
@@ -55,6 +56,121 @@ impl Default for MergeStageConfig {
     }
 }
 
+/// Where one view's pose came from, for `report.json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ViewPoseReport {
+    /// The view's index.
+    pub view: usize,
+    /// `reference` (view 0), `turntable` (the calibrated turntable, confirmed by the
+    /// registrations), `turntable prior only` (the registrations do not measure its angle),
+    /// `registrations` (its angle from the registrations, the motor reading overruled),
+    /// `pose graph` (the free pose graph), `given` (poses given, no registration).
+    pub source: String,
+    /// Why, for `turntable prior only`; the motor reading's offset for `registrations`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detail: Option<String>,
+}
+
+/// What the merge stage did with the poses, for `report.json` and the one line `slscan` prints.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MergeReport {
+    /// One line: where the axis, the angle scale and the angles came from
+    /// (`sl_icp::ViewAlignment::pose_summary`).
+    pub summary: String,
+    /// The turntable model's verdict on the calibrated axis (`None` without the model).
+    pub axis_confirmed: Option<bool>,
+    /// The Mahalanobis distance between the registered and the calibrated axis, standard
+    /// deviations (`None` without the model or without axis priors).
+    pub axis_distance_sigma: Option<f64>,
+    /// The registrations' a-posteriori variance factor (`None` without the model).
+    pub variance_factor: Option<f64>,
+    /// The angle scale the poses used (1 unless the registrations corrected it).
+    pub angle_scale: Option<f64>,
+    /// Pairwise registrations tried and used.
+    pub pairs_tried: usize,
+    /// Of which used.
+    pub pairs_used: usize,
+    /// Each view's source.
+    pub views: Vec<ViewPoseReport>,
+}
+
+impl MergeReport {
+    /// The report of an alignment.
+    pub fn from_alignment(a: &ViewAlignment) -> Self {
+        let views = a
+            .sources
+            .iter()
+            .enumerate()
+            .map(|(view, s)| {
+                let (source, detail) = match s {
+                    ViewPoseSource::Reference => ("reference", None),
+                    ViewPoseSource::Turntable => ("turntable", None),
+                    ViewPoseSource::TurntablePriorOnly { why } => {
+                        ("turntable prior only", Some(why.clone()))
+                    }
+                    ViewPoseSource::Registrations {
+                        motor_off_deg,
+                        sigmas,
+                    } => (
+                        "registrations",
+                        Some(format!(
+                            "motor reading {motor_off_deg:+.4} deg off, {sigmas:.1} sigma"
+                        )),
+                    ),
+                    ViewPoseSource::PoseGraph => ("pose graph", None),
+                };
+                ViewPoseReport {
+                    view,
+                    source: source.to_owned(),
+                    detail,
+                }
+            })
+            .collect();
+        let t = a.turntable.as_ref();
+        Self {
+            summary: a.pose_summary(),
+            axis_confirmed: t.map(|t| t.axis_confirmed),
+            axis_distance_sigma: t.map(|t| t.axis_distance).filter(|d| d.is_finite()),
+            variance_factor: t.map(|t| t.variance_factor),
+            angle_scale: t.map(|t| t.angle_scale),
+            pairs_tried: a.pairs.len(),
+            pairs_used: a.pairs.iter().filter(|p| p.used).count(),
+            views,
+        }
+    }
+
+    /// The report of a merge with given poses (no registration).
+    pub fn given(views: usize, what: &str) -> Self {
+        Self {
+            summary: format!("{views} views: {what} (no registration)"),
+            axis_confirmed: None,
+            axis_distance_sigma: None,
+            variance_factor: None,
+            angle_scale: None,
+            pairs_tried: 0,
+            pairs_used: 0,
+            views: (0..views)
+                .map(|view| ViewPoseReport {
+                    view,
+                    source: "given".to_owned(),
+                    detail: Some(what.to_owned()),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The merged cloud and how its poses were found.
+#[derive(Debug, Clone)]
+pub struct MergedViews {
+    /// The merged cloud (mm, camera frame of view 0).
+    pub cloud: PointCloud,
+    /// The registrations and the pose model's verdicts, when the views were registered.
+    pub alignment: Option<ViewAlignment>,
+    /// Where each view's pose came from.
+    pub report: MergeReport,
+}
+
 /// Merges the reconstructed views into one cloud in the camera frame of view 0, reporting the
 /// stage `merge`. The initial pose of each view is `poses[k]` when given (the virtual rig's
 /// true poses, a diagnostic), else the turntable pose of its motor angle through the
@@ -67,20 +183,32 @@ pub fn merge_scan(
     poses: Option<&[Isometry3<f64>]>,
     config: &MergeStageConfig,
     mut progress: impl FnMut(ScanProgress<'_>),
-) -> Result<PointCloud, ScanError> {
+) -> Result<MergedViews, ScanError> {
     progress(ScanProgress {
         stage: "merge",
         done: 0,
         total: 1,
     });
-    let initial = match poses {
-        Some(p) => p.to_vec(),
-        None => turntable_poses(&views.axis, &views.motor_angles_deg)?,
+    let (initial, given) = match poses {
+        Some(p) => (p.to_vec(), "the given poses"),
+        None => (
+            turntable_poses(&views.axis, &views.motor_angles_deg)?,
+            "the calibrated turntable's poses",
+        ),
     };
     let merged = if config.icp_refinement {
-        merge_views(&views.clouds, &initial, &config.merge)?.cloud
+        let m = merge_views(&views.clouds, &initial, &config.merge)?;
+        MergedViews {
+            cloud: m.cloud,
+            report: MergeReport::from_alignment(&m.alignment),
+            alignment: Some(m.alignment),
+        }
     } else {
-        merge_aligned(&views.clouds, &initial, &config.merge)?
+        MergedViews {
+            cloud: merge_aligned(&views.clouds, &initial, &config.merge)?,
+            alignment: None,
+            report: MergeReport::given(initial.len(), given),
+        }
     };
     progress(ScanProgress {
         stage: "merge",

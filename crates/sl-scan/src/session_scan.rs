@@ -27,8 +27,8 @@ use sl_camera::Calibration;
 use sl_cloud::PointCloud;
 
 use crate::{
-    MergeStageConfig, ReconstructConfig, ScanError, ScanProgress, StageTime, merge_scan,
-    reconstruct_session,
+    MergeReport, MergeStageConfig, ReconstructConfig, ScanError, ScanProgress, StageTime,
+    merge_scan, reconstruct_session,
 };
 
 /// Options of [`scan_session`].
@@ -58,6 +58,8 @@ pub struct SessionScan {
     pub first_view: PointCloud,
     /// The merged cloud (mm, camera frame of view 0).
     pub merged: PointCloud,
+    /// Where each view's pose came from (the merge's report).
+    pub merge: MergeReport,
     /// Wall time per stage (`reconstruct`, `merge`).
     pub stages: Vec<StageTime>,
 }
@@ -94,7 +96,8 @@ pub fn scan_session(
         motor_angles_deg: views.motor_angles_deg,
         view_points: views.clouds.iter().map(PointCloud::len).collect(),
         first_view: views.clouds.into_iter().next().unwrap_or_default(),
-        merged,
+        merged: merged.cloud,
+        merge: merged.report,
         stages,
     })
 }

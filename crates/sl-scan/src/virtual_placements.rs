@@ -84,6 +84,8 @@ pub struct PlacementFigures {
     pub distance: SurfaceDistance,
     /// How it was aligned onto the first placement (none for the first).
     pub alignment: Option<PlacementAlignment>,
+    /// Where each of its views' poses came from in its turntable merge.
+    pub merge: crate::MergeReport,
     /// Its merged cloud, relative to the output folder.
     pub merged: String,
 }
@@ -234,6 +236,7 @@ pub fn scan_virtual_placements(
             alignment: k
                 .checked_sub(1)
                 .and_then(|i| scan.merge.alignments.get(i).cloned()),
+            merge: session.merge.clone(),
             merged: format!("{}/{}", placement_dir_name(k + 1), files.merged),
         });
     }

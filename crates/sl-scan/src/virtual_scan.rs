@@ -25,10 +25,10 @@ use crate::calibrate::calibrate_virtual_stage;
 use crate::error::{io, stage_err};
 use crate::mesh::{MeshFiles, MeshOptions, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::{
-    CalibrationSummary, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX, ScanError,
-    ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan, plate_scene,
-    plate_truth, reconstruct_view_eroded, scan_patterns, scan_session, scene_truth, write_heat_map,
-    write_scan_cloud,
+    CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX,
+    ScanError, ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan,
+    plate_scene, plate_truth, reconstruct_view_eroded, scan_patterns, scan_session, scene_truth,
+    write_heat_map, write_scan_cloud,
 };
 
 /// Options of [`scan_virtual`].
@@ -186,6 +186,8 @@ pub struct ScanResult {
     pub flatness: Option<Report>,
     /// The mesh of the merged cloud: size, topology, accuracy.
     pub mesh: Option<MeshSummary>,
+    /// Where each view's pose came from in the merge.
+    pub merge: MergeReport,
     /// Wall time per stage, in order.
     pub stages: Vec<StageTime>,
     /// The files written.
@@ -410,6 +412,7 @@ pub fn scan_virtual(
         view_points: scan.view_points,
         views_captured: summary.captured,
         merged: scan.merged,
+        merge: scan.merge,
         truth,
         accuracy: measured.accuracy,
         first_view: measured.first_view,

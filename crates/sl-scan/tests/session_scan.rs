@@ -322,18 +322,133 @@ fn a_dense_session_with_an_approximate_axis_is_refined_onto_the_true_spheres() {
     .unwrap();
     let (rms, outliers) = distance_to_spheres(&refined.merged, &spheres);
     eprintln!(
-        "dense session, axis 0.2 deg / 0.5 mm off: RMS to the true spheres {rms_placed:.4} mm with the calibrated poses, {rms:.4} mm refined ({outliers} outliers of {})",
-        refined.merged.len()
+        "dense session, axis 0.2 deg / 0.5 mm off: RMS to the true spheres {rms_placed:.4} mm with the calibrated poses, {rms:.4} mm refined ({outliers} outliers of {}); {}",
+        refined.merged.len(),
+        refined.merge.summary
+    );
+    assert_eq!(
+        refined.merge.axis_confirmed,
+        Some(false),
+        "{:?}",
+        refined.merge
     );
     // The error the refinement has to remove is there...
     assert!(rms_placed > 0.15, "{rms_placed}");
-    // ...and mostly removed: 0.035 mm measured with 8-step captures, the free pose graph and
-    // the default 3 px edge erosion (0.020 mm without erosion; 0.11 mm with the former 4-step
-    // captures; 0.93 mm with sl-icp's turntable pose model,
-    // which is why it is not the default). 0.15 mm is under half the error of the calibrated
-    // poses, and failed by a refinement that leaves the 0.2° tilt in place.
-    assert!(rms < 0.15, "{rms}");
+    // ...and reduced: the default sees the axis is wrong (7.4 σ) and takes the registered
+    // one: 0.169 mm measured 2026-11-28 (0.387 mm with the calibrated poses). Issue 28 asks
+    // for better than the calibrated poses; half their error is held. The free pose graph,
+    // the default before, measured 0.035 mm here and sl-icp's former turntable model 0.93 mm:
+    // the registered axis of the dumbbell is not yet as good as its free pose graph
+    // (docs/registration.md).
+    assert!(rms < 0.5 * rms_placed, "{rms} vs {rms_placed}");
     assert!(outliers * 100 < refined.merged.len(), "{outliers}");
+}
+
+/// Captures a dumbbell session of `views` views on `rig` into `dir` with `calibration`'s
+/// motor angles (saved beside it as `calibration.json`); returns the motor angles.
+#[allow(clippy::unwrap_used)] // a test helper: its failure is the test's
+fn capture_dumbbell(
+    rig: &VirtualRig,
+    calibration: &sl_camera::Calibration,
+    views: usize,
+    dir: &Path,
+) -> Vec<f64> {
+    let calib_path = dir.join("calibration.json");
+    calibration.save(&calib_path).unwrap();
+    let angles = full_turn_motor_angles(calibration.turntable.as_ref(), views).unwrap();
+    let p = rig.config().projector.size;
+    let session = CaptureSession::open(
+        &dir.join("session"),
+        SessionPlan {
+            angles_deg: angles.clone(),
+            manifest: scan_patterns(ProjectorSize::new(p.width, p.height), 15.0)
+                .manifest(BitDepth::Eight),
+            devices: SessionDevices {
+                camera: "virtual".to_owned(),
+                projector: "virtual".to_owned(),
+                turntable: "virtual".to_owned(),
+            },
+            calibration: Some(calib_path),
+        },
+        SessionConfig {
+            display_latency: Duration::ZERO,
+            flush_frames: 0,
+            overwrite: false,
+        },
+    )
+    .unwrap();
+    let (mut camera, mut projector, mut table) = rig.devices();
+    session
+        .run(&mut camera, &mut projector, &mut table, |_| {})
+        .unwrap();
+    angles
+}
+
+/// Issue 28: on the dumbbell — two spheres on a bar, whose pairwise registrations leave the
+/// spheres free to turn on themselves — the default merge must not be worse than the
+/// calibrated turntable's poses alone. A calibration as good as the rig's (axis 0.005° /
+/// 0.03 mm off, sl-calib's accuracy) at quarter resolution, 18 views 20° apart. Before the
+/// fix, the default (the free pose graph) spread the pairwise registrations' errors over the
+/// views; the turntable model before it, fed the point-to-point information that claims the
+/// spheres' rotations are measured, replaced the axis by a wrong one.
+#[test]
+fn the_default_merge_of_a_dumbbell_is_not_worse_than_the_calibrated_turntable() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rig = VirtualRig::new(scaled_rig_config(4), Scene::dumbbell()).unwrap();
+    let mut calibration = rig.config().calibration();
+    let mut axis = calibration.turntable.unwrap();
+    let tilt = nalgebra::UnitQuaternion::from_axis_angle(
+        &nalgebra::Vector3::x_axis(),
+        0.005f64.to_radians(),
+    );
+    axis.direction = tilt * axis.direction;
+    axis.point_mm += nalgebra::Vector3::new(0.03, 0.0, 0.0);
+    calibration.turntable = Some(axis);
+    let angles = capture_dumbbell(&rig, &calibration, 18, tmp.path());
+    let spheres = true_spheres(&rig, angles[0]);
+    let session = tmp.path().join("session");
+    let with = |icp_refinement: bool| {
+        scan_session(
+            &session,
+            &calibration,
+            &SessionScanConfig {
+                merge: MergeStageConfig {
+                    icp_refinement,
+                    ..MergeStageConfig::default()
+                },
+                ..SessionScanConfig::default()
+            },
+            |_| {},
+        )
+        .unwrap()
+    };
+    let placed = with(false);
+    let merged = with(true);
+    let (rms_placed, _) = distance_to_spheres(&placed.merged, &spheres);
+    let (rms, outliers) = distance_to_spheres(&merged.merged, &spheres);
+    eprintln!(
+        "dumbbell, 18 views, calibrated axis: RMS {rms_placed:.4} mm with the turntable poses, {rms:.4} mm merged; {}",
+        merged.merge.summary
+    );
+    // The same views and voxels: equal when the calibration is kept, and 0.2 % of slack for
+    // the order of the floating-point sums of a different pose.
+    assert!(rms <= rms_placed * 1.002, "{rms} > {rms_placed}");
+    assert!(outliers * 100 < merged.merged.len(), "{outliers}");
+    // Every view says where its pose came from; the calibrated axis is confirmed.
+    assert_eq!(merged.merge.views.len(), 18);
+    assert_eq!(merged.merge.views[0].source, "reference");
+    assert_eq!(
+        merged.merge.axis_confirmed,
+        Some(true),
+        "{:?}",
+        merged.merge
+    );
+    assert!(
+        merged
+            .merge
+            .summary
+            .starts_with("18 views: axis from the calibration")
+    );
 }
 
 #[test]
