@@ -102,11 +102,8 @@ fn reconstruct(
     session: &Path,
     calibration: &sl_camera::Calibration,
 ) -> Result<sl_scan::ReconstructedViews, ScanError> {
-    let cfg = ReconstructConfig {
-        edge_erosion_px: 3,
-        max_view_angle_deg: 90.0,
-    };
-    reconstruct_session(session, calibration, &cfg, |_| {})
+    // As `slscan scan` reconstructs by default (3 px edge erosion, 3 × 3 smoothing).
+    reconstruct_session(session, calibration, &ReconstructConfig::default(), |_| {})
 }
 
 /// `T_world_view` of the rig's true turntable (world = the camera at the first angle).
