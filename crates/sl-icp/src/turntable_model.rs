@@ -866,6 +866,20 @@ pub(crate) fn fit_turntable_gated(
                 break;
             }
         }
+        // A systematic error of the registered angles that drifts over the turn (a bias of
+        // the pairs that grows along the chain, which their scatter does not show) looks like
+        // a scale error of `systematic / span`; a correction must clear that too. Measured on
+        // the pebble laid on its side (true scale 1): the registrations put the scale at
+        // 1.00011–1.00013 on every seed, within 2.3 σ of this floor.
+        let span = views
+            .iter()
+            .enumerate()
+            .skip(1)
+            .filter(|(_, v)| v.2)
+            .map(|(k, _)| calibrated.angles[k].abs())
+            .fold(0.0f64, f64::max);
+        let drift = if span > 0.0 { systematic / span } else { 0.0 };
+        let sigma = sigma.hypot(drift);
         if estimate.abs() > SCALE_GATE * sigma {
             kappa = estimate;
             scale_corrected = true;

@@ -8,7 +8,7 @@
 //! | calibrate | `calibrate.rs` | [`calibrate_virtual`], [`load_scan_calibration`] |
 //! | read a calibration session (own or another program's layout) | `calibration_layout.rs` | [`CalibrationLayout`], [`PoseCapture`] |
 //! | capture a scan session | `capture.rs` | [`capture_session`], [`scan_patterns`], [`full_turn_motor_angles`] |
-//! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`drop_grazing`] |
+//! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`reconstruct_decoded`], [`drop_grazing`] |
 //! | merge | `merge.rs` | [`merge_scan`] |
 //! | several placements | `placements.rs`, `virtual_placements.rs` | [`capture_placements`], [`scan_placements`], [`merge_placements`], [`scan_virtual_placements`] |
 //! | measure (where a truth exists) | `measure.rs` | [`measure_scan`], [`scene_truth`], [`plate_truth`] |
@@ -98,8 +98,8 @@ pub use placements::{
 };
 pub use progress::{ScanProgress, StageTime};
 pub use reconstruct::{
-    ReconstructConfig, ReconstructedViews, drop_grazing, reconstruct_session, reconstruct_view,
-    reconstruct_view_eroded,
+    ReconstructConfig, ReconstructedViews, drop_grazing, reconstruct_decoded, reconstruct_session,
+    reconstruct_view, reconstruct_view_eroded,
 };
 pub use report::{SessionScanFiles, write_heat_map, write_scan_cloud, write_summary_html};
 pub use session_scan::{SessionScan, SessionScanConfig, scan_session};

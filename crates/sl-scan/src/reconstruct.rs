@@ -8,7 +8,8 @@ use nalgebra::{Point3, Vector3};
 use sl_camera::{Calibration, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_codec::{
-    CaptureSet, DecodeConfig, MANIFEST_FILE, SmoothConfig, decode, smooth_correspondences,
+    CaptureSet, CorrespondenceMap, DecodeConfig, MANIFEST_FILE, SmoothConfig, decode,
+    smooth_correspondences,
 };
 use sl_rig::{read_session_plan, view_dir_name};
 use sl_tri::{TriOptions, Triangulator};
@@ -87,14 +88,32 @@ pub fn reconstruct_view_eroded(
     triangulator: &Triangulator,
     config: &ReconstructConfig,
 ) -> Result<PointCloud, ScanError> {
-    let edge_erosion_px = config.edge_erosion_px;
     let set = CaptureSet::load(&dir.join(MANIFEST_FILE))?;
-    let mut map = decode(&set, &DecodeConfig::default())?;
+    let map = decode(&set, &DecodeConfig::default())?;
     drop(set);
-    if let Some(smooth) = &config.smoothing {
-        map = smooth_correspondences(&map, smooth)?;
-    }
-    let tri = triangulator.triangulate(&map, &TriOptions::default())?;
+    reconstruct_decoded(&map, triangulator, &TriOptions::default(), config)
+}
+
+/// Triangulates a decoded map as a scan does: the coordinates smoothed
+/// ([`ReconstructConfig::smoothing`]), triangulated with `options`, then the points within
+/// [`ReconstructConfig::edge_erosion_px`] pixels of an invalid pixel dropped. (The grazing
+/// filter, [`ReconstructConfig::max_view_angle_deg`], is [`drop_grazing`]'s.)
+pub fn reconstruct_decoded(
+    map: &CorrespondenceMap,
+    triangulator: &Triangulator,
+    options: &TriOptions,
+    config: &ReconstructConfig,
+) -> Result<PointCloud, ScanError> {
+    let edge_erosion_px = config.edge_erosion_px;
+    let smoothed;
+    let map = match &config.smoothing {
+        Some(smooth) => {
+            smoothed = smooth_correspondences(map, smooth)?;
+            &smoothed
+        }
+        None => map,
+    };
+    let tri = triangulator.triangulate(map, options)?;
     if edge_erosion_px == 0 {
         return Ok(tri.cloud);
     }

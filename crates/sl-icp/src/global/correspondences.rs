@@ -228,6 +228,11 @@ impl Layout {
         self.scan_strip(home, gap2(home), q, &mut best);
         let (mut left, mut right) = (home, home + 1);
         loop {
+            // Every strip visited: with fewer than `N` rows (or no finite distance) the
+            // `N`-th best stays infinite and no gap would ever exceed it.
+            if left == 0 && right >= count {
+                break;
+            }
             let gl = if left > 0 {
                 gap2(left - 1)
             } else {
@@ -607,5 +612,23 @@ mod tests {
             match_features(&source, &ti, &target, &ti, &loose).is_err(),
             "mismatched index"
         );
+    }
+
+    /// A target with a single descriptor: the second nearest never exists, so the search must
+    /// stop once every strip is visited (it looped forever before: a placement alignment of
+    /// `slscan scan --placements 2 --seed 3` hung for 40 minutes in it). The one descriptor is
+    /// matched (no second one to fail Lowe's test against).
+    #[test]
+    fn a_target_of_one_descriptor_ends_the_search() {
+        let target = vec![descriptor(7)];
+        let source: Vec<Fpfh> = (0..20).map(descriptor).collect();
+        let (si, ti) = (FeatureIndex::new(&source), FeatureIndex::new(&target));
+        let loose = MatchConfig {
+            ratio: 1.0,
+            mutual: false,
+        };
+        let m = match_features(&source, &si, &target, &ti, &loose).unwrap();
+        assert_eq!(m.len(), 20);
+        assert!(m.iter().all(|c| c.target == 0));
     }
 }
