@@ -249,7 +249,7 @@ pub(crate) fn predict(
     for (i, (x, jac)) in points.iter().zip(&jacobians).enumerate() {
         let block = |m: &DMatrix<f64>| -> Matrix3<f64> {
             let rows = m.rows(3 * i, 3);
-            let c = &rows * &sub * rows.transpose();
+            let c = rows * &sub * rows.transpose();
             Matrix3::from_fn(|r, s| c[(r, s)])
         };
         let cov = block(&shape);

@@ -46,7 +46,7 @@ impl SmoothConfig {
     /// Checks the radius (1..=[`MAX_SMOOTH_RADIUS`]) and the step (positive, finite).
     ///
     /// # Errors
-    /// [`CodecError::InvalidParameter`] naming the field.
+    /// [`CodecError::Parameter`] naming the field.
     pub fn validate(&self) -> Result<(), CodecError> {
         if !(1..=MAX_SMOOTH_RADIUS).contains(&self.radius) {
             return Err(CodecError::parameter(
@@ -171,7 +171,7 @@ fn smooth_plane(
 /// ```
 ///
 /// # Errors
-/// [`CodecError::InvalidParameter`] for settings out of range ([`SmoothConfig::validate`]).
+/// [`CodecError::Parameter`] for settings out of range ([`SmoothConfig::validate`]).
 pub fn smooth_correspondences(
     map: &CorrespondenceMap,
     cfg: &SmoothConfig,
