@@ -8,7 +8,7 @@ use sl_cloud::{KdIndex, MergePolicy, NormalConfig, PointCloud, VoxelGridConfig, 
 
 use crate::global::{GlobalCloud, GlobalConfig, register_global_prepared};
 use crate::normals::{local_planes, quadric_projection};
-use crate::pair_information::{FreeMotion, pair_information};
+use crate::pair_information::{FreeMotion, pair_information, settle_free_motions};
 use crate::pose_graph::unreachable;
 use crate::turntable_model::{AngleFrom, Turntable, fit_turntable_gated};
 use crate::{
@@ -501,16 +501,22 @@ pub fn align_views(
     {
         return Err(IcpError::PoseGraphDisconnected { node });
     }
-    // The turntable model weighs each registration by what it measures along the normals.
+    // The turntable model weighs each registration by what it measures along the normals, and
+    // takes what it leaves free from the calibrated turntable.
     let plane_edges: Vec<PoseGraphEdge> = pairs
         .iter()
         .zip(&plane)
         .filter(|(p, _)| p.used)
         .filter_map(|(p, info)| {
+            let model = initial.get(p.target)?.inverse() * initial.get(p.source)?;
             Some(PoseGraphEdge {
                 from: p.target,
                 to: p.source,
-                measurement: p.registration.as_ref()?.pose,
+                measurement: settle_free_motions(
+                    &p.registration.as_ref()?.pose,
+                    &model,
+                    &p.free_motions,
+                ),
                 information: (*info)?,
             })
         })
