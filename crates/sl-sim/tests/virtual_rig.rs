@@ -137,8 +137,11 @@ fn sphere_depth_matches_ray_sphere_intersection() {
 #[test]
 fn shadows_fall_where_the_projector_cannot_see() {
     // A wall at 500 mm and a 40 mm square occluder 100 mm in front of it, between the wall
-    // and the projector (which sits at x = +200).
-    let config = small_rig();
+    // and the projector (which sits at x = +200). Without the scattered light of the
+    // default renders (`CameraEffects::DEFAULT_SCATTER`), which lights shadows by design:
+    // here the shadow must hold the ambient light and the sensor's dark level alone.
+    let mut config = small_rig();
+    config.render.effects.global_illumination = None;
     let wall = Isometry3::translation(0.0, 0.0, 500.0);
     let occluder = Isometry3::translation(40.0, 0.0, 400.0);
     let scene = Scene::new()
@@ -187,7 +190,7 @@ fn shadows_fall_where_the_projector_cannot_see() {
     );
 
     // In the rendered frame under full white, the shadow is only as bright as the ambient
-    // light: mean over shadow pixels ≈ exposure · full_well · albedo · ambient · g.
+    // light: mean over shadow pixels ≈ exposure · full_well · albedo · ambient · g + dark level.
     let white = GreyImage::filled_u8(
         config.projector.size.width,
         config.projector.size.height,
@@ -199,7 +202,8 @@ fn shadows_fall_where_the_projector_cannot_see() {
     };
     let s = config.render.effects.sensor;
     let g = 255.0 / s.full_well_electrons;
-    let want = s.exposure * s.full_well_electrons * 0.6 * config.render.illumination.ambient * g;
+    let want = s.exposure * s.full_well_electrons * 0.6 * config.render.illumination.ambient * g
+        + s.dark_level_dn;
     let (mut sum, mut n) = (0.0, 0.0);
     for y in 1..t.height - 1 {
         for x in 1..t.width - 1 {
