@@ -20,6 +20,14 @@ pub enum CloudError {
         #[source]
         source: std::io::Error,
     },
+    /// A least-squares fit got too few usable points, or points in a degenerate arrangement.
+    #[error("{what} fit: {message}")]
+    Fit {
+        /// `plane` or `sphere`.
+        what: &'static str,
+        /// What is wrong (counts, degeneracy).
+        message: String,
+    },
     /// The PLY header is malformed (bad magic, unknown format, bad `element`/`property` line...).
     #[error("{file}: PLY header, line {line}: {message}")]
     PlyHeader {

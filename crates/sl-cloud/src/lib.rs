@@ -49,6 +49,8 @@
 
 mod cloud;
 mod error;
+mod fit;
+mod measure;
 mod morton;
 mod neighbours;
 mod normals;
@@ -60,6 +62,8 @@ mod voxel;
 
 pub use cloud::{Aabb, MergePolicy, PointCloud};
 pub use error::CloudError;
+pub use fit::{PlaneFit, SphereFit, fit_plane, fit_sphere};
+pub use measure::sample_surface;
 pub use neighbours::{KdIndex, Neighbour};
 pub use normals::{
     LocalPlane, NormalConfig, NormalEstimate, NormalOrientation, estimate_normals,

@@ -91,12 +91,13 @@ pub use files::{
     read_stl_from_bytes, stl_to_bytes, write_obj, write_ply_mesh, write_stl,
 };
 pub use holes::{HoleFilling, fill_holes};
-pub use measure::{sample_surface, signed_volume, surface_area, vertex_normals};
+pub use measure::{signed_volume, surface_area, vertex_normals};
 pub use orientation::inconsistent_normal_fraction;
 pub use poisson::{MIN_POISSON_POINTS, PoissonConfig, PoissonSurface, poisson_reconstruct};
 pub use remesh::{RemeshConfig, Remeshing, remesh_isotropic};
 pub use render::{MeshColoring, render_mesh};
 pub use simplify::{Simplification, SimplifyConfig, simplify};
+pub use sl_cloud::sample_surface;
 pub use sl_cloud::{TriangleMesh, read_ply_mesh};
 pub use taubin::{TaubinConfig, smooth_taubin};
 pub use topology::{Topology, check_topology, compact_vertices, remove_small_components};

@@ -39,7 +39,7 @@ pub enum MetrologyError {
         /// The feature.
         feature: String,
         /// The fit's error (boxed: it is large, and rare).
-        source: Box<sl_tri::TriError>,
+        source: Box<sl_cloud::CloudError>,
     },
     /// An option is out of range.
     #[error("option `{parameter}`: {reason}")]
@@ -78,7 +78,7 @@ impl MetrologyError {
         }
     }
 
-    pub(crate) fn fit(feature: &str, source: sl_tri::TriError) -> Self {
+    pub(crate) fn fit(feature: &str, source: sl_cloud::CloudError) -> Self {
         Self::Fit {
             feature: feature.to_owned(),
             source: Box::new(source),

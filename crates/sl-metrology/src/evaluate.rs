@@ -3,7 +3,7 @@
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 use sl_cloud::PointCloud;
-use sl_tri::{fit_plane, fit_sphere};
+use sl_cloud::{fit_plane, fit_sphere};
 
 use crate::find::{SplitMix, ransac_plane, ransac_sphere, refine_centre, subsample};
 use crate::{Feature, MetrologyError, PlaneSpec, SphereSpec, Truth};

@@ -50,8 +50,8 @@
 //!   truth must be in that frame); `f64` geometry.
 //! - Signed distances are positive outside a sphere and on the side of a plane its normal
 //!   points to.
-//! - The least-squares fits are `sl_tri::fit_sphere` (geometric, free radius) and
-//!   `sl_tri::fit_plane` (orthogonal distances).
+//! - The least-squares fits are `sl_cloud::fit_sphere` (geometric, free radius) and
+//!   `sl_cloud::fit_plane` (orthogonal distances).
 //! - Reports are deterministic: RANSAC draws from a seeded generator.
 
 #![deny(missing_docs)]

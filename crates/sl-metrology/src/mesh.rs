@@ -57,7 +57,7 @@ pub fn mesh_samples(
                     reason: format!("{area_mm2} is not a positive area"),
                 });
             }
-            PointCloud::from_positions(sl_mesh::sample_surface(mesh, area_mm2, false))
+            PointCloud::from_positions(sl_cloud::sample_surface(mesh, area_mm2, false))
         }
     })
 }
