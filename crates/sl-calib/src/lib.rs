@@ -76,3 +76,8 @@ pub use image;
 pub use sl_camera;
 /// Re-export of `sl-codec`, whose decoded maps the projector calibration takes.
 pub use sl_codec;
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

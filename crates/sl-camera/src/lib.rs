@@ -93,3 +93,8 @@ pub use turntable::TurntableAxis;
 
 /// Re-export of the linear algebra crate used in the public API.
 pub use nalgebra;
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -88,3 +88,8 @@ pub use preview::{
     render_preview,
 };
 pub use voxel::{VoxelDownsample, VoxelGridConfig, voxel_downsample};
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -118,3 +118,8 @@ pub use smooth::{MAX_SMOOTH_RADIUS, SmoothConfig, smooth_correspondences};
 pub use synthetic::SyntheticScene;
 pub use texture::{CaptureTexture, TextureSource, capture_texture};
 pub use unwrap::Unwrap;
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

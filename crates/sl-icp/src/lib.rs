@@ -105,3 +105,8 @@ pub use sl_camera::TurntableAxis;
 pub use sl_cloud::{NormalConfig, NormalOrientation, PointCloud};
 pub use turntable::turntable_poses;
 pub use turntable_model::{PoseModel, TurntableFit, TurntablePrior};
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -103,3 +103,8 @@ pub use taubin::{TaubinConfig, smooth_taubin};
 pub use topology::{Topology, check_topology, compact_vertices, remove_small_components};
 pub use trim::{Trimmed, trim_by_density};
 pub use viewer::{ViewerConfig, ViewerLayer, viewer_html};
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

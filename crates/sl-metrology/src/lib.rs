@@ -81,3 +81,8 @@ pub use sl_cloud::TriangleMesh;
 pub use truth::{
     DEFAULT_SELECT_MM, Feature, PlaneNominal, PlaneSpec, SpherePairSpec, SphereSpec, Truth,
 };
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -94,3 +94,8 @@ pub use v4l_camera::{
     V4lCameraConfig, V4lControlInfo, V4lDeviceInfo, V4lFormatInfo, list_v4l_cameras,
 };
 pub use v4l_camera_controls::ControlKey;
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

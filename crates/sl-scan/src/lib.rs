@@ -107,3 +107,8 @@ pub use virtual_placements::{
     PlacementFigures, PlacementsResult, TRUTH_MESH_FILE, scan_virtual_placements,
 };
 pub use virtual_scan::{ScanFiles, ScanResult, VirtualScanConfig, scaled_rig_config, scan_virtual};
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -123,3 +123,8 @@ pub use virtual_rig::{View, VirtualCamera, VirtualProjector, VirtualRig, Virtual
 pub use sl_rig::{
     Camera, GreyImage, Pixels, Projector, RigError, Turntable, turntable_angles, write_capture_set,
 };
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -120,3 +120,8 @@ pub use triangulator::Triangulator;
 pub use sl_camera::{Calibration, CameraModel};
 pub use sl_cloud::PointCloud;
 pub use sl_codec::{Axis, CorrespondenceMap};
+
+/// The README's example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
