@@ -38,7 +38,7 @@ use sl_icp::{
 use sl_rig::{GreyImage, Pixels};
 use sl_scan::{ReconstructConfig, reconstruct_decoded};
 use sl_sim::{RigConfig, Scene, VirtualRig, projector_images};
-use sl_tri::{Method, TriOptions, Triangulator};
+use sl_tri::{Method, TriConfig, Triangulator};
 
 /// Views of the turn and their spacing (the seed's scan).
 const VIEWS: usize = 36;
@@ -132,7 +132,7 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     let manifest = sequence.manifest(BitDepth::Eight);
     let images = projector_images(&rig, &manifest).unwrap();
     let tri = Triangulator::new(&calibration).unwrap();
-    let options = TriOptions::with_method(Method::RayPlane { axis: Axis::Column });
+    let options = TriConfig::with_method(Method::RayPlane { axis: Axis::Column });
 
     let angles: Vec<f64> = (0..VIEWS).map(|i| i as f64 * STEP_DEG).collect();
     let t = Instant::now();

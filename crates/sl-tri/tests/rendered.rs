@@ -25,7 +25,7 @@ use sl_codec::{
     ProjectorSize, decode,
 };
 use sl_sim::{GreyImage, Pixels, RigConfig, Scene, VirtualRig, projector_images};
-use sl_tri::{Method, TriOptions, Triangulator, fit_plane, fit_sphere};
+use sl_tri::{Method, TriConfig, Triangulator, fit_plane, fit_sphere};
 
 /// Issue 6 target for the plane's flatness RMS and the sphere's radius error (mm).
 const TARGET_MM: f64 = 0.02;
@@ -151,7 +151,7 @@ fn scan(scene: Scene, knobs: Knobs) -> Scan {
     // Only the columns are coded: ray-plane is the method.
     let method = Method::RayPlane { axis: Axis::Column };
     let result = tri
-        .triangulate(&map, &TriOptions::with_method(method))
+        .triangulate(&map, &TriConfig::with_method(method))
         .unwrap();
     eprintln!(
         "{}: {} points, decoded {:.3}",
