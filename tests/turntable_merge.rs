@@ -28,8 +28,8 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_cloud::{PlyFormat, read_ply, write_ply};
 use sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
-    ProjectorSize, decode,
+    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, ImageSize, Pattern,
+    PatternSequence, decode,
 };
 use sl_icp::{
     MergeConfig, PointCloud, PoseError, PoseModel, TurntableAxis, TurntablePrior, merge_aligned,
@@ -125,7 +125,7 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     let calibration = config.calibration();
     let axis = calibration.turntable.unwrap();
     let rig = VirtualRig::new(config, Scene::cuboid()).unwrap();
-    let projector = ProjectorSize::new(1920, 1080);
+    let projector = ImageSize::new(1920, 1080);
     let sequence = PatternSequence::new(projector).with(Pattern::Hybrid(
         HybridSpec::complementary(Axis::Column, projector, 8, 64.0),
     ));

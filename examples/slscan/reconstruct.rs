@@ -284,7 +284,7 @@ mod tests {
     use std::path::{Path, PathBuf};
 
     use clap::Parser;
-    use sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
+    use sl_codec::{Axis, BitDepth, HybridSpec, ImageSize, Pattern, PatternSequence};
     use sl_scan::scaled_rig_config;
     use sl_sim::{Scene, VirtualRig, simulate_scan};
 
@@ -307,7 +307,7 @@ mod tests {
     fn column_only_capture(dir: &Path) -> (PathBuf, PathBuf) {
         let rig = VirtualRig::new(scaled_rig_config(DOWNSCALE), Scene::plane()).unwrap();
         let p = rig.config().projector.size;
-        let p = ProjectorSize::new(p.width, p.height);
+        let p = ImageSize::new(p.width, p.height);
         let manifest = PatternSequence::new(p)
             .with(Pattern::Hybrid(HybridSpec::recommended(Axis::Column, p)))
             .manifest(BitDepth::Eight);

@@ -13,7 +13,7 @@ use nalgebra::Isometry3;
 use serde::Serialize;
 use sl_camera::{Calibration, ImageSize, Intrinsics};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
-use sl_codec::{BitDepth, ProjectorSize};
+use sl_codec::BitDepth;
 use sl_metrology::{Report, Truth};
 use sl_rig::{
     SessionConfig, SessionDevices, SessionPlan, SessionSummary, turntable_angles, view_dir_name,
@@ -230,7 +230,7 @@ pub(crate) fn capture_virtual(
     let csize = rig.config().camera.size;
     let plan = SessionPlan {
         angles_deg,
-        manifest: scan_patterns(ProjectorSize::new(psize.width, psize.height), cfg.period_px)
+        manifest: scan_patterns(ImageSize::new(psize.width, psize.height), cfg.period_px)
             .manifest(BitDepth::Eight),
         devices: SessionDevices {
             camera: format!("virtual camera {}x{}", csize.width, csize.height),

@@ -21,8 +21,8 @@
 
 use nalgebra::Point3;
 use sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
-    ProjectorSize, decode,
+    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, ImageSize, Pattern,
+    PatternSequence, decode,
 };
 use sl_sim::{GreyImage, Pixels, RigConfig, Scene, VirtualRig, projector_images};
 use sl_tri::{Method, TriConfig, Triangulator, fit_plane, fit_sphere};
@@ -137,7 +137,7 @@ fn scan(scene: Scene, knobs: Knobs) -> Scan {
     }
     let calibration = config.calibration();
     let rig = VirtualRig::new(config, scene).unwrap();
-    let projector = ProjectorSize::new(1920, 1080);
+    let projector = ImageSize::new(1920, 1080);
     let sequence = PatternSequence::new(projector).with(Pattern::Hybrid(
         HybridSpec::complementary(Axis::Column, projector, knobs.steps, knobs.periods),
     ));
@@ -416,7 +416,7 @@ fn write_capture_for_the_cli() {
     let config = RigConfig::default();
     config.calibration().save(out.join("calib.json")).unwrap();
     let rig = VirtualRig::new(config, Scene::sphere()).unwrap();
-    let projector = ProjectorSize::new(1920, 1080);
+    let projector = ImageSize::new(1920, 1080);
     let sequence = PatternSequence::new(projector).with(Pattern::Hybrid(
         HybridSpec::complementary(Axis::Column, projector, 8, 64.0),
     ));
