@@ -60,6 +60,7 @@ mod voxel;
 
 pub use cloud::{Aabb, MergePolicy, PointCloud};
 pub use error::CloudError;
+pub use morton::morton_order;
 pub use neighbours::{KdIndex, Neighbour};
 pub use normals::{
     LocalPlane, NormalConfig, NormalEstimate, NormalOrientation, estimate_normals,
