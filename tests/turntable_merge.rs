@@ -28,8 +28,8 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_cloud::{PlyFormat, read_ply, write_ply};
 use sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
-    ProjectorSize, decode,
+    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, ImageSize, Pattern,
+    PatternSequence, decode,
 };
 use sl_icp::{
     MergeConfig, PointCloud, PoseError, PoseModel, TurntableAxis, TurntablePrior, merge_aligned,
@@ -38,7 +38,7 @@ use sl_icp::{
 use sl_rig::{GreyImage, Pixels};
 use sl_scan::{ReconstructConfig, reconstruct_decoded};
 use sl_sim::{RigConfig, Scene, VirtualRig, projector_images};
-use sl_tri::{Method, TriOptions, Triangulator};
+use sl_tri::{Method, TriConfig, Triangulator};
 
 /// Views of the turn and their spacing (the seed's scan).
 const VIEWS: usize = 36;
@@ -125,14 +125,14 @@ fn rendered_turntable_scan_merges_onto_the_true_surface() {
     let calibration = config.calibration();
     let axis = calibration.turntable.unwrap();
     let rig = VirtualRig::new(config, Scene::cuboid()).unwrap();
-    let projector = ProjectorSize::new(1920, 1080);
+    let projector = ImageSize::new(1920, 1080);
     let sequence = PatternSequence::new(projector).with(Pattern::Hybrid(
         HybridSpec::complementary(Axis::Column, projector, 8, 64.0),
     ));
     let manifest = sequence.manifest(BitDepth::Eight);
     let images = projector_images(&rig, &manifest).unwrap();
     let tri = Triangulator::new(&calibration).unwrap();
-    let options = TriOptions::with_method(Method::RayPlane { axis: Axis::Column });
+    let options = TriConfig::with_method(Method::RayPlane { axis: Axis::Column });
 
     let angles: Vec<f64> = (0..VIEWS).map(|i| i as f64 * STEP_DEG).collect();
     let t = Instant::now();

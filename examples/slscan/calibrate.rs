@@ -1181,7 +1181,7 @@ mod tests {
     use clap::Parser;
     use sl_calib::CalibError;
     use sl_calib::sl_camera::Calibration;
-    use sl_calib::sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
+    use sl_calib::sl_codec::{Axis, BitDepth, HybridSpec, ImageSize, Pattern, PatternSequence};
     use sl_sim::{CalibrationSession, Scene, VirtualRig, simulate_calibration};
     use structured_light::scan::scaled_rig_config;
 
@@ -1221,7 +1221,7 @@ mod tests {
         config.angle_offset_deg = 3.0;
         let rig = VirtualRig::new(config, Scene::plane()).unwrap();
         let p = rig.config().projector.size;
-        let p = ProjectorSize::new(p.width, p.height);
+        let p = ImageSize::new(p.width, p.height);
         let code = |axis, extent: u32| {
             Pattern::Hybrid(HybridSpec::complementary(
                 axis,

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use sl_camera::Calibration;
-use sl_codec::{BitDepth, MANIFEST_FILE, Manifest, ProjectorSize};
+use sl_codec::{BitDepth, ImageSize, MANIFEST_FILE, Manifest};
 use sl_rig::{
     Camera, LatencyConfig, Projector, SessionConfig, SessionDevices, SessionPlan, Turntable,
     measure_latency,
@@ -98,7 +98,7 @@ fn manifest(args: &Args, projector: (u32, u32)) -> anyhow::Result<Manifest> {
     match &args.patterns {
         Some(dir) => Ok(Manifest::load(&dir.join(MANIFEST_FILE))?),
         None => Ok(
-            scan_patterns(ProjectorSize::new(projector.0, projector.1), SCAN_PERIOD_PX)
+            scan_patterns(ImageSize::new(projector.0, projector.1), SCAN_PERIOD_PX)
                 .manifest(BitDepth::Eight),
         ),
     }

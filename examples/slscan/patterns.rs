@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use sl_codec::{
-    Axis, BitDepth, GrayCodeSpec, GrayReference, HybridSpec, Pattern, PatternSequence,
-    PhaseShiftSpec, ProjectorSize, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, Unwrap,
+    Axis, BitDepth, GrayCodeSpec, GrayReference, HybridSpec, ImageSize, Pattern, PatternSequence,
+    PhaseShiftSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, Unwrap,
 };
 
 use crate::common::{Report, ensure_out_dir};
@@ -85,7 +85,7 @@ impl From<UnwrapArg> for Unwrap {
 pub(crate) struct Args {
     /// Projector size, `WIDTHxHEIGHT` (any size, not only powers of two).
     #[arg(long, value_parser = parse_size)]
-    pub(crate) projector: ProjectorSize,
+    pub(crate) projector: ImageSize,
     /// Coding method.
     #[arg(long, value_enum, default_value_t = CodecArg::Gray)]
     pub(crate) codec: CodecArg,
@@ -128,7 +128,7 @@ pub(crate) struct Args {
     pub(crate) bit_depth: u8,
 }
 
-fn parse_size(s: &str) -> Result<ProjectorSize, String> {
+fn parse_size(s: &str) -> Result<ImageSize, String> {
     let (w, h) = s
         .split_once(['x', 'X'])
         .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
@@ -143,7 +143,7 @@ fn parse_size(s: &str) -> Result<ProjectorSize, String> {
     if w == 0 || h == 0 {
         return Err(format!("'{s}': the projector must not be empty"));
     }
-    Ok(ProjectorSize::new(w, h))
+    Ok(ImageSize::new(w, h))
 }
 
 /// Phase steps of `--codec phase` when `--steps` is not given: 4, the classic choice that keeps
@@ -172,14 +172,14 @@ fn steps_and_period(args: &Args) -> (u32, f64) {
 /// The block of one axis.
 fn block(args: &Args, axis: Axis) -> Pattern {
     let p = args.projector;
-    let extent = f64::from(p.extent(axis));
+    let extent = f64::from(axis.extent(p));
     let (steps, period_px) = steps_and_period(args);
     match args.codec {
         CodecArg::Gray | CodecArg::Binary => {
             let mut s = GrayCodeSpec::per_pixel(axis, p, !args.no_center);
             let w = args.stripe_width.max(1);
             if w > 1 {
-                let stripes = u64::from(p.extent(axis).div_ceil(w));
+                let stripes = u64::from(axis.extent(p).div_ceil(w));
                 s.bits = 64 - (stripes.max(2) - 1).leading_zeros();
                 s.stripe_width = f64::from(w);
                 let offset = if args.no_center {
@@ -335,7 +335,7 @@ mod tests {
         }
         // The same numbers as the library's recommendation (which the scan pipeline uses).
         let expected =
-            sl_codec::HybridSpec::recommended(Axis::Column, sl_codec::ProjectorSize::new(240, 120));
+            sl_codec::HybridSpec::recommended(Axis::Column, sl_codec::ImageSize::new(240, 120));
         assert_eq!(m.blocks[0].pattern, Pattern::Hybrid(expected));
     }
 

@@ -10,7 +10,7 @@ use sl_codec::{
     Axis, CaptureSet, DecodeConfig, Frames, MANIFEST_FILE, decode, load_frame, write_png_rgb8,
 };
 use sl_tri::{
-    DEPTH_PNG_SCALE_MM, Method, PointStatus, Texture, TriOptions, Triangulator, write_depth_png16,
+    DEPTH_PNG_SCALE_MM, Method, PointStatus, Texture, TriConfig, Triangulator, write_depth_png16,
     write_depth_tiff,
 };
 
@@ -132,14 +132,14 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("reconstruct");
     let out = ensure_out_dir(&args.out)?;
     let method = Method::from(args.method);
-    let options = TriOptions {
+    let options = TriConfig {
         method,
         min_quality: args.min_quality,
         min_depth_mm: args.min_depth,
         max_depth_mm: args.max_depth,
         max_reprojection_px: args.max_reprojection,
         max_depth_jump: args.max_depth_jump,
-        ..TriOptions::default()
+        ..TriConfig::default()
     };
     options.validate()?;
 
@@ -284,7 +284,7 @@ mod tests {
     use std::path::{Path, PathBuf};
 
     use clap::Parser;
-    use sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
+    use sl_codec::{Axis, BitDepth, HybridSpec, ImageSize, Pattern, PatternSequence};
     use sl_scan::scaled_rig_config;
     use sl_sim::{Scene, VirtualRig, simulate_scan};
 
@@ -307,7 +307,7 @@ mod tests {
     fn column_only_capture(dir: &Path) -> (PathBuf, PathBuf) {
         let rig = VirtualRig::new(scaled_rig_config(DOWNSCALE), Scene::plane()).unwrap();
         let p = rig.config().projector.size;
-        let p = ProjectorSize::new(p.width, p.height);
+        let p = ImageSize::new(p.width, p.height);
         let manifest = PatternSequence::new(p)
             .with(Pattern::Hybrid(HybridSpec::recommended(Axis::Column, p)))
             .manifest(BitDepth::Eight);

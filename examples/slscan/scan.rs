@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 use structured_light::mesh::{FairConfig, SimplifyConfig};
 use structured_light::scan::{
-    MeshOptions, VirtualScanConfig, check_placements, scan_virtual, scan_virtual_placements,
+    MeshConfig, VirtualScanConfig, check_placements, scan_virtual, scan_virtual_placements,
     write_summary_html,
 };
 
@@ -226,8 +226,8 @@ pub(crate) fn smoothing(args: &Args) -> Option<structured_light::codec::SmoothCo
 }
 
 /// The mesh stage's steps as the flags ask, the same on the virtual rig and on real devices.
-pub(crate) fn mesh_options(args: &Args) -> MeshOptions {
-    MeshOptions {
+pub(crate) fn mesh_options(args: &Args) -> MeshConfig {
+    MeshConfig {
         simplify: (!args.no_simplify).then(SimplifyConfig::default),
         fair: (!args.no_fair).then(|| FairConfig {
             project_rim: !args.no_fair_rim,
@@ -320,7 +320,7 @@ mod tests {
     use super::*;
     use crate::{Cli, Command};
 
-    fn options(flags: &[&str]) -> MeshOptions {
+    fn options(flags: &[&str]) -> MeshConfig {
         let argv = ["slscan", "scan", "--out", "x"].iter().chain(flags);
         match Cli::try_parse_from(argv).map(|c| c.command) {
             Ok(Command::Scan(a)) => mesh_options(&a),
@@ -332,7 +332,7 @@ mod tests {
     /// names do, and nothing else.
     #[test]
     fn mesh_flags_turn_off_their_step() {
-        assert_eq!(options(&[]), MeshOptions::default());
+        assert_eq!(options(&[]), MeshConfig::default());
         let o = options(&["--no-fair-rim"]);
         assert_eq!(o.simplify, Some(SimplifyConfig::default()));
         let fair = o.fair.expect("still faired");

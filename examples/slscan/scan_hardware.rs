@@ -26,7 +26,7 @@ use std::time::Duration;
 use sl_cloud::PointCloud;
 use structured_light::mesh::PoissonConfig;
 use structured_light::scan::{
-    MergeStageConfig, MeshFiles, MeshOptions, MeshSummary, PlacementConfig, PlacementRig,
+    MergeStageConfig, MeshConfig, MeshFiles, MeshSummary, PlacementConfig, PlacementRig,
     ReconstructConfig, ScanError, SessionScanConfig, capture_placements, load_scan_calibration,
     mesh_stage_with, placement_dir_name, scan_placements, scan_poisson_config, scan_session,
     write_scan_cloud,
@@ -320,7 +320,7 @@ fn run_placements(
 fn mesh_without_truth(
     merged: &PointCloud,
     config: &SessionScanConfig,
-    options: &MeshOptions,
+    options: &MeshConfig,
     out: &Path,
 ) -> Result<(MeshSummary, MeshFiles), ScanError> {
     let poisson = scan_poisson_config(

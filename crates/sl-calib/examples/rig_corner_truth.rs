@@ -10,12 +10,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // an example: a failure ends it with the reason
 
 use nalgebra::{Point2, Vector2};
-use sl_calib::sl_codec::{
-    BitDepth, CaptureSet, DecodeConfig, Frame, Frames, ProjectorSize, decode,
-};
+use sl_calib::sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frame, Frames, ImageSize, decode};
 use sl_calib::{
     BoardSize, CornerRefiner, DetectorConfig, ProcamConfig, ProcamView, calibrate_procam,
-    detect_checkerboard, sl_camera::ImageSize,
+    detect_checkerboard,
 };
 use sl_sim::{
     BoardTruth, CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig,
@@ -127,7 +125,7 @@ fn main() {
     let size = BoardSize::new(board.inner_cols, board.inner_rows);
     let rig = VirtualRig::new(config.clone(), Scene::dumbbell()).unwrap();
     let captures = CalibrationCaptures::new(&rig, &session).unwrap();
-    let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
+    let p = ImageSize::new(config.projector.size.width, config.projector.size.height);
     let sequence = calibration_sequence(p);
     let manifest = sequence.manifest(BitDepth::Eight);
     let cfgs = configs();

@@ -13,7 +13,6 @@ use sl_calib::{
     BoardSize, CornerRefiner, DetectorConfig, ProcamCalibration, ProcamConfig, ProcamView,
     calibrate_procam, sl_camera::ImageSize,
 };
-use sl_codec::ProjectorSize;
 use sl_sim::{BoardTruth, Checkerboard, RigConfig, Scene, calibration_sequence};
 
 #[path = "support/procam_render.rs"]
@@ -24,7 +23,7 @@ mod procam_render;
 fn scan_views() -> (RigConfig, Vec<ProcamView>, Vec<BoardTruth>) {
     let mut config = RigConfig::default();
     config.render.seed = 0;
-    let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
+    let p = ImageSize::new(config.projector.size.width, config.projector.size.height);
     let sequence = calibration_sequence(p);
     let r = procam_render::render_with(config, Scene::dumbbell(), &sequence, 12, 0);
     (r.config, r.views, r.truth)

@@ -64,6 +64,7 @@ pub use cloud::{Aabb, MergePolicy, PointCloud};
 pub use error::CloudError;
 pub use fit::{PlaneFit, SphereFit, fit_plane, fit_sphere};
 pub use measure::sample_surface;
+pub use morton::morton_order;
 pub use neighbours::{KdIndex, Neighbour};
 pub use normals::{
     LocalPlane, NormalConfig, NormalEstimate, NormalOrientation, estimate_normals,

@@ -59,9 +59,16 @@ fn spread(v: u64) -> u64 {
     x
 }
 
-/// Indices of `points` sorted along a Z-order curve over their bounding box (non-finite points
-/// last, in input order).
-pub(crate) fn morton_order(points: &[Point3<f64>]) -> Vec<usize> {
+/// Indices of `points` sorted along a Z-order (Morton) curve over their bounding box, quantised
+/// to 2²¹ steps per axis; ties by index, non-finite points last, in input order. Loops over
+/// points or mesh vertices in this order touch neighbouring memory.
+///
+/// ```
+/// use nalgebra::Point3;
+/// let pts = [Point3::new(1.0, 1.0, 1.0), Point3::new(0.0, 0.0, 0.0)];
+/// assert_eq!(sl_cloud::morton_order(&pts), vec![1, 0]);
+/// ```
+pub fn morton_order(points: &[Point3<f64>]) -> Vec<usize> {
     let mut lo = Point3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY);
     let mut hi = Point3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
     for p in points.iter().filter(|p| is_finite(p)) {

@@ -17,7 +17,7 @@ use crate::{Axis, CaptureSet, CodecError, DecodeConfig, Frame, Frames, Pattern, 
 /// ```
 /// use sl_codec::*;
 ///
-/// let projector = ProjectorSize::new(128, 64);
+/// let projector = ImageSize::new(128, 64);
 /// let sequence = PatternSequence::new(projector)
 ///     .with(Pattern::Gray(GrayCodeSpec::per_pixel(Axis::Column, projector, true)))
 ///     .with(Pattern::Hybrid(HybridSpec::complementary(Axis::Row, projector, 4, 8.0)));

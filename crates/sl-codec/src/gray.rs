@@ -19,7 +19,7 @@ use crate::correspondence::{AxisMap, InvalidReason};
 use crate::frame::check_sizes;
 use crate::kernel::{self, AxisRows, Kernel, fill_out};
 use crate::pattern::{ceil_log2, finite, positive};
-use crate::{Axis, CodecError, DecodeConfig, Frame, ProjectorSize, Sample};
+use crate::{Axis, CodecError, DecodeConfig, Frame, ImageSize, Sample};
 
 /// Largest number of bits per Gray block: codes are accumulated in `u16` lanes, and 2^16 stripes
 /// cover any projector made.
@@ -100,8 +100,8 @@ impl GrayCodeSpec {
     ///
     /// Centring shifts the code by `(2^bits - extent) / 2` (rounded down) stripes so that the
     /// projector shows the symmetric middle of the code, as SLStudio and Moreno & Taubin do.
-    pub fn per_pixel(axis: Axis, projector: ProjectorSize, centered: bool) -> Self {
-        let extent = projector.extent(axis);
+    pub fn per_pixel(axis: Axis, projector: ImageSize, centered: bool) -> Self {
+        let extent = axis.extent(projector);
         let bits = ceil_log2(u64::from(extent)).max(1);
         Self {
             axis,
@@ -210,10 +210,10 @@ impl GrayCodeSpec {
 ///
 /// # Example
 /// ```
-/// use sl_codec::{decode_gray, render_pattern, Axis, DecodeConfig, Frame, GrayCodeSpec, Pattern, ProjectorSize};
+/// use sl_codec::{decode_gray, render_pattern, Axis, DecodeConfig, Frame, GrayCodeSpec, Pattern, ImageSize};
 ///
 /// // A 100-column projector seen by a camera of the same size, pixel for pixel.
-/// let projector = ProjectorSize::new(100, 4);
+/// let projector = ImageSize::new(100, 4);
 /// let spec = GrayCodeSpec::per_pixel(Axis::Column, projector, true);
 /// let pattern = Pattern::Gray(spec.clone());
 /// let frames = (0..pattern.frame_count())
@@ -869,7 +869,7 @@ mod tests {
 
     #[test]
     fn per_pixel_spec_for_1920() {
-        let s = GrayCodeSpec::per_pixel(Axis::Column, ProjectorSize::new(1920, 1080), true);
+        let s = GrayCodeSpec::per_pixel(Axis::Column, ImageSize::new(1920, 1080), true);
         assert_eq!(s.bits, 11);
         assert_eq!(s.origin, -0.5 - 64.0);
         assert_eq!(s.frame_count(), 22);
@@ -877,14 +877,14 @@ mod tests {
         assert_eq!(s.stripe_index(0.0), 64);
         assert_eq!(s.stripe_index(1919.0), 1983);
         assert_eq!(s.stripe_center(64.0), 0.0);
-        let r = GrayCodeSpec::per_pixel(Axis::Row, ProjectorSize::new(1920, 1080), false);
+        let r = GrayCodeSpec::per_pixel(Axis::Row, ImageSize::new(1920, 1080), false);
         assert_eq!(r.bits, 11);
         assert_eq!(r.origin, -0.5);
     }
 
     #[test]
     fn gray_code_changes_one_bit_between_neighbours() {
-        let s = GrayCodeSpec::per_pixel(Axis::Column, ProjectorSize::new(800, 600), true);
+        let s = GrayCodeSpec::per_pixel(Axis::Column, ImageSize::new(800, 600), true);
         for i in 0..(1u32 << s.bits) - 1 {
             assert_eq!((s.code_word(i) ^ s.code_word(i + 1)).count_ones(), 1);
         }
@@ -970,7 +970,7 @@ mod tests {
 
     #[test]
     fn frame_count_is_checked() {
-        let spec = GrayCodeSpec::per_pixel(Axis::Column, ProjectorSize::new(16, 4), false);
+        let spec = GrayCodeSpec::per_pixel(Axis::Column, ImageSize::new(16, 4), false);
         let frames = vec![Frame::filled(4, 4, 0u8).unwrap(); 7];
         let err = decode_gray(&spec, &frames, &DecodeConfig::default()).unwrap_err();
         assert!(

@@ -30,7 +30,7 @@ use crate::pattern::{ceil_log2, finite, positive};
 use crate::phase_shift::{
     Fringe, MAX_STEPS, MIN_PERIOD_PIXELS, PhaseRow, StepTable, fused_pass, validate_steps,
 };
-use crate::{Axis, CodecError, DecodeConfig, Frame, ProjectorSize, Sample, ShiftSign};
+use crate::{Axis, CodecError, DecodeConfig, Frame, ImageSize, Sample, ShiftSign};
 
 /// Phase steps of the capture the toolkit recommends and scans with (`slscan patterns --codec
 /// hybrid` and `slscan capture`/`scan` by default). 8 rather than 4: with
@@ -73,8 +73,8 @@ pub struct HybridSpec {
 impl HybridSpec {
     /// The capture the toolkit recommends on `axis`: [`RECOMMENDED_PHASE_STEPS`] steps,
     /// fringes [`RECOMMENDED_PERIOD_PX`] projector pixels wide, complementary Gray code.
-    pub fn recommended(axis: Axis, projector: ProjectorSize) -> Self {
-        let extent = f64::from(projector.extent(axis));
+    pub fn recommended(axis: Axis, projector: ImageSize) -> Self {
+        let extent = f64::from(axis.extent(projector));
         Self::complementary(
             axis,
             projector,
@@ -86,8 +86,8 @@ impl HybridSpec {
     /// Phase shift with `steps` steps and `periods` periods plus the complementary Gray code:
     /// stripes of half a period aligned with the periods (`ceil(log2(ceil(2 periods)))` bits),
     /// with inverse patterns.
-    pub fn complementary(axis: Axis, projector: ProjectorSize, steps: u32, periods: f64) -> Self {
-        let extent = projector.extent(axis);
+    pub fn complementary(axis: Axis, projector: ImageSize, steps: u32, periods: f64) -> Self {
+        let extent = axis.extent(projector);
         let lambda = f64::from(extent) / periods;
         let stripes = (2.0 * periods - 1e-9).ceil().max(1.0) as u64;
         let origin = -0.5;
@@ -456,32 +456,31 @@ mod tests {
 
     #[test]
     fn recommended_is_8_steps_of_15_px() {
-        let h = HybridSpec::recommended(Axis::Column, ProjectorSize::new(1920, 1080));
+        let h = HybridSpec::recommended(Axis::Column, ImageSize::new(1920, 1080));
         h.validate().unwrap();
         assert_eq!(h.steps, 8);
         assert_eq!(h.periods, 128.0);
-        let r = HybridSpec::recommended(Axis::Row, ProjectorSize::new(1920, 1080));
+        let r = HybridSpec::recommended(Axis::Row, ImageSize::new(1920, 1080));
         assert_eq!(r.periods, 72.0);
     }
 
     #[test]
     fn complementary_layout() {
-        let h = HybridSpec::complementary(Axis::Column, ProjectorSize::new(1920, 1080), 4, 32.0);
+        let h = HybridSpec::complementary(Axis::Column, ImageSize::new(1920, 1080), 4, 32.0);
         h.validate().unwrap();
         assert_eq!(h.gray.bits, 6);
         assert_eq!(h.gray.stripe_width, 30.0);
         assert_eq!(h.frame_count(), 4 + 12);
         assert!(!h.gray_wraps());
         // Non-integer periods: 20.5 periods -> 41 half-period stripes -> 6 bits.
-        let h = HybridSpec::complementary(Axis::Row, ProjectorSize::new(800, 600), 3, 20.5);
+        let h = HybridSpec::complementary(Axis::Row, ImageSize::new(800, 600), 3, 20.5);
         h.validate().unwrap();
         assert_eq!(h.gray.bits, 6);
     }
 
     #[test]
     fn stripes_wider_than_a_period_are_rejected() {
-        let mut h =
-            HybridSpec::complementary(Axis::Column, ProjectorSize::new(1920, 1080), 4, 32.0);
+        let mut h = HybridSpec::complementary(Axis::Column, ImageSize::new(1920, 1080), 4, 32.0);
         h.gray.stripe_width = 61.0;
         let e = h.validate().unwrap_err();
         assert!(e.to_string().contains("gray.stripe_width"), "{e}");
@@ -494,8 +493,7 @@ mod tests {
     #[test]
     fn slmaster_shifted_code_wraps_by_whole_periods() {
         // SLMaster: 32 periods of 60 px, 5 Gray bits of 60-px stripes shifted by half a period.
-        let mut h =
-            HybridSpec::complementary(Axis::Column, ProjectorSize::new(1920, 1024), 4, 32.0);
+        let mut h = HybridSpec::complementary(Axis::Column, ImageSize::new(1920, 1024), 4, 32.0);
         h.origin = 0.0;
         h.gray.bits = 5;
         h.gray.stripe_width = 60.0;

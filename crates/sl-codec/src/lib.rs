@@ -26,7 +26,7 @@
 //! use sl_codec::*;
 //!
 //! // Patterns for a 256x128 projector: Gray code for the columns, heterodyne phase for rows.
-//! let projector = ProjectorSize::new(256, 128);
+//! let projector = ImageSize::new(256, 128);
 //! let sequence = PatternSequence::new(projector)
 //!     .with(Pattern::Gray(GrayCodeSpec::per_pixel(Axis::Column, projector, true)))
 //!     .with(Pattern::Phase(PhaseShiftSpec::new(
@@ -105,7 +105,7 @@ pub use image_file::{
     GreyImage, IMAGE_EXTENSIONS, find_image_file, is_image_file, read_grey8, read_image,
 };
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
-pub use pattern::{Axis, BitDepth, Pattern, ProjectorSize};
+pub use pattern::{Axis, BitDepth, ImageSize, Pattern};
 pub use phase_shift::{
     MAX_STEPS, MIN_PERIOD_PIXELS, PhaseShiftSpec, ShiftSign, WrappedPhase, decode_phase,
     wrapped_phase,

@@ -10,8 +10,8 @@ use serde_json::{Map, Value, json};
 
 use crate::pattern::ceil_log2;
 use crate::{
-    Axis, BitDepth, CodecError, GrayCodeSpec, GrayReference, HybridSpec, Pattern, PatternSequence,
-    PhaseShiftSpec, ProjectorSize, ShiftSign, Unwrap,
+    Axis, BitDepth, CodecError, GrayCodeSpec, GrayReference, HybridSpec, ImageSize, Pattern,
+    PatternSequence, PhaseShiftSpec, ShiftSign, Unwrap,
 };
 
 /// The file name of a manifest inside a capture folder.
@@ -36,7 +36,7 @@ pub struct ManifestBlock {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Manifest {
     /// Projector image size.
-    pub projector: ProjectorSize,
+    pub projector: ImageSize,
     /// Bit depth of the rendered patterns (the captures may have any depth).
     pub bit_depth: BitDepth,
     /// Folder of the frames, relative to the manifest's folder (absolute allowed); `None`
@@ -344,8 +344,7 @@ impl Parser<'_> {
             .get(&root, "projector")
             .ok_or_else(|| self.err("projector", "is required"))?;
         let po = self.obj(pv, "projector", &["width", "height"])?;
-        let projector =
-            ProjectorSize::new(self.u32_req(&po, "width")?, self.u32_req(&po, "height")?);
+        let projector = ImageSize::new(self.u32_req(&po, "width")?, self.u32_req(&po, "height")?);
         if projector.width == 0 || projector.height == 0 {
             return Err(self.err("projector", format!("must not be empty, got {projector}")));
         }
@@ -387,7 +386,7 @@ impl Parser<'_> {
         &self,
         v: &Value,
         at: &str,
-        projector: ProjectorSize,
+        projector: ImageSize,
     ) -> Result<ManifestBlock, CodecError> {
         let codec = v.get("codec").and_then(Value::as_str).ok_or_else(|| {
             self.err(
@@ -416,7 +415,7 @@ impl Parser<'_> {
                 format!("must be 'column' or 'row', got '{axis_name}'"),
             )
         })?;
-        let extent = projector.extent(axis);
+        let extent = axis.extent(projector);
         let pattern = match codec {
             "gray" => Pattern::Gray(self.gray(&o, axis, extent, None)?),
             "phase" => {
@@ -613,7 +612,7 @@ mod tests {
 
     #[test]
     fn round_trip_through_json() {
-        let p = ProjectorSize::new(1920, 1080);
+        let p = ImageSize::new(1920, 1080);
         let seq = PatternSequence::new(p)
             .with(Pattern::Gray(GrayCodeSpec::per_pixel(
                 Axis::Column,

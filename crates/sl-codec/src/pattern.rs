@@ -3,35 +3,9 @@
 
 use crate::{CodecError, GrayCodeSpec, HybridSpec, PhaseShiftSpec};
 
-/// Size of the projector image in pixels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct ProjectorSize {
-    /// Width (number of columns).
-    pub width: u32,
-    /// Height (number of rows).
-    pub height: u32,
-}
-
-impl ProjectorSize {
-    /// A projector of `width x height` pixels.
-    pub fn new(width: u32, height: u32) -> Self {
-        Self { width, height }
-    }
-
-    /// Number of projector pixels along `axis` (width for columns, height for rows).
-    pub fn extent(&self, axis: Axis) -> u32 {
-        match axis {
-            Axis::Column => self.width,
-            Axis::Row => self.height,
-        }
-    }
-}
-
-impl std::fmt::Display for ProjectorSize {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}x{}", self.width, self.height)
-    }
-}
+/// Size of the projector image in pixels: the workspace's one image size, [`sl_camera::ImageSize`],
+/// re-exported so codec users need one import.
+pub use sl_camera::ImageSize;
 
 /// The projector coordinate a block codes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -43,6 +17,14 @@ pub enum Axis {
 }
 
 impl Axis {
+    /// Number of projector pixels along this axis (width for columns, height for rows).
+    pub fn extent(self, size: ImageSize) -> u32 {
+        match self {
+            Self::Column => size.width,
+            Self::Row => size.height,
+        }
+    }
+
     /// `"column"` or `"row"`, as written in manifests.
     pub fn name(self) -> &'static str {
         match self {
@@ -222,6 +204,6 @@ mod tests {
             assert_eq!(Axis::from_name(a.name()), Some(a));
         }
         assert_eq!(Axis::from_name("diagonal"), None);
-        assert_eq!(ProjectorSize::new(1920, 1080).extent(Axis::Row), 1080);
+        assert_eq!(Axis::Row.extent(ImageSize::new(1920, 1080)), 1080);
     }
 }

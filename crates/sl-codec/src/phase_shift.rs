@@ -25,7 +25,7 @@ use crate::gray::{Band, check_block, dims};
 use crate::kernel::{self, AxisRows, Kernel, fill_out};
 use crate::pattern::{finite, positive};
 use crate::unwrap::{Plan, Unwrap, UnwrapScratch, gcd};
-use crate::{Axis, CodecError, DecodeConfig, Frame, ProjectorSize, Sample};
+use crate::{Axis, CodecError, DecodeConfig, Frame, ImageSize, Sample};
 
 /// Smallest fringe period in projector pixels: below 2 pixels a sinusoid cannot be displayed
 /// (Nyquist), and the decoder would see aliases.
@@ -119,14 +119,14 @@ impl PhaseShiftSpec {
     /// A block with default conventions (origin `-0.5`, no offset, positive shifts, gamma 1).
     pub fn new(
         axis: Axis,
-        projector: ProjectorSize,
+        projector: ImageSize,
         steps: u32,
         periods: Vec<f64>,
         unwrap: Unwrap,
     ) -> Self {
         Self {
             axis,
-            extent: projector.extent(axis),
+            extent: axis.extent(projector),
             steps,
             periods,
             unwrap,
@@ -729,13 +729,7 @@ mod tests {
     use approx::assert_abs_diff_eq;
 
     fn spec(periods: Vec<f64>, unwrap: Unwrap) -> PhaseShiftSpec {
-        PhaseShiftSpec::new(
-            Axis::Column,
-            ProjectorSize::new(1920, 1080),
-            4,
-            periods,
-            unwrap,
-        )
+        PhaseShiftSpec::new(Axis::Column, ImageSize::new(1920, 1080), 4, periods, unwrap)
     }
 
     #[test]

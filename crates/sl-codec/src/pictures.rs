@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::export::{write_npy_f32, write_png_grey8, write_png_rgb8, write_tiff_f32};
-use crate::{CodecError, CorrespondenceMap, Frame, InvalidReason, ProjectorSize};
+use crate::{CodecError, CorrespondenceMap, Frame, ImageSize, InvalidReason};
 
 /// Colours of the invalid-reason picture, indexed by the reason's byte value: valid pixels
 /// dark green, inconsistent code red, low modulation blue, shadow black, saturated white.
@@ -114,7 +114,7 @@ pub fn write_outputs(
     map: &CorrespondenceMap,
     dir: &Path,
     format: MapFormat,
-    projector: Option<ProjectorSize>,
+    projector: Option<ImageSize>,
 ) -> Result<OutputFiles, CodecError> {
     std::fs::create_dir_all(dir).map_err(|e| CodecError::io(dir, "create directory", e))?;
     let (w, h) = (map.width, map.height);
@@ -233,13 +233,8 @@ mod tests {
         }
         let labels = image::open(&files.labels).unwrap().to_luma8();
         assert_eq!(labels.get_pixel(1, 1).0, [3]);
-        let files = write_outputs(
-            &m,
-            dir.path(),
-            MapFormat::Npy,
-            Some(ProjectorSize::new(8, 8)),
-        )
-        .unwrap();
+        let files =
+            write_outputs(&m, dir.path(), MapFormat::Npy, Some(ImageSize::new(8, 8))).unwrap();
         assert!(files.maps[0].extension().is_some_and(|e| e == "npy"));
     }
 }

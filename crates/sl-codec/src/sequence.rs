@@ -6,7 +6,7 @@ use std::path::Path;
 use rayon::prelude::*;
 
 use crate::manifest::{Manifest, ManifestBlock};
-use crate::{Axis, BitDepth, CodecError, Frame, Pattern, ProjectorSize, Sample};
+use crate::{Axis, BitDepth, CodecError, Frame, ImageSize, Pattern, Sample};
 
 /// The blocks of a scan in projection order, for one projector.
 ///
@@ -14,14 +14,14 @@ use crate::{Axis, BitDepth, CodecError, Frame, Pattern, ProjectorSize, Sample};
 #[derive(Clone, Debug, PartialEq)]
 pub struct PatternSequence {
     /// Projector image size.
-    pub projector: ProjectorSize,
+    pub projector: ImageSize,
     /// The blocks, in projection order (at most one per axis).
     pub blocks: Vec<Pattern>,
 }
 
 impl PatternSequence {
     /// An empty sequence.
-    pub fn new(projector: ProjectorSize) -> Self {
+    pub fn new(projector: ImageSize) -> Self {
         Self {
             projector,
             blocks: Vec::new(),
@@ -74,13 +74,13 @@ impl PatternSequence {
                 Pattern::Phase(s) => s.extent,
                 Pattern::Hybrid(s) => s.extent,
             };
-            if extent != self.projector.extent(axis) {
+            if extent != axis.extent(self.projector) {
                 return Err(CodecError::parameter(
                     format!("blocks[{i}].extent"),
                     format!(
                         "{extent} differs from the projector's {} {}",
                         axis.name(),
-                        self.projector.extent(axis)
+                        axis.extent(self.projector)
                     ),
                 ));
             }
@@ -212,7 +212,7 @@ pub(crate) fn prefix_block(i: usize, e: CodecError) -> CodecError {
 pub fn render_pattern<T: Sample>(
     pattern: &Pattern,
     frame: usize,
-    projector: ProjectorSize,
+    projector: ImageSize,
 ) -> Result<Frame<T>, CodecError> {
     let profile = pattern_profile::<T>(pattern, frame, projector)?;
     let (w, h) = (projector.width as usize, projector.height as usize);
@@ -237,7 +237,7 @@ pub fn render_pattern<T: Sample>(
 pub(crate) fn pattern_profile<T: Sample>(
     pattern: &Pattern,
     frame: usize,
-    projector: ProjectorSize,
+    projector: ImageSize,
 ) -> Result<Vec<T>, CodecError> {
     if frame >= pattern.frame_count() {
         return Err(CodecError::parameter(
@@ -249,7 +249,7 @@ pub(crate) fn pattern_profile<T: Sample>(
             ),
         ));
     }
-    let extent = projector.extent(pattern.axis());
+    let extent = pattern.axis().extent(projector);
     let axis = pattern.axis();
     Ok((0..extent)
         .map(|i| {
@@ -269,7 +269,7 @@ mod tests {
     use crate::{GrayCodeSpec, HybridSpec, PhaseShiftSpec, Unwrap};
 
     fn sequence() -> PatternSequence {
-        let p = ProjectorSize::new(40, 30);
+        let p = ImageSize::new(40, 30);
         PatternSequence::new(p)
             .with(Pattern::Gray(GrayCodeSpec::per_pixel(
                 Axis::Column,
@@ -318,7 +318,7 @@ mod tests {
 
     #[test]
     fn validation_catches_duplicate_axis_and_extent() {
-        let p = ProjectorSize::new(40, 30);
+        let p = ImageSize::new(40, 30);
         let s = sequence().with(Pattern::Hybrid(HybridSpec::complementary(
             Axis::Column,
             p,
@@ -327,7 +327,7 @@ mod tests {
         )));
         let e = s.validate().unwrap_err();
         assert!(e.to_string().contains("blocks[2].axis"), "{e}");
-        let s = PatternSequence::new(ProjectorSize::new(41, 30)).with(Pattern::Gray(
+        let s = PatternSequence::new(ImageSize::new(41, 30)).with(Pattern::Gray(
             GrayCodeSpec::per_pixel(Axis::Column, p, true),
         ));
         assert!(

@@ -13,7 +13,7 @@
 use rayon::prelude::*;
 
 use crate::sequence::pattern_profile;
-use crate::{Axis, BitDepth, CodecError, Frame, Pattern, PatternSequence, ProjectorSize, Sample};
+use crate::{Axis, BitDepth, CodecError, Frame, ImageSize, Pattern, PatternSequence, Sample};
 
 /// A plane in front of a projector and a camera, with its lighting.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,7 +26,7 @@ pub struct SyntheticScene {
     /// centres at integers on both sides.
     pub camera_to_projector: [f64; 9],
     /// Projector size.
-    pub projector: ProjectorSize,
+    pub projector: ImageSize,
     /// Grey level (8-bit scale) of a fully white projector pixel seen directly at albedo 1.
     pub gain: f64,
     /// Smallest albedo; the albedo varies smoothly across the image between `albedo_min` and
@@ -66,7 +66,7 @@ impl SyntheticScene {
     /// A camera of `camera_width x camera_height` looking at the middle ~80% of the projector
     /// image through a mild perspective; no noise, no ambient or global light, albedo 1,
     /// gain 200.
-    pub fn looking_at(projector: ProjectorSize, camera_width: usize, camera_height: usize) -> Self {
+    pub fn looking_at(projector: ImageSize, camera_width: usize, camera_height: usize) -> Self {
         let (pw, ph) = (f64::from(projector.width), f64::from(projector.height));
         let (cw, ch) = (camera_width.max(1) as f64, camera_height.max(1) as f64);
         // Affine part: camera image onto the central 80% of the projector, slightly rotated...
@@ -108,7 +108,7 @@ impl SyntheticScene {
     /// Choose `scale` near 1-1.5 for per-pixel Gray codes: a camera that cannot resolve the
     /// finest stripes (2 projector pixels wide) cannot read their bits either.
     pub fn window(
-        projector: ProjectorSize,
+        projector: ImageSize,
         camera_width: usize,
         camera_height: usize,
         scale: f64,
@@ -410,7 +410,7 @@ mod tests {
 
     #[test]
     fn identity_camera_sees_the_pattern() {
-        let p = ProjectorSize::new(32, 8);
+        let p = ImageSize::new(32, 8);
         let mut s = SyntheticScene::looking_at(p, 32, 8);
         s.camera_to_projector = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
         s.gain = 255.0;

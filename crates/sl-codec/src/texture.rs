@@ -87,7 +87,7 @@ impl CaptureTexture {
 ///
 /// ```
 /// use sl_codec::*;
-/// let projector = ProjectorSize::new(64, 32);
+/// let projector = ImageSize::new(64, 32);
 /// let sequence = PatternSequence::new(projector)
 ///     .with(Pattern::Hybrid(HybridSpec::complementary(Axis::Column, projector, 4, 4.0)));
 /// let scene = SyntheticScene::looking_at(projector, 40, 30);
@@ -202,8 +202,8 @@ pub fn capture_texture(capture: &CaptureSet) -> Result<CaptureTexture, CodecErro
 mod tests {
     use super::*;
     use crate::{
-        Axis, BitDepth, Frame, GrayCodeSpec, HybridSpec, PatternSequence, PhaseShiftSpec,
-        ProjectorSize, Unwrap,
+        Axis, BitDepth, Frame, GrayCodeSpec, HybridSpec, ImageSize, PatternSequence,
+        PhaseShiftSpec, Unwrap,
     };
 
     /// A capture of constant frames: frame `i` has the value `values[i]` everywhere.
@@ -219,7 +219,7 @@ mod tests {
     /// averaged (frames 2k.. of the Gray block are skipped), to the exact mean.
     #[test]
     fn phase_blocks_are_preferred_and_averaged_exactly() {
-        let p = ProjectorSize::new(64, 32);
+        let p = ImageSize::new(64, 32);
         let gray = GrayCodeSpec::per_pixel(Axis::Column, p, true);
         let phase = PhaseShiftSpec::new(Axis::Row, p, 3, vec![1.0, 2.0], Unwrap::Hierarchical);
         let seq = PatternSequence::new(p)
@@ -245,7 +245,7 @@ mod tests {
     /// of a white/black block.
     #[test]
     fn gray_blocks_give_their_pair_mean_or_white_frame() {
-        let p = ProjectorSize::new(8, 4);
+        let p = ImageSize::new(8, 4);
         let mut gray = GrayCodeSpec::per_pixel(Axis::Column, p, true);
         let seq = PatternSequence::new(p).with(Pattern::Gray(gray.clone()));
         let values: Vec<u8> = (0..gray.frame_count() as u8).map(|i| 10 * i).collect();
@@ -269,7 +269,7 @@ mod tests {
     /// 16-bit frames are scaled to 8-bit grey levels; a hybrid block averages its phase frames.
     #[test]
     fn sixteen_bit_hybrid() {
-        let p = ProjectorSize::new(64, 32);
+        let p = ImageSize::new(64, 32);
         let seq = PatternSequence::new(p).with(Pattern::Hybrid(HybridSpec::complementary(
             Axis::Column,
             p,

@@ -8,11 +8,11 @@ use std::path::Path;
 
 use sl_codec::{
     Axis, BitDepth, CaptureSet, CodecError, DecodeConfig, Frames, GrayCodeSpec, HybridSpec,
-    MANIFEST_FILE, Pattern, PatternSequence, ProjectorSize, decode,
+    ImageSize, MANIFEST_FILE, Pattern, PatternSequence, decode,
 };
 
 fn sequence() -> PatternSequence {
-    let p = ProjectorSize::new(200, 120);
+    let p = ImageSize::new(200, 120);
     PatternSequence::new(p)
         .with(Pattern::Gray(GrayCodeSpec::per_pixel(
             Axis::Column,

@@ -5,16 +5,16 @@
 
 use proptest::prelude::*;
 use sl_codec::{
-    Axis, CorrespondenceMap, DecodeConfig, Frame, GrayCodeSpec, HybridSpec, Pattern,
-    PatternSequence, PhaseShiftSpec, ProjectorSize, SyntheticScene, Unwrap, decode_frames,
+    Axis, CorrespondenceMap, DecodeConfig, Frame, GrayCodeSpec, HybridSpec, ImageSize, Pattern,
+    PatternSequence, PhaseShiftSpec, SyntheticScene, Unwrap, decode_frames,
 };
 
-fn projector() -> impl Strategy<Value = ProjectorSize> {
+fn projector() -> impl Strategy<Value = ImageSize> {
     prop_oneof![
-        Just(ProjectorSize::new(800, 600)),
-        Just(ProjectorSize::new(1824, 1140)),
-        Just(ProjectorSize::new(1920, 1080)),
-        (200u32..2200, 150u32..1300).prop_map(|(w, h)| ProjectorSize::new(w, h)),
+        Just(ImageSize::new(800, 600)),
+        Just(ImageSize::new(1824, 1140)),
+        Just(ImageSize::new(1920, 1080)),
+        (200u32..2200, 150u32..1300).prop_map(|(w, h)| ImageSize::new(w, h)),
     ]
 }
 
@@ -22,7 +22,7 @@ fn projector() -> impl Strategy<Value = ProjectorSize> {
 /// `(fx, fy)` of the room left on each side; no noise; 1 projector pixel of defocus, without
 /// which a camera finer than the projector sees the projector's pixel steps (a sub-pixel phase
 /// code then reads the centre of the projector pixel, up to 0.5 px off).
-fn scene(p: ProjectorSize, scale: f64, fx: f64, fy: f64) -> SyntheticScene {
+fn scene(p: ImageSize, scale: f64, fx: f64, fy: f64) -> SyntheticScene {
     let mut s = SyntheticScene {
         blur: 1.0,
         ..SyntheticScene::window(p, 48, 36, scale)

@@ -6,8 +6,8 @@
 
 use sl_codec::{
     Axis, BitDepth, CaptureSet, CorrespondenceMap, DecodeConfig, Frames, GrayCodeSpec,
-    GrayReference, HybridSpec, InvalidReason, Pattern, PatternSequence, PhaseShiftSpec,
-    ProjectorSize, Sample, SyntheticScene, Unwrap, decode,
+    GrayReference, HybridSpec, ImageSize, InvalidReason, Pattern, PatternSequence, PhaseShiftSpec,
+    Sample, SyntheticScene, Unwrap, decode,
 };
 
 /// Errors of one decoded axis against the scene's ground truth.
@@ -110,7 +110,7 @@ impl From<Vec<sl_codec::Frame<u16>>> for FramesOf {
 
 /// The hard scene: 2 grey levels of noise, 1 px of defocus, ambient light, albedo from 0.3 to
 /// 1, 30% global illumination, and a cast shadow.
-fn hard_scene(projector: ProjectorSize, scale: f64) -> SyntheticScene {
+fn hard_scene(projector: ImageSize, scale: f64) -> SyntheticScene {
     SyntheticScene {
         noise_sigma: 2.0,
         blur: 1.0,
@@ -139,7 +139,7 @@ fn predicted_sigma_px(scene: &SyntheticScene, steps: u32, lambda: f64, footprint
 
 #[test]
 fn gray_code_both_axes_on_a_hard_scene() {
-    let p = ProjectorSize::new(1920, 1080);
+    let p = ImageSize::new(1920, 1080);
     let seq = PatternSequence::new(p)
         .with(Pattern::Gray(GrayCodeSpec::per_pixel(
             Axis::Column,
@@ -189,7 +189,7 @@ fn gray_code_both_axes_on_a_hard_scene() {
 #[test]
 fn gray_code_variants() {
     // White/black references, plain binary, not centred, 16-bit frames, non-power-of-two sizes.
-    let p = ProjectorSize::new(1824, 1140);
+    let p = ImageSize::new(1824, 1140);
     let mut col = GrayCodeSpec::per_pixel(Axis::Column, p, false);
     col.reference = GrayReference::WhiteBlack;
     let mut row = GrayCodeSpec::per_pixel(Axis::Row, p, true);
@@ -227,7 +227,7 @@ fn robust_classification_rejects_what_global_light_corrupts() {
     // away (a concave corner). Where a coarse bit lights that region but not the pixel, the
     // "unlit" sample is brighter than the "lit" one, and plain comparison reads the bit wrong.
     // Xu & Aliaga's rules must turn those pixels into "unreadable" instead of wrong codes.
-    let p = ProjectorSize::new(1920, 1080);
+    let p = ImageSize::new(1920, 1080);
     let seq = PatternSequence::new(p).with(Pattern::Gray(GrayCodeSpec::per_pixel(
         Axis::Column,
         p,
@@ -313,7 +313,7 @@ fn check_phase(
 
 #[test]
 fn heterodyne_phase_on_a_hard_scene() {
-    let p = ProjectorSize::new(1920, 1080);
+    let p = ImageSize::new(1920, 1080);
     let seq = PatternSequence::new(p).with(Pattern::Phase(PhaseShiftSpec::new(
         Axis::Column,
         p,
@@ -334,7 +334,7 @@ fn heterodyne_phase_on_a_hard_scene() {
 
 #[test]
 fn hierarchical_phase_rows() {
-    let p = ProjectorSize::new(800, 600);
+    let p = ImageSize::new(800, 600);
     let seq = PatternSequence::new(p).with(Pattern::Phase(PhaseShiftSpec::new(
         Axis::Row,
         p,
@@ -357,7 +357,7 @@ fn hierarchical_phase_rows() {
 fn number_theoretic_phase() {
     // Coprime 11 and 13 periods locate the pixel; 48 periods refine. The pair tolerates
     // 0.25 / (11 + 13) cycles of phase error: less noise than the hard scene.
-    let p = ProjectorSize::new(800, 600);
+    let p = ImageSize::new(800, 600);
     let seq = PatternSequence::new(p).with(Pattern::Phase(PhaseShiftSpec::new(
         Axis::Column,
         p,
@@ -383,7 +383,7 @@ fn number_theoretic_phase() {
 
 #[test]
 fn hybrid_complementary_on_a_hard_scene() {
-    let p = ProjectorSize::new(1920, 1080);
+    let p = ImageSize::new(1920, 1080);
     let seq = PatternSequence::new(p)
         .with(Pattern::Hybrid(HybridSpec::complementary(
             Axis::Column,
@@ -404,7 +404,7 @@ fn hybrid_complementary_on_a_hard_scene() {
 
 #[test]
 fn hybrid_with_white_black_and_phase_mean_references() {
-    let p = ProjectorSize::new(800, 600);
+    let p = ImageSize::new(800, 600);
     let mut col = HybridSpec::complementary(Axis::Column, p, 3, 16.0);
     col.gray.reference = GrayReference::WhiteBlack;
     let mut row = HybridSpec::complementary(Axis::Row, p, 4, 12.0);
@@ -433,7 +433,7 @@ fn gamma_pre_compensation_removes_the_harmonic_error() {
     // A projector with gamma 2.2 distorts the fringes; 3-step phase shift, which aliases the
     // second harmonic onto the fundamental, then shows a ripple at three times the fringe
     // frequency. Pre-compensating the patterns removes it.
-    let p = ProjectorSize::new(800, 600);
+    let p = ImageSize::new(800, 600);
     let spec = PhaseShiftSpec::new(
         Axis::Column,
         p,
@@ -468,7 +468,7 @@ fn gamma_pre_compensation_removes_the_harmonic_error() {
 
 #[test]
 fn wrong_frame_count_and_size_are_named() {
-    let p = ProjectorSize::new(64, 32);
+    let p = ImageSize::new(64, 32);
     let seq = PatternSequence::new(p).with(Pattern::Gray(GrayCodeSpec::per_pixel(
         Axis::Column,
         p,
@@ -495,7 +495,7 @@ fn wrong_frame_count_and_size_are_named() {
 fn saturation_is_reported() {
     // Phase: a gain of 400 grey levels clips the bright half of every fringe, which distorts the
     // phase; those pixels must be Saturated, not decoded wrongly.
-    let p = ProjectorSize::new(800, 600);
+    let p = ImageSize::new(800, 600);
     let seq = PatternSequence::new(p).with(Pattern::Phase(PhaseShiftSpec::new(
         Axis::Column,
         p,

@@ -498,7 +498,10 @@ pub fn simplify(
     let mut pos = std::mem::take(&mut mesh.vertices);
     // Vertices in Morton order and triangles by their first vertex: neighbours close in
     // memory, which is most of the speed of the passes below.
-    let order = morton_order(&pos);
+    let order: Vec<u32> = sl_cloud::morton_order(&pos)
+        .into_iter()
+        .map(|i| i as u32)
+        .collect();
     let mut new_id = vec![0u32; nv];
     for (i, &o) in order.iter().enumerate() {
         new_id[o as usize] = i as u32;
@@ -1211,51 +1214,6 @@ fn try_collapse(
         cost,
         unsupported: both,
     })
-}
-
-/// The vertex indices sorted by the Morton code (Z-order) of their positions quantised to
-/// 2²¹ steps per axis over the bounding box; ties and non-finite positions by index.
-fn morton_order(pos: &[Point3<f64>]) -> Vec<u32> {
-    let mut lo = Point3::from([f64::INFINITY; 3]);
-    let mut hi = Point3::from([f64::NEG_INFINITY; 3]);
-    for p in pos
-        .iter()
-        .filter(|p| p.coords.iter().all(|c| c.is_finite()))
-    {
-        lo = lo.inf(p);
-        hi = hi.sup(p);
-    }
-    let scale = (hi - lo).max();
-    let scale = if scale > 0.0 {
-        f64::from((1u32 << 21) - 1) / scale
-    } else {
-        0.0
-    };
-    // Spreads the 21 low bits of `v` to every third bit.
-    let spread = |v: u64| {
-        let mut x = v & 0x1f_ffff;
-        x = (x | (x << 32)) & 0x1f_0000_0000_ffff;
-        x = (x | (x << 16)) & 0x1f_0000_ff00_00ff;
-        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
-        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
-        x = (x | (x << 2)) & 0x1249_2492_4924_9249;
-        x
-    };
-    let mut keyed: Vec<(u64, u32)> = pos
-        .par_iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let q = (p - lo) * scale;
-            let key = if q.iter().all(|c| c.is_finite()) {
-                spread(q.x as u64) | (spread(q.y as u64) << 1) | (spread(q.z as u64) << 2)
-            } else {
-                u64::MAX
-            };
-            (key, i as u32)
-        })
-        .collect();
-    keyed.par_sort_unstable();
-    keyed.into_iter().map(|(_, i)| i).collect()
 }
 
 /// Whether moving `v` to `x` flips or nearly flips one of the triangles `star` (around `v`)

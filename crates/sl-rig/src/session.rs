@@ -180,8 +180,8 @@ struct SessionFile {
 /// // shows, and a turntable.
 /// let (mut camera, mut projector, mut table) = devices();
 /// // Gray code columns of the 64x36 projector, two views.
-/// use sl_codec::{Axis, BitDepth, GrayCodeSpec, Pattern, PatternSequence, ProjectorSize};
-/// let p = ProjectorSize::new(64, 36);
+/// use sl_codec::{Axis, BitDepth, GrayCodeSpec, Pattern, PatternSequence, ImageSize};
+/// let p = ImageSize::new(64, 36);
 /// let sequence = PatternSequence::new(p)
 ///     .with(Pattern::Gray(GrayCodeSpec::per_pixel(Axis::Column, p, true)));
 /// let manifest = sequence.manifest(BitDepth::Eight);

@@ -12,7 +12,7 @@ use sl_calib::{
     calibrate_turntable,
 };
 use sl_camera::{Calibration, TurntableAxis};
-use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frames, ProjectorSize, decode};
+use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frames, ImageSize, decode};
 use sl_rig::GreyImage;
 use sl_sim::{CalibrationCaptures, CalibrationSession, VirtualRig, calibration_sequence};
 
@@ -78,7 +78,7 @@ pub fn calibrate_virtual(
     let board = session.board;
     let captures = CalibrationCaptures::new(rig, &session)?;
     let poses = captures.poses().len();
-    let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
+    let p = ImageSize::new(config.projector.size.width, config.projector.size.height);
     let sequence = calibration_sequence(p);
     let manifest = sequence.manifest(BitDepth::Eight);
     let total = poses + cfg.table_angles_deg.len();

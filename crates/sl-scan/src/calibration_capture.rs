@@ -28,7 +28,7 @@ use nalgebra::Point2;
 use serde::{Deserialize, Serialize};
 use sl_calib::sl_camera::{CameraModel, ImageSize};
 use sl_calib::sl_codec::{
-    Axis, BitDepth, HybridSpec, MANIFEST_FILE, Manifest, Pattern, PatternSequence, ProjectorSize,
+    Axis, BitDepth, HybridSpec, MANIFEST_FILE, Manifest, Pattern, PatternSequence,
 };
 use sl_calib::{
     BoardCorners, BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera,
@@ -87,7 +87,7 @@ const CALIBRATION_PHASE_STEPS: u32 = 4;
 /// The default pattern sequence of a calibration capture: the complementary hybrid code on
 /// the projector columns, then on its rows (the projector calibration needs both), 4 phase
 /// steps, 30 periods across — as `slscan scan` calibrates the virtual rig.
-pub fn calibration_patterns(projector: ProjectorSize) -> PatternSequence {
+pub fn calibration_patterns(projector: ImageSize) -> PatternSequence {
     let code = |axis, extent: u32| {
         Pattern::Hybrid(HybridSpec::complementary(
             axis,
@@ -364,7 +364,7 @@ impl CalibrationCaptureConfig {
     pub fn new(board: Checkerboard, projector: (u32, u32)) -> Self {
         Self {
             board,
-            manifest: calibration_patterns(ProjectorSize::new(projector.0, projector.1))
+            manifest: calibration_patterns(ImageSize::new(projector.0, projector.1))
                 .manifest(BitDepth::Eight),
             display_latency: Duration::ZERO,
             flush_frames: 0,

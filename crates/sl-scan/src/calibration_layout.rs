@@ -682,8 +682,8 @@ mod tests {
 
     use sl_calib::image::{GrayImage, Luma};
     use sl_codec::{
-        Axis, BitDepth, DecodeConfig, GrayCodeSpec, MANIFEST_FILE, Pattern, PatternSequence,
-        ProjectorSize,
+        Axis, BitDepth, DecodeConfig, GrayCodeSpec, ImageSize, MANIFEST_FILE, Pattern,
+        PatternSequence,
     };
 
     use super::{CalibrationLayout, LayoutError, MIN_POSES, projector_size};
@@ -695,7 +695,7 @@ mod tests {
     /// and `layout/` holding `manifest.json` and `layout.json` (poses `capture_*`, white
     /// `bright.png`). Returns (session, layout file).
     fn session(root: &Path, poses: usize) -> (PathBuf, PathBuf) {
-        let p = ProjectorSize::new(W, H);
+        let p = ImageSize::new(W, H);
         let seq = PatternSequence::new(p)
             .with(Pattern::Gray(GrayCodeSpec::per_pixel(
                 Axis::Column,

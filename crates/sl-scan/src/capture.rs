@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use sl_camera::TurntableAxis;
-use sl_codec::{Axis, HybridSpec, Pattern, PatternSequence, ProjectorSize};
+use sl_codec::{Axis, HybridSpec, ImageSize, Pattern, PatternSequence};
 use sl_rig::{
     Camera, CaptureSession, Projector, SessionConfig, SessionPlan, SessionSummary, Turntable,
     turntable_angles,
@@ -29,7 +29,7 @@ pub const SCAN_PERIOD_PX: f64 = sl_codec::RECOMMENDED_PERIOD_PX;
 /// The scan's pattern sequence: hybrid code on the projector columns, [`SCAN_PHASE_STEPS`]
 /// phase steps, periods of `period_px` projector pixels ([`SCAN_PERIOD_PX`] by default, on
 /// the virtual and the real rig).
-pub fn scan_patterns(projector: ProjectorSize, period_px: f64) -> PatternSequence {
+pub fn scan_patterns(projector: ImageSize, period_px: f64) -> PatternSequence {
     PatternSequence::new(projector).with(Pattern::Hybrid(HybridSpec::complementary(
         Axis::Column,
         projector,

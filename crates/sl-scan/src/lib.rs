@@ -88,7 +88,7 @@ pub use measure::{
 };
 pub use merge::{MergeReport, MergeStageConfig, MergedViews, ViewPoseReport, merge_scan};
 pub use mesh::{
-    MESH_CELL_PER_SPACING, MeshFiles, MeshOptions, MeshSummary, mesh_stage, mesh_stage_with,
+    MESH_CELL_PER_SPACING, MeshConfig, MeshFiles, MeshSummary, mesh_stage, mesh_stage_with,
     scan_poisson_config,
 };
 pub use placements::{

@@ -117,7 +117,7 @@ pub fn scan_poisson_config(
 /// `slscan mesh` runs by default, each of which can be left out (`slscan scan --no-simplify`,
 /// `--no-fair`, `--no-fair-rim`).
 #[derive(Debug, Clone, PartialEq)]
-pub struct MeshOptions {
+pub struct MeshConfig {
     /// The error-bounded simplification (`sl_mesh::simplify`); `None` keeps every vertex of
     /// the extraction. Default: `SimplifyConfig::default()` (0.01 mm where samples support the
     /// surface, 0.03 mm where they do not).
@@ -129,7 +129,7 @@ pub struct MeshOptions {
     pub fair: Option<FairConfig>,
 }
 
-impl Default for MeshOptions {
+impl Default for MeshConfig {
     fn default() -> Self {
         Self {
             simplify: Some(SimplifyConfig::default()),
@@ -138,8 +138,8 @@ impl Default for MeshOptions {
     }
 }
 
-/// Runs the mesh stage on `merged` into `out` with the default [`MeshOptions`]
-/// (simplified, then faired): [`mesh_stage_with`] with `&MeshOptions::default()`.
+/// Runs the mesh stage on `merged` into `out` with the default [`MeshConfig`]
+/// (simplified, then faired): [`mesh_stage_with`] with `&MeshConfig::default()`.
 ///
 /// # Errors
 /// As [`mesh_stage_with`].
@@ -155,7 +155,7 @@ pub fn mesh_stage(
         merged_errors_mm,
         truth,
         cfg,
-        &MeshOptions::default(),
+        &MeshConfig::default(),
         out,
     )
 }
@@ -173,7 +173,7 @@ pub fn mesh_stage_with(
     merged_errors_mm: Option<&[f32]>,
     truth: Option<&Truth>,
     cfg: &PoissonConfig,
-    options: &MeshOptions,
+    options: &MeshConfig,
     out: &Path,
 ) -> Result<(MeshSummary, MeshFiles), ScanError> {
     let mut surface = poisson_reconstruct(merged, cfg)?;

@@ -12,7 +12,7 @@ use sl_codec::{
     smooth_correspondences,
 };
 use sl_rig::{read_session_plan, view_dir_name};
-use sl_tri::{TriOptions, Triangulator};
+use sl_tri::{TriConfig, Triangulator};
 
 use crate::calibrate::require_turntable_axis;
 use crate::error::stage_err;
@@ -91,7 +91,7 @@ pub fn reconstruct_view_eroded(
     let set = CaptureSet::load(&dir.join(MANIFEST_FILE))?;
     let map = decode(&set, &DecodeConfig::default())?;
     drop(set);
-    reconstruct_decoded(&map, triangulator, &TriOptions::default(), config)
+    reconstruct_decoded(&map, triangulator, &TriConfig::default(), config)
 }
 
 /// Triangulates a decoded map as a scan does: the coordinates smoothed
@@ -101,7 +101,7 @@ pub fn reconstruct_view_eroded(
 pub fn reconstruct_decoded(
     map: &CorrespondenceMap,
     triangulator: &Triangulator,
-    options: &TriOptions,
+    options: &TriConfig,
     config: &ReconstructConfig,
 ) -> Result<PointCloud, ScanError> {
     let edge_erosion_px = config.edge_erosion_px;

@@ -13,7 +13,7 @@ use nalgebra::Isometry3;
 use serde::Serialize;
 use sl_camera::{Calibration, ImageSize, Intrinsics};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
-use sl_codec::{BitDepth, ProjectorSize};
+use sl_codec::BitDepth;
 use sl_metrology::{Report, Truth};
 use sl_rig::{
     SessionConfig, SessionDevices, SessionPlan, SessionSummary, turntable_angles, view_dir_name,
@@ -23,7 +23,7 @@ use sl_tri::Triangulator;
 
 use crate::calibrate::calibrate_virtual_stage;
 use crate::error::{io, stage_err};
-use crate::mesh::{MeshFiles, MeshOptions, MeshSummary, mesh_stage_with, scan_poisson_config};
+use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::{
     CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX,
     ScanError, ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan,
@@ -89,8 +89,8 @@ pub struct VirtualScanConfig {
     /// (cells of 0.37 mm on the dumbbell).
     pub mesh_depth: Option<u32>,
     /// What the mesh stage does after the reconstruction: the simplification and the
-    /// fairing of the unseen surface, both on by default ([`MeshOptions`]).
-    pub mesh_options: MeshOptions,
+    /// fairing of the unseen surface, both on by default ([`MeshConfig`]).
+    pub mesh_options: MeshConfig,
     /// How the calibration's board corners are refined (`sl_calib::CornerRefiner`; the
     /// junction fit by default).
     pub corners: sl_calib::CornerRefiner,
@@ -128,7 +128,7 @@ impl Default for VirtualScanConfig {
             smoothing_neighbours: 16,
             edge_erosion_px: 3,
             mesh_depth: Some(sl_mesh::PoissonConfig::default().depth),
-            mesh_options: MeshOptions::default(),
+            mesh_options: MeshConfig::default(),
             corners: sl_calib::CornerRefiner::default(),
             smoothing: ReconstructConfig::default().smoothing,
         }
@@ -230,7 +230,7 @@ pub(crate) fn capture_virtual(
     let csize = rig.config().camera.size;
     let plan = SessionPlan {
         angles_deg,
-        manifest: scan_patterns(ProjectorSize::new(psize.width, psize.height), cfg.period_px)
+        manifest: scan_patterns(ImageSize::new(psize.width, psize.height), cfg.period_px)
             .manifest(BitDepth::Eight),
         devices: SessionDevices {
             camera: format!("virtual camera {}x{}", csize.width, csize.height),

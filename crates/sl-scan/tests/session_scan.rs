@@ -9,7 +9,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use nalgebra::Point3;
-use sl_codec::{BitDepth, ProjectorSize};
+use sl_codec::{BitDepth, ImageSize};
 use sl_rig::{CaptureSession, SessionConfig, SessionDevices, SessionPlan};
 use sl_scan::{
     MergeStageConfig, ScanError, SessionScanConfig, full_turn_motor_angles, load_scan_calibration,
@@ -77,8 +77,7 @@ fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
     let p = rig.config().projector.size;
     let plan = SessionPlan {
         angles_deg: angles.clone(),
-        manifest: scan_patterns(ProjectorSize::new(p.width, p.height), 15.0)
-            .manifest(BitDepth::Eight),
+        manifest: scan_patterns(ImageSize::new(p.width, p.height), 15.0).manifest(BitDepth::Eight),
         devices: SessionDevices {
             camera: "virtual".to_owned(),
             projector: "virtual".to_owned(),
@@ -278,7 +277,7 @@ fn a_dense_session_with_an_approximate_axis_is_refined_onto_the_true_spheres() {
         &session_dir,
         SessionPlan {
             angles_deg: angles.clone(),
-            manifest: scan_patterns(ProjectorSize::new(p.width, p.height), 15.0)
+            manifest: scan_patterns(ImageSize::new(p.width, p.height), 15.0)
                 .manifest(BitDepth::Eight),
             devices: SessionDevices {
                 camera: "virtual".to_owned(),
@@ -361,7 +360,7 @@ fn capture_dumbbell(
         &dir.join("session"),
         SessionPlan {
             angles_deg: angles.clone(),
-            manifest: scan_patterns(ProjectorSize::new(p.width, p.height), 15.0)
+            manifest: scan_patterns(ImageSize::new(p.width, p.height), 15.0)
                 .manifest(BitDepth::Eight),
             devices: SessionDevices {
                 camera: "virtual".to_owned(),
@@ -474,7 +473,7 @@ fn a_calibration_without_turntable_axis_is_refused_by_name() {
         &session,
         SessionPlan {
             angles_deg: vec![0.0, 180.0],
-            manifest: scan_patterns(ProjectorSize::new(p.width, p.height), 15.0)
+            manifest: scan_patterns(ImageSize::new(p.width, p.height), 15.0)
                 .manifest(BitDepth::Eight),
             devices: SessionDevices {
                 camera: "none".to_owned(),

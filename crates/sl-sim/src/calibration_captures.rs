@@ -4,7 +4,7 @@
 //! them (sl-calib's `rig_corner_truth`) are the same frames because they come from here.
 
 use nalgebra::Isometry3;
-use sl_codec::{Axis, HybridSpec, Pattern, PatternSequence, ProjectorSize};
+use sl_codec::{Axis, HybridSpec, ImageSize, Pattern, PatternSequence};
 
 use crate::{
     BoardCapture, CalibrationSession, SimError, VirtualRig, capture_board, capture_board_on_table,
@@ -23,7 +23,7 @@ pub const CALIBRATION_PHASE_STEPS: u32 = 4;
 /// complementary Gray code) on the columns and on the rows — the projector needs both
 /// coordinates of every corner — with [`CALIBRATION_PHASE_STEPS`] steps and periods of
 /// about [`CALIBRATION_PERIOD_PX`] projector pixels.
-pub fn calibration_sequence(projector: ProjectorSize) -> PatternSequence {
+pub fn calibration_sequence(projector: ImageSize) -> PatternSequence {
     let p = projector;
     PatternSequence::new(p)
         .with(Pattern::Hybrid(HybridSpec::complementary(
@@ -179,7 +179,7 @@ mod tests {
     /// Both projector axes are coded, with the documented steps and periods.
     #[test]
     fn the_sequence_codes_both_axes() {
-        let p = ProjectorSize::new(1920, 1080);
+        let p = ImageSize::new(1920, 1080);
         let s = calibration_sequence(p);
         let hybrid: Vec<&HybridSpec> = s
             .blocks

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use sl_camera::{ImageSize, Intrinsics};
-use sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence, ProjectorSize};
+use sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence};
 use sl_rig::{
     BufferedCamera, Camera, CaptureSession, GreyImage, LatencyConfig, RigError, SessionConfig,
     SessionPlan, ViewState, measure_latency,
@@ -40,7 +40,7 @@ fn small_rig() -> VirtualRig {
 
 fn plan(rig: &VirtualRig, views: usize) -> SessionPlan {
     let s = rig.config().projector.size;
-    let p = ProjectorSize::new(s.width, s.height);
+    let p = ImageSize::new(s.width, s.height);
     let sequence = PatternSequence::new(p).with(Pattern::Hybrid(HybridSpec::complementary(
         Axis::Column,
         p,
@@ -234,7 +234,7 @@ fn a_finished_session_is_not_overwritten_unless_asked() {
 fn a_projector_of_another_size_is_refused_before_anything_moves() {
     let rig = small_rig();
     let mut p = plan(&rig, 1);
-    let q = ProjectorSize::new(64, 32);
+    let q = ImageSize::new(64, 32);
     p.manifest = PatternSequence::new(q)
         .with(Pattern::Hybrid(HybridSpec::complementary(
             Axis::Column,

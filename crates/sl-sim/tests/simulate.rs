@@ -2,9 +2,7 @@
 //! ground truth written beside it.
 
 use sl_camera::{ImageSize, Intrinsics};
-use sl_codec::{
-    Axis, CaptureSet, DecodeConfig, GrayCodeSpec, Pattern, PatternSequence, ProjectorSize, decode,
-};
+use sl_codec::{Axis, CaptureSet, DecodeConfig, GrayCodeSpec, Pattern, PatternSequence, decode};
 use sl_sim::{RigConfig, Scene, VirtualRig, simulate_scan};
 
 /// The default rig with both images scaled down by 4 (same fields of view).
@@ -36,7 +34,7 @@ fn simulated_gray_code_scan_decodes_to_the_truth() {
     // light (Lg = 2 Lmin), and at 1.5 stripes a pixel the finest bit's contrast is too small
     // for the weak rules' margin (93.6 % of the pixels decode with the default 5 grey levels).
     config.render.effects.sensor.dark_level_dn = 0.0;
-    let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
+    let p = ImageSize::new(config.projector.size.width, config.projector.size.height);
     let sequence = PatternSequence::new(p)
         .with(Pattern::Gray(GrayCodeSpec::per_pixel(
             Axis::Column,

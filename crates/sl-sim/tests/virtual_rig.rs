@@ -536,8 +536,8 @@ fn projector_blur_removes_the_pixel_grid_moire() {
 #[allow(clippy::type_complexity)]
 fn moire_diagnostics() {
     use sl_codec::{
-        Axis, BitDepth, CaptureSet, DecodeConfig, HybridSpec, Pattern, PatternSequence,
-        ProjectorSize, decode,
+        Axis, BitDepth, CaptureSet, DecodeConfig, HybridSpec, ImageSize, Pattern, PatternSequence,
+        decode,
     };
     use sl_sim::projector_images;
     let Some(out) = std::env::var_os("SL_MOIRE_OUT") else {
@@ -590,7 +590,7 @@ fn moire_diagnostics() {
         let mut config = RigConfig::default();
         tweak(&mut config);
         let rig = VirtualRig::new(config, Scene::plane()).unwrap();
-        let projector = ProjectorSize::new(1920, 1080);
+        let projector = ImageSize::new(1920, 1080);
         let sequence = PatternSequence::new(projector).with(Pattern::Hybrid(
             HybridSpec::complementary(Axis::Column, projector, 8, 64.0),
         ));

@@ -17,7 +17,7 @@ use nalgebra::Point3;
 use rayon::prelude::*;
 use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
 use sl_sim::RigConfig;
-use sl_tri::{Method, TriError, TriOptions, Triangulator};
+use sl_tri::{Method, TriConfig, TriError, Triangulator};
 
 /// The exact map of a wall at 450 mm seen by the default rig's camera (decoded where the
 /// projector lights it).
@@ -92,15 +92,15 @@ fn run(c: &mut Criterion) -> Result<(), TriError> {
     ];
     for method in methods {
         // Full output: filters, mixed pixels, grid normals, cloud.
-        let full = TriOptions::with_method(method);
+        let full = TriConfig::with_method(method);
         group.bench_function(format!("{} full", method.name()), |b| {
             b.iter(|| tri.triangulate(black_box(&map), &full))
         });
         // Points only: no normals, no mixed-pixel pass.
-        let bare = TriOptions {
+        let bare = TriConfig {
             normals: false,
             max_depth_jump: f64::INFINITY,
-            ..TriOptions::with_method(method)
+            ..TriConfig::with_method(method)
         };
         group.bench_function(format!("{} points", method.name()), |b| {
             b.iter(|| tri.triangulate(black_box(&map), &bare))
@@ -113,10 +113,10 @@ fn run(c: &mut Criterion) -> Result<(), TriError> {
     // A column-only capture (issue 15): linear on one axis (fixed point on the missing row).
     let mut columns_only = map.clone();
     columns_only.row.iter_mut().for_each(|r| *r = f32::NAN);
-    let bare = TriOptions {
+    let bare = TriConfig {
         normals: false,
         max_depth_jump: f64::INFINITY,
-        ..TriOptions::with_method(Method::Linear)
+        ..TriConfig::with_method(Method::Linear)
     };
     let mut reused = tri.triangulate(&columns_only, &bare)?;
     group.bench_function("linear columns only points reused", |b| {

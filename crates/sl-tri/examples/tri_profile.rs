@@ -19,7 +19,7 @@ use std::time::Instant;
 use nalgebra::Point3;
 use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
 use sl_sim::RigConfig;
-use sl_tri::{Method, TriError, TriOptions, Triangulator};
+use sl_tri::{Method, TriConfig, TriError, Triangulator};
 
 /// The depth (camera `z`, mm) at which the camera ray `(x, y, 1)` meets the scene: `wall`, the
 /// bench's wall at 450 mm facing the camera (depth constant along every row, the easiest
@@ -123,11 +123,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     };
     let options = match mode.as_str() {
-        "full" => TriOptions::with_method(method),
-        "points" | "reused" => TriOptions {
+        "full" => TriConfig::with_method(method),
+        "points" | "reused" => TriConfig {
             normals: false,
             max_depth_jump: f64::INFINITY,
-            ..TriOptions::with_method(method)
+            ..TriConfig::with_method(method)
         },
         _ => return Err(usage.into()),
     };

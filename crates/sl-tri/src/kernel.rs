@@ -29,7 +29,7 @@ use crate::options::Solver;
 use crate::ray_plane::{SurfaceLanes, ray_surface_depth, ray_surface_lanes};
 use crate::stereo::Stereo;
 use crate::undistort::{UndistortWarm, undistort_lanes};
-use crate::{PointStatus, TriOptions};
+use crate::{PointStatus, TriConfig};
 
 /// Pixels per lane group: 8 `f64`s are two AVX2 registers (or one AVX-512), enough
 /// independent work to hide the latency of the divisions.
@@ -116,7 +116,7 @@ pub(crate) struct Pass<'a> {
     pub(crate) stereo: &'a Stereo,
     pub(crate) rays: &'a RayTable,
     pub(crate) map: &'a CorrespondenceMap,
-    pub(crate) options: &'a TriOptions,
+    pub(crate) options: &'a TriConfig,
     /// The method resolved against the axes the map codes.
     pub(crate) solver: Solver,
     pub(crate) width: usize,

@@ -13,7 +13,7 @@
 //!   projector's distortion — by Newton's method on the distorted projection; **linear**
 //!   least squares (DLT); the **midpoint** of the two rays; and **optimal**, the minimum of
 //!   the squared reprojection errors in camera and projector by Gauss–Newton.
-//! - Filters ([`TriOptions`]): decode quality, depth range, reprojection error, mixed pixels
+//! - Filters ([`TriConfig`]): decode quality, depth range, reprojection error, mixed pixels
 //!   at depth discontinuities.
 //! - Output ([`Triangulation`]): the organised per-pixel points, reprojection errors and
 //!   statuses, and an `sl-cloud` [`PointCloud`] with quality, colours from a fully lit frame
@@ -27,7 +27,7 @@
 //! use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 //! use sl_camera::{CameraModel, Distortion, ImageSize, Intrinsics};
 //! use sl_codec::CorrespondenceMap;
-//! use sl_tri::{Method, TriOptions, Triangulator};
+//! use sl_tri::{Method, TriConfig, Triangulator};
 //!
 //! // A small camera and a projector 100 mm to its right, toed in by 12 degrees.
 //! let camera = CameraModel::new(
@@ -61,7 +61,7 @@
 //! }
 //! // Ray–plane on the columns (the default); Optimal uses both coordinates.
 //! for method in [Method::default(), Method::Optimal] {
-//!     let result = tri.triangulate(&map, &TriOptions::with_method(method))?;
+//!     let result = tri.triangulate(&map, &TriConfig::with_method(method))?;
 //!     assert_eq!(result.counts.valid, 64 * 48);
 //!     // f32 coordinates (6e-5 px) limit the depth to ~1e-3 mm here.
 //!     assert!(result.points.iter().all(|p| (p.z - 400.0).abs() < 2e-2));
@@ -111,7 +111,7 @@ pub use error::TriError;
 pub use fit::{PlaneFit, SphereFit, fit_plane, fit_sphere};
 pub use options::{
     DEFAULT_MAX_DEPTH_JUMP, DEFAULT_MAX_REPROJECTION_PX, DEFAULT_OPTIMAL_ITERATIONS, Method,
-    Texture, TriOptions,
+    Texture, TriConfig,
 };
 pub use triangulation::{PointStatus, TriCounts, Triangulation};
 pub use triangulator::Triangulator;

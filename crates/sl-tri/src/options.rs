@@ -141,7 +141,7 @@ pub const DEFAULT_OPTIMAL_ITERATIONS: usize = 5;
 
 /// Options of [`crate::Triangulator::triangulate`]: the method and the filters.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TriOptions {
+pub struct TriConfig {
     /// The triangulation method.
     pub method: Method,
     /// Pixels with a decode quality below this (8-bit grey levels, as
@@ -167,7 +167,7 @@ pub struct TriOptions {
     pub optimal_iterations: usize,
 }
 
-impl Default for TriOptions {
+impl Default for TriConfig {
     fn default() -> Self {
         Self {
             method: Method::default(),
@@ -182,7 +182,7 @@ impl Default for TriOptions {
     }
 }
 
-impl TriOptions {
+impl TriConfig {
     /// Default options with another method.
     pub fn with_method(method: Method) -> Self {
         Self {

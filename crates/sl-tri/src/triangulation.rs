@@ -17,11 +17,11 @@ pub enum PointStatus {
     /// The geometry has no answer: no camera ray (outside the camera's valid region), the rays
     /// are parallel or meet behind a device, or the point leaves the projector's valid region.
     NoSolution = 2,
-    /// Decode quality below [`crate::TriOptions::min_quality`].
+    /// Decode quality below [`crate::TriConfig::min_quality`].
     LowQuality = 3,
     /// Depth outside `[min_depth_mm, max_depth_mm]`.
     OutOfDepthRange = 4,
-    /// Reprojection error above [`crate::TriOptions::max_reprojection_px`].
+    /// Reprojection error above [`crate::TriConfig::max_reprojection_px`].
     Reprojection = 5,
     /// Dropped by the mixed-pixel filter (depth discontinuity).
     MixedPixel = 6,

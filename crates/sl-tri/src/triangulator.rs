@@ -12,7 +12,7 @@ use crate::kernel::{BLOCK, BlockOut, Pass};
 use crate::mixed_pixels::filter_mixed_pixels;
 use crate::options::Solver;
 use crate::stereo::Stereo;
-use crate::{PointStatus, Texture, TriCounts, TriError, TriOptions, Triangulation};
+use crate::{PointStatus, Texture, TriConfig, TriCounts, TriError, Triangulation};
 
 /// Smallest number of blocks a parallel task takes: 16 blocks (2048 pixels), so that the
 /// task overhead is negligible while the two cores still get dozens of tasks each to
@@ -101,7 +101,7 @@ impl Triangulator {
     pub fn triangulate(
         &self,
         map: &CorrespondenceMap,
-        options: &TriOptions,
+        options: &TriConfig,
     ) -> Result<Triangulation, TriError> {
         self.triangulate_textured(map, None, options)
     }
@@ -116,7 +116,7 @@ impl Triangulator {
         &self,
         map: &CorrespondenceMap,
         texture: Option<Texture<'_>>,
-        options: &TriOptions,
+        options: &TriConfig,
     ) -> Result<Triangulation, TriError> {
         let mut out = Triangulation::empty();
         self.triangulate_into(map, texture, options, &mut out)?;
@@ -133,15 +133,15 @@ impl Triangulator {
     /// # use nalgebra::{Isometry3, Translation3};
     /// # use sl_camera::{CameraModel, Distortion, ImageSize, Intrinsics};
     /// # use sl_codec::CorrespondenceMap;
-    /// # use sl_tri::{TriOptions, Triangulation, Triangulator};
+    /// # use sl_tri::{TriConfig, Triangulation, Triangulator};
     /// # let k = Intrinsics::new(80.0, 80.0, 31.5, 23.5);
     /// # let cam = CameraModel::new(k, Distortion::none(), ImageSize::new(64, 48))?;
     /// # let pose = Isometry3::from_parts(Translation3::new(100.0, 0.0, 0.0), Default::default());
     /// let tri = Triangulator::from_models(&cam, &cam, &pose)?;
-    /// let mut result = tri.triangulate(&CorrespondenceMap::new(64, 48), &TriOptions::default())?;
+    /// let mut result = tri.triangulate(&CorrespondenceMap::new(64, 48), &TriConfig::default())?;
     /// for _view in 0..3 {
     ///     let map = CorrespondenceMap::new(64, 48); // the next decoded view
-    ///     tri.triangulate_into(&map, None, &TriOptions::default(), &mut result)?;
+    ///     tri.triangulate_into(&map, None, &TriConfig::default(), &mut result)?;
     /// }
     /// # Ok::<(), sl_tri::TriError>(())
     /// ```
@@ -152,7 +152,7 @@ impl Triangulator {
         &self,
         map: &CorrespondenceMap,
         texture: Option<Texture<'_>>,
-        options: &TriOptions,
+        options: &TriConfig,
         out: &mut Triangulation,
     ) -> Result<(), TriError> {
         options.validate()?;

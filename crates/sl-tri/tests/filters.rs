@@ -9,7 +9,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use sl_camera::{Calibration, CameraModel, Distortion, ImageSize, Intrinsics};
 use sl_codec::{CorrespondenceMap, InvalidReason};
-use sl_tri::{Method, PointStatus, Texture, TriError, TriOptions, Triangulator};
+use sl_tri::{Method, PointStatus, Texture, TriConfig, TriError, Triangulator};
 
 const W: usize = 160;
 const H: usize = 120;
@@ -78,7 +78,7 @@ fn map_of(depth: impl Fn(usize, usize) -> f64) -> (CorrespondenceMap, Vec<Point3
 fn every_pixel_of_a_wall_is_valid() {
     let (map, truth) = map_of(|_, _| 450.0);
     let r = triangulator()
-        .triangulate(&map, &TriOptions::default())
+        .triangulate(&map, &TriConfig::default())
         .unwrap();
     let lit = truth.iter().filter(|p| p.z.is_finite()).count();
     assert!(lit > W * H / 2);
@@ -94,10 +94,10 @@ fn every_pixel_of_a_wall_is_valid() {
 fn depth_range_and_quality_filters() {
     let (mut map, _) = map_of(|_, _| 450.0);
     let tri = triangulator();
-    let far = TriOptions {
+    let far = TriConfig {
         min_depth_mm: 500.0,
         max_depth_mm: 900.0,
-        ..TriOptions::default()
+        ..TriConfig::default()
     };
     let r = tri.triangulate(&map, &far).unwrap();
     assert_eq!(r.counts.valid, 0);
@@ -106,9 +106,9 @@ fn depth_range_and_quality_filters() {
     for q in map.quality.iter_mut().take(10 * W) {
         *q = 1.0;
     }
-    let options = TriOptions {
+    let options = TriConfig {
         min_quality: 5.0,
-        ..TriOptions::default()
+        ..TriConfig::default()
     };
     let r = tri.triangulate(&map, &options).unwrap();
     assert!(r.counts.low_quality > 0);
@@ -140,7 +140,7 @@ fn reprojection_filter_catches_inconsistent_coordinates() {
         Method::Optimal,
     ] {
         let r = tri
-            .triangulate(&map, &TriOptions::with_method(method))
+            .triangulate(&map, &TriConfig::with_method(method))
             .unwrap();
         assert_eq!(
             r.status[bad.0],
@@ -155,9 +155,9 @@ fn reprojection_filter_catches_inconsistent_coordinates() {
             method.name()
         );
         assert_eq!(r.counts.reprojection, 2, "{}", method.name());
-        let lenient = TriOptions {
+        let lenient = TriConfig {
             max_reprojection_px: 10.0,
-            ..TriOptions::with_method(method)
+            ..TriConfig::with_method(method)
         };
         let r = tri.triangulate(&map, &lenient).unwrap();
         assert_eq!(r.status[bad.0], PointStatus::Valid, "{}", method.name());
@@ -170,7 +170,7 @@ fn reprojection_filter_catches_inconsistent_coordinates() {
 fn mixed_pixels_at_a_depth_step() {
     let (map, _) = map_of(|x, _| if x < 80 { 450.0 } else { 550.0 });
     let r = triangulator()
-        .triangulate(&map, &TriOptions::default())
+        .triangulate(&map, &TriConfig::default())
         .unwrap();
     assert!(r.counts.mixed_pixel > 0);
     for (i, s) in r.status.iter().enumerate() {
@@ -187,9 +187,9 @@ fn mixed_pixels_at_a_depth_step() {
             }
         }
     }
-    let off = TriOptions {
+    let off = TriConfig {
         max_depth_jump: f64::INFINITY,
-        ..TriOptions::default()
+        ..TriConfig::default()
     };
     assert_eq!(
         triangulator()
@@ -206,7 +206,7 @@ fn texture_colours_the_cloud() {
     let (map, _) = map_of(|_, _| 450.0);
     let grey: Vec<u8> = (0..W * H).map(|i| (i % 251) as u8).collect();
     let r = triangulator()
-        .triangulate_textured(&map, Some(Texture::Grey8(&grey)), &TriOptions::default())
+        .triangulate_textured(&map, Some(Texture::Grey8(&grey)), &TriConfig::default())
         .unwrap();
     let colors = r.cloud.colors().unwrap();
     for (c, &i) in colors.iter().zip(&r.cloud_pixels) {
@@ -215,7 +215,7 @@ fn texture_colours_the_cloud() {
     }
     let short = vec![0u8; 10];
     let err = triangulator()
-        .triangulate_textured(&map, Some(Texture::Grey8(&short)), &TriOptions::default())
+        .triangulate_textured(&map, Some(Texture::Grey8(&short)), &TriConfig::default())
         .unwrap_err();
     assert!(
         matches!(
@@ -233,15 +233,15 @@ fn texture_colours_the_cloud() {
 fn bad_inputs_are_named() {
     let tri = triangulator();
     let err = tri
-        .triangulate(&CorrespondenceMap::new(10, 10), &TriOptions::default())
+        .triangulate(&CorrespondenceMap::new(10, 10), &TriConfig::default())
         .unwrap_err();
     assert!(err.to_string().contains("correspondence map"), "{err}");
     assert!(err.to_string().contains("160x120"), "{err}");
     let err = Triangulator::new(&Calibration::new(camera())).unwrap_err();
     assert!(err.to_string().contains("projector"), "{err}");
-    let bad = TriOptions {
+    let bad = TriConfig {
         max_depth_mm: 0.5,
-        ..TriOptions::default()
+        ..TriConfig::default()
     };
     let (map, _) = map_of(|_, _| 450.0);
     let err = tri.triangulate(&map, &bad).unwrap_err();
@@ -256,7 +256,7 @@ fn projector_distortion_matters() {
     let mut pinhole = projector();
     pinhole.distortion = Distortion::none();
     let tri = Triangulator::from_models(&camera(), &pinhole, &t_cam_proj()).unwrap();
-    let r = tri.triangulate(&map, &TriOptions::default()).unwrap();
+    let r = tri.triangulate(&map, &TriConfig::default()).unwrap();
     let worst = r
         .cloud
         .positions()
@@ -280,7 +280,7 @@ fn optimal_minimises_reprojection_error() {
     }
     let tri = triangulator();
     let run = |method| {
-        tri.triangulate(&map, &TriOptions::with_method(method))
+        tri.triangulate(&map, &TriConfig::with_method(method))
             .unwrap()
     };
     let optimal = run(Method::Optimal);
@@ -307,11 +307,7 @@ fn triangulate_into_reuses_without_leftovers() {
     let (step, _) = map_of(|x, _| if x < W / 2 { 400.0 } else { 520.0 });
     let texture = vec![77u8; W * H];
     let mut reused = tri
-        .triangulate_textured(
-            &wall,
-            Some(Texture::Grey8(&texture)),
-            &TriOptions::default(),
-        )
+        .triangulate_textured(&wall, Some(Texture::Grey8(&texture)), &TriConfig::default())
         .unwrap();
     for method in [
         Method::default(),
@@ -319,10 +315,10 @@ fn triangulate_into_reuses_without_leftovers() {
         Method::Midpoint,
         Method::Optimal,
     ] {
-        let options = TriOptions {
+        let options = TriConfig {
             normals: method == Method::Linear,
             min_depth_mm: 430.0,
-            ..TriOptions::with_method(method)
+            ..TriConfig::with_method(method)
         };
         let fresh = tri.triangulate(&step, &options).unwrap();
         tri.triangulate_into(&step, None, &options, &mut reused)
@@ -359,9 +355,9 @@ fn warm_starts_never_change_the_answer() {
     let (map, truth) = map_of(depth);
     let tri = triangulator();
     for method in [Method::default(), Method::Optimal] {
-        let options = TriOptions {
+        let options = TriConfig {
             max_depth_jump: f64::INFINITY,
-            ..TriOptions::with_method(method)
+            ..TriConfig::with_method(method)
         };
         let r = tri.triangulate(&map, &options).unwrap();
         let lit = truth.iter().filter(|p| p.z.is_finite()).count();

@@ -11,7 +11,7 @@ use nalgebra::{Point2, Point3};
 use sl_camera::Calibration;
 use sl_codec::{Axis, CorrespondenceMap, InvalidReason};
 use sl_sim::{RigConfig, Scene, ViewTruth, VirtualRig};
-use sl_tri::{Method, PointStatus, TriOptions, Triangulator};
+use sl_tri::{Method, PointStatus, TriConfig, Triangulator};
 
 /// Target of the issue: 0.005 mm RMS with noise-free correspondences. The only error left is
 /// the f32 storage of the projector coordinates (~6e-5 px, i.e. ~4e-5 mm at 450 mm).
@@ -58,9 +58,9 @@ fn check_scene(scene: Scene, name: &str) {
     assert!(lit > 50_000, "{name}: only {lit} lit pixels");
     let tri = Triangulator::new(&calibration).unwrap();
     for method in METHODS {
-        let options = TriOptions {
+        let options = TriConfig {
             max_depth_jump: f64::INFINITY,
-            ..TriOptions::with_method(method)
+            ..TriConfig::with_method(method)
         };
         let result = tri.triangulate(&map, &options).unwrap();
         let (mut sum, mut worst) = (0.0f64, 0.0f64);
@@ -138,7 +138,7 @@ fn wall_rms(calibration: &Calibration, depth: f64, method: Method) -> (usize, f6
     let (map, truth) = wall_map(calibration, depth);
     let tri = Triangulator::new(calibration).unwrap();
     let result = tri
-        .triangulate(&map, &TriOptions::with_method(method))
+        .triangulate(&map, &TriConfig::with_method(method))
         .unwrap();
     let mut sum = 0.0;
     for (p, &i) in result.cloud.positions().iter().zip(&result.cloud_pixels) {
@@ -169,7 +169,7 @@ fn opencv_round_trip_calibrations_agree() {
     let (map, _) = wall_map(&calibration, 450.0);
     let reference = Triangulator::new(&calibration)
         .unwrap()
-        .triangulate(&map, &TriOptions::default())
+        .triangulate(&map, &TriConfig::default())
         .unwrap();
     for (text, name) in [
         (calibration.to_opencv_yaml().unwrap(), "rig.yml"),
@@ -182,7 +182,7 @@ fn opencv_round_trip_calibrations_agree() {
         };
         let result = Triangulator::new(&loaded)
             .unwrap()
-            .triangulate(&map, &TriOptions::default())
+            .triangulate(&map, &TriConfig::default())
             .unwrap();
         assert_eq!(result.counts, reference.counts);
         for (a, b) in result.points.iter().zip(&reference.points) {
@@ -201,7 +201,7 @@ fn wall_normals_face_the_camera() {
     let (map, _) = wall_map(&calibration, 450.0);
     let result = Triangulator::new(&calibration)
         .unwrap()
-        .triangulate(&map, &TriOptions::default())
+        .triangulate(&map, &TriConfig::default())
         .unwrap();
     let normals = result.cloud.normals().unwrap();
     assert_eq!(normals.len(), result.cloud.len());
@@ -288,9 +288,9 @@ fn column_only_maps_triangulate_with_every_one_axis_method() {
         let decoded = map.invalid.iter().filter(|r| r.is_valid()).count();
         let map = drop_axis(map, Axis::Row);
         let tri = Triangulator::new(&calibration).unwrap();
-        let options = |method| TriOptions {
+        let options = |method| TriConfig {
             max_depth_jump: f64::INFINITY,
-            ..TriOptions::with_method(method)
+            ..TriConfig::with_method(method)
         };
         let reference = tri
             .triangulate(&map, &options(Method::RayPlane { axis: Axis::Column }))
@@ -359,7 +359,7 @@ fn row_only_maps_triangulate_with_every_one_axis_method() {
         Method::Optimal,
     ] {
         let result = tri
-            .triangulate(&map, &TriOptions::with_method(method))
+            .triangulate(&map, &TriConfig::with_method(method))
             .unwrap();
         let (n, rms) = rms_to(&result, &truth);
         eprintln!(
@@ -371,7 +371,7 @@ fn row_only_maps_triangulate_with_every_one_axis_method() {
     }
     for method in [Method::Midpoint, Method::RayPlane { axis: Axis::Column }] {
         let err = tri
-            .triangulate(&map, &TriOptions::with_method(method))
+            .triangulate(&map, &TriConfig::with_method(method))
             .unwrap_err();
         assert!(
             matches!(
@@ -399,7 +399,7 @@ fn a_map_without_axes_gives_no_points() {
     let tri = Triangulator::new(&calibration).unwrap();
     for method in [Method::Linear, Method::Midpoint, Method::Optimal] {
         let result = tri
-            .triangulate(&map, &TriOptions::with_method(method))
+            .triangulate(&map, &TriConfig::with_method(method))
             .unwrap();
         assert_eq!(result.counts.valid, 0);
         assert_eq!(result.counts.not_decoded, result.counts.pixels);

@@ -21,11 +21,11 @@
 
 use nalgebra::Point3;
 use sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
-    ProjectorSize, decode,
+    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, ImageSize, Pattern,
+    PatternSequence, decode,
 };
 use sl_sim::{GreyImage, Pixels, RigConfig, Scene, VirtualRig, projector_images};
-use sl_tri::{Method, TriOptions, Triangulator, fit_plane, fit_sphere};
+use sl_tri::{Method, TriConfig, Triangulator, fit_plane, fit_sphere};
 
 /// Issue 6 target for the plane's flatness RMS and the sphere's radius error (mm).
 const TARGET_MM: f64 = 0.02;
@@ -137,7 +137,7 @@ fn scan(scene: Scene, knobs: Knobs) -> Scan {
     }
     let calibration = config.calibration();
     let rig = VirtualRig::new(config, scene).unwrap();
-    let projector = ProjectorSize::new(1920, 1080);
+    let projector = ImageSize::new(1920, 1080);
     let sequence = PatternSequence::new(projector).with(Pattern::Hybrid(
         HybridSpec::complementary(Axis::Column, projector, knobs.steps, knobs.periods),
     ));
@@ -151,7 +151,7 @@ fn scan(scene: Scene, knobs: Knobs) -> Scan {
     // Only the columns are coded: ray-plane is the method.
     let method = Method::RayPlane { axis: Axis::Column };
     let result = tri
-        .triangulate(&map, &TriOptions::with_method(method))
+        .triangulate(&map, &TriConfig::with_method(method))
         .unwrap();
     eprintln!(
         "{}: {} points, decoded {:.3}",
@@ -416,7 +416,7 @@ fn write_capture_for_the_cli() {
     let config = RigConfig::default();
     config.calibration().save(out.join("calib.json")).unwrap();
     let rig = VirtualRig::new(config, Scene::sphere()).unwrap();
-    let projector = ProjectorSize::new(1920, 1080);
+    let projector = ImageSize::new(1920, 1080);
     let sequence = PatternSequence::new(projector).with(Pattern::Hybrid(
         HybridSpec::complementary(Axis::Column, projector, 8, 64.0),
     ));

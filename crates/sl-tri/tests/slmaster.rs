@@ -20,7 +20,7 @@ use approx::assert_abs_diff_eq;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_camera::{CameraModel, Distortion, ImageSize, Intrinsics};
 use sl_codec::{Axis, CaptureSet, DecodeConfig, decode};
-use sl_tri::{Method, TriError, TriOptions, Triangulator};
+use sl_tri::{Method, TriConfig, TriError, Triangulator};
 
 /// SLMaster's own tests invalidate pixels with a fringe modulation below 30 grey levels.
 const SLMASTER_MIN_MODULATION: f32 = 30.0;
@@ -64,9 +64,9 @@ fn slmaster_column_only_capture_triangulates_with_one_axis_methods() {
     let decoded = map.invalid.iter().filter(|r| r.is_valid()).count();
 
     let tri = nominal_triangulator();
-    let options = |method| TriOptions {
+    let options = |method| TriConfig {
         max_depth_jump: f64::INFINITY,
-        ..TriOptions::with_method(method)
+        ..TriConfig::with_method(method)
     };
     let reference = tri
         .triangulate(&map, &options(Method::RayPlane { axis: Axis::Column }))

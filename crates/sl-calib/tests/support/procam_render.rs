@@ -10,8 +10,8 @@ use std::time::Instant;
 
 use sl_calib::ProcamView;
 use sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, Pattern, PatternSequence,
-    ProjectorSize, decode,
+    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, ImageSize, Pattern,
+    PatternSequence, decode,
 };
 use sl_sim::{BoardTruth, CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig};
 
@@ -33,7 +33,7 @@ pub(crate) fn render(count: usize, seed: u64) -> Rendered {
     config.render.effects.sensor.photon_noise = false;
     config.render.effects.sensor.read_noise_electrons = ONE_GREY_LEVEL_E;
     // 8 phase steps, ~30 projector px per period on both axes.
-    let p = ProjectorSize::new(config.projector.size.width, config.projector.size.height);
+    let p = ImageSize::new(config.projector.size.width, config.projector.size.height);
     let sequence = PatternSequence::new(p)
         .with(Pattern::Hybrid(HybridSpec::complementary(
             Axis::Column,

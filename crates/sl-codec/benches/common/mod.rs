@@ -2,9 +2,9 @@
 //! projector (1.4 projector pixels per camera pixel), with noise, ambient light and albedo
 //! variation, rendered once outside the timing.
 
-use sl_codec::{Frame, PatternSequence, ProjectorSize, SyntheticScene};
+use sl_codec::{Frame, ImageSize, PatternSequence, SyntheticScene};
 
-pub(crate) const PROJECTOR: ProjectorSize = ProjectorSize {
+pub(crate) const PROJECTOR: ImageSize = ImageSize {
     width: 1920,
     height: 1080,
 };
