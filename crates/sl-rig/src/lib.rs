@@ -58,6 +58,7 @@ mod error;
 mod files;
 mod image;
 mod latency;
+mod open;
 mod pixel_format;
 #[cfg(feature = "window")]
 mod projector_window;
@@ -77,6 +78,9 @@ pub use error::RigError;
 pub use files::write_capture_set;
 pub use image::{GreyImage, Pixels};
 pub use latency::{BufferedCamera, Latency, LatencyConfig, MIN_FLASH_CONTRAST, measure_latency};
+pub use open::{
+    BoxedCamera, BoxedTurntable, DeviceDescription, open_camera, open_turntable, with_devices,
+};
 pub use pixel_format::{FrameLayout, PixelFormat, convert_frame};
 #[cfg(feature = "window")]
 pub use projector_window::{
