@@ -38,6 +38,7 @@ mod error;
 mod measure;
 mod merge;
 mod mesh;
+mod mesh_chain;
 mod placements;
 mod progress;
 mod reconstruct;
@@ -91,6 +92,7 @@ pub use mesh::{
     MESH_CELL_PER_SPACING, MeshFiles, MeshOptions, MeshSummary, mesh_stage, mesh_stage_with,
     scan_poisson_config,
 };
+pub use mesh_chain::{MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};
 pub use placements::{
     MAX_PLACEMENTS, PLACEMENT_SESSION_DIR, PlacementAlignment, PlacementConfig, PlacementRig,
     PlacementsMerge, PlacementsScan, align_placement, capture_placements, check_placements,
