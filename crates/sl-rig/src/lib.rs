@@ -16,7 +16,10 @@
 //!   enumeration, format, manual exposure/gain/white balance, memory-mapped streaming and the
 //!   flush of stale frames) with its pixel-format conversions ([`convert_frame`]) compiled and
 //!   tested always, and `run_projector` / `ProjectorWindow` (feature `window`: a full-screen
-//!   window on a chosen monitor, pixel for pixel) — see `docs/hardware-camera-projector.md`.
+//!   window on a chosen monitor, pixel for pixel) — see `docs/hardware-camera-projector.md`;
+//! - **opening the real devices from a description** ([`DeviceDescription`], [`with_devices`],
+//!   [`open_camera`], [`open_turntable`]): the description builds without any feature, and a
+//!   device whose feature is off is [`RigError::FeatureNotBuilt`] naming it.
 //!
 //! ```
 //! use std::{cell::RefCell, rc::Rc};

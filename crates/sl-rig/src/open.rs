@@ -17,7 +17,7 @@ use crate::{Camera, Projector, RigError, SessionDevices, Turntable};
 pub struct DeviceDescription {
     /// V4L2 camera device, e.g. `/dev/video0` (feature `v4l`).
     pub camera: PathBuf,
-    /// Monitor index of the projector, as [`list_monitors`](crate) lists them (feature `window`).
+    /// Monitor index of the projector, as `list_monitors` lists them (feature `window`).
     pub projector_monitor: usize,
     /// Serial port of the Dynamixel turntable, e.g. `/dev/ttyUSB0` (feature `dynamixel`).
     pub turntable_port: PathBuf,

@@ -21,9 +21,10 @@ use sl_sim::{Scene, VirtualRig};
 const DOWNSCALE: u32 = 4;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let out = std::env::args_os()
-        .nth(1)
-        .map_or_else(|| std::env::temp_dir().join("sl-scan-virtual-pipeline"), PathBuf::from);
+    let out = std::env::args_os().nth(1).map_or_else(
+        || std::env::temp_dir().join("sl-scan-virtual-pipeline"),
+        PathBuf::from,
+    );
     std::fs::create_dir_all(&out)?;
     let rig = VirtualRig::new(scaled_rig_config(DOWNSCALE), Scene::dumbbell())?;
 
@@ -66,7 +67,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
 
     // 3. Reconstruct and merge the views, then 4. mesh the merged cloud.
-    let scan = scan_session(&session_dir, &calibration, &SessionScanConfig::default(), |_| {})?;
+    let scan = scan_session(
+        &session_dir,
+        &calibration,
+        &SessionScanConfig::default(),
+        |_| {},
+    )?;
     let chain = mesh_chain(&scan.merged, &MeshChainConfig::default())?;
     println!(
         "{} merged points; mesh of {} triangles, watertight {}",

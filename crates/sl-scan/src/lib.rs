@@ -12,6 +12,7 @@
 //! | merge | `merge.rs` | [`merge_scan`] |
 //! | several placements | `placements.rs`, `virtual_placements.rs` | [`capture_placements`], [`scan_placements`], [`merge_placements`], [`scan_virtual_placements`] |
 //! | measure (where a truth exists) | `measure.rs` | [`measure_scan`], [`scene_truth`], [`plate_truth`] |
+//! | mesh a cloud (`slscan mesh`) | `mesh_chain.rs` | [`mesh_chain`], [`MeshChainConfig`] |
 //! | report | `report.rs` | [`write_scan_cloud`], [`write_heat_map`], [`write_summary_html`] |
 //!
 //! A scan on real devices is: [`load_scan_calibration`], [`capture_session`] on the drivers,
@@ -19,7 +20,8 @@
 //! ([`scan_virtual`]) runs the same capture, reconstruct, merge and report stages on
 //! `sl-sim`'s virtual devices, and adds what only the virtual rig has: a calibration from
 //! simulated board captures, its truth and the measure stage. `slscan scan` is a thin wrapper
-//! around both.
+//! around both. `examples/virtual_pipeline.rs` runs calibrate, capture, scan and mesh on the
+//! virtual rig through this API alone; `sl_rig::with_devices` opens the real devices.
 //!
 //! ```no_run
 //! use std::path::Path;
