@@ -297,7 +297,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(d) = &chain.decimated {
         report.figure("decimation_max_error_mm2", d.max_error);
     }
-    let (mesh, topo) = (&chain.mesh, chain.topology);
+    let (mesh, topo) = (chain.mesh, chain.topology);
     let (ply, stl) = (out.join("mesh.ply"), out.join("mesh.stl"));
     report.stage("write", || -> anyhow::Result<()> {
         write_ply_mesh(&ply, &mesh)?;
