@@ -17,8 +17,8 @@ use anyhow::Context;
 use sl_codec::{MANIFEST_FILE, Manifest};
 use sl_rig::{Camera, Projector, Turntable};
 use sl_scan::{
-    AutoConfig, AutoEvent, BoardMover, CalibrationCapture, CalibrationCaptureConfig, PoseCheck,
-    TakeOutcome, VirtualBoardRig, calibration_turntable_angles, capture_poses_auto,
+    AutoConfig, AutoEvent, BoardMover, CalibrationCapture, CalibrationCaptureConfig, HandHeld,
+    PoseCheck, TakeOutcome, VirtualBoardRig, calibration_turntable_angles, capture_poses_auto,
     wait_for_still_board,
 };
 use sl_sim::{BoardPoseConfig, Checkerboard};
@@ -93,7 +93,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             "give --virtual, or the devices: --camera /dev/videoN --projector-monitor N --turntable /dev/ttyUSB0"
         ),
         (true, false) => run_virtual(args),
-        (false, true) => hardware::run(args),
+        (false, true) => run_hardware(args),
     }
 }
 
@@ -482,98 +482,27 @@ mod terminal {
 }
 
 /// Real devices: camera, projector and turntable together (as `slscan capture`).
-#[cfg(all(feature = "v4l", feature = "window", unix))]
-mod hardware {
-    use sl_rig::{ProjectorWindowConfig, V4lCamera, V4lCameraConfig, run_projector};
-    use sl_scan::HandHeld;
-
-    use super::{Args, run_devices};
-
-    pub(super) fn run(args: &Args) -> anyhow::Result<()> {
-        let (camera_path, monitor, port) = super::devices(args)?;
-        let mut camera = V4lCamera::open(V4lCameraConfig {
-            path: camera_path.clone(),
-            ..V4lCameraConfig::default()
-        })?;
-        let mut table = super::open_turntable(&port, args.hardware.servo_id)?;
-        let devices = format!(
-            "camera {}, projector on monitor {monitor}, turntable {} id {}",
-            camera_path.display(),
-            port.display(),
-            args.hardware.servo_id
-        );
-        let args = args.clone();
-        // The window lives on the main thread's event loop; the capture runs in the worker.
-        run_projector(
-            ProjectorWindowConfig {
-                monitor,
-                ..ProjectorWindowConfig::default()
-            },
-            move |mut projector| {
-                run_devices(
-                    &args,
-                    &devices,
-                    &mut camera,
-                    &mut projector,
-                    &mut table,
-                    &mut HandHeld,
-                    sl_rig::DEFAULT_DISPLAY_LATENCY,
-                )
-                .map_err(|e| sl_rig::RigError::Device {
-                    device: "calibration capture".to_owned(),
-                    reason: format!("{e:#}"),
-                })
-            },
-        )?;
-        Ok(())
-    }
-}
-
-#[cfg(not(all(feature = "v4l", feature = "window", unix)))]
-mod hardware {
-    use super::Args;
-
-    pub(super) fn run(args: &Args) -> anyhow::Result<()> {
-        super::devices(args)?;
-        anyhow::bail!(
-            "calibrate capture on hardware needs `--features v4l,window` on Linux: `cargo run --release --features v4l,window --example slscan -- calibrate capture …`"
+fn run_hardware(args: &Args) -> anyhow::Result<()> {
+    let description = args.hardware.description("calibrate capture on hardware")?;
+    let devices = description.summary();
+    let args = args.clone();
+    // The window lives on the main thread's event loop; the capture runs in the worker.
+    sl_rig::with_devices(&description, move |camera, projector, table| {
+        run_devices(
+            &args,
+            &devices,
+            camera,
+            projector,
+            table,
+            &mut HandHeld,
+            sl_rig::DEFAULT_DISPLAY_LATENCY,
         )
-    }
-}
-
-/// The three device options, all required, the serial port checked before anything opens.
-fn devices(args: &Args) -> anyhow::Result<(PathBuf, usize, PathBuf)> {
-    let hw = &args.hardware;
-    let (Some(camera), Some(monitor), Some(port)) =
-        (&hw.camera, hw.projector_monitor, &hw.turntable)
-    else {
-        anyhow::bail!(
-            "calibrate capture on hardware needs --camera, --projector-monitor and --turntable together"
-        );
-    };
-    anyhow::ensure!(
-        port.exists(),
-        "--turntable {}: no such serial port (`slscan devices` lists the ports)",
-        port.display()
-    );
-    Ok((camera.clone(), monitor, port.clone()))
-}
-
-/// Opens the Dynamixel turntable of `--turntable` and `--servo-id` with the driver's defaults:
-/// the hardware run and its test on the emulated servo share it.
-#[cfg(all(unix, any(test, all(feature = "v4l", feature = "window"))))]
-pub(crate) fn open_turntable(
-    port: &std::path::Path,
-    servo_id: u8,
-) -> anyhow::Result<sl_rig::DynamixelTurntable> {
-    sl_rig::DynamixelTurntable::open(
-        port,
-        sl_rig::DynamixelConfig {
-            id: servo_id,
-            ..sl_rig::DynamixelConfig::default()
-        },
-    )
-    .with_context(|| format!("cannot open the turntable on {}", port.display()))
+        .map_err(|e| sl_rig::RigError::Device {
+            device: "calibration capture".to_owned(),
+            reason: format!("{e:#}"),
+        })
+    })?;
+    Ok(())
 }
 
 #[cfg(test)]
@@ -588,7 +517,7 @@ mod tests {
 
     use clap::Parser;
     use sl_calib::sl_camera::Calibration;
-    use sl_rig::{DynamixelTurntable, EmulatorConfig, Mx64Emulator, RigError, Turntable};
+    use sl_rig::{EmulatorConfig, Mx64Emulator, RigError, Turntable};
     use sl_scan::{BoardMover, BoardTurntable, CaptureError, VirtualBoardMover, VirtualBoardRig};
     use sl_sim::{BoardPoseConfig, Checkerboard};
     use structured_light::scan::scaled_rig_config;
@@ -694,7 +623,7 @@ mod tests {
     /// The emulated MX-64 turning the virtual board: the servo's reported angle is what the
     /// virtual turntable is turned to, so the frames show the angle the driver recorded.
     struct EmulatedTurntable {
-        servo: DynamixelTurntable,
+        servo: sl_rig::BoxedTurntable,
         table: BoardTurntable,
     }
 
@@ -760,7 +689,7 @@ mod tests {
         .unwrap();
         let (mut camera, mut projector, table, mover) = rig.devices();
         let mut turntable = EmulatedTurntable {
-            servo: super::open_turntable(servo.port_path(), args.hardware.servo_id).unwrap(),
+            servo: sl_rig::open_turntable(servo.port_path(), args.hardware.servo_id).unwrap(),
             table,
         };
         super::run_devices(

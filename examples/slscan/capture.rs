@@ -10,8 +10,8 @@ use anyhow::Context;
 use sl_camera::Calibration;
 use sl_codec::{BitDepth, ImageSize, MANIFEST_FILE, Manifest};
 use sl_rig::{
-    Camera, LatencyConfig, Projector, SessionConfig, SessionDevices, SessionPlan, Turntable,
-    measure_latency,
+    Camera, DeviceDescription, LatencyConfig, Projector, SessionConfig, SessionDevices,
+    SessionPlan, Turntable, measure_latency,
 };
 use sl_sim::{Scene, VirtualRig};
 use structured_light::scan::{
@@ -41,6 +41,21 @@ impl HardwareArgs {
     /// Whether any device is given.
     pub(crate) fn any(&self) -> bool {
         self.camera.is_some() || self.projector_monitor.is_some() || self.turntable.is_some()
+    }
+
+    /// The devices, all three required (`what` names the command in the error).
+    pub(crate) fn description(&self, what: &str) -> anyhow::Result<DeviceDescription> {
+        let (Some(camera), Some(monitor), Some(port)) =
+            (&self.camera, self.projector_monitor, &self.turntable)
+        else {
+            anyhow::bail!("{what} needs --camera, --projector-monitor and --turntable together");
+        };
+        Ok(DeviceDescription {
+            camera: camera.clone(),
+            projector_monitor: monitor,
+            turntable_port: port.clone(),
+            servo_id: self.servo_id,
+        })
     }
 }
 
@@ -210,114 +225,28 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     )
 }
 
-fn missing(option: &str, feature: &str) -> anyhow::Error {
-    anyhow::anyhow!(
-        "{option} needs the `{feature}` feature: rebuild with `cargo run --release --features {feature} --example slscan -- capture …`"
-    )
-}
-
 /// Real devices: all three must be given. Used by `slscan scan` on hardware too.
 pub(crate) fn run_hardware(args: &Args) -> anyhow::Result<()> {
-    let hw = &args.hardware;
-    let (Some(camera), Some(monitor), Some(port)) =
-        (&hw.camera, hw.projector_monitor, &hw.turntable)
-    else {
-        anyhow::bail!(
-            "a capture on hardware needs --camera, --projector-monitor and --turntable together"
-        );
-    };
-    // Checked before anything is opened or written, and whatever features are built.
-    anyhow::ensure!(
-        port.exists(),
-        "--turntable {}: no such serial port (`slscan devices` lists the ports; check the cable and the udev rule of docs/hardware-turntable.md)",
-        port.display()
-    );
-    if !cfg!(feature = "v4l") {
-        return Err(missing("--camera", "v4l"));
-    }
-    if !cfg!(feature = "window") {
-        return Err(missing("--projector-monitor", "window"));
-    }
-    hardware::run(args, camera.clone(), monitor, port.clone())
-}
-
-#[cfg(all(feature = "v4l", feature = "window", unix))]
-mod hardware {
-    use std::path::PathBuf;
-
-    use sl_rig::{
-        DynamixelConfig, DynamixelTurntable, ProjectorWindowConfig, SessionDevices, V4lCamera,
-        V4lCameraConfig, run_projector,
-    };
-
-    use super::{Args, DEFAULT_HARDWARE_LATENCY, run_session};
-
-    pub(super) fn run(
-        args: &Args,
-        camera_path: PathBuf,
-        monitor: usize,
-        port: PathBuf,
-    ) -> anyhow::Result<()> {
-        let mut camera = V4lCamera::open(V4lCameraConfig {
-            path: camera_path.clone(),
-            ..V4lCameraConfig::default()
-        })?;
-        let mut table = DynamixelTurntable::open(
-            &port,
-            DynamixelConfig {
-                id: args.hardware.servo_id,
-                ..DynamixelConfig::default()
-            },
-        )?;
-        let devices = SessionDevices {
-            camera: camera_path.display().to_string(),
-            projector: format!("monitor {monitor}"),
-            turntable: format!("{} id {}", port.display(), args.hardware.servo_id),
-        };
-        // The window lives on the main thread's event loop; the session runs in the worker.
-        let args = args.clone();
-        run_projector(
-            ProjectorWindowConfig {
-                monitor,
-                ..ProjectorWindowConfig::default()
-            },
-            move |mut projector| {
-                run_session(
-                    &args,
-                    devices,
-                    &mut camera,
-                    &mut projector,
-                    &mut table,
-                    DEFAULT_HARDWARE_LATENCY,
-                )
-                .map_err(|e| sl_rig::RigError::Device {
-                    device: "capture session".to_owned(),
-                    reason: format!("{e:#}"),
-                })
-            },
-        )?;
-        Ok(())
-    }
-}
-
-#[cfg(not(all(feature = "v4l", feature = "window", unix)))]
-mod hardware {
-    use std::path::PathBuf;
-
-    use super::Args;
-
-    pub(super) fn run(
-        _args: &Args,
-        _camera: PathBuf,
-        _monitor: usize,
-        _port: PathBuf,
-    ) -> anyhow::Result<()> {
-        anyhow::bail!(
-            "capture on hardware needs `--features v4l,window` on Linux: `cargo run --release --features v4l,window --example slscan -- capture …`"
+    let description = args.hardware.description("a capture on hardware")?;
+    let devices = description.session_devices();
+    let args = args.clone();
+    // The window lives on the main thread's event loop; the session runs in the worker.
+    sl_rig::with_devices(&description, move |camera, projector, table| {
+        run_session(
+            &args,
+            devices,
+            camera,
+            projector,
+            table,
+            DEFAULT_HARDWARE_LATENCY,
         )
-    }
+        .map_err(|e| sl_rig::RigError::Device {
+            device: "capture session".to_owned(),
+            reason: format!("{e:#}"),
+        })
+    })?;
+    Ok(())
 }
 
 /// Display latency on hardware when not given: `sl_rig::DEFAULT_DISPLAY_LATENCY`.
-#[allow(dead_code)] // used only with the hardware features
 const DEFAULT_HARDWARE_LATENCY: Duration = sl_rig::DEFAULT_DISPLAY_LATENCY;

@@ -12,12 +12,11 @@ use sl_cloud::PreviewConfig;
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
     BilateralConfig, FairConfig, MeshColoring, PoissonConfig, RemeshConfig, SimplifyConfig,
-    TaubinConfig, ViewerConfig, ViewerLayer, check_topology, decimate, fair_unsupported,
-    fill_holes, inconsistent_normal_fraction, poisson_reconstruct, remesh_isotropic,
-    remove_small_components, render_mesh, simplify, smooth_bilateral, smooth_taubin,
-    trim_by_density, viewer_html, write_ply_mesh, write_stl,
+    TaubinConfig, ViewerConfig, ViewerLayer, render_mesh, viewer_html, write_ply_mesh, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
+
+use sl_scan::{MeshChainConfig, MeshSmoothing, ScanError, mesh_chain};
 
 use crate::common::{Report, ensure_out_dir, write_atomically};
 use crate::register::{NormalsTowards, check_units, read_scaled, with_normals_towards};
@@ -27,12 +26,9 @@ use crate::register::{NormalsTowards, check_units, read_scaled, with_normals_tow
 /// smaller than a millimetre.
 const UNITS_CHECK_MM: f64 = 1.0;
 
-/// The orientation check of the normals (`sl_mesh::inconsistent_normal_fraction`): every
-/// `ORIENTATION_STRIDE`-th point with its `ORIENTATION_NEIGHBOURS` nearest among those, and the
-/// fraction outside the largest consistently oriented patch above which the normals are taken
-/// for unoriented and a warning is printed.
-const ORIENTATION_NEIGHBOURS: usize = 8;
-const ORIENTATION_STRIDE: usize = 4;
+/// The fraction of points outside the largest consistently oriented patch
+/// (`MeshChain::normals_inconsistent`) above which the normals are taken for unoriented and a
+/// warning is printed.
 const UNORIENTED_FRACTION: f64 = 0.1;
 
 /// Smoothing applied after the reconstruction.
@@ -165,10 +161,49 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             with_normals_towards(&cloud, v, &args.cloud.display().to_string())
         })?;
     }
-    let inconsistent = report.stage("orientation", || {
-        inconsistent_normal_fraction(&cloud, ORIENTATION_NEIGHBOURS, ORIENTATION_STRIDE)
+    let cfg = MeshChainConfig {
+        poisson: PoissonConfig {
+            depth: args.depth,
+            screening: args.screening,
+            ..PoissonConfig::default()
+        },
+        trim: args.trim,
+        simplify: (!args.no_simplify).then_some(SimplifyConfig {
+            max_error: args.simplify_error,
+            unsupported_max_error: args.simplify_unsupported_error,
+            ..SimplifyConfig::default()
+        }),
+        fair: (!args.no_fair).then_some(FairConfig {
+            project_rim: !args.no_fair_rim,
+            ..FairConfig::default()
+        }),
+        remesh: args.remesh.map(|edge| RemeshConfig {
+            target_edge: edge,
+            ..RemeshConfig::default()
+        }),
+        fill_holes: args.fill_holes,
+        min_piece: args.min_piece,
+        smooth: match args.smooth {
+            Smooth::None => MeshSmoothing::None,
+            Smooth::Bilateral => MeshSmoothing::Bilateral(BilateralConfig::default()),
+            Smooth::Taubin => MeshSmoothing::Taubin(TaubinConfig::default()),
+        },
+        triangles: args.triangles,
+    };
+    let chain = mesh_chain(&cloud, &cfg).map_err(|e| {
+        let hint = match &e {
+            ScanError::MeshStep {
+                step: "simplify", ..
+            } => " (--simplify-error, --simplify-unsupported-error)",
+            ScanError::MeshStep { step: "fair", .. } => " (--no-fair leaves it)",
+            ScanError::MeshStep { step: "remesh", .. } => " (--remesh)",
+            ScanError::Stage { .. } => " (--min-piece, --scale)",
+            _ => "",
+        };
+        anyhow::Error::new(e).context(format!("{}{hint}", args.cloud.display()))
     })?;
-    if let Some(f) = inconsistent {
+    report.add_stages(&chain.stages);
+    if let Some(f) = chain.normals_inconsistent {
         report.figure("normals_inconsistent", f);
         if f > UNORIENTED_FRACTION {
             eprintln!(
@@ -182,36 +217,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             );
         }
     }
-    let cfg = PoissonConfig {
-        depth: args.depth,
-        screening: args.screening,
-        ..PoissonConfig::default()
-    };
-    let mut surface = report
-        .stage("reconstruct", || poisson_reconstruct(&cloud, &cfg))
-        .with_context(|| format!("cannot reconstruct a surface from {}", args.cloud.display()))?;
-    let (vertices_extracted, triangles_extracted) =
-        (surface.mesh.vertices.len(), surface.mesh.triangles.len());
-    let mut mesh = std::mem::take(&mut surface.mesh);
-    let mut densities = std::mem::take(&mut surface.densities);
-    if let Some(ratio) = args.trim {
-        let t = report.stage("trim", || trim_by_density(&mesh, &densities, ratio))?;
-        report.figure("trimmed_triangles", t.triangles_removed);
-        report.figure("trim_density_per_mm2", t.threshold);
-        mesh = t.mesh;
-        densities = t.densities;
+    if let Some((removed, threshold)) = chain.trimmed {
+        report.figure("trimmed_triangles", removed);
+        report.figure("trim_density_per_mm2", threshold);
     }
-    if !args.no_simplify {
-        let cfg = SimplifyConfig {
-            max_error: args.simplify_error,
-            unsupported_max_error: args.simplify_unsupported_error,
-            ..SimplifyConfig::default()
-        };
-        let t = std::time::Instant::now();
-        let s = report
-            .stage("simplify", || simplify(&mut mesh, &densities, &cfg))
-            .context("cannot simplify the mesh (--simplify-error, --simplify-unsupported-error)")?;
-        report.figure("simplify_ms", t.elapsed().as_secs_f64() * 1e3);
+    if let (Some((s, ms)), Some(c)) = (&chain.simplified, &cfg.simplify) {
+        report.figure("simplify_ms", *ms);
         report.figure(
             "simplify",
             serde_json::json!({
@@ -222,33 +233,24 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 "unsupported_vertices_before": s.unsupported_before,
                 "unsupported_vertices_after": s.unsupported_after,
                 "support_density_per_mm2": s.support_threshold,
-                "max_error_mm": cfg.max_error,
-                "unsupported_max_error_mm": cfg.unsupported_max_error,
+                "max_error_mm": c.max_error,
+                "unsupported_max_error_mm": c.unsupported_max_error,
                 "largest_error_mm": s.largest_error,
                 "largest_unsupported_error_mm": s.largest_unsupported_error,
                 "passes": s.passes,
             }),
         );
-        densities = s.densities;
     }
-    if !args.no_simplify && !args.no_fair {
-        let cfg = FairConfig {
-            project_rim: !args.no_fair_rim,
-            ..FairConfig::default()
-        };
-        let t = std::time::Instant::now();
-        let f = report
-            .stage("fair", || fair_unsupported(&mut mesh, &densities, &cfg))
-            .context("cannot fair the unsupported surface (--no-fair leaves it)")?;
-        report.figure("fair_ms", t.elapsed().as_secs_f64() * 1e3);
+    if let (Some((f, ms)), Some(c)) = (&chain.faired, &cfg.fair) {
+        report.figure("fair_ms", *ms);
         report.figure(
             "fair",
             serde_json::json!({
-                "support_ratio": cfg.support_ratio,
+                "support_ratio": c.support_ratio,
                 "vertices_moved": f.vertices_moved,
                 "gaps": f.gaps,
                 "smooth_gaps": f.smooth_gaps,
-                "project_rim": cfg.project_rim,
+                "project_rim": c.project_rim,
                 "rim_moved": f.rim_moved,
                 "largest_move_mm": f.largest_move,
                 "residual": f.residual,
@@ -271,18 +273,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             );
         }
     }
-    if let Some(edge) = args.remesh {
-        let cfg = RemeshConfig {
-            target_edge: edge,
-            ..RemeshConfig::default()
-        };
-        let t = std::time::Instant::now();
-        let r = report
-            .stage("remesh", || {
-                remesh_isotropic(&mut mesh, &mut densities, &cfg)
-            })
-            .context("cannot remesh (--remesh)")?;
-        report.figure("remesh_ms", t.elapsed().as_secs_f64() * 1e3);
+    if let Some((r, ms)) = &chain.remeshed {
+        report.figure("remesh_ms", *ms);
         report.figure(
             "remesh",
             serde_json::json!({
@@ -297,37 +289,15 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             }),
         );
     }
-    if let Some(max_edges) = args.fill_holes {
-        let f = report.stage("fill holes", || fill_holes(&mut mesh, max_edges))?;
+    if let Some(f) = &chain.holes {
         report.figure("holes_filled", f.filled);
         report.figure("holes_left_open", f.holes - f.filled);
     }
-    let removed = report.stage("small pieces", || {
-        remove_small_components(&mut mesh, args.min_piece)
-    });
-    report.figure("small_pieces_removed", removed);
-    match args.smooth {
-        Smooth::None => {}
-        Smooth::Bilateral => report.stage("smooth", || {
-            smooth_bilateral(&mut mesh, &BilateralConfig::default())
-        })?,
-        Smooth::Taubin => report.stage("smooth", || {
-            smooth_taubin(&mut mesh, &TaubinConfig::default())
-        })?,
-    }
-    if let Some(n) = args.triangles {
-        let d = report.stage("decimate", || decimate(&mut mesh, n))?;
+    report.figure("small_pieces_removed", chain.small_pieces_removed);
+    if let Some(d) = &chain.decimated {
         report.figure("decimation_max_error_mm2", d.max_error);
     }
-    anyhow::ensure!(
-        !mesh.triangles.is_empty(),
-        "{}: no triangle is left of the mesh ({} extracted; pieces of fewer than --min-piece {} \
-         triangles are removed): is the cloud in mm (--scale)?",
-        args.cloud.display(),
-        triangles_extracted,
-        args.min_piece
-    );
-    let topo = report.stage("check", || check_topology(&mesh));
+    let (mesh, topo) = (chain.mesh, chain.topology);
     let (ply, stl) = (out.join("mesh.ply"), out.join("mesh.stl"));
     report.stage("write", || -> anyhow::Result<()> {
         write_ply_mesh(&ply, &mesh)?;
@@ -390,11 +360,11 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         Ok(())
     })?;
     report.figure("cloud", args.cloud.display().to_string());
-    report.figure("samples", surface.samples);
+    report.figure("samples", chain.samples);
     report.figure("depth", args.depth);
-    report.figure("cell_size_mm", surface.cell_size);
-    report.figure("vertices_extracted", vertices_extracted);
-    report.figure("triangles_extracted", triangles_extracted);
+    report.figure("cell_size_mm", chain.cell_size);
+    report.figure("vertices_extracted", chain.vertices_extracted);
+    report.figure("triangles_extracted", chain.triangles_extracted);
     report.figure("vertices", mesh.vertices.len());
     report.figure("triangles", mesh.triangles.len());
     report.figure("watertight", topo.is_watertight());
@@ -402,8 +372,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("oriented", topo.misoriented_edges == 0);
     report.figure("components", topo.components);
     report.figure("boundary_edges", topo.boundary_edges);
-    report.figure("solve_ms", surface.solve_ms);
-    report.figure("contour_ms", surface.contour_ms);
+    report.figure("solve_ms", chain.solve_ms);
+    report.figure("contour_ms", chain.contour_ms);
     let path = report.write(&out)?;
     println!(
         "{}: {} vertices, {} triangles; watertight {}, manifold {}",

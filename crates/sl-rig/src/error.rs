@@ -61,6 +61,17 @@ pub enum RigError {
         /// What went wrong.
         reason: String,
     },
+    /// A device was asked for whose driver this build lacks: rebuild with the named cargo
+    /// feature of `sl-rig`.
+    #[error(
+        "{device}: needs the `{feature}` feature of sl-rig (rebuild with `--features {feature}`)"
+    )]
+    FeatureNotBuilt {
+        /// The device (`camera /dev/video0`, `projector on monitor 1`, …).
+        device: String,
+        /// The cargo feature that builds its driver: `v4l`, `window` or `dynamixel`.
+        feature: &'static str,
+    },
     /// A file could not be written or read.
     #[error("{}: {source}", path.display())]
     Io {

@@ -16,7 +16,10 @@
 //!   enumeration, format, manual exposure/gain/white balance, memory-mapped streaming and the
 //!   flush of stale frames) with its pixel-format conversions ([`convert_frame`]) compiled and
 //!   tested always, and `run_projector` / `ProjectorWindow` (feature `window`: a full-screen
-//!   window on a chosen monitor, pixel for pixel) — see `docs/hardware-camera-projector.md`.
+//!   window on a chosen monitor, pixel for pixel) — see `docs/hardware-camera-projector.md`;
+//! - **opening the real devices from a description** ([`DeviceDescription`], [`with_devices`],
+//!   [`open_camera`], [`open_turntable`]): the description builds without any feature, and a
+//!   device whose feature is off is [`RigError::FeatureNotBuilt`] naming it.
 //!
 //! ```
 //! use std::{cell::RefCell, rc::Rc};
@@ -58,6 +61,7 @@ mod error;
 mod files;
 mod image;
 mod latency;
+mod open;
 mod pixel_format;
 #[cfg(feature = "window")]
 mod projector_window;
@@ -77,6 +81,9 @@ pub use error::RigError;
 pub use files::write_capture_set;
 pub use image::{GreyImage, Pixels};
 pub use latency::{BufferedCamera, Latency, LatencyConfig, MIN_FLASH_CONTRAST, measure_latency};
+pub use open::{
+    BoxedCamera, BoxedTurntable, DeviceDescription, open_camera, open_turntable, with_devices,
+};
 pub use pixel_format::{FrameLayout, PixelFormat, convert_frame};
 #[cfg(feature = "window")]
 pub use projector_window::{

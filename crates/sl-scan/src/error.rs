@@ -27,6 +27,16 @@ pub enum ScanError {
     /// Registration and merging.
     #[error("mesh: {0}")]
     Mesh(#[from] sl_mesh::MeshError),
+    /// A step of the mesh chain ([`mesh_chain`](crate::mesh_chain)) failed.
+    #[error("mesh {step}: {source}")]
+    MeshStep {
+        /// The step: `reconstruct`, `trim`, `simplify`, `fair`, `remesh`, `fill holes`,
+        /// `smooth`, `decimate` or `orientation`.
+        step: &'static str,
+        /// What `sl-mesh` refused.
+        #[source]
+        source: sl_mesh::MeshError,
+    },
     /// An error of the merge (`sl-icp`).
     #[error("merge: {0}")]
     Icp(#[from] sl_icp::IcpError),

@@ -12,6 +12,7 @@
 //! | merge | `merge.rs` | [`merge_scan`] |
 //! | several placements | `placements.rs`, `virtual_placements.rs` | [`capture_placements`], [`scan_placements`], [`merge_placements`], [`scan_virtual_placements`] |
 //! | measure (where a truth exists) | `measure.rs` | [`measure_scan`], [`scene_truth`], [`plate_truth`] |
+//! | mesh a cloud (`slscan mesh`) | `mesh_chain.rs` | [`mesh_chain`], [`MeshChainConfig`] |
 //! | report | `report.rs` | [`write_scan_cloud`], [`write_heat_map`], [`write_summary_html`] |
 //!
 //! A scan on real devices is: [`load_scan_calibration`], [`capture_session`] on the drivers,
@@ -19,7 +20,8 @@
 //! ([`scan_virtual`]) runs the same capture, reconstruct, merge and report stages on
 //! `sl-sim`'s virtual devices, and adds what only the virtual rig has: a calibration from
 //! simulated board captures, its truth and the measure stage. `slscan scan` is a thin wrapper
-//! around both.
+//! around both. `examples/virtual_pipeline.rs` runs calibrate, capture, scan and mesh on the
+//! virtual rig through this API alone; `sl_rig::with_devices` opens the real devices.
 //!
 //! ```no_run
 //! use std::path::Path;
@@ -38,6 +40,7 @@ mod error;
 mod measure;
 mod merge;
 mod mesh;
+mod mesh_chain;
 mod placements;
 mod progress;
 mod reconstruct;
@@ -91,6 +94,7 @@ pub use mesh::{
     MESH_CELL_PER_SPACING, MeshConfig, MeshFiles, MeshSummary, mesh_stage, mesh_stage_with,
     scan_poisson_config,
 };
+pub use mesh_chain::{MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};
 pub use placements::{
     MAX_PLACEMENTS, PLACEMENT_SESSION_DIR, PlacementAlignment, PlacementConfig, PlacementRig,
     PlacementsMerge, PlacementsScan, align_placement, capture_placements, check_placements,

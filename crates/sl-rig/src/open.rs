@@ -1,0 +1,250 @@
+//! Opening a rig's real devices from a description: the V4L2 camera, the projector window on a
+//! monitor and the Dynamixel turntable, each behind its cargo feature.
+//!
+//! The description builds whatever features are on, so a program can read it from a file or a
+//! command line and report a missing feature as a typed error ([`RigError::FeatureNotBuilt`])
+//! instead of failing to compile.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use crate::{Camera, Projector, RigError, SessionDevices, Turntable};
+
+/// The real devices of a rig: which camera, which monitor the projector is, which serial port
+/// and servo id the turntable answers on.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DeviceDescription {
+    /// V4L2 camera device, e.g. `/dev/video0` (feature `v4l`).
+    pub camera: PathBuf,
+    /// Monitor index of the projector, as `list_monitors` lists them (feature `window`).
+    pub projector_monitor: usize,
+    /// Serial port of the Dynamixel turntable, e.g. `/dev/ttyUSB0` (feature `dynamixel`).
+    pub turntable_port: PathBuf,
+    /// Dynamixel servo id of the turntable.
+    pub servo_id: u8,
+}
+
+impl DeviceDescription {
+    /// Checks what can be checked before anything opens: the turntable's serial port exists.
+    ///
+    /// # Errors
+    /// [`RigError::InvalidParameter`] naming `turntable_port` when there is no such port.
+    pub fn check(&self) -> Result<(), RigError> {
+        if self.turntable_port.exists() {
+            Ok(())
+        } else {
+            Err(RigError::InvalidParameter {
+                name: "turntable_port".to_owned(),
+                reason: format!(
+                    "{}: no such serial port (check the cable and the udev rule of docs/hardware-turntable.md)",
+                    self.turntable_port.display()
+                ),
+            })
+        }
+    }
+
+    /// The features this description needs that this build lacks, in the order camera,
+    /// projector, turntable.
+    pub fn missing_features(&self) -> Vec<&'static str> {
+        let mut missing = Vec::new();
+        if !cfg!(feature = "v4l") {
+            missing.push("v4l");
+        }
+        if !cfg!(feature = "window") {
+            missing.push("window");
+        }
+        if !cfg!(all(feature = "dynamixel", unix)) {
+            missing.push("dynamixel");
+        }
+        missing
+    }
+
+    /// The devices as a capture session records them in `session.json`.
+    pub fn session_devices(&self) -> SessionDevices {
+        SessionDevices {
+            camera: self.camera.display().to_string(),
+            projector: format!("monitor {}", self.projector_monitor),
+            turntable: format!("{} id {}", self.turntable_port.display(), self.servo_id),
+        }
+    }
+
+    /// One line naming the three devices, for reports.
+    pub fn summary(&self) -> String {
+        format!(
+            "camera {}, projector on monitor {}, turntable {} id {}",
+            self.camera.display(),
+            self.projector_monitor,
+            self.turntable_port.display(),
+            self.servo_id
+        )
+    }
+}
+
+/// A device trait object that can move to the worker thread of the projector window.
+pub type BoxedCamera = Box<dyn Camera + Send>;
+/// A turntable trait object that can move to the worker thread of the projector window.
+pub type BoxedTurntable = Box<dyn Turntable + Send>;
+
+/// Opens the V4L2 camera at `path` with the driver's defaults.
+///
+/// # Errors
+/// [`RigError::FeatureNotBuilt`] without the `v4l` feature; the driver's error otherwise.
+pub fn open_camera(path: &std::path::Path) -> Result<BoxedCamera, RigError> {
+    #[cfg(feature = "v4l")]
+    {
+        let camera = crate::V4lCamera::open(crate::V4lCameraConfig {
+            path: path.to_path_buf(),
+            ..crate::V4lCameraConfig::default()
+        })?;
+        Ok(Box::new(camera))
+    }
+    #[cfg(not(feature = "v4l"))]
+    {
+        Err(RigError::FeatureNotBuilt {
+            device: format!("camera {}", path.display()),
+            feature: "v4l",
+        })
+    }
+}
+
+/// Opens the Dynamixel turntable on `port` with servo id `servo_id` and the driver's defaults.
+///
+/// # Errors
+/// [`RigError::FeatureNotBuilt`] without the `dynamixel` feature (or off Unix); the driver's
+/// error, naming the port, otherwise.
+pub fn open_turntable(port: &std::path::Path, servo_id: u8) -> Result<BoxedTurntable, RigError> {
+    #[cfg(all(feature = "dynamixel", unix))]
+    {
+        let table = crate::DynamixelTurntable::open(
+            port,
+            crate::DynamixelConfig {
+                id: servo_id,
+                ..crate::DynamixelConfig::default()
+            },
+        )
+        .map_err(|e| RigError::Device {
+            device: format!("turntable {} id {servo_id}", port.display()),
+            reason: e.to_string(),
+        })?;
+        Ok(Box::new(table))
+    }
+    #[cfg(not(all(feature = "dynamixel", unix)))]
+    {
+        Err(RigError::FeatureNotBuilt {
+            device: format!("turntable {} id {servo_id}", port.display()),
+            feature: "dynamixel",
+        })
+    }
+}
+
+/// Opens the three devices of `description` and runs `work` on them.
+///
+/// The projector window lives on the calling (main) thread's event loop, so `work` runs on a
+/// worker thread while the window shows its images; this returns when `work` does. The serial
+/// port is checked first, then the camera and the turntable open, then the window.
+///
+/// # Errors
+/// [`RigError::FeatureNotBuilt`] naming the first device whose feature this build lacks (checked
+/// before anything opens); the check's, a driver's or `work`'s error otherwise.
+pub fn with_devices<T, F>(description: &DeviceDescription, work: F) -> Result<T, RigError>
+where
+    T: Send + 'static,
+    F: FnOnce(&mut dyn Camera, &mut dyn Projector, &mut dyn Turntable) -> Result<T, RigError>
+        + Send
+        + 'static,
+{
+    description.check()?;
+    if let Some(feature) = description.missing_features().first() {
+        let device = match *feature {
+            "v4l" => format!("camera {}", description.camera.display()),
+            "window" => format!("projector on monitor {}", description.projector_monitor),
+            _ => format!(
+                "turntable {} id {}",
+                description.turntable_port.display(),
+                description.servo_id
+            ),
+        };
+        return Err(RigError::FeatureNotBuilt { device, feature });
+    }
+    let mut camera = open_camera(&description.camera)?;
+    let mut table = open_turntable(&description.turntable_port, description.servo_id)?;
+    run_window(description.projector_monitor, move |projector| {
+        work(camera.as_mut(), projector, table.as_mut())
+    })
+}
+
+#[cfg(feature = "window")]
+fn run_window<T, F>(monitor: usize, work: F) -> Result<T, RigError>
+where
+    T: Send + 'static,
+    F: FnOnce(&mut dyn Projector) -> Result<T, RigError> + Send + 'static,
+{
+    crate::run_projector(
+        crate::ProjectorWindowConfig {
+            monitor,
+            ..crate::ProjectorWindowConfig::default()
+        },
+        move |mut projector| work(&mut projector),
+    )
+}
+
+#[cfg(not(feature = "window"))]
+fn run_window<T, F>(monitor: usize, _work: F) -> Result<T, RigError>
+where
+    T: Send + 'static,
+    F: FnOnce(&mut dyn Projector) -> Result<T, RigError> + Send + 'static,
+{
+    Err(RigError::FeatureNotBuilt {
+        device: format!("projector on monitor {monitor}"),
+        feature: "window",
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn description(port: PathBuf) -> DeviceDescription {
+        DeviceDescription {
+            camera: PathBuf::from("/dev/video-none"),
+            projector_monitor: 1,
+            turntable_port: port,
+            servo_id: 3,
+        }
+    }
+
+    #[test]
+    fn a_missing_port_is_named_before_anything_opens() {
+        let desc = description(PathBuf::from("/dev/ttyUSB-none"));
+        let err = with_devices(&desc, |_, _, _| Ok(()))
+            .err()
+            .map(|e| e.to_string());
+        let text = err.unwrap_or_default();
+        assert!(text.contains("turntable_port"), "{text}");
+        assert!(text.contains("/dev/ttyUSB-none"), "{text}");
+    }
+
+    #[test]
+    fn a_missing_feature_is_a_typed_error_naming_it() {
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+        let desc = description(dir.path().to_path_buf());
+        let missing = desc.missing_features();
+        if let Some(first) = missing.first() {
+            match with_devices(&desc, |_, _, _| Ok(())) {
+                Err(RigError::FeatureNotBuilt { feature, .. }) => assert_eq!(feature, *first),
+                other => panic!("expected FeatureNotBuilt, got {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn the_description_round_trips_through_json() {
+        let desc = description(PathBuf::from("/dev/ttyUSB0"));
+        let text = serde_json::to_string(&desc).unwrap_or_default();
+        let back: DeviceDescription =
+            serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"));
+        assert_eq!(back, desc);
+        assert_eq!(desc.session_devices().turntable, "/dev/ttyUSB0 id 3");
+    }
+}

@@ -1,0 +1,245 @@
+//! The mesh chain of `slscan mesh`: a cloud with oriented normals to a closed surface through
+//! screened Poisson, then the optional trim, simplification, fairing of the unseen surface,
+//! isotropic remeshing, hole filling, removal of small pieces, smoothing and decimation, each
+//! step timed and its figures kept.
+
+use std::time::Instant;
+
+use sl_cloud::PointCloud;
+use sl_mesh::{
+    BilateralConfig, Decimation, FairConfig, Fairing, HoleFilling, MeshError, PoissonConfig,
+    RemeshConfig, Remeshing, Simplification, SimplifyConfig, TaubinConfig, Topology, TriangleMesh,
+    check_topology, decimate, fair_unsupported, fill_holes, inconsistent_normal_fraction,
+    poisson_reconstruct, remesh_isotropic, remove_small_components, simplify, smooth_bilateral,
+    smooth_taubin, trim_by_density,
+};
+
+use crate::{ScanError, StageTime};
+
+/// The orientation check of the normals (`sl_mesh::inconsistent_normal_fraction`): every
+/// `ORIENTATION_STRIDE`-th point with its `ORIENTATION_NEIGHBOURS` nearest among those.
+const ORIENTATION_NEIGHBOURS: usize = 8;
+/// See [`ORIENTATION_NEIGHBOURS`].
+const ORIENTATION_STRIDE: usize = 4;
+
+/// Smoothing applied after the reconstruction.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum MeshSmoothing {
+    /// None.
+    #[default]
+    None,
+    /// Bilateral: removes noise, keeps edges.
+    Bilateral(BilateralConfig),
+    /// Taubin λ|μ: removes noise, rounds edges.
+    Taubin(TaubinConfig),
+}
+
+/// The steps of [`mesh_chain`] and their settings; `None` leaves a step out.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshChainConfig {
+    /// The screened Poisson reconstruction.
+    pub poisson: PoissonConfig,
+    /// Remove surface whose sampling density is below this fraction of the median.
+    pub trim: Option<f64>,
+    /// The error-bounded simplification.
+    pub simplify: Option<SimplifyConfig>,
+    /// The fairing of the surface no sample supports (only after a simplification).
+    pub fair: Option<FairConfig>,
+    /// The isotropic remeshing.
+    pub remesh: Option<RemeshConfig>,
+    /// Close holes whose rim has at most this many edges.
+    pub fill_holes: Option<usize>,
+    /// Remove pieces of fewer triangles than this.
+    pub min_piece: usize,
+    /// Smoothing after the steps above.
+    pub smooth: MeshSmoothing,
+    /// Decimate to at most this many triangles (quadric error).
+    pub triangles: Option<usize>,
+}
+
+impl Default for MeshChainConfig {
+    /// The defaults of `slscan mesh`: simplified and faired, pieces under 100 triangles removed.
+    fn default() -> Self {
+        Self {
+            poisson: PoissonConfig::default(),
+            trim: None,
+            simplify: Some(SimplifyConfig::default()),
+            fair: Some(FairConfig::default()),
+            remesh: None,
+            fill_holes: None,
+            min_piece: 100,
+            smooth: MeshSmoothing::None,
+            triangles: None,
+        }
+    }
+}
+
+/// What [`mesh_chain`] made: the mesh, what each step did and how long it took.
+#[derive(Debug, Clone)]
+pub struct MeshChain {
+    /// The final mesh (mm).
+    pub mesh: TriangleMesh,
+    /// Its topology.
+    pub topology: Topology,
+    /// Fraction of the points whose normal faces away from the largest consistently oriented
+    /// patch around them (`None` when the cloud is too small to tell).
+    pub normals_inconsistent: Option<f64>,
+    /// Samples the reconstruction used.
+    pub samples: usize,
+    /// Size of the finest octree cell (mm).
+    pub cell_size: f64,
+    /// Milliseconds of the Poisson solve.
+    pub solve_ms: f64,
+    /// Milliseconds of the contouring.
+    pub contour_ms: f64,
+    /// Vertices of the extracted surface.
+    pub vertices_extracted: usize,
+    /// Triangles of the extracted surface.
+    pub triangles_extracted: usize,
+    /// The trim: triangles removed and the density threshold (per mm²).
+    pub trimmed: Option<(usize, f64)>,
+    /// The simplification and its milliseconds.
+    pub simplified: Option<(Simplification, f64)>,
+    /// The fairing and its milliseconds.
+    pub faired: Option<(Fairing, f64)>,
+    /// The remeshing and its milliseconds.
+    pub remeshed: Option<(Remeshing, f64)>,
+    /// The hole filling.
+    pub holes: Option<HoleFilling>,
+    /// Pieces removed for being smaller than `min_piece`.
+    pub small_pieces_removed: usize,
+    /// The decimation.
+    pub decimated: Option<Decimation>,
+    /// Per-step timings, in the order run.
+    pub stages: Vec<StageTime>,
+}
+
+fn step(name: &'static str) -> impl FnOnce(MeshError) -> ScanError {
+    move |source| ScanError::MeshStep { step: name, source }
+}
+
+fn timed<T>(stages: &mut Vec<StageTime>, name: &str, f: impl FnOnce() -> T) -> T {
+    let t = Instant::now();
+    let out = f();
+    stages.push(StageTime::since(name, t));
+    out
+}
+
+/// Meshes `cloud` (mm, with oriented normals) through the steps of `cfg`: the chain of
+/// `slscan mesh`.
+///
+/// # Errors
+/// [`ScanError::MeshStep`] naming the step that failed (`reconstruct`, `trim`, `simplify`,
+/// `fair`, `remesh`, `fill holes`, `smooth`, `decimate`); [`ScanError::Stage`] when no triangle
+/// is left after the removal of small pieces.
+pub fn mesh_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain, ScanError> {
+    let mut stages = Vec::new();
+    let normals_inconsistent = timed(&mut stages, "orientation", || {
+        inconsistent_normal_fraction(cloud, ORIENTATION_NEIGHBOURS, ORIENTATION_STRIDE)
+    })
+    .map_err(step("orientation"))?;
+    let mut surface = timed(&mut stages, "reconstruct", || {
+        poisson_reconstruct(cloud, &cfg.poisson)
+    })
+    .map_err(step("reconstruct"))?;
+    let (vertices_extracted, triangles_extracted) =
+        (surface.mesh.vertices.len(), surface.mesh.triangles.len());
+    let mut mesh = std::mem::take(&mut surface.mesh);
+    let mut densities = std::mem::take(&mut surface.densities);
+    let mut trimmed = None;
+    if let Some(ratio) = cfg.trim {
+        let t = timed(&mut stages, "trim", || {
+            trim_by_density(&mesh, &densities, ratio)
+        })
+        .map_err(step("trim"))?;
+        trimmed = Some((t.triangles_removed, t.threshold));
+        mesh = t.mesh;
+        densities = t.densities;
+    }
+    let (mut simplified, mut faired) = (None, None);
+    if let Some(s) = &cfg.simplify {
+        let t = Instant::now();
+        let done = timed(&mut stages, "simplify", || {
+            simplify(&mut mesh, &densities, s)
+        })
+        .map_err(step("simplify"))?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        densities = done.densities.clone();
+        simplified = Some((done, ms));
+        if let Some(f) = &cfg.fair {
+            let t = Instant::now();
+            let done = timed(&mut stages, "fair", || {
+                fair_unsupported(&mut mesh, &densities, f)
+            })
+            .map_err(step("fair"))?;
+            faired = Some((done, t.elapsed().as_secs_f64() * 1e3));
+        }
+    }
+    let mut remeshed = None;
+    if let Some(r) = &cfg.remesh {
+        let t = Instant::now();
+        let done = timed(&mut stages, "remesh", || {
+            remesh_isotropic(&mut mesh, &mut densities, r)
+        })
+        .map_err(step("remesh"))?;
+        remeshed = Some((done, t.elapsed().as_secs_f64() * 1e3));
+    }
+    let holes = match cfg.fill_holes {
+        Some(max_edges) => Some(
+            timed(&mut stages, "fill holes", || {
+                fill_holes(&mut mesh, max_edges)
+            })
+            .map_err(step("fill holes"))?,
+        ),
+        None => None,
+    };
+    let small_pieces_removed = timed(&mut stages, "small pieces", || {
+        remove_small_components(&mut mesh, cfg.min_piece)
+    });
+    match &cfg.smooth {
+        MeshSmoothing::None => {}
+        MeshSmoothing::Bilateral(c) => {
+            timed(&mut stages, "smooth", || smooth_bilateral(&mut mesh, c))
+                .map_err(step("smooth"))?;
+        }
+        MeshSmoothing::Taubin(c) => {
+            timed(&mut stages, "smooth", || smooth_taubin(&mut mesh, c)).map_err(step("smooth"))?;
+        }
+    }
+    let decimated = match cfg.triangles {
+        Some(n) => Some(
+            timed(&mut stages, "decimate", || decimate(&mut mesh, n)).map_err(step("decimate"))?,
+        ),
+        None => None,
+    };
+    if mesh.triangles.is_empty() {
+        return Err(ScanError::Stage {
+            stage: "mesh".to_owned(),
+            reason: format!(
+                "no triangle is left of the mesh ({triangles_extracted} extracted; pieces of \
+                 fewer than {} triangles are removed): is the cloud in mm?",
+                cfg.min_piece
+            ),
+        });
+    }
+    let topology = timed(&mut stages, "check", || check_topology(&mesh));
+    Ok(MeshChain {
+        mesh,
+        topology,
+        normals_inconsistent,
+        samples: surface.samples,
+        cell_size: surface.cell_size,
+        solve_ms: surface.solve_ms,
+        contour_ms: surface.contour_ms,
+        vertices_extracted,
+        triangles_extracted,
+        trimmed,
+        simplified,
+        faired,
+        remeshed,
+        holes,
+        small_pieces_removed,
+        decimated,
+        stages,
+    })
+}
