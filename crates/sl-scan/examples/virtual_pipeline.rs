@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use sl_codec::{BitDepth, ProjectorSize};
+use sl_codec::{BitDepth, ImageSize};
 use sl_rig::{CaptureSession, SessionConfig, SessionDevices, SessionPlan};
 use sl_scan::{
     MeshChainConfig, SCAN_PERIOD_PX, SessionScanConfig, VirtualScanConfig, calibrate_virtual,
@@ -43,7 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let p = rig.config().projector.size;
     let plan = SessionPlan {
         angles_deg: full_turn_motor_angles(calibration.turntable.as_ref(), 8)?,
-        manifest: scan_patterns(ProjectorSize::new(p.width, p.height), SCAN_PERIOD_PX)
+        manifest: scan_patterns(ImageSize::new(p.width, p.height), SCAN_PERIOD_PX)
             .manifest(BitDepth::Eight),
         devices: SessionDevices {
             camera: "virtual".into(),
