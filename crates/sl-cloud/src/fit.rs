@@ -1,6 +1,9 @@
 //! Least-squares fits of planes and spheres, for accuracy measurements (flatness, sphere
 //! radius and spacing as in VDI/VDE 2634).
 
+// `!(x > 0.0)` is used on purpose: it is true for NaN, which must be rejected as well.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use nalgebra::{Matrix3, Matrix4, Point3, SymmetricEigen, Vector3, Vector4};
 
 use crate::CloudError;
