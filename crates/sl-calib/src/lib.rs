@@ -40,6 +40,7 @@ mod grey;
 mod homography;
 mod junction;
 mod local_homography;
+#[cfg(feature = "pictures")]
 mod pictures;
 mod predicted;
 mod procam;
@@ -54,6 +55,7 @@ pub use grey::load_grey;
 pub use local_homography::{
     CornerFit, LocalHomographyConfig, ProjectorCorners, SkippedCorner, projector_corners,
 };
+#[cfg(feature = "pictures")]
 pub use pictures::{
     BAR, BarChart, FIRST_CORNER, OUTLIER_BAR, OUTLIER_FACTOR, PALETTE, PictureConfig, ResidualPlot,
     draw_corners, error_bars, residual_plot, save_png,
