@@ -34,7 +34,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..VirtualScanConfig::default()
     };
     let (calibration, summary) = calibrate_virtual(&rig, &cfg, |_| {})?;
-    println!("calibrated: {summary:?}");
+    println!(
+        "calibrated from {} poses: RMS camera {:.3} / projector {:.3} / stereo {:.3} px; axis {:.4}° / {:.3} mm off the truth",
+        summary.poses_used,
+        summary.rms_camera_px,
+        summary.rms_projector_px,
+        summary.rms_stereo_px,
+        summary.axis_direction_error_deg,
+        summary.axis_position_error_mm
+    );
     let calib_path = out.join("calibration.json");
     calibration.save(&calib_path)?;
     let calibration = load_scan_calibration(&calib_path)?;
