@@ -147,13 +147,11 @@ pub(crate) fn settle_free_motions(
                     point_mm,
                 } => {
                     let q = delta.rotation.quaternion();
-                    // The twist of the rotation about `direction` (swing-twist decomposition).
-                    let twist = 2.0 * q.imag().dot(direction).atan2(q.w);
-                    let twist = if twist > std::f64::consts::PI {
-                        twist - std::f64::consts::TAU
-                    } else {
-                        twist
-                    };
+                    // The twist of the rotation about `direction` (swing-twist decomposition),
+                    // from the quaternion with w ≥ 0 (q and -q are one rotation), so that it
+                    // lies in [-π, π].
+                    let sign = if q.w < 0.0 { -1.0 } else { 1.0 };
+                    let twist = 2.0 * (sign * q.imag().dot(direction)).atan2(sign * q.w);
                     let axis = nalgebra::Unit::new_normalize(*direction);
                     let r = nalgebra::UnitQuaternion::from_axis_angle(&axis, twist);
                     Isometry3::from_parts(
