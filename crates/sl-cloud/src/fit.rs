@@ -58,6 +58,14 @@ fn finite(points: &[Point3<f64>]) -> impl Iterator<Item = &Point3<f64>> {
         .filter(|p| p.coords.iter().all(|v| v.is_finite()))
 }
 
+/// The number of finite points and their mean.
+fn finite_mean(points: &[Point3<f64>]) -> (usize, Vector3<f64>) {
+    let (count, sum) = finite(points).fold((0usize, Vector3::zeros()), |(n, a), p| {
+        (n + 1, a + p.coords)
+    });
+    (count, sum / count.max(1) as f64)
+}
+
 /// Fits a plane to the finite points (non-finite ones are skipped), minimising the sum of
 /// squared orthogonal distances: the normal is the eigenvector of the smallest eigenvalue of
 /// the covariance.
@@ -65,14 +73,13 @@ fn finite(points: &[Point3<f64>]) -> impl Iterator<Item = &Point3<f64>> {
 /// # Errors
 /// [`CloudError::Fit`] for fewer than 3 finite points or collinear points.
 pub fn fit_plane(points: &[Point3<f64>]) -> Result<PlaneFit, CloudError> {
-    let count = finite(points).count();
+    let (count, centroid) = finite_mean(points);
     if count < 3 {
         return Err(CloudError::Fit {
             what: "plane",
             message: format!("{count} finite points, need at least 3"),
         });
     }
-    let centroid = finite(points).fold(Vector3::zeros(), |a, p| a + p.coords) / count as f64;
     let cov = finite(points).fold(Matrix3::zeros(), |a, p| {
         let d = p.coords - centroid;
         a + d * d.transpose()
@@ -113,7 +120,7 @@ pub fn fit_plane(points: &[Point3<f64>]) -> Result<PlaneFit, CloudError> {
 /// # Errors
 /// [`CloudError::Fit`] for fewer than 4 finite points or coplanar points.
 pub fn fit_sphere(points: &[Point3<f64>]) -> Result<SphereFit, CloudError> {
-    let count = finite(points).count();
+    let (count, mean) = finite_mean(points);
     if count < 4 {
         return Err(CloudError::Fit {
             what: "sphere",
@@ -121,7 +128,6 @@ pub fn fit_sphere(points: &[Point3<f64>]) -> Result<SphereFit, CloudError> {
         });
     }
     // Centre the data for conditioning.
-    let mean = finite(points).fold(Vector3::zeros(), |a, p| a + p.coords) / count as f64;
     let mut m = Matrix4::zeros();
     let mut b = Vector4::zeros();
     for p in finite(points) {

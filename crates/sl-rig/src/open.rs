@@ -81,6 +81,11 @@ impl DeviceDescription {
     }
 }
 
+/// How errors name the turntable: its port and servo id.
+fn turntable_name(port: &std::path::Path, servo_id: u8) -> String {
+    format!("turntable {} id {servo_id}", port.display())
+}
+
 /// A device trait object that can move to the worker thread of the projector window.
 pub type BoxedCamera = Box<dyn Camera + Send>;
 /// A turntable trait object that can move to the worker thread of the projector window.
@@ -124,7 +129,7 @@ pub fn open_turntable(port: &std::path::Path, servo_id: u8) -> Result<BoxedTurnt
             },
         )
         .map_err(|e| RigError::Device {
-            device: format!("turntable {} id {servo_id}", port.display()),
+            device: turntable_name(port, servo_id),
             reason: e.to_string(),
         })?;
         Ok(Box::new(table))
@@ -132,7 +137,7 @@ pub fn open_turntable(port: &std::path::Path, servo_id: u8) -> Result<BoxedTurnt
     #[cfg(not(all(feature = "dynamixel", unix)))]
     {
         Err(RigError::FeatureNotBuilt {
-            device: format!("turntable {} id {servo_id}", port.display()),
+            device: turntable_name(port, servo_id),
             feature: "dynamixel",
         })
     }
@@ -159,11 +164,7 @@ where
         let device = match *feature {
             "v4l" => format!("camera {}", description.camera.display()),
             "window" => format!("projector on monitor {}", description.projector_monitor),
-            _ => format!(
-                "turntable {} id {}",
-                description.turntable_port.display(),
-                description.servo_id
-            ),
+            _ => turntable_name(&description.turntable_port, description.servo_id),
         };
         return Err(RigError::FeatureNotBuilt { device, feature });
     }

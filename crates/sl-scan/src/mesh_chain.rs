@@ -118,6 +118,11 @@ fn step(name: &'static str) -> impl FnOnce(MeshError) -> ScanError {
     move |source| ScanError::MeshStep { step: name, source }
 }
 
+/// Milliseconds of the step [`timed`] recorded last.
+fn last_ms(stages: &[StageTime]) -> f64 {
+    stages.last().map_or(0.0, |s| s.ms)
+}
+
 fn timed<T>(stages: &mut Vec<StageTime>, name: &str, f: impl FnOnce() -> T) -> T {
     let t = Instant::now();
     let out = f();
@@ -158,31 +163,27 @@ pub fn mesh_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain
     }
     let (mut simplified, mut faired) = (None, None);
     if let Some(s) = &cfg.simplify {
-        let t = Instant::now();
         let done = timed(&mut stages, "simplify", || {
             simplify(&mut mesh, &densities, s)
         })
         .map_err(step("simplify"))?;
-        let ms = t.elapsed().as_secs_f64() * 1e3;
         densities = done.densities.clone();
-        simplified = Some((done, ms));
+        simplified = Some((done, last_ms(&stages)));
         if let Some(f) = &cfg.fair {
-            let t = Instant::now();
             let done = timed(&mut stages, "fair", || {
                 fair_unsupported(&mut mesh, &densities, f)
             })
             .map_err(step("fair"))?;
-            faired = Some((done, t.elapsed().as_secs_f64() * 1e3));
+            faired = Some((done, last_ms(&stages)));
         }
     }
     let mut remeshed = None;
     if let Some(r) = &cfg.remesh {
-        let t = Instant::now();
         let done = timed(&mut stages, "remesh", || {
             remesh_isotropic(&mut mesh, &mut densities, r)
         })
         .map_err(step("remesh"))?;
-        remeshed = Some((done, t.elapsed().as_secs_f64() * 1e3));
+        remeshed = Some((done, last_ms(&stages)));
     }
     let holes = match cfg.fill_holes {
         Some(max_edges) => Some(
