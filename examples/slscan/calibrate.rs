@@ -1,43 +1,21 @@
 //! `slscan calibrate camera|projector|turntable|all`: calibration from checkerboard pictures,
 //! writing `calibration.json` (and OpenCV YAML on request), `report.json` and pictures: the
-//! detected corners on every image, the per-view RMS bars and the residual vector plot.
+//! detected corners on every image, the per-view RMS bars and the residual vector plot. The
+//! steps are sl-scan's (`calibrate_session`, `calibrate_camera_files`, …); this file turns the
+//! arguments into their inputs and prints their figures.
 
-use std::fs;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use serde_json::json;
 use sl_calib::sl_camera::{Calibration, ImageSize};
-use sl_calib::sl_codec::DecodeConfig;
-use sl_calib::{
-    BoardCorners, BoardSize, CalibError, CalibrationView, CameraCalibration, CornerRefiner,
-    DetectorConfig, PictureConfig, ProcamCalibration, ProcamConfig, ProcamView, ResidualPlot,
-    TurntableCalibration, TurntableConfig, TurntableView, ZhangConfig, calibrate_camera,
-    calibrate_procam, calibrate_turntable, detect_checkerboard, draw_corners, error_bars,
-    load_grey, residual_plot, save_png,
+use sl_calib::{BoardSize, CornerRefiner, ProcamCalibration, TurntableConfig, ZhangConfig};
+use sl_scan::{
+    CalibrationFilesConfig, CalibrationLayout, ProcamFiles, SkippedImage, TurntableFiles,
+    calibrate_camera_files, calibrate_procam_files, calibrate_session, calibrate_turntable_files,
+    camera_images, layout_white_frames, session_poses, turntable_views,
 };
 
-use sl_scan::{CalibrationLayout, PoseCapture, check_pose_files, default_turntable_dir};
-
-use crate::common::{Report, ensure_out_dir, progress, write_atomically};
-
-/// The white-light picture of a capture folder written by `slscan simulate --scene board`;
-/// found under any image extension (`white.bmp`, `white.tif`, …: [`white_image`]).
-const WHITE_IMAGE: &str = "white.png";
-
-/// The white-light picture of a capture folder, saved in any format sl-codec reads.
-fn white_image(folder: &Path) -> Option<PathBuf> {
-    sl_calib::sl_codec::find_image_file(&folder.join(WHITE_IMAGE))
-}
-
-/// Whether a board image's name (`white.png`, `white.bmp`, …) is a white-light picture.
-fn is_white_name(name: &str) -> bool {
-    let path = Path::new(name);
-    path.file_stem().is_some_and(|s| s == "white") && sl_calib::sl_codec::is_image_file(path)
-}
-
-/// The per-view file of a simulated session that holds the motor reading.
-const BOARD_FILE: &str = "board.json";
+use crate::common::StageBars;
 
 /// Arguments of `slscan calibrate`.
 #[derive(Debug, clap::Args)]
@@ -97,9 +75,14 @@ pub(crate) struct BoardArgs {
 }
 
 impl BoardArgs {
-    /// The board detector these options ask for.
-    fn detector(&self) -> DetectorConfig {
-        DetectorConfig::with_refiner(self.corners)
+    /// The board and files these options ask for.
+    fn files_config(&self) -> anyhow::Result<CalibrationFilesConfig> {
+        Ok(CalibrationFilesConfig {
+            board: parse_board(&self.board)?,
+            square_mm: self.square,
+            corners: self.corners,
+            yaml: self.yaml,
+        })
     }
 }
 
@@ -196,6 +179,16 @@ pub(crate) struct AllArgs {
 
 /// Runs `slscan calibrate`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    let mut bars = StageBars::new();
+    let result = run_with(args, &mut |p| bars.update(p));
+    bars.clear();
+    result
+}
+
+fn run_with(
+    args: &Args,
+    progress: &mut dyn FnMut(sl_scan::ScanProgress<'_>),
+) -> anyhow::Result<()> {
     match &args.what {
         What::Capture(a) => crate::calibrate_capture::run(a),
         What::Camera(a) => {
@@ -205,32 +198,55 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 rational_model: a.rational,
                 ..ZhangConfig::default()
             };
+            let cfg = a.common.files_config()?;
             let images = match a.layout.load()? {
-                Some(layout) => layout_white_frames(&layout, &a.inputs)?,
+                Some(layout) => {
+                    let [session] = a.inputs.as_slice() else {
+                        anyhow::bail!(
+                            "--layout: give one session folder, not {} inputs",
+                            a.inputs.len()
+                        );
+                    };
+                    layout_white_frames(&layout, session)?
+                }
                 None => camera_images(&a.inputs)?,
             };
-            let (calib, cal) = camera(&images, &a.common, &zhang, "calibrate camera")?;
+            let result = calibrate_camera_files(
+                &images,
+                &cfg,
+                &zhang,
+                &a.common.out,
+                "calibrate camera",
+                progress,
+            );
+            let files = result?;
+            print_skipped(&files.skipped);
             println!(
                 "camera calibrated: RMS {:.4} px over {} views ({} without a board skipped); {}",
-                calib.rms.camera.unwrap_or(f64::NAN),
-                cal.view_rms.len(),
-                images.len() - cal.view_rms.len(),
+                files.camera.rms,
+                files.camera.view_rms.len(),
+                images.len() - files.camera.view_rms.len(),
                 a.common.out.join("calibration.json").display()
             );
             Ok(())
         }
         What::Projector(a) => {
+            let cfg = a.common.files_config()?;
             let layout = a.layout.load()?;
             let poses = session_poses(&a.session, layout.as_ref())?;
             let given = a.projector.as_deref().map(parse_size).transpose()?;
             let projector_size = sl_scan::projector_size(&poses, given)?;
-            let (_, cal) = procam(
+            let files = calibrate_procam_files(
                 &poses,
-                &a.common,
+                &cfg,
                 projector_size,
-                "calibrate projector",
                 layout.as_ref(),
+                &a.common.out,
+                "calibrate projector",
+                progress,
             )?;
+            print_procam_notes(&files);
+            let cal = &files.procam;
             println!(
                 "camera RMS {:.4} px, projector RMS {:.4} px, stereo RMS {:.4} px over {} views; {}",
                 cal.rms_camera,
@@ -239,123 +255,97 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 cal.views.len(),
                 a.common.out.join("calibration.json").display()
             );
-            print_predicted(&cal);
+            print_predicted(cal);
             Ok(())
         }
         What::Turntable(a) => {
+            let cfg = a.common.files_config()?;
             let calib = Calibration::load(&a.calib)
                 .with_context(|| format!("cannot read the calibration {}", a.calib.display()))?;
-            let cfg = TurntableConfig {
+            let tcfg = TurntableConfig {
                 min_span_deg: a.min_span,
                 ..TurntableConfig::default()
             };
-            let views = turntable_views(&a.session, a.angles.as_deref())?;
-            let fit = turntable(calib, &views, &a.common, &cfg, "calibrate turntable")?;
-            print_axis(&fit, &a.common.out);
+            let views = turntable_views(&a.session, a.angles.as_deref()).with_context(|| {
+                if a.angles.is_some() {
+                    "--angles"
+                } else {
+                    "the motor angles (give them with --angles)"
+                }
+            })?;
+            let files = calibrate_turntable_files(
+                calib,
+                &views,
+                &cfg,
+                &tcfg,
+                &a.common.out,
+                "calibrate turntable",
+                progress,
+            )?;
+            print_axis(&files, &a.common.out);
             Ok(())
         }
         What::All(a) => {
+            let cfg = a.common.files_config()?;
             let layout = a.layout.load()?;
-            let turntable_dir = match &layout {
-                Some(l) => l.turntable_dir(&a.session)?,
-                None => default_turntable_dir(&a.session),
-            };
-            // With a turntable step the camera and projector files go to a subfolder and the
-            // whole calibration to OUT; without one, OUT is theirs.
-            let sub = |name: &str| BoardArgs {
-                out: if turntable_dir.is_some() {
-                    a.common.out.join(name)
-                } else {
-                    a.common.out.clone()
-                },
-                board: a.common.board.clone(),
-                square: a.common.square,
-                yaml: a.common.yaml,
-                corners: a.common.corners,
-            };
-            let (calib, what) = match &layout {
-                Some(l) => {
-                    let poses = l.poses(&a.session)?;
-                    let (calib, cal) = procam(
-                        &poses,
-                        &sub("projector"),
-                        l.projector_size(),
-                        "calibrate all: projector",
-                        Some(l),
-                    )?;
-                    print_procam(&cal);
-                    (calib, "camera and projector")
-                }
-                None => all_from_session_folders(&a.session, &sub)?,
-            };
-            let Some(dir) = turntable_dir else {
+            let out = &a.common.out;
+            let done = calibrate_session(&a.session, layout.as_ref(), &cfg, out, progress)?;
+            if let Some(c) = &done.camera {
+                print_skipped(&c.skipped);
                 println!(
-                    "no turntable folder ({}): {what} only; {}. Add the turntable axis with \
+                    "camera: RMS {:.4} px over {} views",
+                    c.camera.rms,
+                    c.camera.view_rms.len()
+                );
+            }
+            if let Some(p) = &done.procam {
+                print_procam_notes(p);
+                print_procam(&p.procam);
+            }
+            match &done.turntable {
+                Some(t) => print_axis(t, out),
+                None => println!(
+                    "no turntable folder ({}): {} only; {}. Add the turntable axis with \
                      `slscan calibrate turntable TURNTABLE_FOLDER --calib {} --out DIR`",
                     a.session.join(sl_scan::TURNTABLE_DIR).display(),
-                    a.common.out.join("calibration.json").display(),
-                    a.common.out.join("calibration.json").display()
-                );
-                return Ok(());
-            };
-            let views = turntable_views(&dir, None)?;
-            let fit = turntable(
-                calib,
-                &views,
-                &a.common,
-                &TurntableConfig::default(),
-                "calibrate all: turntable",
-            )?;
-            print_axis(&fit, &a.common.out);
+                    if done.procam.is_some() {
+                        "camera and projector"
+                    } else {
+                        "camera"
+                    },
+                    out.join("calibration.json").display(),
+                    out.join("calibration.json").display()
+                ),
+            }
             Ok(())
         }
     }
 }
 
-/// The camera and projector steps of `calibrate all` on an `slscan simulate --scene board` or
-/// `slscan calibrate capture` session: projector and camera from the `board/` capture
-/// folders, or the camera alone when they hold no pattern captures.
-fn all_from_session_folders(
-    session: &Path,
-    sub: &dyn Fn(&str) -> BoardArgs,
-) -> anyhow::Result<(Calibration, &'static str)> {
-    let board_dir = session.join(sl_scan::BOARD_DIR);
-    anyhow::ensure!(
-        board_dir.is_dir(),
-        "{}: no board/ folder: expected an `slscan simulate --scene board` session, or a \
-         layout file (--layout) describing the session's folders",
-        session.display()
-    );
-    let folders = pose_folders(session)?;
-    let with_patterns = folders
-        .iter()
-        .all(|f| f.join(sl_calib::sl_codec::MANIFEST_FILE).is_file());
-    if with_patterns {
-        let poses = session_poses(session, None)?;
-        let size = rig_projector_size(session)?;
-        let (calib, cal) = procam(
-            &poses,
-            &sub("projector"),
-            size,
-            "calibrate all: projector",
-            None,
-        )?;
-        print_procam(&cal);
-        Ok((calib, "camera and projector"))
-    } else {
-        let images = camera_images(std::slice::from_ref(&board_dir))?;
-        let (calib, cam) = camera(
-            &images,
-            &sub("camera"),
-            &ZhangConfig::default(),
-            "calibrate all: camera",
-        )?;
+fn print_skipped(skipped: &[SkippedImage]) {
+    for s in skipped {
+        eprintln!("slscan: skipping {}", s.reason);
+    }
+}
+
+/// The projector step's notes: the poses whose board was found in their own texture, and the
+/// poses the calibration skipped.
+fn print_procam_notes(files: &ProcamFiles) {
+    if let Some(first) = files.textured.first() {
         println!(
-            "camera: RMS {:.4} px over {} views",
-            cam.rms,
-            cam.view_rms.len()
+            "board images: {} of {} poses have no white frame; their corners are found in the \
+             capture's own texture ({first})",
+            files.textured.len(),
+            files.poses
         );
-        Ok((calib, "camera"))
+    }
+    for s in &files.procam.skipped_views {
+        // The detector's reasons begin with the view's name.
+        if s.reason.starts_with(&s.name) {
+            eprintln!("slscan: skipping board pose {}", s.reason);
+        } else {
+            eprintln!("slscan: skipping board pose {}: {}", s.name, s.reason);
+        }
     }
 }
 
@@ -370,62 +360,19 @@ fn print_procam(cal: &ProcamCalibration) {
     print_predicted(cal);
 }
 
-/// The board poses of a session: the folders a layout names, or the capture folders of an
-/// `slscan` session (`board/pose_NNN/` with `manifest.json` and `white.png`); their files are
-/// checked before anything is decoded.
-fn session_poses(
-    session: &Path,
-    layout: Option<&CalibrationLayout>,
-) -> anyhow::Result<Vec<PoseCapture>> {
-    if let Some(l) = layout {
-        return Ok(l.poses(session)?);
+/// The accuracy the calibration predicts for itself, or why there is none.
+fn print_predicted(cal: &ProcamCalibration) {
+    match &cal.predicted_error {
+        Some(p) => println!("{}", p.sentence()),
+        None => println!(
+            "no accuracy prediction: the joint refinement's normal equations are singular (too few or too similar board poses)"
+        ),
     }
-    let poses: Vec<PoseCapture> = pose_folders(session)?
-        .iter()
-        .map(|folder| {
-            // The view's name: `pose_000/white.png`, or the folder's name without a white frame.
-            let name = white_image(folder).map_or_else(
-                || {
-                    folder.file_name().map_or_else(
-                        || folder.display().to_string(),
-                        |f| f.to_string_lossy().into_owned(),
-                    )
-                },
-                |w| short_name(&w),
-            );
-            PoseCapture::capture_folder(folder, name)
-        })
-        .collect();
-    check_pose_files(&poses)?;
-    Ok(poses)
 }
 
-/// The white frames of the poses of a session described by a layout (`calibrate camera
-/// --layout`): one input, the session folder.
-fn layout_white_frames(
-    layout: &CalibrationLayout,
-    inputs: &[PathBuf],
-) -> anyhow::Result<Vec<PathBuf>> {
-    let [session] = inputs else {
-        anyhow::bail!(
-            "--layout: give one session folder, not {} inputs",
-            inputs.len()
-        );
-    };
-    anyhow::ensure!(
-        layout.white.is_some(),
-        "{}: no white frame named (\"white\"): the camera is calibrated from the board under \
-         white light",
-        layout.source.display()
-    );
-    Ok(layout
-        .poses(session)?
-        .into_iter()
-        .filter_map(|p| p.white)
-        .collect())
-}
-
-fn print_axis(fit: &TurntableCalibration, out: &Path) {
+fn print_axis(files: &TurntableFiles, out: &Path) {
+    let fit = &files.turntable;
+    print_skipped(&files.skipped);
     let d = fit.axis.direction;
     let p = fit.axis.point_mm;
     println!(
@@ -466,708 +413,6 @@ fn parse_board(text: &str) -> anyhow::Result<BoardSize> {
 fn parse_size(text: &str) -> anyhow::Result<ImageSize> {
     let (w, h) = parse_pair(text, "--projector", "1920x1080")?;
     Ok(ImageSize::new(w, h))
-}
-
-/// The projector size of a session: from its `rig.json` (a simulated session), else from the
-/// first pose's `manifest.json` (an `slscan calibrate capture` session on real devices), else
-/// 1920x1080.
-fn rig_projector_size(session: &Path) -> anyhow::Result<ImageSize> {
-    let path = session.join("rig.json");
-    if !path.is_file() {
-        let manifest = pose_folders(session)?
-            .first()
-            .map(|f| f.join(sl_calib::sl_codec::MANIFEST_FILE))
-            .filter(|m| m.is_file());
-        return Ok(match manifest {
-            Some(m) => {
-                let m = sl_calib::sl_codec::Manifest::load(&m)?;
-                ImageSize::new(m.projector.width, m.projector.height)
-            }
-            None => ImageSize::new(1920, 1080),
-        });
-    }
-    let text =
-        fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
-    let value: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-    let size = value
-        .pointer("/projector/size")
-        .cloned()
-        .with_context(|| format!("{}: no projector.size", path.display()))?;
-    serde_json::from_value(size).with_context(|| format!("{}: bad projector.size", path.display()))
-}
-
-/// The capture folders (one per board pose) of a session.
-fn pose_folders(session: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let sub = session.join("board");
-    let dir = if sub.is_dir() {
-        sub
-    } else {
-        session.to_path_buf()
-    };
-    anyhow::ensure!(dir.is_dir(), "{}: no such folder", dir.display());
-    // A pose folder holds a white picture, a pattern capture, or both (captures without a
-    // white frame use their own texture, see `procam`).
-    let folders: Vec<PathBuf> = sorted_entries(&dir)?
-        .into_iter()
-        .filter(|p| white_image(p).is_some() || p.join(sl_calib::sl_codec::MANIFEST_FILE).is_file())
-        .collect();
-    anyhow::ensure!(
-        !folders.is_empty(),
-        "{}: no board poses: expected one capture folder per pose holding the pattern \
-         sequence's {} (and {WHITE_IMAGE} if it has one)",
-        dir.display(),
-        sl_calib::sl_codec::MANIFEST_FILE
-    );
-    Ok(folders)
-}
-
-fn is_image(path: &Path) -> bool {
-    // sl-codec's list of the formats it reads (BMP, PGM/PPM, PNG, JPEG, TIFF).
-    path.is_file() && sl_calib::sl_codec::is_image_file(path)
-}
-
-fn sorted_entries(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let mut entries: Vec<PathBuf> = fs::read_dir(dir)
-        .with_context(|| format!("cannot list {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .collect();
-    entries.sort();
-    Ok(entries)
-}
-
-/// The images of a folder: its image files, else its subfolders' `white.png`.
-fn images_in(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let entries = sorted_entries(dir)?;
-    let files: Vec<PathBuf> = entries.iter().filter(|p| is_image(p)).cloned().collect();
-    if !files.is_empty() {
-        return Ok(files);
-    }
-    Ok(entries.iter().filter_map(|p| white_image(p)).collect())
-}
-
-/// Expands the camera command's inputs into image files.
-fn camera_images(inputs: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
-    let mut images = Vec::new();
-    for input in inputs {
-        if input.is_dir() {
-            let session_boards = input.join("board");
-            let dir = if session_boards.is_dir() {
-                session_boards
-            } else {
-                input.clone()
-            };
-            let found = images_in(&dir)?;
-            anyhow::ensure!(
-                !found.is_empty(),
-                "{}: no checkerboard images: expected image files (.png, .jpg, .tif, .bmp) or \
-                 capture folders holding {WHITE_IMAGE}",
-                dir.display()
-            );
-            images.extend(found);
-        } else if input.is_file() {
-            images.push(input.clone());
-        } else {
-            anyhow::bail!("{}: no such file or folder", input.display());
-        }
-    }
-    Ok(images)
-}
-
-/// A short name of an image for messages and picture file names: the file name, or
-/// `folder/white.png` for capture folders.
-fn short_name(path: &Path) -> String {
-    let file = path
-        .file_name()
-        .map(|f| f.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    match path.parent().and_then(|p| p.file_name()) {
-        Some(parent) if is_white_name(&file) => format!("{}/{file}", parent.to_string_lossy()),
-        _ => file,
-    }
-}
-
-/// The images' short names ([`short_name`]), with the folder added to those that would
-/// otherwise repeat (the white frames `capture_0/graycode_40.png`, `capture_1/graycode_40.png`
-/// of a layout's pose folders).
-fn view_names(paths: &[PathBuf]) -> Vec<String> {
-    let short: Vec<String> = paths.iter().map(|p| short_name(p)).collect();
-    short
-        .iter()
-        .zip(paths)
-        .map(|(name, path)| {
-            let repeated = short.iter().filter(|n| *n == name).count() > 1;
-            match path.parent().and_then(|p| p.file_name()) {
-                Some(parent) if repeated && !is_white_name(name) => {
-                    format!("{}/{name}", parent.to_string_lossy())
-                }
-                _ => name.clone(),
-            }
-        })
-        .collect()
-}
-
-fn picture_name(k: usize, name: &str) -> String {
-    // Without its image extension, whichever it is (`white.bmp`, `left01.jpg`).
-    let bare = match name.rsplit_once('.') {
-        Some((stem, _)) if sl_calib::sl_codec::is_image_file(Path::new(name)) => stem,
-        _ => name,
-    };
-    let stem: String = bare
-        .chars()
-        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
-        .collect();
-    format!("corners_{k:03}_{stem}.png")
-}
-
-/// One image with its detected board.
-struct Detected {
-    /// Index of the image in the input list.
-    index: usize,
-    name: String,
-    image: sl_calib::image::GrayImage,
-    corners: BoardCorners,
-}
-
-/// Loads and detects every image; images without a board are skipped with the reason (and
-/// the motor angle, for turntable views).
-fn detect_all(
-    paths: &[PathBuf],
-    angles: Option<&[f64]>,
-    size: BoardSize,
-    cfg: &DetectorConfig,
-    report: &mut Report,
-) -> anyhow::Result<(Vec<Detected>, Vec<serde_json::Value>, ImageSize)> {
-    let bar = progress(paths.len() as u64, "detecting");
-    let mut found = Vec::new();
-    let mut skipped = Vec::new();
-    let mut dims: Option<(u32, u32, String)> = None;
-    report.figure("corners", cfg.refiner().name());
-    report.stage("read and detect", || -> anyhow::Result<()> {
-        let names = view_names(paths);
-        for ((index, path), name) in paths.iter().enumerate().zip(names) {
-            bar.inc(1);
-            let image = load_grey(path)?;
-            match &dims {
-                None => dims = Some((image.width(), image.height(), name.clone())),
-                Some((w, h, first)) => anyhow::ensure!(
-                    (*w, *h) == image.dimensions(),
-                    "{}: {}x{} pixels, but {first} has {w}x{h}: one camera, one image size",
-                    path.display(),
-                    image.width(),
-                    image.height()
-                ),
-            }
-            match detect_checkerboard(&image, size, cfg, &path.display().to_string()) {
-                Ok(corners) => found.push(Detected {
-                    index,
-                    name,
-                    image,
-                    corners,
-                }),
-                Err(e @ CalibError::BoardNotFound { .. }) => {
-                    let e = match angles.and_then(|a| a.get(index)) {
-                        Some(&motor_angle_deg) => CalibError::BoardNotFoundAtAngle {
-                            motor_angle_deg,
-                            source: Box::new(e),
-                        },
-                        None => e,
-                    };
-                    eprintln!("slscan: skipping {e}");
-                    skipped.push(
-                        json!({ "image": path.display().to_string(), "reason": e.to_string() }),
-                    );
-                }
-                Err(e) => return Err(e.into()),
-            }
-        }
-        Ok(())
-    })?;
-    bar.finish_and_clear();
-    let (w, h, _) = dims.context("no images given")?;
-    Ok((found, skipped, ImageSize::new(w, h)))
-}
-
-/// Images skipped for want of a board, for an error message: `: a.png, b.png, c.png, …`
-/// (the first [`SKIPPED_NAMED`]), or nothing.
-fn skipped_names(skipped: &[serde_json::Value]) -> String {
-    let names: Vec<&str> = skipped
-        .iter()
-        .filter_map(|s| s["image"].as_str())
-        .take(SKIPPED_NAMED)
-        .collect();
-    if names.is_empty() {
-        return String::new();
-    }
-    let more = if skipped.len() > SKIPPED_NAMED {
-        ", …"
-    } else {
-        ""
-    };
-    format!(": {}{more}", names.join(", "))
-}
-
-/// Skipped images named in an error message: enough to find the folder, short enough to read.
-const SKIPPED_NAMED: usize = 3;
-
-/// Writes `calibration.json` (and `.yml`) atomically.
-fn write_calibration(calib: &Calibration, common: &BoardArgs) -> anyhow::Result<()> {
-    let out = &common.out;
-    let text = calib
-        .to_json()
-        .context("cannot serialise the calibration")?;
-    write_atomically(&out.join("calibration.json"), text.as_bytes())?;
-    if common.yaml {
-        let yaml = calib
-            .to_opencv_yaml()
-            .context("cannot write the calibration as OpenCV YAML")?;
-        write_atomically(&out.join("calibration.yml"), yaml.as_bytes())?;
-    }
-    Ok(())
-}
-
-/// The three kinds of pictures for a set of views; returns the residual plot's scale.
-fn pictures(
-    dir: &Path,
-    detected: &[Detected],
-    view_rms: &[f64],
-    rms: f64,
-    residuals: &[Vec<nalgebra::Vector2<f64>>],
-    size: ImageSize,
-) -> anyhow::Result<serde_json::Value> {
-    let pics = ensure_out_dir(&dir.join("pictures"))?;
-    let cfg = PictureConfig::default();
-    for (k, d) in detected.iter().enumerate() {
-        save_png(
-            &draw_corners(&d.image, &d.corners),
-            pics.join(picture_name(k, &d.name)),
-        )?;
-    }
-    save_png(
-        &error_bars(view_rms, rms, &cfg).image,
-        pics.join("error_bars.png"),
-    )?;
-    let corners: Vec<_> = detected.iter().map(|d| d.corners.corners.clone()).collect();
-    let plot = residual_plot(size.width, size.height, &corners, residuals, &cfg);
-    save_png(&plot.image, pics.join("residuals.png"))?;
-    Ok(plot_scale(&plot))
-}
-
-fn plot_scale(plot: &ResidualPlot) -> serde_json::Value {
-    json!({ "magnification": plot.magnification, "scale_arrow_px": plot.scale_arrow_px })
-}
-
-/// The accuracy the calibration predicts for itself, or why there is none.
-fn print_predicted(cal: &ProcamCalibration) {
-    match &cal.predicted_error {
-        Some(p) => println!("{}", p.sentence()),
-        None => println!(
-            "no accuracy prediction: the joint refinement's normal equations are singular (too few or too similar board poses)"
-        ),
-    }
-}
-
-/// Camera calibration of `images`, with its files in `common.out`.
-fn camera(
-    images: &[PathBuf],
-    common: &BoardArgs,
-    zhang: &ZhangConfig,
-    command: &str,
-) -> anyhow::Result<(Calibration, CameraCalibration)> {
-    let mut report = Report::new(command);
-    let out = ensure_out_dir(&common.out)?;
-    let size = parse_board(&common.board)?;
-    let (detected, skipped, image_size) =
-        detect_all(images, None, size, &common.detector(), &mut report)?;
-    let views: Vec<CalibrationView> = detected
-        .iter()
-        .map(|d| CalibrationView::from_corners(&d.corners, common.square))
-        .collect();
-    let cal = report
-        .stage("calibrate", || calibrate_camera(&views, image_size, zhang))
-        .with_context(|| {
-            format!(
-                "camera calibration from {} views with a board ({} skipped{})",
-                views.len(),
-                skipped.len(),
-                skipped_names(&skipped)
-            )
-        })?;
-    let magnification = report.stage("pictures", || {
-        pictures(
-            &out,
-            &detected,
-            &cal.view_rms,
-            cal.rms,
-            &cal.residuals,
-            image_size,
-        )
-    })?;
-    let mut calib = Calibration::new(cal.camera);
-    calib.rms.camera = Some(cal.rms);
-    calib.metadata.notes = format!(
-        "slscan calibrate camera: {} views of a {}x{} board of {} mm squares",
-        views.len(),
-        size.cols,
-        size.rows,
-        common.square
-    );
-    report.stage("write", || write_calibration(&calib, common))?;
-    let i = &cal.camera.intrinsics;
-    report.figure("rms_px", cal.rms);
-    report.figure(
-        "view_rms_px",
-        detected
-            .iter()
-            .zip(&cal.view_rms)
-            .map(|(d, r)| json!({ "image": d.name, "rms": r }))
-            .collect::<Vec<_>>(),
-    );
-    report.figure(
-        "intrinsics",
-        json!({ "fx": i.fx, "fy": i.fy, "cx": i.cx, "cy": i.cy, "skew": i.skew }),
-    );
-    report.figure("distortion", cal.camera.distortion.to_opencv_vec());
-    report.figure(
-        "std_dev",
-        json!({ "intrinsics": cal.std_dev.intrinsics, "distortion": cal.std_dev.distortion }),
-    );
-    report.figure("views_used", views.len());
-    report.figure("skipped", skipped);
-    report.figure("iterations", cal.iterations);
-    report.figure("residual_plot", magnification);
-    report.figure("image_size", json!([image_size.width, image_size.height]));
-    report.write(&out)?;
-    Ok((calib, cal))
-}
-
-/// Reads `motor_angle_deg` from a view folder's `board.json`.
-fn angle_from_board_file(folder: &Path) -> anyhow::Result<f64> {
-    let path = folder.join(BOARD_FILE);
-    let text = fs::read_to_string(&path).with_context(|| {
-        format!(
-            "{}: cannot read it for the motor angle (give --angles instead)",
-            path.display()
-        )
-    })?;
-    let value: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-    value
-        .get("motor_angle_deg")
-        .and_then(serde_json::Value::as_f64)
-        .with_context(|| format!("{}: no number `motor_angle_deg`", path.display()))
-}
-
-/// The turntable views of a session: `(image, motor angle)` in name order.
-fn turntable_views(session: &Path, angles: Option<&[f64]>) -> anyhow::Result<Vec<(PathBuf, f64)>> {
-    let sub = session.join("turntable");
-    let dir = if sub.is_dir() {
-        sub
-    } else {
-        session.to_path_buf()
-    };
-    anyhow::ensure!(dir.is_dir(), "{}: no such folder", dir.display());
-    let images = images_in(&dir)?;
-    anyhow::ensure!(
-        !images.is_empty(),
-        "{}: no turntable views: expected one folder per motor angle holding {WHITE_IMAGE} \
-         (and {BOARD_FILE} with motor_angle_deg, or --angles), or image files with --angles",
-        dir.display()
-    );
-    match angles {
-        Some(a) => {
-            anyhow::ensure!(
-                a.len() == images.len(),
-                "--angles: {} angles for {} views in {}",
-                a.len(),
-                images.len(),
-                dir.display()
-            );
-            Ok(images.into_iter().zip(a.iter().copied()).collect())
-        }
-        None => images
-            .into_iter()
-            .map(|p| {
-                let folder = p.parent().unwrap_or(Path::new(".")).to_path_buf();
-                Ok((p, angle_from_board_file(&folder)?))
-            })
-            .collect(),
-    }
-}
-
-/// Turntable calibration added to `calib`, with its files in `common.out`.
-fn turntable(
-    mut calib: Calibration,
-    views: &[(PathBuf, f64)],
-    common: &BoardArgs,
-    cfg: &TurntableConfig,
-    command: &str,
-) -> anyhow::Result<TurntableCalibration> {
-    let mut report = Report::new(command);
-    let out = ensure_out_dir(&common.out)?;
-    let size = parse_board(&common.board)?;
-    let paths: Vec<PathBuf> = views.iter().map(|v| v.0.clone()).collect();
-    let angles: Vec<f64> = views.iter().map(|v| v.1).collect();
-    let (detected, skipped, image_size) =
-        detect_all(&paths, Some(&angles), size, &common.detector(), &mut report)?;
-    anyhow::ensure!(
-        image_size == calib.camera.size,
-        "{}: {}x{} pixels, but the calibration's camera has {}x{}",
-        paths
-            .first()
-            .map(|p| p.display().to_string())
-            .unwrap_or_default(),
-        image_size.width,
-        image_size.height,
-        calib.camera.size.width,
-        calib.camera.size.height
-    );
-    let tviews: Vec<TurntableView> = detected
-        .iter()
-        .filter_map(|d| {
-            let (_, angle) = views.get(d.index)?;
-            Some(TurntableView::from_corners(
-                d.name.clone(),
-                *angle,
-                &d.corners,
-                common.square,
-            ))
-        })
-        .collect();
-    let fit = report
-        .stage("fit axis", || {
-            calibrate_turntable(&calib.camera, &tviews, cfg)
-        })
-        .with_context(|| {
-            format!(
-                "turntable axis from {} views with a board ({} skipped{})",
-                tviews.len(),
-                skipped.len(),
-                skipped_names(&skipped)
-            )
-        })?;
-    let magnification = report.stage("pictures", || {
-        pictures(
-            &out,
-            &detected,
-            &fit.view_rms,
-            fit.rms,
-            &fit.residuals,
-            image_size,
-        )
-    })?;
-    calib.turntable = Some(fit.axis);
-    report.stage("write", || write_calibration(&calib, common))?;
-    let a = &fit.axis;
-    report.figure(
-        "axis",
-        json!({
-            "direction": [a.direction.x, a.direction.y, a.direction.z],
-            "point_mm": [a.point_mm.x, a.point_mm.y, a.point_mm.z],
-            "point": "foot of the axis nearest the camera centre",
-            "angle_scale": a.angle_scale,
-            "angle_offset_deg": a.angle_offset_deg,
-        }),
-    );
-    let i = &fit.initial_axis;
-    report.figure(
-        "closed_form_axis",
-        json!({
-            "direction": [i.direction.x, i.direction.y, i.direction.z],
-            "point_mm": [i.point_mm.x, i.point_mm.y, i.point_mm.z],
-            "angle_scale": i.angle_scale,
-        }),
-    );
-    report.figure(
-        "std_dev",
-        json!({
-            "direction_deg": fit.std_dev.direction_deg,
-            "point_mm": fit.std_dev.point_mm,
-            "angle_scale": fit.std_dev.angle_scale,
-        }),
-    );
-    report.figure("rms_px", fit.rms);
-    report.figure(
-        "view_rms_px",
-        tviews
-            .iter()
-            .zip(&fit.view_rms)
-            .map(|(v, r)| json!({ "image": v.label, "motor_angle_deg": v.motor_angle_deg, "rms": r }))
-            .collect::<Vec<_>>(),
-    );
-    report.figure("views_used", tviews.len());
-    report.figure("skipped", skipped);
-    report.figure("iterations", fit.iterations);
-    report.figure("residual_plot", magnification);
-    report.write(&out)?;
-    Ok(fit)
-}
-
-/// Projector–camera calibration of the board poses, with its files in `common.out`.
-fn procam(
-    poses: &[PoseCapture],
-    common: &BoardArgs,
-    projector_size: ImageSize,
-    command: &str,
-    layout: Option<&CalibrationLayout>,
-) -> anyhow::Result<(Calibration, ProcamCalibration)> {
-    let mut report = Report::new(command);
-    let out = ensure_out_dir(&common.out)?;
-    let size = parse_board(&common.board)?;
-    let bar = progress(poses.len() as u64, "decoding");
-    let mut board_images = Vec::with_capacity(poses.len());
-    let mut textured = Vec::new();
-    let views = report.stage("read and decode", || -> anyhow::Result<Vec<ProcamView>> {
-        let mut views = Vec::with_capacity(poses.len());
-        for pose in poses {
-            bar.inc(1);
-            let v = pose
-                .load(&DecodeConfig::default())
-                .with_context(|| format!("board pose {}", pose.folder.display()))?;
-            board_images.push(json!({ "view": v.view.name, "board_image": v.board_image }));
-            if !v.white_frame {
-                textured.push(v.board_image);
-            }
-            views.push(v.view);
-        }
-        Ok(views)
-    })?;
-    bar.finish_and_clear();
-    if let Some(first) = textured.first() {
-        println!(
-            "board images: {} of {} poses have no white frame; their corners are found in the \
-             capture's own texture ({first})",
-            textured.len(),
-            board_images.len()
-        );
-    }
-    report.figure("board_images", board_images);
-    report.figure(
-        "session",
-        json!({
-            "layout": layout.map(|l| l.source.display().to_string()),
-            "manifest": layout.map(|l| l.manifest_path.display().to_string()),
-            "pose_folders": poses.iter().map(|p| p.folder.display().to_string()).collect::<Vec<_>>(),
-        }),
-    );
-    let cfg = ProcamConfig {
-        detector: common.detector(),
-        ..ProcamConfig::new(size, common.square, projector_size)
-    };
-    report.figure("corners", common.corners.name());
-    let cal = report
-        .stage("calibrate", || calibrate_procam(&views, &cfg))
-        .with_context(|| format!("projector calibration from {} board poses", views.len()))?;
-    for s in &cal.skipped_views {
-        // The detector's reasons begin with the view's name.
-        if s.reason.starts_with(&s.name) {
-            eprintln!("slscan: skipping board pose {}", s.reason);
-        } else {
-            eprintln!("slscan: skipping board pose {}: {}", s.name, s.reason);
-        }
-    }
-    let magnification = report.stage("pictures", || -> anyhow::Result<serde_json::Value> {
-        let pics = ensure_out_dir(&out.join("pictures"))?;
-        let pc = PictureConfig::default();
-        let mut camera_corners = Vec::new();
-        let mut projector_points = Vec::new();
-        for (k, v) in cal.views.iter().enumerate() {
-            if let Some(view) = views.iter().find(|w| w.name == v.name) {
-                let corners = BoardCorners {
-                    size,
-                    corners: v.camera_corners.clone(),
-                };
-                save_png(
-                    &draw_corners(&view.lit, &corners),
-                    pics.join(picture_name(k, &v.name)),
-                )?;
-            }
-            camera_corners.push(v.camera_corners.clone());
-            projector_points.push(v.projector_corners.points().into_iter().flatten().collect());
-        }
-        let camera_rms: Vec<f64> = cal.views.iter().map(|v| v.camera_rms).collect();
-        let projector_rms: Vec<f64> = cal.views.iter().map(|v| v.projector_rms).collect();
-        save_png(
-            &error_bars(&camera_rms, cal.camera.rms, &pc).image,
-            pics.join("error_bars_camera.png"),
-        )?;
-        save_png(
-            &error_bars(&projector_rms, cal.projector.rms, &pc).image,
-            pics.join("error_bars_projector.png"),
-        )?;
-        let cs = cal.camera.camera.size;
-        let plot = residual_plot(
-            cs.width,
-            cs.height,
-            &camera_corners,
-            &cal.camera.residuals,
-            &pc,
-        );
-        save_png(&plot.image, pics.join("residuals_camera.png"))?;
-        let ps = cal.projector.camera.size;
-        let pplot = residual_plot(
-            ps.width,
-            ps.height,
-            &projector_points,
-            &cal.projector.residuals,
-            &pc,
-        );
-        save_png(&pplot.image, pics.join("residuals_projector.png"))?;
-        Ok(json!({ "camera": plot_scale(&plot), "projector": plot_scale(&pplot) }))
-    })?;
-    let mut calib = cal.to_calibration();
-    calib.metadata.notes = format!(
-        "slscan calibrate projector: {} poses of a {}x{} board of {} mm squares",
-        cal.views.len(),
-        size.cols,
-        size.rows,
-        common.square
-    );
-    report.stage("write", || write_calibration(&calib, common))?;
-    let intr = |c: &CameraCalibration| {
-        let i = &c.camera.intrinsics;
-        json!({ "fx": i.fx, "fy": i.fy, "cx": i.cx, "cy": i.cy, "skew": i.skew,
-                "distortion": c.camera.distortion.to_opencv_vec(),
-                "std_dev": { "intrinsics": c.std_dev.intrinsics, "distortion": c.std_dev.distortion } })
-    };
-    report.figure("rms_camera_px", cal.rms_camera);
-    report.figure("rms_projector_px", cal.rms_projector);
-    report.figure("rms_stereo_px", cal.rms_stereo);
-    report.figure(
-        "predicted_error",
-        serde_json::to_value(cal.predicted_error)?,
-    );
-    report.figure("camera", intr(&cal.camera));
-    report.figure("projector", intr(&cal.projector));
-    let t = cal.t_cam_proj.translation.vector;
-    report.figure(
-        "T_cam_proj",
-        json!({
-            "translation_mm": [t.x, t.y, t.z],
-            "rotation_deg": cal.t_cam_proj.rotation.angle().to_degrees(),
-            "T_proj_cam_std_dev": cal.t_proj_cam_std_dev,
-        }),
-    );
-    report.figure(
-        "views",
-        cal.views
-            .iter()
-            .map(|v| {
-                json!({
-                    "name": v.name,
-                    "camera_rms": v.camera_rms,
-                    "projector_rms": v.projector_rms,
-                    "projector_corners": v.projector_corners.mapped_count(),
-                    "in_projector_calibration": v.in_projector_calibration,
-                })
-            })
-            .collect::<Vec<_>>(),
-    );
-    report.figure("skipped", serde_json::to_value(&cal.skipped_views)?);
-    report.figure("iterations", cal.iterations);
-    report.figure("residual_plot", magnification);
-    report.write(&out)?;
-    Ok((calib, cal))
 }
 
 #[cfg(test)]

@@ -1,15 +1,13 @@
 //! Helpers shared by every `slscan` subcommand: the output folder, `report.json` with
 //! per-stage timings, progress bars and the one-line error report.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use serde::Serialize;
-use structured_light::scan::{ScanProgress, StageTime};
+use structured_light::scan::ScanProgress;
 
 /// Prints an error and its causes on one line: `slscan: error: a: b: c`.
 pub(crate) fn print_error(err: &anyhow::Error) {
@@ -34,115 +32,9 @@ pub(crate) fn ensure_out_dir(out: &Path) -> anyhow::Result<PathBuf> {
     Ok(out.to_path_buf())
 }
 
-/// One timed stage of a command.
-#[derive(Debug, Serialize)]
-pub(crate) struct Stage {
-    /// Stage name, e.g. `read`, `decode`.
-    pub(crate) name: String,
-    /// Wall time in milliseconds.
-    pub(crate) ms: f64,
-}
-
-/// The `report.json` of a command: what ran, its figures and its per-stage timings.
-#[derive(Debug, Serialize)]
-pub(crate) struct Report {
-    /// Subcommand name.
-    pub(crate) command: String,
-    /// `slscan` version.
-    pub(crate) version: &'static str,
-    /// Figures of the run (counts, errors, fractions), by name.
-    pub(crate) figures: BTreeMap<String, serde_json::Value>,
-    /// Timed stages, in the order they ran.
-    pub(crate) stages: Vec<Stage>,
-    /// Total wall time in milliseconds.
-    pub(crate) total_ms: f64,
-    #[serde(skip)]
-    started: Option<Instant>,
-}
-
-impl Report {
-    /// Starts a report for `command`; the total time runs from now.
-    pub(crate) fn new(command: &str) -> Self {
-        Self {
-            command: command.to_owned(),
-            version: env!("CARGO_PKG_VERSION"),
-            figures: BTreeMap::new(),
-            stages: Vec::new(),
-            total_ms: 0.0,
-            started: Some(Instant::now()),
-        }
-    }
-
-    /// Runs `f` as the stage `name` and records its wall time.
-    pub(crate) fn stage<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
-        let t = Instant::now();
-        let out = f();
-        self.stages.push(Stage {
-            name: name.to_owned(),
-            ms: ms(t.elapsed()),
-        });
-        out
-    }
-
-    /// Records the stages a library pipeline timed itself, after the ones recorded so far.
-    pub(crate) fn add_stages(&mut self, stages: &[StageTime]) {
-        self.stages.extend(stages.iter().map(|s| Stage {
-            name: s.name.clone(),
-            ms: s.ms,
-        }));
-    }
-
-    /// Records a figure.
-    pub(crate) fn figure(&mut self, name: &str, value: impl Into<serde_json::Value>) {
-        self.figures.insert(name.to_owned(), value.into());
-    }
-
-    /// Writes `report.json` into `out` (atomically: a temporary file renamed into place).
-    pub(crate) fn write(&mut self, out: &Path) -> anyhow::Result<PathBuf> {
-        if let Some(t) = self.started {
-            self.total_ms = ms(t.elapsed());
-        }
-        let path = out.join("report.json");
-        let text = serde_json::to_string_pretty(self).context("cannot serialise report.json")?;
-        write_atomically(&path, text.as_bytes())?;
-        Ok(path)
-    }
-}
-
-fn ms(d: Duration) -> f64 {
-    d.as_secs_f64() * 1e3
-}
-
-/// The mode an output file is created with before the user's umask masks it: read and write
-/// for everyone, as `File::create` (and `touch`, and every other tool) does, so that outputs
-/// written through a temporary file get the same mode as the ones written directly (0644 under
-/// the usual umask 022). `tempfile` alone creates 0600, which is right for secrets, not outputs.
-#[cfg(unix)]
-const OUTPUT_FILE_MODE: u32 = 0o666;
-
-/// Writes `bytes` to `path` through a temporary file in the same folder, so that a failure
-/// never leaves a half-written file in place of a good one. The file's mode follows the
-/// user's umask like every other output (see [`OUTPUT_FILE_MODE`]).
-pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut builder = tempfile::Builder::new();
-    // The kernel masks the mode given to open(2) with the umask: no need to read the umask.
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(
-        OUTPUT_FILE_MODE,
-    ));
-    let mut tmp = builder
-        .tempfile_in(dir)
-        .with_context(|| format!("cannot write into {}", dir.display()))?;
-    std::io::Write::write_all(&mut tmp, bytes)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    tmp.persist(path)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
-}
+/// The `report.json` of a command, and the atomic writes of every output: sl-scan's, shared
+/// with the library pipelines.
+pub(crate) use sl_scan::{RunReport as Report, write_atomically};
 
 /// A progress bar on stderr for `len` steps (hidden automatically when stderr is not a terminal).
 #[allow(dead_code)] // used by the subcommands that take long; `info` does not.

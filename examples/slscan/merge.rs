@@ -272,7 +272,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         write_atomically(
             &dir.join("poses.json"),
             serde_json::to_string_pretty(&poses)?.as_bytes(),
-        )
+        )?;
+        Ok(())
     })?;
     report.stage("preview", || {
         write_preview(&dir, &merged, PreviewColoring::Grey)

@@ -309,7 +309,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         write_atomically(
             &out.join("transform.json"),
             serde_json::to_string_pretty(&transform)?.as_bytes(),
-        )
+        )?;
+        Ok(())
     })?;
     report.stage("preview", || -> anyhow::Result<()> {
         // Target in blue-grey, the moved source in orange: where they interleave, they agree.

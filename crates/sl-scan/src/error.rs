@@ -54,6 +54,27 @@ pub enum ScanError {
         /// What went wrong.
         reason: String,
     },
+    /// A calibration session's layout, pose folders or pose files.
+    #[error(transparent)]
+    Layout(#[from] crate::LayoutError),
+    /// A session's or an input's file or folder is missing or is not what the step expects.
+    #[error("{}: {reason}", path.display())]
+    Session {
+        /// The file or folder.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A step failed: which one, on what (`camera calibration from 7 views with a board`,
+    /// `board pose SESSION/board/pose_003`), and why.
+    #[error("{what}: {source}")]
+    Step {
+        /// The step and what it worked on.
+        what: String,
+        /// Why it failed.
+        #[source]
+        source: Box<ScanError>,
+    },
     /// A file could not be written.
     #[error("{}: {source}", path.display())]
     Io {

@@ -7,13 +7,14 @@
 //! | capture a calibration session | `calibration_capture.rs`, `calibration_auto.rs` | [`CalibrationCapture`], [`capture_poses_auto`] |
 //! | calibrate | `calibrate.rs` | [`calibrate_virtual`], [`load_scan_calibration`] |
 //! | read a calibration session (own or another program's layout) | `calibration_layout.rs` | [`CalibrationLayout`], [`PoseCapture`] |
+//! | calibrate from files (a session folder, board pictures) | `session_calibration.rs` | [`calibrate_session`], [`calibrate_camera_files`], [`calibrate_procam_files`], [`calibrate_turntable_files`] |
 //! | capture a scan session | `capture.rs` | [`capture_session`], [`scan_patterns`], [`full_turn_motor_angles`] |
 //! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`reconstruct_decoded`], [`drop_grazing`] |
 //! | merge | `merge.rs` | [`merge_scan`] |
 //! | several placements | `placements.rs`, `virtual_placements.rs` | [`capture_placements`], [`scan_placements`], [`merge_placements`], [`scan_virtual_placements`] |
 //! | measure (where a truth exists) | `measure.rs` | [`measure_scan`], [`scene_truth`], [`plate_truth`] |
 //! | mesh a cloud (`slscan mesh`) | `mesh_chain.rs` | [`mesh_chain`], [`MeshChainConfig`] |
-//! | report | `report.rs` | [`write_scan_cloud`], [`write_heat_map`], [`write_summary_html`] |
+//! | report | `report.rs`, `run_report.rs` | [`write_scan_cloud`], [`write_heat_map`], [`write_summary_html`], [`RunReport`] |
 //!
 //! A scan on real devices is: [`load_scan_calibration`], [`capture_session`] on the drivers,
 //! [`scan_session`] (reconstruct, then merge), [`write_scan_cloud`]. A scan on the virtual rig
@@ -45,6 +46,8 @@ mod placements;
 mod progress;
 mod reconstruct;
 mod report;
+mod run_report;
+mod session_calibration;
 mod session_scan;
 mod virtual_placements;
 mod virtual_scan;
@@ -106,6 +109,13 @@ pub use reconstruct::{
     reconstruct_view, reconstruct_view_eroded,
 };
 pub use report::{SessionScanFiles, write_heat_map, write_scan_cloud, write_summary_html};
+pub use run_report::{RunReport, write_atomically};
+pub use session_calibration::{
+    CalibrationFilesConfig, CameraFiles, ProcamFiles, SessionCalibration, SkippedImage,
+    TurntableFiles, calibrate_camera_files, calibrate_procam_files, calibrate_session,
+    calibrate_turntable_files, camera_images, layout_white_frames, session_poses,
+    session_projector_size, turntable_views,
+};
 pub use session_scan::{SessionScan, SessionScanConfig, scan_session};
 pub use virtual_placements::{
     PlacementFigures, PlacementsResult, TRUTH_MESH_FILE, scan_virtual_placements,
