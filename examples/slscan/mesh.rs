@@ -9,16 +9,15 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use sl_cloud::PreviewConfig;
-use sl_codec::write_png_rgb8;
 use sl_mesh::{
-    BilateralConfig, FairConfig, MeshColoring, PoissonConfig, RemeshConfig, SimplifyConfig,
-    TaubinConfig, ViewerConfig, ViewerLayer, render_mesh, viewer_html, write_ply_mesh, write_stl,
+    BilateralConfig, FairConfig, PoissonConfig, RemeshConfig, SimplifyConfig, TaubinConfig,
+    write_ply_mesh, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
 
-use sl_scan::{MeshChainConfig, MeshSmoothing, ScanError, mesh_chain};
+use sl_scan::{MeshChainConfig, MeshSmoothing, ScanError, mesh_chain, write_mesh_pictures};
 
-use crate::common::{Report, ensure_out_dir, write_atomically};
+use crate::common::{Report, ensure_out_dir};
 use crate::register::{NormalsTowards, check_units, read_scaled, with_normals_towards};
 
 /// A cloud spanning less than this (mm, the diagonal of its box, after `--scale`) is taken for
@@ -203,62 +202,23 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         anyhow::Error::new(e).context(format!("{}{hint}", args.cloud.display()))
     })?;
     report.add_stages(&chain.stages);
-    if let Some(f) = chain.normals_inconsistent {
-        report.figure("normals_inconsistent", f);
-        if f > UNORIENTED_FRACTION {
-            eprintln!(
-                "warning: {}: {:.0} % of the points have normals facing the other way from the \
-                 largest consistently oriented patch of their part of the cloud (an oriented \
-                 scan: under {:.0} %): the normals look unoriented, and the surface made from \
-                 them will be wrong; --normals-towards X,Y,Z estimates them facing the scanner",
-                args.cloud.display(),
-                100.0 * f,
-                100.0 * UNORIENTED_FRACTION
-            );
-        }
+    for (name, value) in chain.figures(&cfg) {
+        report.figure(name, value);
     }
-    if let Some((removed, threshold)) = chain.trimmed {
-        report.figure("trimmed_triangles", removed);
-        report.figure("trim_density_per_mm2", threshold);
-    }
-    if let (Some((s, ms)), Some(c)) = (&chain.simplified, &cfg.simplify) {
-        report.figure("simplify_ms", *ms);
-        report.figure(
-            "simplify",
-            serde_json::json!({
-                "vertices_before": s.vertices_before,
-                "vertices_after": s.vertices_after,
-                "triangles_before": s.triangles_before,
-                "triangles_after": s.triangles_after,
-                "unsupported_vertices_before": s.unsupported_before,
-                "unsupported_vertices_after": s.unsupported_after,
-                "support_density_per_mm2": s.support_threshold,
-                "max_error_mm": c.max_error,
-                "unsupported_max_error_mm": c.unsupported_max_error,
-                "largest_error_mm": s.largest_error,
-                "largest_unsupported_error_mm": s.largest_unsupported_error,
-                "passes": s.passes,
-            }),
+    if let Some(f) = chain.normals_inconsistent
+        && f > UNORIENTED_FRACTION
+    {
+        eprintln!(
+            "warning: {}: {:.0} % of the points have normals facing the other way from the \
+             largest consistently oriented patch of their part of the cloud (an oriented \
+             scan: under {:.0} %): the normals look unoriented, and the surface made from \
+             them will be wrong; --normals-towards X,Y,Z estimates them facing the scanner",
+            args.cloud.display(),
+            100.0 * f,
+            100.0 * UNORIENTED_FRACTION
         );
     }
-    if let (Some((f, ms)), Some(c)) = (&chain.faired, &cfg.fair) {
-        report.figure("fair_ms", *ms);
-        report.figure(
-            "fair",
-            serde_json::json!({
-                "support_ratio": c.support_ratio,
-                "vertices_moved": f.vertices_moved,
-                "gaps": f.gaps,
-                "smooth_gaps": f.smooth_gaps,
-                "project_rim": c.project_rim,
-                "rim_moved": f.rim_moved,
-                "largest_move_mm": f.largest_move,
-                "residual": f.residual,
-                "curvature_steps": f.curvature_steps,
-                "curvature_converged": f.curvature_converged,
-                "mean_curvature_per_mm": f.mean_curvature,
-            }),
-        );
+    if let Some((f, _)) = &chain.faired {
         if f.curvature_converged {
             println!(
                 "faired {} unseen vertices in {} gap(s), {} of them in smooth surface ({} rim \
@@ -272,30 +232,6 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 f.vertices_moved, f.gaps
             );
         }
-    }
-    if let Some((r, ms)) = &chain.remeshed {
-        report.figure("remesh_ms", *ms);
-        report.figure(
-            "remesh",
-            serde_json::json!({
-                "target_edge_mm": r.target_edge,
-                "vertices_before": r.vertices_before,
-                "vertices_after": r.vertices_after,
-                "splits": r.splits,
-                "collapses": r.collapses,
-                "flips": r.flips,
-                "rms_distance_mm": r.rms_distance,
-                "largest_distance_mm": r.largest_distance,
-            }),
-        );
-    }
-    if let Some(f) = &chain.holes {
-        report.figure("holes_filled", f.filled);
-        report.figure("holes_left_open", f.holes - f.filled);
-    }
-    report.figure("small_pieces_removed", chain.small_pieces_removed);
-    if let Some(d) = &chain.decimated {
-        report.figure("decimation_max_error_mm2", d.max_error);
     }
     let (mesh, topo) = (chain.mesh, chain.topology);
     let (ply, stl) = (out.join("mesh.ply"), out.join("mesh.stl"));
@@ -327,53 +263,11 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         elevation_deg: args.elevation,
         ..PreviewConfig::default()
     };
-    let png = out.join("preview.png");
-    let html = out.join("mesh.html");
-    report.stage("preview", || -> anyhow::Result<()> {
-        let img = render_mesh(&mesh, MeshColoring::Grey, &view)?;
-        write_png_rgb8(&png, img.width as usize, img.height as usize, &img.rgb)?;
-        let page = viewer_html(
-            &[ViewerLayer::Mesh {
-                name: "mesh",
-                mesh: &mesh,
-                errors_mm: errors.as_deref(),
-            }],
-            &ViewerConfig {
-                title: format!("slscan mesh {}", args.cloud.display()),
-                ..ViewerConfig::default()
-            },
-        )?;
-        write_atomically(&html, page.as_bytes())?;
-        if let Some(e) = errors.as_deref() {
-            // The signed error at the vertices, with the scale of the cloud's error maps.
-            let range = sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM;
-            let coloring = MeshColoring::Scalar {
-                values: e,
-                min: -range,
-                max: range,
-            };
-            let mut img = render_mesh(&mesh, coloring, &view)?;
-            sl_metrology::draw_legend(&mut img, range);
-            let map = out.join("error_map.png");
-            write_png_rgb8(&map, img.width as usize, img.height as usize, &img.rgb)?;
-        }
-        Ok(())
+    let title = format!("slscan mesh {}", args.cloud.display());
+    let html = report.stage("preview", || {
+        write_mesh_pictures(&out, &mesh, errors.as_deref(), &view, title)
     })?;
     report.figure("cloud", args.cloud.display().to_string());
-    report.figure("samples", chain.samples);
-    report.figure("depth", args.depth);
-    report.figure("cell_size_mm", chain.cell_size);
-    report.figure("vertices_extracted", chain.vertices_extracted);
-    report.figure("triangles_extracted", chain.triangles_extracted);
-    report.figure("vertices", mesh.vertices.len());
-    report.figure("triangles", mesh.triangles.len());
-    report.figure("watertight", topo.is_watertight());
-    report.figure("manifold", topo.is_manifold());
-    report.figure("oriented", topo.misoriented_edges == 0);
-    report.figure("components", topo.components);
-    report.figure("boundary_edges", topo.boundary_edges);
-    report.figure("solve_ms", chain.solve_ms);
-    report.figure("contour_ms", chain.contour_ms);
     let path = report.write(&out)?;
     println!(
         "{}: {} vertices, {} triangles; watertight {}, manifold {}",

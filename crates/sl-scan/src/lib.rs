@@ -95,7 +95,7 @@ pub use measure::{
 pub use merge::{MergeReport, MergeStageConfig, MergedViews, ViewPoseReport, merge_scan};
 pub use mesh::{
     MESH_CELL_PER_SPACING, MeshConfig, MeshFiles, MeshSummary, mesh_stage, mesh_stage_with,
-    scan_poisson_config,
+    scan_poisson_config, write_mesh_pictures,
 };
 pub use mesh_chain::{MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};
 pub use placements::{

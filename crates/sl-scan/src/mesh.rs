@@ -5,20 +5,20 @@
 //! the truth when there is one, and shown with the cloud in an interactive 3-D page
 //! (`view3d.html`, self-contained) that `index.html` embeds.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 use sl_cloud::{PointCloud, PreviewConfig};
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
-    FairConfig, MeshColoring, PoissonConfig, SimplifyConfig, ViewerConfig, ViewerLayer,
-    check_topology, fair_unsupported, poisson_reconstruct, render_mesh, simplify, viewer_html,
-    write_ply_mesh, write_stl,
+    FairConfig, MeshColoring, PoissonConfig, SimplifyConfig, TriangleMesh, ViewerConfig,
+    ViewerLayer, render_mesh, viewer_html, write_ply_mesh, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Report, Truth, evaluate_mesh};
 
-use crate::ScanError;
 use crate::error::io;
+use crate::run_report::write_atomically;
+use crate::{MeshChainConfig, ScanError, mesh_chain};
 
 /// What the mesh stage made and measured.
 #[derive(Debug, Clone, Serialize)]
@@ -176,24 +176,25 @@ pub fn mesh_stage_with(
     options: &MeshConfig,
     out: &Path,
 ) -> Result<(MeshSummary, MeshFiles), ScanError> {
-    let mut surface = poisson_reconstruct(merged, cfg)?;
+    // The chain of `slscan mesh` with this stage's steps: the reconstruction, then the
+    // simplification and the fairing of the surface that closes the unseen part (on the
+    // simplified mesh: few vertices there, so the bi-Laplacian system is small).
+    let chain = mesh_chain(
+        merged,
+        &MeshChainConfig {
+            poisson: cfg.clone(),
+            simplify: options.simplify,
+            fair: options.fair.clone(),
+            min_piece: 0,
+            ..MeshChainConfig::default()
+        },
+    )?;
+    let simplify_ms = chain.simplified.as_ref().map(|s| s.1);
+    let fair_ms = chain.faired.as_ref().map(|f| f.1);
     let (vertices_extracted, triangles_extracted) =
-        (surface.mesh.vertices.len(), surface.mesh.triangles.len());
-    let (mut simplify_ms, mut fair_ms) = (None, None);
-    if let Some(s) = &options.simplify {
-        let t = std::time::Instant::now();
-        let done = simplify(&mut surface.mesh, &surface.densities, s)?;
-        simplify_ms = Some(t.elapsed().as_secs_f64() * 1e3);
-        // The surface that closes the unseen part, faired on the simplified mesh (few
-        // vertices there, so the bi-Laplacian system is small).
-        if let Some(f) = &options.fair {
-            let t = std::time::Instant::now();
-            fair_unsupported(&mut surface.mesh, &done.densities, f)?;
-            fair_ms = Some(t.elapsed().as_secs_f64() * 1e3);
-        }
-    }
-    let mesh = &surface.mesh;
-    let topo = check_topology(mesh);
+        (chain.vertices_extracted, chain.triangles_extracted);
+    let mesh = &chain.mesh;
+    let topo = &chain.topology;
     let files = MeshFiles {
         ply: "mesh.ply".into(),
         stl: "mesh.stl".into(),
@@ -253,12 +254,58 @@ pub fn mesh_stage_with(
             watertight: topo.is_watertight(),
             manifold: topo.is_manifold(),
             depth: cfg.depth,
-            cell_size_mm: surface.cell_size,
-            solve_ms: surface.solve_ms,
-            contour_ms: surface.contour_ms,
+            cell_size_mm: chain.cell_size,
+            solve_ms: chain.solve_ms,
+            contour_ms: chain.contour_ms,
             accuracy_vertices,
             accuracy_area,
         },
         files,
     ))
+}
+
+/// Writes the pictures of a mesh into `out`: `preview.png` (shaded, seen from `view`),
+/// `mesh.html` (the interactive 3-D page titled `title`, coloured by `errors_mm` when given)
+/// and, with errors, `error_map.png` (the signed error at the vertices on the scale of the
+/// cloud's error maps, with its legend). Returns the page's path.
+///
+/// # Errors
+/// [`ScanError::Mesh`] when the mesh cannot be drawn, [`ScanError::Codec`] or
+/// [`ScanError::Io`] naming a file that cannot be written.
+pub fn write_mesh_pictures(
+    out: &Path,
+    mesh: &TriangleMesh,
+    errors_mm: Option<&[f32]>,
+    view: &PreviewConfig,
+    title: String,
+) -> Result<PathBuf, ScanError> {
+    let img = render_mesh(mesh, MeshColoring::Grey, view)?;
+    let png = out.join("preview.png");
+    write_png_rgb8(&png, img.width as usize, img.height as usize, &img.rgb)?;
+    let page = viewer_html(
+        &[ViewerLayer::Mesh {
+            name: "mesh",
+            mesh,
+            errors_mm,
+        }],
+        &ViewerConfig {
+            title,
+            ..ViewerConfig::default()
+        },
+    )?;
+    let html = out.join("mesh.html");
+    write_atomically(&html, page.as_bytes())?;
+    if let Some(e) = errors_mm {
+        let range = sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM;
+        let coloring = MeshColoring::Scalar {
+            values: e,
+            min: -range,
+            max: range,
+        };
+        let mut img = render_mesh(mesh, coloring, view)?;
+        sl_metrology::draw_legend(&mut img, range);
+        let map = out.join("error_map.png");
+        write_png_rgb8(&map, img.width as usize, img.height as usize, &img.rgb)?;
+    }
+    Ok(html)
 }

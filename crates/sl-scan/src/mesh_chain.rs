@@ -5,6 +5,7 @@
 
 use std::time::Instant;
 
+use serde_json::json;
 use sl_cloud::PointCloud;
 use sl_mesh::{
     BilateralConfig, Decimation, FairConfig, Fairing, HoleFilling, MeshError, PoissonConfig,
@@ -49,7 +50,7 @@ pub struct MeshChainConfig {
     pub remesh: Option<RemeshConfig>,
     /// Close holes whose rim has at most this many edges.
     pub fill_holes: Option<usize>,
-    /// Remove pieces of fewer triangles than this.
+    /// Remove pieces of fewer triangles than this (0 leaves the mesh as it is).
     pub min_piece: usize,
     /// Smoothing after the steps above.
     pub smooth: MeshSmoothing,
@@ -112,6 +113,103 @@ pub struct MeshChain {
     pub decimated: Option<Decimation>,
     /// Per-step timings, in the order run.
     pub stages: Vec<StageTime>,
+}
+
+impl MeshChain {
+    /// The figures of the steps that ran, by name, as `report.json` holds them (what each step
+    /// did, its settings and milliseconds), in the order of the chain.
+    #[must_use]
+    pub fn figures(&self, cfg: &MeshChainConfig) -> Vec<(&'static str, serde_json::Value)> {
+        let mut f: Vec<(&'static str, serde_json::Value)> = Vec::new();
+        if let Some(x) = self.normals_inconsistent {
+            f.push(("normals_inconsistent", x.into()));
+        }
+        if let Some((removed, threshold)) = self.trimmed {
+            f.push(("trimmed_triangles", removed.into()));
+            f.push(("trim_density_per_mm2", threshold.into()));
+        }
+        if let (Some((s, ms)), Some(c)) = (&self.simplified, &cfg.simplify) {
+            f.push(("simplify_ms", (*ms).into()));
+            f.push((
+                "simplify",
+                json!({
+                    "vertices_before": s.vertices_before,
+                    "vertices_after": s.vertices_after,
+                    "triangles_before": s.triangles_before,
+                    "triangles_after": s.triangles_after,
+                    "unsupported_vertices_before": s.unsupported_before,
+                    "unsupported_vertices_after": s.unsupported_after,
+                    "support_density_per_mm2": s.support_threshold,
+                    "max_error_mm": c.max_error,
+                    "unsupported_max_error_mm": c.unsupported_max_error,
+                    "largest_error_mm": s.largest_error,
+                    "largest_unsupported_error_mm": s.largest_unsupported_error,
+                    "passes": s.passes,
+                }),
+            ));
+        }
+        if let (Some((d, ms)), Some(c)) = (&self.faired, &cfg.fair) {
+            f.push(("fair_ms", (*ms).into()));
+            f.push((
+                "fair",
+                json!({
+                    "support_ratio": c.support_ratio,
+                    "vertices_moved": d.vertices_moved,
+                    "gaps": d.gaps,
+                    "smooth_gaps": d.smooth_gaps,
+                    "project_rim": c.project_rim,
+                    "rim_moved": d.rim_moved,
+                    "largest_move_mm": d.largest_move,
+                    "residual": d.residual,
+                    "curvature_steps": d.curvature_steps,
+                    "curvature_converged": d.curvature_converged,
+                    "mean_curvature_per_mm": d.mean_curvature,
+                }),
+            ));
+        }
+        if let Some((r, ms)) = &self.remeshed {
+            f.push(("remesh_ms", (*ms).into()));
+            f.push((
+                "remesh",
+                json!({
+                    "target_edge_mm": r.target_edge,
+                    "vertices_before": r.vertices_before,
+                    "vertices_after": r.vertices_after,
+                    "splits": r.splits,
+                    "collapses": r.collapses,
+                    "flips": r.flips,
+                    "rms_distance_mm": r.rms_distance,
+                    "largest_distance_mm": r.largest_distance,
+                }),
+            ));
+        }
+        if let Some(h) = &self.holes {
+            f.push(("holes_filled", h.filled.into()));
+            f.push(("holes_left_open", (h.holes - h.filled).into()));
+        }
+        f.push(("small_pieces_removed", self.small_pieces_removed.into()));
+        if let Some(d) = &self.decimated {
+            f.push(("decimation_max_error_mm2", d.max_error.into()));
+        }
+        let t = &self.topology;
+        f.extend([
+            ("samples", self.samples.into()),
+            ("depth", cfg.poisson.depth.into()),
+            ("cell_size_mm", self.cell_size.into()),
+            ("vertices_extracted", self.vertices_extracted.into()),
+            ("triangles_extracted", self.triangles_extracted.into()),
+            ("vertices", self.mesh.vertices.len().into()),
+            ("triangles", self.mesh.triangles.len().into()),
+            ("watertight", t.is_watertight().into()),
+            ("manifold", t.is_manifold().into()),
+            ("oriented", (t.misoriented_edges == 0).into()),
+            ("components", t.components.into()),
+            ("boundary_edges", t.boundary_edges.into()),
+            ("solve_ms", self.solve_ms.into()),
+            ("contour_ms", self.contour_ms.into()),
+        ]);
+        f
+    }
 }
 
 fn step(name: &'static str) -> impl FnOnce(MeshError) -> ScanError {
@@ -194,9 +292,14 @@ pub fn mesh_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain
         ),
         None => None,
     };
-    let small_pieces_removed = timed(&mut stages, "small pieces", || {
-        remove_small_components(&mut mesh, cfg.min_piece)
-    });
+    // Pieces of fewer than 0 triangles: none, and the mesh is left as it is (not compacted).
+    let small_pieces_removed = if cfg.min_piece > 0 {
+        timed(&mut stages, "small pieces", || {
+            remove_small_components(&mut mesh, cfg.min_piece)
+        })
+    } else {
+        0
+    };
     match &cfg.smooth {
         MeshSmoothing::None => {}
         MeshSmoothing::Bilateral(c) => {
