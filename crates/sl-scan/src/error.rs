@@ -54,6 +54,14 @@ pub enum ScanError {
         /// What went wrong.
         reason: String,
     },
+    /// A parameter of a configuration is out of its range.
+    #[error("{name} {reason}")]
+    InvalidParameter {
+        /// The parameter (`views`, ...).
+        name: String,
+        /// What is wrong with its value.
+        reason: String,
+    },
     /// A file could not be written.
     #[error("{}: {source}", path.display())]
     Io {
