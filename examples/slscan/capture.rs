@@ -3,19 +3,16 @@
 //! --turntable /dev/ttyUSB0 --servo-id 1`. An interrupted session resumes when run again with
 //! the same options; `--overwrite` recaptures finished views.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Context;
 use sl_camera::Calibration;
-use sl_codec::{BitDepth, ImageSize, MANIFEST_FILE, Manifest};
-use sl_rig::{
-    Camera, DeviceDescription, LatencyConfig, Projector, SessionConfig, SessionDevices,
-    SessionPlan, Turntable, measure_latency,
-};
+use sl_codec::{MANIFEST_FILE, Manifest};
+use sl_rig::{Camera, DeviceDescription, LatencyConfig, Projector, SessionDevices, Turntable};
 use sl_sim::{Scene, VirtualRig};
 use structured_light::scan::{
-    SCAN_PERIOD_PX, capture_session, full_turn_motor_angles, scaled_rig_config, scan_patterns,
+    DeviceCaptureConfig, SessionCapture, capture_device_session, scaled_rig_config,
 };
 
 use crate::common::{Report, ensure_out_dir, progress};
@@ -94,32 +91,17 @@ pub(crate) struct Args {
     pub(crate) hardware: HardwareArgs,
 }
 
-/// Motor angles of the session: a full turn of the *platter* in `--views` equal steps, through
-/// the calibrated angle scale of `--calib` when it holds a turntable axis (a geared table turns
-/// the platter `angle_scale` degrees per motor degree).
-fn motor_angles(args: &Args) -> anyhow::Result<Vec<f64>> {
-    let axis = match &args.calib {
-        Some(path) => {
-            Calibration::load(path)
-                .with_context(|| format!("cannot read the calibration {}", path.display()))?
-                .turntable
-        }
-        None => None,
-    };
-    Ok(full_turn_motor_angles(axis.as_ref(), args.views)?)
+/// The pattern sequence in `dir`'s `manifest.json` (`--patterns`); `None` without a folder (the
+/// library's default: hybrid code on the columns, 15 px periods).
+pub(crate) fn load_patterns(dir: Option<&Path>) -> anyhow::Result<Option<Manifest>> {
+    Ok(dir
+        .map(|d| Manifest::load(&d.join(MANIFEST_FILE)))
+        .transpose()?)
 }
 
-fn manifest(args: &Args, projector: (u32, u32)) -> anyhow::Result<Manifest> {
-    match &args.patterns {
-        Some(dir) => Ok(Manifest::load(&dir.join(MANIFEST_FILE))?),
-        None => Ok(
-            scan_patterns(ImageSize::new(projector.0, projector.1), SCAN_PERIOD_PX)
-                .manifest(BitDepth::Eight),
-        ),
-    }
-}
-
-/// Runs one session on any devices, with progress and report.
+/// Runs one session on any devices (`sl_scan::capture_device_session`), with progress and
+/// report. The motor angles turn the *platter* a full turn in `--views` equal steps, through
+/// the calibrated angle scale of `--calib` when it holds a turntable axis.
 pub(crate) fn run_session<C, P, T>(
     args: &Args,
     devices: SessionDevices,
@@ -133,53 +115,67 @@ where
     P: Projector + ?Sized,
     T: Turntable + ?Sized,
 {
-    let mut report = Report::new("capture");
-    let out = ensure_out_dir(&args.out)?;
-    anyhow::ensure!(args.views >= 1, "--views must be at least 1");
-    let mut config = SessionConfig {
+    let axis = match &args.calib {
+        Some(path) => {
+            Calibration::load(path)
+                .with_context(|| format!("cannot read the calibration {}", path.display()))?
+                .turntable
+        }
+        None => None,
+    };
+    let config = DeviceCaptureConfig {
+        views: args.views,
+        patterns: load_patterns(args.patterns.as_deref())?,
         display_latency: args
             .latency_ms
             .map_or(default_latency, Duration::from_millis),
-        flush_frames: 0,
+        measure_latency: args.measure_latency.then(LatencyConfig::default),
         overwrite: args.overwrite,
+        devices,
+        calibration_file: args.calib.clone(),
     };
-    if args.measure_latency {
-        let latency = report.stage("measure latency", || {
-            measure_latency(camera, projector, &LatencyConfig::default())
-        })?;
+    let bar = progress(args.views as u64, "capture");
+    let capture = capture_device_session(
+        &config,
+        axis.as_ref(),
+        &args.out,
+        camera,
+        projector,
+        turntable,
+        |_| bar.inc(1),
+    )?;
+    bar.finish_and_clear();
+    record_session(&capture)?;
+    Ok(())
+}
+
+/// Writes a captured session's `report.json` into its folder and says what it captured (and
+/// the latency, when measured). `slscan scan` on devices records each of its sessions so.
+pub(crate) fn record_session(capture: &SessionCapture) -> anyhow::Result<PathBuf> {
+    let mut report = Report::new("capture");
+    report.started_before(capture.stages.iter().map(|s| s.ms).sum());
+    if let Some(latency) = &capture.latency {
         println!(
             "latency: {} frame(s) to flush, {:.1} ms from show to a frame that shows it",
             latency.frames, latency.ms
         );
-        config.flush_frames = latency.frames;
-        report.figure("latency", serde_json::to_value(&latency)?);
+        report.figure("latency", serde_json::to_value(latency)?);
     }
-    let plan = SessionPlan {
-        angles_deg: motor_angles(args)?,
-        manifest: manifest(args, projector.image_size())?,
-        devices,
-        calibration: args.calib.clone(),
-    };
-    let bar = progress(args.views as u64, "capture");
-    let summary = report.stage("capture", || {
-        capture_session(&out, plan, config, camera, projector, turntable, |_| {
-            bar.inc(1)
-        })
-    })?;
-    bar.finish_and_clear();
-    report.figure("views", args.views);
+    report.add_stages(&capture.stages);
+    let summary = &capture.summary;
+    report.figure("views", summary.views.len());
     report.figure("captured", summary.captured);
     report.figure("kept_from_earlier_run", summary.skipped);
     report.figure("views_detail", serde_json::to_value(&summary.views)?);
-    let path = report.write(&out)?;
+    let path = report.write(&capture.session)?;
     println!(
         "{}: {} views captured, {} kept from an earlier run (report: {})",
-        out.display(),
+        capture.session.display(),
         summary.captured,
         summary.skipped,
         path.display()
     );
-    Ok(())
+    Ok(path)
 }
 
 fn scene(name: &str) -> anyhow::Result<Scene> {
@@ -225,7 +221,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     )
 }
 
-/// Real devices: all three must be given. Used by `slscan scan` on hardware too.
+/// Real devices: all three must be given.
 pub(crate) fn run_hardware(args: &Args) -> anyhow::Result<()> {
     let description = args.hardware.description("a capture on hardware")?;
     let devices = description.session_devices();

@@ -1,43 +1,35 @@
 //! `slscan scan` on the real rig: `--camera /dev/videoN --projector-monitor N --turntable
-//! /dev/ttyUSB0 --calib calibration.json --out DIR`. Captures the turntable session on the
-//! devices with the code of `slscan capture` (into `DIR/session/`, resumed when interrupted),
-//! then reconstructs every view and merges them with the turntable poses of the calibrated axis
-//! (`sl_scan::scan_session`: the same stage functions as the virtual scan), and writes
-//! `merged.ply`, previews, the watertight mesh (`mesh.ply`, `mesh.stl`, `view3d.html`: the mesh
-//! stage of the virtual scan) and `report.json`.
+//! /dev/ttyUSB0 --calib calibration.json --out DIR`. The options become a
+//! `sl_scan::DeviceScanConfig`; `sl_rig::with_devices` opens the devices and
+//! `sl_scan::scan_devices` runs the scan on them: the turntable session (`DIR/session/`,
+//! resumed when interrupted), every view reconstructed and merged with the turntable poses of
+//! the calibrated axis, `merged.ply`, previews and the watertight mesh (`mesh.ply`, `mesh.stl`,
+//! `view3d.html`). This file writes `report.json` (and each session's own) and prints.
 //! A real object has no known truth here: check the result with `slscan report` against a
 //! known sphere or plane.
 //!
-//! With `--placements 2` it captures `DIR/placement_1/session/`, then asks the user to lay the
-//! object on its side and press Enter (or waits `--placement-wait` seconds, for scripts),
-//! captures `DIR/placement_2/session/`, and merges both placements into one model
-//! (`sl_scan::capture_placements`, `sl_scan::scan_placements`: the stages of the virtual rig's
-//! `--placements 2`).
+//! With `--placements 2` the library captures `DIR/placement_1/session/`, then the terminal
+//! ([`Terminal`], the scan's `sl_scan::ScanOperator`) asks the user to lay the object on its
+//! side and press Enter (or waits `--placement-wait` seconds, for scripts), the library
+//! captures `DIR/placement_2/session/` and merges both placements into one model.
 //!
-//! The devices are reached through one seam, [`CaptureSession`]: `slscan` passes
-//! `capture::run_hardware` (the V4L2 camera, the projector window and the Dynamixel turntable
-//! of the options), the test of the whole loop (`scan_hardware_placements.rs`) the virtual
-//! rig's devices behind the same `sl-rig` traits; everything else runs unchanged.
+//! The devices are reached through one seam, [`run_on`]'s `on_devices`: `slscan` opens the
+//! V4L2 camera, the projector window and the Dynamixel turntable of the options; the test of
+//! the whole loop (`scan_hardware_placements.rs`) passes the virtual rig's devices behind the
+//! same `sl-rig` traits ([`scan_on`]); everything else runs unchanged.
 
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use sl_cloud::PointCloud;
-use structured_light::mesh::PoissonConfig;
+use sl_rig::{Camera, DEFAULT_DISPLAY_LATENCY, LatencyConfig, Projector, Turntable};
 use structured_light::scan::{
-    MergeStageConfig, MeshConfig, MeshFiles, MeshSummary, PlacementConfig, PlacementRig,
-    ReconstructConfig, ScanError, SessionScanConfig, capture_placements, load_scan_calibration,
-    mesh_stage_with, placement_dir_name, scan_placements, scan_poisson_config, scan_session,
-    write_scan_cloud,
+    DeviceScan, DeviceScanConfig, MergeStageConfig, MeshFiles, MeshSummary, ReconstructConfig,
+    ScanError, ScanOperator, SessionCapture, SessionScanConfig, placement_dir_name, scan_devices,
 };
 
-use crate::capture;
-use crate::common::{Report, StageBars, ensure_out_dir};
+use crate::common::{Report, StageBars};
 use crate::scan::Args;
-
-/// Session folder inside the output folder.
-const SESSION_DIR: &str = "session";
 
 /// The options of `slscan scan` that only a scan on hardware uses.
 #[derive(Debug, Clone, clap::Args)]
@@ -83,29 +75,58 @@ pub(crate) fn wanted(args: &Args) -> anyhow::Result<bool> {
     Ok(false)
 }
 
-/// Captures one turntable session on the devices, given the arguments `slscan capture` would
-/// get: `capture::run_hardware` on real devices.
-pub(crate) type CaptureSession<'a> = dyn FnMut(&capture::Args) -> anyhow::Result<()> + 'a;
-
 /// Runs `slscan scan` on the devices of the options, talking to the user on the terminal.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
-    let mut on_devices = capture::run_hardware;
-    run_on(
-        args,
-        &mut on_devices,
-        std::io::stdin().lock(),
-        std::io::stdout(),
-    )
+    run_on(args, |mut cfg| {
+        let description = args.hardware.description("a scan on hardware")?;
+        cfg.capture.devices = description.session_devices();
+        let out = args.out.clone();
+        let wait = args.placement_wait;
+        // The window lives on the main thread's event loop; the scan runs in the worker.
+        let scan = sl_rig::with_devices(&description, move |camera, projector, table| {
+            let terminal = Terminal::new(std::io::stdin().lock(), std::io::stdout(), wait);
+            Ok(scan_on(&cfg, &out, camera, projector, table, terminal))
+        })??;
+        Ok(scan)
+    })
 }
 
-/// Runs `slscan scan` on hardware with `capture` as the devices; between two placements the
-/// user is asked on `output` and answers on `input`.
+/// Runs `slscan scan` on hardware: the options checked and translated (before any device
+/// opens), the scan run by `on_devices`, then `report.json` and the figures.
 pub(crate) fn run_on(
     args: &Args,
-    capture: &mut CaptureSession<'_>,
-    input: impl BufRead,
-    output: impl Write,
+    on_devices: impl FnOnce(DeviceScanConfig) -> anyhow::Result<DeviceScan>,
 ) -> anyhow::Result<()> {
+    let report = Report::new("scan");
+    let cfg = scan_config(args)?;
+    let scan = on_devices(cfg)?;
+    if args.placements > 1 {
+        report_placements(args, report, scan)
+    } else {
+        report_single(args, report, scan)
+    }
+}
+
+/// The library's scan on `camera`, `projector` and `table`, with progress bars and `terminal`
+/// as the operator.
+pub(crate) fn scan_on<I: BufRead, O: Write>(
+    cfg: &DeviceScanConfig,
+    out: &Path,
+    camera: &mut dyn Camera,
+    projector: &mut dyn Projector,
+    table: &mut dyn Turntable,
+    mut terminal: Terminal<I, O>,
+) -> Result<DeviceScan, ScanError> {
+    let mut bars = StageBars::new();
+    let scan = scan_devices(cfg, out, camera, projector, table, &mut terminal, |p| {
+        bars.update(p)
+    });
+    bars.clear();
+    scan
+}
+
+/// The scan the options ask for; everything the scan needs is checked before a device opens.
+fn scan_config(args: &Args) -> anyhow::Result<DeviceScanConfig> {
     let Some(calib_path) = &args.rig.calib else {
         anyhow::bail!(
             "a scan on hardware needs --calib FILE: a calibration.json with camera, projector and turntable axis, as `slscan calibrate all` (or `slscan calibrate projector` then `slscan calibrate turntable`) writes it"
@@ -119,83 +140,91 @@ pub(crate) fn run_on(
         !args.true_calibration && !args.true_poses,
         "--true-calibration and --true-poses are diagnostics of the virtual rig: a real rig has no truth"
     );
+    let mut cfg = DeviceScanConfig::load(calib_path)?;
     anyhow::ensure!(
-        args.views >= 2,
-        "--views {}: a turntable scan needs at least 2 views",
-        args.views
-    );
-    // Everything the reconstruction needs is checked before a device moves.
-    let calibration = load_scan_calibration(calib_path)?;
-    if args.placements > 1 {
-        return run_placements(args, calib_path, &calibration, capture, input, output);
-    }
-    anyhow::ensure!(
-        args.placement_wait.is_none(),
+        args.placements > 1 || args.placement_wait.is_none(),
         "--placement-wait is for a scan of several placements (--placements 2)"
     );
-
-    let mut report = Report::new("scan");
-    let session_dir = args.out.join(SESSION_DIR);
-    let capture_args = capture_args(args, calib_path, &session_dir);
-    report.stage("capture", || capture(&capture_args))?;
-    reconstruct(args, calib_path, &calibration, &session_dir, report)
-}
-
-/// The arguments of `slscan capture` for a session of this scan in `session_dir`.
-fn capture_args(args: &Args, calib_path: &Path, session_dir: &Path) -> capture::Args {
-    capture::Args {
-        out: session_dir.to_path_buf(),
-        views: args.views,
-        patterns: args.rig.patterns.clone(),
-        scene: String::new(),
-        downscale: 1,
-        latency_ms: args.rig.latency_ms,
-        measure_latency: args.rig.measure_latency,
-        calib: Some(calib_path.to_path_buf()),
-        overwrite: args.overwrite,
-        hardware: args.hardware.clone(),
-    }
+    cfg.placements = args.placements;
+    let capture = &mut cfg.capture;
+    capture.views = args.views;
+    capture.patterns = crate::capture::load_patterns(args.rig.patterns.as_deref())?;
+    capture.display_latency = args
+        .rig
+        .latency_ms
+        .map_or(DEFAULT_DISPLAY_LATENCY, Duration::from_millis);
+    capture.measure_latency = args.rig.measure_latency.then(LatencyConfig::default);
+    capture.overwrite = args.overwrite;
+    cfg.session = SessionScanConfig {
+        reconstruct: ReconstructConfig {
+            edge_erosion_px: args.edge_erosion,
+            max_view_angle_deg: args.max_view_angle,
+            smoothing: crate::scan::smoothing(args),
+        },
+        merge: MergeStageConfig::scan(
+            !args.no_average,
+            args.smoothing_neighbours,
+            !args.rig.no_refine,
+        ),
+        poses: None,
+    };
+    cfg.placement.merge.average_overlaps = !args.no_average;
+    cfg.placement.merge.output_normal_neighbours = args.smoothing_neighbours;
+    cfg.mesh = crate::scan::mesh_options(args);
+    cfg.check().map_err(|e| match e {
+        // The parameter is the option of the same name.
+        ScanError::InvalidParameter { name, reason } => anyhow::anyhow!("--{name} {reason}"),
+        other => other.into(),
+    })?;
+    Ok(cfg)
 }
 
 /// What the user is asked to do between two placements.
 pub(crate) const REPLACE_PROMPT: &str = "lay the object on its side and press Enter";
 
-/// The real devices' placements: each session captured with the code of `slscan capture`,
-/// the user asked to re-place the object in between (`input` and `output`: the terminal, or
-/// a test's buffers).
-struct DevicePlacements<'a, 'c, I, O> {
-    args: &'a Args,
-    calib: &'a Path,
-    capture: &'a mut CaptureSession<'c>,
+/// The person at the rig, on the terminal (`input` and `output`: stdin and stdout, or a
+/// test's buffers): told which placement is captured, asked to re-place the object in between
+/// (or given `wait_s` seconds to), and each session's record written as it is captured.
+pub(crate) struct Terminal<I, O> {
     input: I,
     output: O,
+    wait_s: Option<f64>,
 }
 
-impl<I: BufRead, O: Write> PlacementRig for DevicePlacements<'_, '_, I, O> {
-    fn capture(&mut self, placement: usize, dir: &Path) -> Result<usize, ScanError> {
-        let _ = writeln!(
-            self.output,
-            "placement {placement}: capturing {}",
-            dir.display()
-        );
-        (self.capture)(&capture_args(self.args, self.calib, dir)).map_err(|e| {
-            ScanError::Stage {
-                stage: "capture".into(),
-                reason: format!("placement {placement}: {e:#}"),
-            }
-        })?;
-        // `slscan capture` reports what it captured itself; the count is not needed here.
-        Ok(0)
+impl<I: BufRead, O: Write> Terminal<I, O> {
+    /// The terminal of `input` and `output`; `wait_s` is `--placement-wait`.
+    pub(crate) fn new(input: I, output: O, wait_s: Option<f64>) -> Self {
+        Self {
+            input,
+            output,
+            wait_s,
+        }
+    }
+}
+
+impl<I: BufRead, O: Write> ScanOperator for Terminal<I, O> {
+    fn replace(&mut self, next: usize, total: usize) -> Result<(), ScanError> {
+        replace_prompt(&mut self.input, &mut self.output, next, total, self.wait_s)
     }
 
-    fn replace(&mut self, next: usize, total: usize) -> Result<(), ScanError> {
-        replace_prompt(
-            &mut self.input,
-            &mut self.output,
-            next,
-            total,
-            self.args.placement_wait,
-        )
+    fn capturing(&mut self, placement: usize, total: usize, dir: &Path) -> Result<(), ScanError> {
+        if total > 1 {
+            let _ = writeln!(
+                self.output,
+                "placement {placement}: capturing {}",
+                dir.display()
+            );
+        }
+        Ok(())
+    }
+
+    fn captured(&mut self, placement: usize, capture: &SessionCapture) -> Result<(), ScanError> {
+        crate::capture::record_session(capture)
+            .map(|_| ())
+            .map_err(|e| ScanError::Stage {
+                stage: "capture".into(),
+                reason: format!("placement {placement}: {e:#}"),
+            })
     }
 }
 
@@ -240,65 +269,33 @@ fn replace_prompt(
     Ok(())
 }
 
-/// `slscan scan --placements 2` on the devices: the placement loop, then each placement
-/// reconstructed and merged, aligned and merged into one cloud, the mesh and the report.
-fn run_placements(
-    args: &Args,
-    calib_path: &Path,
-    calibration: &sl_camera::Calibration,
-    capture: &mut CaptureSession<'_>,
-    input: impl BufRead,
-    output: impl Write,
-) -> anyhow::Result<()> {
-    let mut report = Report::new("scan");
-    let mut rig = DevicePlacements {
-        args,
-        calib: calib_path,
-        capture,
-        input,
-        output,
-    };
-    let sessions = report.stage("capture", || {
-        capture_placements(&args.out, args.placements, &mut rig)
-    })?;
-    let out = ensure_out_dir(&args.out)?;
-    let dirs: Vec<PathBuf> = sessions.into_iter().map(|(d, _)| d).collect();
-    let config = session_config(args);
-    let mut placement_cfg = PlacementConfig::default();
-    placement_cfg.merge.average_overlaps = !args.no_average;
-    placement_cfg.merge.output_normal_neighbours = args.smoothing_neighbours;
-    let mut bars = StageBars::new();
-    let scan = scan_placements(&dirs, calibration, &config, &placement_cfg, |p| {
-        bars.update(p)
-    })?;
-    bars.clear();
+/// The report and the figures of `slscan scan --placements 2` on the devices.
+fn report_placements(args: &Args, mut report: Report, scan: DeviceScan) -> anyhow::Result<()> {
+    let out = &args.out;
     report.add_stages(&scan.stages);
     let mut per_placement = Vec::new();
-    for (k, s) in scan.sessions.iter().enumerate() {
-        let dir = out.join(placement_dir_name(k + 1));
-        let files = write_scan_cloud(&dir, &s.merged, |_| {})?;
+    for p in &scan.placements {
         per_placement.push(serde_json::json!({
-            "placement": k + 1,
-            "views": s.view_points.len(),
-            "view_points": s.view_points,
-            "merged_points": s.merged.len(),
-            "merge": s.merge,
-            "merged": format!("{}/{}", placement_dir_name(k + 1), files.merged),
-            "alignment": k.checked_sub(1).and_then(|i| scan.merge.alignments.get(i)),
+            "placement": p.placement,
+            "views": p.scan.view_points.len(),
+            "view_points": p.scan.view_points,
+            "merged_points": p.scan.merged.len(),
+            "merge": p.scan.merge,
+            "merged": p.files.as_ref().map_or_else(
+                || format!("{}/merged.ply", placement_dir_name(p.placement)),
+                |f| f.merged.clone(),
+            ),
+            "alignment": p.alignment,
         }));
     }
-    let merged = &scan.merge.merged;
-    let files = report.stage("write", || write_scan_cloud(&out, merged, |_| {}))?;
-    let meshed = report.stage("mesh", || {
-        mesh_without_truth(merged, &config, &crate::scan::mesh_options(args), &out)
-    });
+    let calib = args.rig.calib.clone().unwrap_or_default();
     report.figure("rig", "hardware");
-    report.figure("calibration", calib_path.display().to_string());
+    report.figure("calibration", calib.display().to_string());
     report.figure("placements", args.placements);
     report.figure("per_placement", serde_json::Value::Array(per_placement));
-    report.figure("merged_points", merged.len());
-    report.figure("files", serde_json::to_value(&files)?);
-    for a in &scan.merge.alignments {
+    report.figure("merged_points", scan.merged.len());
+    report.figure("files", serde_json::to_value(&scan.files)?);
+    for a in scan.placements.iter().filter_map(|p| p.alignment.as_ref()) {
         println!(
             "placement {} aligned onto placement 1 with no pose hint: fitness {:.3}, RMSE {:.3} mm",
             a.placement, a.fitness, a.rmse_mm
@@ -306,47 +303,82 @@ fn run_placements(
     }
     println!(
         "{}: {} points merged from {} placements (calibration {})",
-        out.join(&files.merged).display(),
-        merged.len(),
+        out.join(&scan.files.merged).display(),
+        scan.merged.len(),
         args.placements,
-        calib_path.display()
+        calib.display()
     );
-    record_mesh(&mut report, meshed, &out, &files.merged)?;
+    record_mesh(&mut report, scan.mesh, out, &scan.files.merged)?;
     Ok(())
 }
 
-/// The mesh stage of the virtual scan on a merged cloud, without a truth to measure it against
-/// (the depth from the cloud's spacing, as `slscan scan` on the virtual rig).
-fn mesh_without_truth(
-    merged: &PointCloud,
-    config: &SessionScanConfig,
-    options: &MeshConfig,
-    out: &Path,
-) -> Result<(MeshSummary, MeshFiles), ScanError> {
-    let poisson = scan_poisson_config(
-        merged,
-        config.merge.merge.output_voxel_size,
-        PoissonConfig::default().depth,
+/// The report and the figures of `slscan scan` on the devices, one placement.
+fn report_single(args: &Args, mut report: Report, scan: DeviceScan) -> anyhow::Result<()> {
+    let out = &args.out;
+    let Some(placement) = scan.placements.first() else {
+        anyhow::bail!("the scan returned no placement");
+    };
+    let s = &placement.scan;
+    let calib = args.rig.calib.clone().unwrap_or_default();
+    report.add_stages(&scan.stages);
+    report.figure("rig", "hardware");
+    report.figure("calibration", calib.display().to_string());
+    report.figure("views", s.view_points.len());
+    report.figure("motor_angles_deg", s.motor_angles_deg.clone());
+    report.figure("platter_angles_deg", s.platter_angles_deg.clone());
+    report.figure("view_points", s.view_points.clone());
+    report.figure("merged_points", scan.merged.len());
+    report.figure("icp_refinement", !args.rig.no_refine);
+    report.figure("merge", serde_json::to_value(&s.merge)?);
+    println!("poses: {}", s.merge.summary);
+    report.figure(
+        "accuracy",
+        "no truth for a real object: run `slscan report merged.ply --truth …` on a scan of a known sphere or plane",
     );
-    mesh_stage_with(merged, None, None, &poisson, options, out)
+    report.figure("files", serde_json::to_value(&scan.files)?);
+    report.figure("session", structured_light::scan::PLACEMENT_SESSION_DIR);
+    let meshed = record_mesh(&mut report, scan.mesh, out, &scan.files.merged)?;
+    println!(
+        "{}: {} points merged from {} views (calibration {})",
+        out.join(&scan.files.merged).display(),
+        scan.merged.len(),
+        s.view_points.len(),
+        calib.display()
+    );
+    if let Some((mesh, mesh_files)) = meshed {
+        println!(
+            "{}: {} triangles, {}",
+            out.join(&mesh_files.ply).display(),
+            mesh.triangles,
+            if mesh.watertight {
+                "watertight"
+            } else {
+                "NOT watertight"
+            }
+        );
+    }
+    for s in &report.stages {
+        println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
+    }
+    Ok(())
 }
 
 /// Records the mesh stage's outcome in the report and writes it. A mesh that failed keeps the
 /// merged cloud (`merged_file`, relative to `out`) and the report on disk, and the error says so.
 fn record_mesh(
     report: &mut Report,
-    meshed: Result<(MeshSummary, MeshFiles), ScanError>,
+    meshed: Option<Result<(MeshSummary, MeshFiles), ScanError>>,
     out: &Path,
     merged_file: &str,
-) -> anyhow::Result<(MeshSummary, MeshFiles)> {
+) -> anyhow::Result<Option<(MeshSummary, MeshFiles)>> {
     match meshed {
-        Ok((mesh, mesh_files)) => {
+        Some(Ok((mesh, mesh_files))) => {
             report.figure("mesh", serde_json::to_value(&mesh)?);
             report.figure("mesh_files", serde_json::to_value(&mesh_files)?);
             report.write(out)?;
-            Ok((mesh, mesh_files))
+            Ok(Some((mesh, mesh_files)))
         }
-        Err(e) => {
+        Some(Err(e)) => {
             report.figure("mesh_error", e.to_string());
             report.write(out)?;
             Err(anyhow::Error::new(e).context(format!(
@@ -354,89 +386,11 @@ fn record_mesh(
                 out.join(merged_file).display()
             )))
         }
-    }
-}
-
-/// The reconstruction and turntable merge of one session, from the options.
-fn session_config(args: &Args) -> SessionScanConfig {
-    SessionScanConfig {
-        reconstruct: ReconstructConfig {
-            edge_erosion_px: args.edge_erosion,
-            max_view_angle_deg: args.max_view_angle,
-            smoothing: crate::scan::smoothing(args),
-        },
-        merge: MergeStageConfig::scan(
-            !args.no_average,
-            args.smoothing_neighbours,
-            !args.rig.no_refine,
-        ),
-        poses: None,
-    }
-}
-
-/// Reconstructs and merges the captured session, writes the files and the report.
-fn reconstruct(
-    args: &Args,
-    calib_path: &Path,
-    calibration: &sl_camera::Calibration,
-    session_dir: &Path,
-    mut report: Report,
-) -> anyhow::Result<()> {
-    let out = ensure_out_dir(&args.out)?;
-    let config = session_config(args);
-    let mut bars = StageBars::new();
-    let scan = scan_session(session_dir, calibration, &config, |p| bars.update(p))?;
-    bars.clear();
-    let files = report.stage("write", || write_scan_cloud(&out, &scan.merged, |_| {}))?;
-    report.add_stages(&scan.stages);
-    // The same mesh stage as the virtual scan, without a truth to measure it against. The
-    // merged cloud is on disk already; a cloud that cannot be meshed keeps it and its report.
-    let meshed = report.stage("mesh", || {
-        mesh_without_truth(
-            &scan.merged,
-            &config,
-            &crate::scan::mesh_options(args),
-            &out,
-        )
-    });
-    report.figure("rig", "hardware");
-    report.figure("calibration", calib_path.display().to_string());
-    report.figure("views", scan.view_points.len());
-    report.figure("motor_angles_deg", scan.motor_angles_deg.clone());
-    report.figure("platter_angles_deg", scan.platter_angles_deg.clone());
-    report.figure("view_points", scan.view_points.clone());
-    report.figure("merged_points", scan.merged.len());
-    report.figure("icp_refinement", config.merge.icp_refinement);
-    report.figure("merge", serde_json::to_value(&scan.merge)?);
-    println!("poses: {}", scan.merge.summary);
-    report.figure(
-        "accuracy",
-        "no truth for a real object: run `slscan report merged.ply --truth …` on a scan of a known sphere or plane",
-    );
-    report.figure("files", serde_json::to_value(&files)?);
-    report.figure("session", SESSION_DIR);
-    let (mesh, mesh_files) = record_mesh(&mut report, meshed, &out, &files.merged)?;
-    println!(
-        "{}: {} points merged from {} views (calibration {})",
-        out.join(&files.merged).display(),
-        scan.merged.len(),
-        scan.view_points.len(),
-        calib_path.display()
-    );
-    println!(
-        "{}: {} triangles, {}",
-        out.join(&mesh_files.ply).display(),
-        mesh.triangles,
-        if mesh.watertight {
-            "watertight"
-        } else {
-            "NOT watertight"
+        None => {
+            report.write(out)?;
+            Ok(None)
         }
-    );
-    for s in &report.stages {
-        println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
     }
-    Ok(())
 }
 
 #[cfg(test)]

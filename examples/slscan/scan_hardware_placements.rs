@@ -1,7 +1,7 @@
 //! `slscan scan --placements 2` on devices, run as a user runs it — the options of a real rig,
 //! the prompt between the placements answered with Enter — with the virtual rig's camera,
-//! projector and turntable (`sl_sim::VirtualRig::devices`, behind `sl-rig`'s traits) in place
-//! of the V4L2 camera, the projector window and the Dynamixel table. The person at the rig is
+//! projector and turntable (`sl_scan::VirtualObjectRig::devices`, behind `sl-rig`'s traits) in
+//! place of the V4L2 camera, the projector window and the Dynamixel table. The person at the rig is
 //! simulated too: it lays the pebble on its side when the screen asks for it, not before.
 //! A single-placement scan runs through the same seam, without a question.
 //!
@@ -21,9 +21,10 @@ use sl_metrology::{
     CoverageConfig, DEFAULT_SELECT_MM, DEFAULT_TRUTH_SAMPLE_AREA_MM2, SurfaceCoverage,
     SurfaceDistance, TriangleMesh, distance_to_surface, surface_coverage,
 };
-use sl_rig::SessionDevices;
 use sl_sim::{DEFAULT_WORKING_DISTANCE_MM, Scene, VirtualRig};
-use structured_light::scan::{MergeStageConfig, full_turn_motor_angles, scaled_rig_config};
+use structured_light::scan::{
+    MergeStageConfig, VirtualObjectRig, full_turn_motor_angles, scaled_rig_config,
+};
 
 use crate::{Cli, Command};
 
@@ -37,7 +38,7 @@ const LAY_ON_SIDE: &str = "lay the object on its side";
 /// The person at the rig and the rig on its turntable: the object stands as the person left
 /// it; the screen is what the command printed to them.
 struct Person {
-    rig: RefCell<VirtualRig>,
+    rig: VirtualObjectRig,
     screen: RefCell<String>,
     replaced: RefCell<usize>,
 }
@@ -48,9 +49,7 @@ impl Person {
     fn look(&self) -> anyhow::Result<()> {
         let asked = self.screen.borrow().matches(LAY_ON_SIDE).count();
         while *self.replaced.borrow() < asked {
-            let laid = self.rig.borrow().scene().laid_on_side()?;
-            let moved = self.rig.borrow().with_scene(laid)?;
-            *self.rig.borrow_mut() = moved;
+            self.rig.lay_on_side()?;
             *self.replaced.borrow_mut() += 1;
         }
         Ok(())
@@ -188,30 +187,30 @@ fn scan_on_virtual_devices(extra: &[&str], keys: &mut &[u8]) -> DeviceScan {
     );
     let standing = Scene::pebble().unwrap();
     let person = Rc::new(Person {
-        rig: RefCell::new(VirtualRig::new(config.clone(), standing.clone()).unwrap()),
+        rig: VirtualObjectRig::new(VirtualRig::new(config.clone(), standing.clone()).unwrap()),
         screen: RefCell::new(String::new()),
         replaced: RefCell::new(0),
     });
-    let mut sessions = 0;
-    let mut on_virtual_devices = |a: &crate::capture::Args| -> anyhow::Result<()> {
-        sessions += 1;
-        // Opened per session, as `capture::run_hardware` opens the real devices.
-        let (mut camera, mut projector, mut table) = person.rig.borrow().devices();
-        let devices = SessionDevices {
-            camera: "virtual camera".to_owned(),
-            projector: "virtual projector".to_owned(),
-            turntable: "virtual turntable".to_owned(),
-        };
-        crate::capture::run_session(
-            a,
-            devices,
+    // Opened once, as `sl_rig::with_devices` opens the real devices; no display latency, as a
+    // virtual projector has none.
+    let on_virtual_devices = |mut cfg: structured_light::scan::DeviceScanConfig| {
+        cfg.capture.display_latency = Duration::ZERO;
+        let (mut camera, mut projector, mut table) = person.rig.devices();
+        let terminal = super::Terminal::new(keys, Screen(person.clone()), args.placement_wait);
+        Ok(super::scan_on(
+            &cfg,
+            &args.out,
             &mut camera,
             &mut projector,
             &mut table,
-            Duration::ZERO,
-        )
+            terminal,
+        )?)
     };
-    super::run_on(&args, &mut on_virtual_devices, keys, Screen(person.clone())).unwrap();
+    super::run_on(&args, on_virtual_devices).unwrap();
+    let sessions = crate::common::files_below(&out)
+        .iter()
+        .filter(|p| p.ends_with("session/session.json"))
+        .count();
 
     let angles = full_turn_motor_angles(calibration.turntable.as_ref(), 8).unwrap();
     let truth = standing

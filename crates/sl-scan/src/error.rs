@@ -75,6 +75,14 @@ pub enum ScanError {
         #[source]
         source: Box<ScanError>,
     },
+    /// A parameter of a configuration is out of its range.
+    #[error("{name} {reason}")]
+    InvalidParameter {
+        /// The parameter (`views`, ...).
+        name: String,
+        /// What is wrong with its value.
+        reason: String,
+    },
     /// A file could not be written.
     #[error("{}: {source}", path.display())]
     Io {

@@ -12,17 +12,20 @@
 //! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`reconstruct_decoded`], [`drop_grazing`] |
 //! | merge | `merge.rs` | [`merge_scan`] |
 //! | several placements | `placements.rs`, `virtual_placements.rs` | [`capture_placements`], [`scan_placements`], [`merge_placements`], [`scan_virtual_placements`] |
+//! | scan on devices (capture, reconstruct, merge, placements, mesh) | `device_scan.rs`, `virtual_object.rs` | [`scan_devices`], [`DeviceScanConfig`], [`ScanOperator`], [`capture_device_session`], [`VirtualObjectRig`] |
 //! | measure (where a truth exists) | `measure.rs` | [`measure_scan`], [`scene_truth`], [`plate_truth`] |
 //! | mesh a cloud (`slscan mesh`) | `mesh_chain.rs` | [`mesh_chain`], [`MeshChainConfig`] |
 //! | report | `report.rs`, `run_report.rs` | [`write_scan_cloud`], [`write_heat_map`], [`write_summary_html`], [`RunReport`] |
 //!
-//! A scan on real devices is: [`load_scan_calibration`], [`capture_session`] on the drivers,
-//! [`scan_session`] (reconstruct, then merge), [`write_scan_cloud`]. A scan on the virtual rig
+//! A scan on real devices is [`scan_devices`]: [`capture_device_session`] on the drivers (per
+//! placement, a [`ScanOperator`] re-placing the object in between), [`scan_session`] or
+//! [`scan_placements`] (reconstruct, then merge), [`write_scan_cloud`], the mesh. A scan on the virtual rig
 //! ([`scan_virtual`]) runs the same capture, reconstruct, merge and report stages on
 //! `sl-sim`'s virtual devices, and adds what only the virtual rig has: a calibration from
 //! simulated board captures, its truth and the measure stage. `slscan scan` is a thin wrapper
 //! around both. `examples/virtual_pipeline.rs` runs calibrate, capture, scan and mesh on the
-//! virtual rig through this API alone; `sl_rig::with_devices` opens the real devices.
+//! virtual rig through this API alone; `sl_rig::with_devices` opens the real devices for
+//! [`scan_devices`], which runs unchanged on the virtual rig's devices ([`VirtualObjectRig`]).
 //!
 //! ```no_run
 //! use std::path::Path;
@@ -37,6 +40,7 @@
 mod calibrate;
 mod calibration_layout;
 mod capture;
+mod device_scan;
 mod error;
 mod measure;
 mod merge;
@@ -49,6 +53,7 @@ mod report;
 mod run_report;
 mod session_calibration;
 mod session_scan;
+mod virtual_object;
 mod virtual_placements;
 mod virtual_scan;
 
@@ -87,6 +92,10 @@ pub use calibrate::{
 pub use capture::{
     SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_session, full_turn_motor_angles, scan_patterns,
 };
+pub use device_scan::{
+    DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig, ScanOperator,
+    SessionCapture, capture_device_session, scan_devices,
+};
 pub use error::ScanError;
 pub use measure::{
     Measurements, PLATE_SIZE_MM, PLATE_TILT_DEG, SELECT_MM, measure_scan, plate_pose, plate_scene,
@@ -117,6 +126,7 @@ pub use session_calibration::{
     session_projector_size, turntable_views,
 };
 pub use session_scan::{SessionScan, SessionScanConfig, scan_session};
+pub use virtual_object::{ObjectCamera, ObjectProjector, ObjectTurntable, VirtualObjectRig};
 pub use virtual_placements::{
     PlacementFigures, PlacementsResult, TRUTH_MESH_FILE, scan_virtual_placements,
 };

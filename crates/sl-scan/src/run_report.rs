@@ -52,6 +52,15 @@ impl RunReport {
         }
     }
 
+    /// Counts the total time from `ms` milliseconds ago: for a report written after a
+    /// pipeline timed its stages itself.
+    pub fn started_before(&mut self, ms: f64) {
+        self.started = std::time::Duration::try_from_secs_f64(ms / 1e3)
+            .ok()
+            .and_then(|d| Instant::now().checked_sub(d))
+            .or(self.started);
+    }
+
     /// Runs `f` as the stage `name` and records its wall time.
     pub fn stage<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
         let t = Instant::now();
