@@ -15,7 +15,7 @@
 //!
 //! The devices are reached through one seam, [`run_on`]'s `on_devices`: `slscan` opens the
 //! V4L2 camera, the projector window and the Dynamixel turntable of the options; the test of
-//! the whole loop (`scan_hardware_placements.rs`) passes the virtual rig's devices behind the
+//! the whole loop (`scan_hardware_placements_tests.rs`) passes the virtual rig's devices behind the
 //! same `sl-rig` traits ([`scan_on`]); everything else runs unchanged.
 
 use std::io::{BufRead, Write};
@@ -394,7 +394,7 @@ fn record_mesh(
 }
 
 #[cfg(test)]
-#[path = "scan_hardware_placements.rs"]
+#[path = "scan_hardware_placements_tests.rs"]
 mod placements_loop;
 
 #[cfg(test)]
