@@ -188,9 +188,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             println!("  {line}");
         }
     }
-    for s in &result.stages {
-        println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
-    }
+    crate::common::print_stages(&result.stages);
     println!("summary: {}", html.display());
     Ok(())
 }
@@ -300,16 +298,10 @@ fn run_placements(args: &Args) -> anyhow::Result<()> {
         println!(
             "  mesh: {} triangles, {}",
             m.triangles,
-            if m.watertight {
-                "watertight"
-            } else {
-                "NOT watertight"
-            }
+            crate::common::watertight(m.watertight)
         );
     }
-    for s in &r.stages {
-        println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
-    }
+    crate::common::print_stages(&r.stages);
     Ok(())
 }
 

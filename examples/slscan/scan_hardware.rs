@@ -350,16 +350,10 @@ fn report_single(args: &Args, mut report: Report, scan: DeviceScan) -> anyhow::R
             "{}: {} triangles, {}",
             out.join(&mesh_files.ply).display(),
             mesh.triangles,
-            if mesh.watertight {
-                "watertight"
-            } else {
-                "NOT watertight"
-            }
+            crate::common::watertight(mesh.watertight)
         );
     }
-    for s in &report.stages {
-        println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
-    }
+    crate::common::print_stages(&report.stages);
     Ok(())
 }
 

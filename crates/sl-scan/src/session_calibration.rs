@@ -368,18 +368,7 @@ pub fn turntable_views(
     session: &Path,
     angles: Option<&[f64]>,
 ) -> Result<Vec<(PathBuf, f64)>, ScanError> {
-    let sub = session.join(TURNTABLE_DIR);
-    let dir = if sub.is_dir() {
-        sub
-    } else {
-        session.to_path_buf()
-    };
-    if !dir.is_dir() {
-        return Err(ScanError::Session {
-            path: dir,
-            reason: "no such folder".into(),
-        });
-    }
+    let dir = subfolder_or_itself(session, TURNTABLE_DIR)?;
     let images = images_in(&dir)?;
     if images.is_empty() {
         return Err(ScanError::Session {
@@ -814,9 +803,9 @@ fn create_dir(dir: &Path) -> Result<PathBuf, ScanError> {
     Ok(dir.to_path_buf())
 }
 
-/// The capture folders (one per board pose) of a session.
-fn pose_folders(session: &Path) -> Result<Vec<PathBuf>, ScanError> {
-    let sub = session.join(BOARD_DIR);
+/// `session/name` when it is a folder, else `session` itself (given the subfolder directly).
+fn subfolder_or_itself(session: &Path, name: &str) -> Result<PathBuf, ScanError> {
+    let sub = session.join(name);
     let dir = if sub.is_dir() {
         sub
     } else {
@@ -828,6 +817,12 @@ fn pose_folders(session: &Path) -> Result<Vec<PathBuf>, ScanError> {
             reason: "no such folder".into(),
         });
     }
+    Ok(dir)
+}
+
+/// The capture folders (one per board pose) of a session.
+fn pose_folders(session: &Path) -> Result<Vec<PathBuf>, ScanError> {
+    let dir = subfolder_or_itself(session, BOARD_DIR)?;
     // A pose folder holds a white picture, a pattern capture, or both (captures without a
     // white frame use their own texture).
     let folders: Vec<PathBuf> = sorted_entries(&dir)?
