@@ -401,7 +401,7 @@ fn parse_pair(text: &str, flag: &str, example: &str) -> anyhow::Result<(u32, u32
     Ok((a, b))
 }
 
-fn parse_board(text: &str) -> anyhow::Result<BoardSize> {
+pub(crate) fn parse_board(text: &str) -> anyhow::Result<BoardSize> {
     let (cols, rows) = parse_pair(text, "--board", "9x6")?;
     anyhow::ensure!(
         cols >= 2 && rows >= 2,

@@ -97,24 +97,15 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     }
 }
 
-fn checkerboard(args: &Args) -> anyhow::Result<Checkerboard> {
-    let bad = || {
-        format!(
-            "--board {}: expected inner corners as COLSxROWS, e.g. 9x6",
-            args.board
-        )
-    };
-    let (c, r) = args.board.split_once(['x', 'X']).with_context(bad)?;
-    let board = Checkerboard {
-        inner_cols: c.trim().parse().with_context(bad)?,
-        inner_rows: r.trim().parse().with_context(bad)?,
-        square_mm: args.square,
-        ..Checkerboard::default()
-    };
-    board
-        .validate()
-        .map_err(|e| anyhow::anyhow!("--board {} --square {}: {e}", args.board, args.square))?;
-    Ok(board)
+/// The board of `--board` and `--square`.
+fn board(args: &Args) -> anyhow::Result<(sl_calib::BoardSize, f64)> {
+    let size = crate::calibrate::parse_board(&args.board)?;
+    anyhow::ensure!(
+        args.square.is_finite() && args.square > 0.0,
+        "--square {}: a square's side in mm, positive",
+        args.square
+    );
+    Ok((size, args.square))
 }
 
 fn run_virtual(args: &Args) -> anyhow::Result<()> {
@@ -122,7 +113,13 @@ fn run_virtual(args: &Args) -> anyhow::Result<()> {
     let mut config = scaled_rig_config(args.downscale);
     config.render.supersampling = BOARD_SUPERSAMPLING;
     config.render.seed = args.seed;
-    let board = checkerboard(args)?;
+    let (size, square_mm) = board(args)?;
+    let board = Checkerboard {
+        inner_cols: size.cols,
+        inner_rows: size.rows,
+        square_mm,
+        ..Checkerboard::default()
+    };
     let rig = VirtualBoardRig::new(
         config,
         board,
@@ -174,7 +171,8 @@ where
 {
     let mut report = Report::new("calibrate capture");
     let out = ensure_out_dir(&args.out)?;
-    let mut config = CalibrationCaptureConfig::new(checkerboard(args)?, projector.image_size());
+    let (size, square_mm) = board(args)?;
+    let mut config = CalibrationCaptureConfig::new(size, square_mm, projector.image_size());
     if let Some(dir) = &args.patterns {
         config.manifest = Manifest::load(&dir.join(MANIFEST_FILE))?;
     }

@@ -35,7 +35,6 @@ use sl_calib::{
     detect_checkerboard,
 };
 use sl_rig::{Camera, GreyImage, Projector, RigError, Turntable, write_capture_set};
-use sl_sim::Checkerboard;
 
 use crate::calibration_coverage::Coverage;
 use crate::pose_quality::{BoardGeometry, edge_width_px, nominal_camera, saturated_fraction};
@@ -343,8 +342,10 @@ pub struct TableView {
 /// Options of a calibration capture.
 #[derive(Debug, Clone)]
 pub struct CalibrationCaptureConfig {
-    /// The printed board.
-    pub board: Checkerboard,
+    /// The printed board's inner corners.
+    pub board: BoardSize,
+    /// Side of its squares (mm).
+    pub square_mm: f64,
     /// The pattern sequence captured at every pose (its projector size must be the
     /// projector's).
     pub manifest: Manifest,
@@ -359,11 +360,13 @@ pub struct CalibrationCaptureConfig {
 }
 
 impl CalibrationCaptureConfig {
-    /// The default board, the default calibration patterns for a projector of `projector`
-    /// pixels, no latency, the default detector and gates.
-    pub fn new(board: Checkerboard, projector: (u32, u32)) -> Self {
+    /// A board of `board` inner corners and `square_mm` squares, the default calibration
+    /// patterns for a projector of `projector` pixels, no latency, the default detector and
+    /// gates.
+    pub fn new(board: BoardSize, square_mm: f64, projector: (u32, u32)) -> Self {
         Self {
             board,
+            square_mm,
             manifest: calibration_patterns(ImageSize::new(projector.0, projector.1))
                 .manifest(BitDepth::Eight),
             display_latency: Duration::ZERO,
@@ -378,7 +381,7 @@ impl CalibrationCaptureConfig {
 /// and what a resumed capture needs (the detected corners).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 struct BoardFile {
-    board: Checkerboard,
+    board: BoardJson,
     motor_angle_deg: f64,
     /// Detected inner corners `[x, y]` (px), row by row; empty when the board was not found.
     detected_corners_px: Vec<[f64; 2]>,
@@ -386,6 +389,24 @@ struct BoardFile {
     saturated_fraction: f64,
     /// Median edge width (px).
     edge_width_px: Option<f64>,
+}
+
+/// The board as `board.json` names it (the keys `slscan simulate` writes for its board).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+struct BoardJson {
+    inner_cols: u32,
+    inner_rows: u32,
+    square_mm: f64,
+}
+
+impl BoardJson {
+    fn of(config: &CalibrationCaptureConfig) -> Self {
+        Self {
+            inner_cols: config.board.cols,
+            inner_rows: config.board.rows,
+            square_mm: config.square_mm,
+        }
+    }
 }
 
 /// A calibration capture session: its folder, the poses taken so far and the checks.
@@ -399,12 +420,14 @@ struct BoardFile {
 ///     AutoConfig, BoardMover, CalibrationCapture, CalibrationCaptureConfig, VirtualBoardRig,
 ///     calibration_turntable_angles, capture_poses_auto,
 /// };
+/// use sl_calib::BoardSize;
 /// use sl_sim::{BoardPoseConfig, Checkerboard, RigConfig};
 ///
 /// let board = Checkerboard::default();
 /// let rig = VirtualBoardRig::new(RigConfig::default(), board, &BoardPoseConfig::default())?;
 /// let (mut camera, mut projector, mut table, mut mover) = rig.devices();
-/// let config = CalibrationCaptureConfig::new(board, projector.image_size());
+/// let size = BoardSize::new(board.inner_cols, board.inner_rows);
+/// let config = CalibrationCaptureConfig::new(size, board.square_mm, projector.image_size());
 /// let mut session = CalibrationCapture::open(
 ///     "calib/session".as_ref(),
 ///     config,
@@ -439,7 +462,21 @@ impl CalibrationCapture {
         frame_size: (u32, u32),
         projector_size: (u32, u32),
     ) -> Result<Self, CaptureError> {
-        config.board.validate().map_err(CaptureError::sim)?;
+        if config.board.cols < 2 || config.board.rows < 2 {
+            return Err(CaptureError::param(
+                "board",
+                format!(
+                    "{}x{} inner corners: at least 2x2 are needed",
+                    config.board.cols, config.board.rows
+                ),
+            ));
+        }
+        if !(config.square_mm.is_finite() && config.square_mm > 0.0) {
+            return Err(CaptureError::param(
+                "square",
+                format!("{} mm: a square's side must be positive", config.square_mm),
+            ));
+        }
         let m = &config.manifest;
         if (m.projector.width, m.projector.height) != projector_size {
             return Err(CaptureError::param(
@@ -512,7 +549,7 @@ impl CalibrationCapture {
     }
 
     fn board_size(&self) -> BoardSize {
-        BoardSize::new(self.config.board.inner_cols, self.config.board.inner_rows)
+        self.config.board
     }
 
     /// Checks a frame of the board under white: found, exposure, sharpness, novelty.
@@ -551,8 +588,7 @@ impl CalibrationCapture {
         let full = if max_value > 255.0 { 255.0 } else { max_value };
         check.saturated_fraction = saturated_fraction(&grey, full, &corners);
         check.edge_width_px = edge_width_px(&grey, &corners);
-        check.geometry =
-            BoardGeometry::measure(&corners, self.config.board.square_mm, &self.camera);
+        check.geometry = BoardGeometry::measure(&corners, self.config.square_mm, &self.camera);
         let gates = &self.config.gates;
         check.verdict = if check.saturated_fraction > gates.max_saturated_fraction {
             Err(Refusal::OverExposed {
@@ -661,7 +697,7 @@ impl CalibrationCapture {
             &check.white,
             &frames,
             &BoardFile {
-                board: self.config.board,
+                board: BoardJson::of(&self.config),
                 motor_angle_deg: 0.0,
                 detected_corners_px: corners.corners.iter().map(|p| [p.x, p.y]).collect(),
                 saturated_fraction: check.saturated_fraction,
@@ -785,7 +821,7 @@ impl CalibrationCapture {
                 &check.white,
                 &frames,
                 &BoardFile {
-                    board: self.config.board,
+                    board: BoardJson::of(&self.config),
                     motor_angle_deg: reached,
                     detected_corners_px: corners,
                     saturated_fraction: check.saturated_fraction,
@@ -837,8 +873,7 @@ impl CalibrationCapture {
                 size,
                 corners: corners.clone(),
             };
-            let Some(geometry) =
-                BoardGeometry::measure(&bc, self.config.board.square_mm, &self.camera)
+            let Some(geometry) = BoardGeometry::measure(&bc, self.config.square_mm, &self.camera)
             else {
                 continue;
             };
@@ -858,7 +893,7 @@ impl CalibrationCapture {
         let (w, h) = self.frame_size;
         let nominal = nominal_camera(w, h);
         let size = self.board_size();
-        let square = self.config.board.square_mm;
+        let square = self.config.square_mm;
         let calibrated = if self.poses.len() >= MIN_POSES_FOR_CAMERA {
             let views: Vec<CalibrationView> = self
                 .poses
@@ -938,6 +973,26 @@ fn to_gray8(img: &GreyImage) -> Result<sl_calib::image::GrayImage, CaptureError>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_board_too_small_or_without_size_is_refused_naming_the_parameter() {
+        let dir = tempfile::tempdir().unwrap();
+        let open = |board: BoardSize, square_mm: f64| {
+            let config = CalibrationCaptureConfig::new(board, square_mm, (64, 32));
+            CalibrationCapture::open(dir.path(), config, (64, 48), (64, 32))
+        };
+        let err = open(BoardSize::new(1, 6), 20.0).unwrap_err();
+        assert!(err.to_string().contains("board"), "{err}");
+        assert!(err.to_string().contains("1x6"), "{err}");
+        for bad in [0.0, -1.0, f64::NAN] {
+            let err = open(BoardSize::new(9, 6), bad).unwrap_err();
+            assert!(err.to_string().contains("square"), "{bad}: {err}");
+        }
+        assert!(
+            std::fs::read_dir(dir.path()).unwrap().next().is_none(),
+            "nothing written"
+        );
+    }
 
     #[test]
     fn turntable_angles_span_ninety_degrees() {

@@ -46,7 +46,9 @@ fn rig(config: RigConfig, poses: usize) -> VirtualBoardRig {
 
 fn session(dir: &Path, rig: &VirtualBoardRig) -> CalibrationCapture {
     let (camera, projector, _, _) = rig.devices();
-    let config = CalibrationCaptureConfig::new(Checkerboard::default(), projector.image_size());
+    let board = Checkerboard::default();
+    let size = sl_calib::BoardSize::new(board.inner_cols, board.inner_rows);
+    let config = CalibrationCaptureConfig::new(size, board.square_mm, projector.image_size());
     CalibrationCapture::open(dir, config, camera.frame_size(), projector.image_size()).unwrap()
 }
 
