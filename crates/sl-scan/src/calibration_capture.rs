@@ -153,6 +153,7 @@ impl CaptureError {
     }
 
     /// Wraps an error of the simulator (whatever its type: it moves between crates).
+    #[cfg(feature = "sim")]
     pub(crate) fn sim(e: impl std::fmt::Display) -> Self {
         Self::Simulator(e.to_string())
     }

@@ -47,6 +47,7 @@ use sl_rig::{
 };
 
 use crate::error::{io, stage_err};
+#[cfg(feature = "mesh")]
 use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::{
@@ -194,9 +195,11 @@ pub struct DeviceScanConfig {
     pub placement: PlacementConfig,
     /// Largest octree depth of the mesh of the merged cloud ([`scan_poisson_config`] takes a
     /// shallower one where its cells would be finer than the cloud's samples); `None` makes no
-    /// mesh. Default 9 (`sl_mesh::PoissonConfig::default().depth`).
+    /// mesh. Default 9 (`sl_mesh::PoissonConfig::default().depth`). Feature `mesh`.
+    #[cfg(feature = "mesh")]
     pub mesh_depth: Option<u32>,
-    /// What the mesh stage does after the reconstruction (simplify, fair).
+    /// What the mesh stage does after the reconstruction (simplify, fair). Feature `mesh`.
+    #[cfg(feature = "mesh")]
     pub mesh: MeshConfig,
 }
 
@@ -210,7 +213,9 @@ impl DeviceScanConfig {
             placements: 1,
             session: SessionScanConfig::default(),
             placement: PlacementConfig::default(),
+            #[cfg(feature = "mesh")]
             mesh_depth: Some(sl_mesh::PoissonConfig::default().depth),
+            #[cfg(feature = "mesh")]
             mesh: MeshConfig::default(),
         }
     }
@@ -337,7 +342,8 @@ pub struct DeviceScan {
     pub files: SessionScanFiles,
     /// The mesh stage's outcome: `None` without [`DeviceScanConfig::mesh_depth`]; an error
     /// when the cloud could not be meshed — the merged cloud and its previews are written all
-    /// the same.
+    /// the same. Feature `mesh`.
+    #[cfg(feature = "mesh")]
     pub mesh: Option<Result<(MeshSummary, MeshFiles), ScanError>>,
     /// Wall time per stage, in order: `capture` (every session, the re-placing included),
     /// `reconstruct` and `merge` per placement, `placements`, `write`, `mesh`.
@@ -488,6 +494,7 @@ where
 
     // 4. The mesh, without a truth to measure it against. A cloud that cannot be meshed keeps
     // its files and the figures of the scan.
+    #[cfg(feature = "mesh")]
     let mesh = cfg.mesh_depth.map(|depth| {
         let t = Instant::now();
         let poisson =
@@ -501,12 +508,14 @@ where
         placements,
         merged,
         files,
+        #[cfg(feature = "mesh")]
         mesh,
         stages,
     })
 }
 
 #[cfg(test)]
+#[cfg(feature = "sim")]
 mod tests {
     use sl_metrology::{
         CoverageConfig, DEFAULT_SELECT_MM, DEFAULT_TRUTH_SAMPLE_AREA_MM2, SurfaceCoverage,

@@ -10,6 +10,7 @@ pub enum ScanError {
     #[error(transparent)]
     Rig(#[from] sl_rig::RigError),
     /// The virtual rig.
+    #[cfg(feature = "sim")]
     #[error(transparent)]
     Sim(#[from] sl_sim::SimError),
     /// Calibration.
@@ -24,10 +25,12 @@ pub enum ScanError {
     /// Measuring the result against the truth.
     #[error("report: {0}")]
     Metrology(#[from] sl_metrology::MetrologyError),
-    /// Registration and merging.
+    /// The mesh (`sl-mesh`).
+    #[cfg(feature = "mesh")]
     #[error("mesh: {0}")]
     Mesh(#[from] sl_mesh::MeshError),
     /// A step of the mesh chain ([`mesh_chain`](crate::mesh_chain)) failed.
+    #[cfg(feature = "mesh")]
     #[error("mesh {step}: {source}")]
     MeshStep {
         /// The step: `reconstruct`, `trim`, `simplify`, `fair`, `remesh`, `fill holes`,

@@ -35,16 +35,28 @@
 //! println!("{} points, {:?}", result.merged.len(), result.accuracy.summary());
 //! # Ok::<(), sl_scan::ScanError>(())
 //! ```
+//!
+//! # Features
+//! - `sim` (default): the virtual rig (`sl-sim`): [`scan_virtual`], [`calibrate_virtual`],
+//!   the virtual board and object rigs and the measure stage against the truth. Without it the
+//!   crate runs on real devices and files only. Implies `mesh`.
+//! - `mesh` (default): the mesh stage and chain (`sl-mesh`: screened Poisson, simplification,
+//!   fairing; faer and parry3d with it): [`mesh_chain`], [`mesh_stage_with`], the mesh of
+//!   [`scan_devices`]. Without `sim` and `mesh`, sl-scan brings 85 packages instead of 135.
 #![deny(missing_docs)]
+#![cfg_attr(docsrs, feature(doc_cfg))]
 
 mod calibrate;
 mod calibration_layout;
 mod capture;
 mod device_scan;
 mod error;
+#[cfg(feature = "sim")]
 mod measure;
 mod merge;
+#[cfg(feature = "mesh")]
 mod mesh;
+#[cfg(feature = "mesh")]
 mod mesh_chain;
 mod placements;
 mod progress;
@@ -53,14 +65,20 @@ mod report;
 mod run_report;
 mod session_calibration;
 mod session_scan;
+#[cfg(feature = "sim")]
+mod virtual_calibrate;
+#[cfg(feature = "sim")]
 mod virtual_object;
+#[cfg(feature = "sim")]
 mod virtual_placements;
+#[cfg(feature = "sim")]
 mod virtual_scan;
 
 mod calibration_auto;
 mod calibration_capture;
 mod calibration_coverage;
 mod pose_quality;
+#[cfg(feature = "sim")]
 mod virtual_board;
 
 pub use calibration_auto::{
@@ -82,13 +100,12 @@ pub use pose_quality::{
     BoardGeometry, NOMINAL_FOCAL_PER_WIDTH, SATURATION_LEVEL, board_outline, edge_width_px,
     nominal_camera, saturated_fraction,
 };
+#[cfg(feature = "sim")]
 pub use virtual_board::{
     BoardCamera, BoardPlacement, BoardProjector, BoardTurntable, VirtualBoardMover, VirtualBoardRig,
 };
 
-pub use calibrate::{
-    CalibrationSummary, calibrate_virtual, load_scan_calibration, require_turntable_axis,
-};
+pub use calibrate::{load_scan_calibration, require_turntable_axis};
 pub use capture::{
     SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_session, full_turn_motor_angles, scan_patterns,
 };
@@ -97,15 +114,18 @@ pub use device_scan::{
     SessionCapture, capture_device_session, scan_devices,
 };
 pub use error::ScanError;
+#[cfg(feature = "sim")]
 pub use measure::{
     Measurements, PLATE_SIZE_MM, PLATE_TILT_DEG, SELECT_MM, measure_scan, plate_pose, plate_scene,
     plate_truth, scene_truth,
 };
 pub use merge::{MergeReport, MergeStageConfig, MergedViews, ViewPoseReport, merge_scan};
+#[cfg(feature = "mesh")]
 pub use mesh::{
     MESH_CELL_PER_SPACING, MeshConfig, MeshFiles, MeshSummary, mesh_stage, mesh_stage_with,
     scan_poisson_config, write_mesh_pictures,
 };
+#[cfg(feature = "mesh")]
 pub use mesh_chain::{MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};
 pub use placements::{
     MAX_PLACEMENTS, PLACEMENT_SESSION_DIR, PlacementAlignment, PlacementConfig, PlacementRig,
@@ -117,7 +137,9 @@ pub use reconstruct::{
     ReconstructConfig, ReconstructedViews, drop_grazing, reconstruct_decoded, reconstruct_session,
     reconstruct_view, reconstruct_view_eroded,
 };
-pub use report::{SessionScanFiles, write_heat_map, write_scan_cloud, write_summary_html};
+#[cfg(feature = "sim")]
+pub use report::write_summary_html;
+pub use report::{SessionScanFiles, write_heat_map, write_scan_cloud};
 pub use run_report::{RunReport, write_atomically};
 pub use session_calibration::{
     CalibrationFilesConfig, CameraFiles, ProcamFiles, SessionCalibration, SkippedImage,
@@ -126,10 +148,15 @@ pub use session_calibration::{
     session_projector_size, turntable_views,
 };
 pub use session_scan::{SessionScan, SessionScanConfig, scan_session};
+#[cfg(feature = "sim")]
+pub use virtual_calibrate::{CalibrationSummary, calibrate_virtual};
+#[cfg(feature = "sim")]
 pub use virtual_object::{ObjectCamera, ObjectProjector, ObjectTurntable, VirtualObjectRig};
+#[cfg(feature = "sim")]
 pub use virtual_placements::{
     PlacementFigures, PlacementsResult, TRUTH_MESH_FILE, scan_virtual_placements,
 };
+#[cfg(feature = "sim")]
 pub use virtual_scan::{ScanFiles, ScanResult, VirtualScanConfig, scaled_rig_config, scan_virtual};
 
 /// The README's example, compiled and run by `cargo test --doc`.

@@ -1,15 +1,19 @@
 //! The report stage: the merged cloud as PLY, shaded previews, error heat maps and the
 //! one-page summary (`index.html`; `report.json` is written by the caller, `slscan`).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
+#[cfg(feature = "sim")]
+use std::path::PathBuf;
 
 use serde::Serialize;
 use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, PreviewConfig, render_preview, write_ply};
 use sl_codec::write_png_rgb8;
 use sl_metrology::{DEFAULT_HEAT_MAP_RANGE_MM, Report, heat_map};
 
+#[cfg(feature = "sim")]
+use crate::ScanResult;
 use crate::error::io;
-use crate::{ScanError, ScanProgress, ScanResult};
+use crate::{ScanError, ScanProgress};
 
 /// Viewpoints of the previews: azimuth and elevation (degrees).
 const PREVIEWS: [(f64, f64); 4] = [(0.0, 20.0), (90.0, 20.0), (180.0, 20.0), (0.0, 80.0)];
@@ -88,6 +92,7 @@ fn write_preview(
     Ok(())
 }
 
+#[cfg(feature = "sim")]
 /// Writes `index.html`: a one-page summary linking the pictures and figures of a scan.
 pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, ScanError> {
     let a = &result.accuracy;

@@ -19,10 +19,10 @@ use sl_metrology::{
 use sl_rig::turntable_angles;
 use sl_sim::{DEFAULT_WORKING_DISTANCE_MM, Scene, VirtualRig};
 
-use crate::calibrate::calibrate_virtual_stage;
 use crate::error::{io, stage_err};
 use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
+use crate::virtual_calibrate::calibrate_virtual_stage;
 use crate::virtual_scan::capture_virtual;
 use crate::{
     CalibrationSummary, MergeStageConfig, ScanError, ScanProgress, SessionScanConfig, StageTime,

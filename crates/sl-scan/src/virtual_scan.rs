@@ -21,9 +21,9 @@ use sl_rig::{
 use sl_sim::{RigConfig, Scene, VirtualRig};
 use sl_tri::Triangulator;
 
-use crate::calibrate::calibrate_virtual_stage;
 use crate::error::{io, stage_err};
 use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
+use crate::virtual_calibrate::calibrate_virtual_stage;
 use crate::{
     CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX,
     ScanError, ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan,

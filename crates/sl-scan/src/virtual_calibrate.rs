@@ -1,0 +1,217 @@
+//! The calibration stage of the virtual rig: the camera, the projector, `T_cam_proj` and the
+//! turntable axis, estimated from simulated board captures (`sl_calib::calibrate_procam`,
+//! `sl_calib::calibrate_turntable`) and compared with the rig's truth.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::Serialize;
+use sl_calib::{
+    BoardSize, ProcamConfig, ProcamView, TurntableConfig, TurntableView, calibrate_procam,
+    calibrate_turntable,
+};
+use sl_camera::Calibration;
+use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frames, ImageSize, decode};
+use sl_rig::GreyImage;
+use sl_sim::{CalibrationCaptures, CalibrationSession, VirtualRig, calibration_sequence};
+
+use crate::error::stage_err;
+use crate::{ScanError, ScanProgress, StageTime, VirtualScanConfig};
+
+/// How the calibration was obtained and how far it is from the rig's truth.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CalibrationSummary {
+    /// Where each part of the calibration comes from.
+    pub sources: Vec<String>,
+    /// Board poses used / rendered.
+    pub poses_used: usize,
+    /// RMS reprojection errors (px): camera alone, projector alone, joint.
+    pub rms_camera_px: f64,
+    /// See `rms_camera_px`.
+    pub rms_projector_px: f64,
+    /// See `rms_camera_px`.
+    pub rms_stereo_px: f64,
+    /// RMS of the turntable-axis fit (px).
+    pub rms_turntable_px: f64,
+    /// Relative error of the camera's `fx` against the truth (%).
+    pub camera_fx_error_percent: f64,
+    /// Relative error of the projector's `fx` against the truth (%).
+    pub projector_fx_error_percent: f64,
+    /// Error of the camera–projector translation (mm).
+    pub baseline_error_mm: f64,
+    /// Angle between the fitted and the true axis direction (degrees).
+    pub axis_direction_error_deg: f64,
+    /// Distance of the true axis point to the fitted axis line, near the object (mm).
+    pub axis_position_error_mm: f64,
+    /// The 3-D error the camera–projector calibration predicts for itself over the volume of
+    /// its board poses (`sl_calib::ProcamCalibration::predicted_error`); `None` when not
+    /// estimated.
+    pub predicted_error: Option<sl_calib::PredictedError>,
+}
+
+fn grey_image(img: GreyImage, what: &str) -> Result<sl_calib::image::GrayImage, ScanError> {
+    img.into_gray8()
+        .map_err(|e| stage_err("calibrate", format!("{what}: {e}")))
+}
+
+fn frames_u8(images: Vec<GreyImage>) -> Result<Frames, ScanError> {
+    let frames = images
+        .into_iter()
+        .map(GreyImage::into_frame8)
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Frames::U8(frames))
+}
+
+/// Calibrates the rig from simulated board captures: camera, projector and `T_cam_proj` by
+/// `sl_calib::calibrate_procam`, the turntable axis by `sl_calib::calibrate_turntable`.
+pub fn calibrate_virtual(
+    rig: &VirtualRig,
+    cfg: &VirtualScanConfig,
+    mut progress: impl FnMut(ScanProgress<'_>),
+) -> Result<(Calibration, CalibrationSummary), ScanError> {
+    let config = rig.config();
+    let session = CalibrationSession {
+        turntable_angles_deg: cfg.table_angles_deg.clone(),
+        ..CalibrationSession::with_poses(cfg.calibration_poses, cfg.seed)
+    };
+    let board = session.board;
+    let captures = CalibrationCaptures::new(rig, &session)?;
+    let poses = captures.poses().len();
+    let p = ImageSize::new(config.projector.size.width, config.projector.size.height);
+    let sequence = calibration_sequence(p);
+    let manifest = sequence.manifest(BitDepth::Eight);
+    let total = poses + cfg.table_angles_deg.len();
+    let mut views = Vec::with_capacity(poses);
+    for k in 0..poses {
+        let cap = captures.hand_held(k, Some(&sequence))?;
+        let set = CaptureSet::from_frames(manifest.clone(), frames_u8(cap.frames)?)?;
+        views.push(ProcamView {
+            name: format!("board pose {k}"),
+            lit: grey_image(cap.white, "white")?,
+            map: decode(&set, &DecodeConfig::default())?,
+        });
+        progress(ScanProgress {
+            stage: "calibrate",
+            done: k + 1,
+            total,
+        });
+    }
+    let size = BoardSize::new(board.inner_cols, board.inner_rows);
+    let detector = sl_calib::DetectorConfig::with_refiner(cfg.corners);
+    let procam = calibrate_procam(
+        &views,
+        &ProcamConfig {
+            detector,
+            ..ProcamConfig::new(size, board.square_mm, config.projector.size)
+        },
+    )?;
+    drop(views);
+    let mut table_views = Vec::new();
+    for (k, &angle) in cfg.table_angles_deg.iter().enumerate() {
+        let cap = captures.on_table(k, None)?;
+        let label = format!("board on the turntable at {angle} degrees");
+        table_views.push(TurntableView::detect(
+            &grey_image(cap.white, &label)?,
+            &label,
+            angle,
+            size,
+            board.square_mm,
+            &detector,
+        )?);
+        progress(ScanProgress {
+            stage: "calibrate",
+            done: poses + k + 1,
+            total,
+        });
+    }
+    let table = calibrate_turntable(
+        &procam.camera.camera,
+        &table_views,
+        &TurntableConfig::default(),
+    )?;
+    let mut calibration = procam.to_calibration();
+    calibration.turntable = Some(table.axis);
+    calibration.metadata.notes = "estimated by slscan scan from simulated board captures of the virtual rig (sl_calib::calibrate_procam, sl_calib::calibrate_turntable)".to_owned();
+
+    let truth_axis = config.turntable_axis();
+    let d_est = table.axis.direction.normalize();
+    let d_true = truth_axis.direction.normalize();
+    let direction_error = d_est
+        .dot(&d_true)
+        .abs()
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    // Distance from the true axis point (on the table, under the object) to the fitted line.
+    let off = truth_axis.point_mm - table.axis.point_mm;
+    let position_error = (off - d_est * off.dot(&d_est)).norm();
+    let rel = |a: f64, b: f64| 100.0 * (a - b) / b;
+    let summary = CalibrationSummary {
+        sources: vec![
+            "camera, projector, T_cam_proj: sl_calib::calibrate_procam on simulated board captures"
+                .to_owned(),
+            "turntable axis: sl_calib::calibrate_turntable on the board standing on the simulated turntable".to_owned(),
+        ],
+        poses_used: procam.views.len(),
+        rms_camera_px: procam.rms_camera,
+        rms_projector_px: procam.rms_projector,
+        rms_stereo_px: procam.rms_stereo,
+        rms_turntable_px: table.rms,
+        camera_fx_error_percent: rel(
+            procam.camera.camera.intrinsics.fx,
+            config.camera.intrinsics.fx,
+        ),
+        projector_fx_error_percent: rel(
+            procam.projector.camera.intrinsics.fx,
+            config.projector.intrinsics.fx,
+        ),
+        baseline_error_mm: (procam.t_cam_proj.translation.vector
+            - config.t_cam_proj.translation.vector)
+            .norm(),
+        axis_direction_error_deg: direction_error,
+        axis_position_error_mm: position_error,
+        predicted_error: procam.predicted_error,
+    };
+    Ok((calibration, summary))
+}
+
+/// Stage 1 of a scan on the virtual rig: the calibration estimated from simulated board
+/// captures ([`calibrate_virtual`]), or the rig's truth with `cfg.true_calibration`, saved as
+/// `calibration.json` in `out` (its path returned) and timed into `stages`.
+pub(crate) fn calibrate_virtual_stage(
+    rig: &VirtualRig,
+    cfg: &VirtualScanConfig,
+    out: &Path,
+    stages: &mut Vec<StageTime>,
+    progress: impl FnMut(ScanProgress<'_>),
+) -> Result<(Calibration, CalibrationSummary, PathBuf), ScanError> {
+    let t = Instant::now();
+    let (calibration, summary) = if cfg.true_calibration {
+        true_calibration(rig)
+    } else {
+        calibrate_virtual(rig, cfg, progress)?
+    };
+    let calib_path = out.join("calibration.json");
+    calibration.save(&calib_path)?;
+    stages.push(StageTime::since("calibrate", t));
+    Ok((calibration, summary, calib_path))
+}
+
+/// The rig's exact calibration, as [`calibrate_virtual`] would return it (diagnostic runs).
+pub(crate) fn true_calibration(rig: &VirtualRig) -> (Calibration, CalibrationSummary) {
+    let summary = CalibrationSummary {
+        sources: vec!["the rig's true calibration (diagnostic run, nothing estimated)".to_owned()],
+        poses_used: 0,
+        rms_camera_px: 0.0,
+        rms_projector_px: 0.0,
+        rms_stereo_px: 0.0,
+        rms_turntable_px: 0.0,
+        camera_fx_error_percent: 0.0,
+        projector_fx_error_percent: 0.0,
+        baseline_error_mm: 0.0,
+        axis_direction_error_deg: 0.0,
+        axis_position_error_mm: 0.0,
+        predicted_error: None,
+    };
+    (rig.config().calibration(), summary)
+}
