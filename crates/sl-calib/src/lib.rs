@@ -39,6 +39,7 @@ mod error;
 mod grey;
 mod homography;
 mod junction;
+mod lm;
 mod local_homography;
 #[cfg(feature = "pictures")]
 mod pictures;

@@ -1,16 +1,16 @@
 //! Joint refinement of a camera–projector pair (as `cv::stereoCalibrate`): camera intrinsics
 //! and distortion, projector intrinsics and distortion, one pose per board view and the single
 //! `T_proj_cam`, by Levenberg–Marquardt with analytic Jacobians, solved through the Schur
-//! complement over the per-view poses (the normal-equation pieces of `zhang.rs`).
+//! complement over the per-view poses (`lm.rs`, as Zhang's calibration).
 
 use nalgebra::{DMatrix, DVector, Matrix6, Point2, Point3, SMatrix, Vector2, Vector3, Vector6};
 use sl_camera::{CameraModel, ImageSize, RvecTvec, rotation_jacobian};
 
 use crate::CalibError;
-use crate::zhang::{
-    FULL, Layout, Normal, SchurProblem, camera_from_full, levenberg_marquardt, step_poses,
-    unscaled_covariance,
+use crate::lm::{
+    Normal, SchurProblem, levenberg_marquardt, std_dev, step_poses, unscaled_covariance,
 };
+use crate::zhang::{FULL, Layout, camera_from_full};
 use crate::{ParameterStdDev, ZhangConfig};
 
 use crate::predicted::SHARED;
@@ -317,9 +317,9 @@ pub(crate) fn refine_stereo(
     let mut extrinsics_std = [0.0; 6];
     let mut covariance = None;
     if let Some(cov) = unscaled_covariance(&normal) {
-        let full = &problem.t * &cov.shared * problem.t.transpose();
+        let full = cov.mapped(&problem.t);
         covariance = Some(&full * sigma2);
-        let sd = |i: usize| (sigma2 * full[(i, i)]).max(0.0).sqrt();
+        let sd = |i: usize| std_dev(sigma2, full[(i, i)]);
         for i in 0..5 {
             camera_std.intrinsics[i] = sd(i);
             projector_std.intrinsics[i] = sd(FULL + i);
@@ -331,11 +331,7 @@ pub(crate) fn refine_stereo(
         for (i, e) in extrinsics_std.iter_mut().enumerate() {
             *e = sd(2 * FULL + i);
         }
-        for (diag, o) in cov.pose_diagonals.iter().zip(camera_std.poses.iter_mut()) {
-            for (v, d) in o.iter_mut().zip(diag.iter()) {
-                *v = (sigma2 * d).max(0.0).sqrt();
-            }
-        }
+        camera_std.poses = cov.pose_std_devs(sigma2);
     }
     Ok(StereoSolution {
         camera: models.camera,

@@ -16,6 +16,7 @@ use serde::{Deserialize, Serialize};
 use sl_camera::{CameraModel, RvecTvec, TurntableAxis, isometry_from_rt, rotation_from_rvec};
 
 use crate::homography::homography_dlt;
+use crate::lm::{INITIAL_DAMPING, MAX_DAMPING};
 use crate::{
     BoardCorners, BoardSize, CalibError, CalibrationView, DetectorConfig, detect_checkerboard,
 };
@@ -26,12 +27,6 @@ pub const MIN_TURNTABLE_VIEWS: usize = 3;
 
 /// Board points needed for a pose: a plane homography needs 4.
 const MIN_POINTS: usize = 4;
-
-/// Damping at the start of Levenberg–Marquardt, relative to the diagonal (as `zhang.rs`).
-const INITIAL_DAMPING: f64 = 1e-3;
-
-/// Damping beyond which LM gives up: the steps are then vanishingly small.
-const MAX_DAMPING: f64 = 1e12;
 
 /// Relative step of the central differences of the axis refinement: with parameters of
 /// order 1 (radians, the scale) to 1e3 (mm), truncation `O(h²)` and rounding `O(ε/h)` are

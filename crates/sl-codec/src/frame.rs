@@ -1,6 +1,6 @@
 //! Grey camera frames: 8- or 16-bit samples in one contiguous row-major buffer.
 
-use crate::CodecError;
+use crate::{Axis, CodecError};
 
 mod sealed {
     pub trait Sealed {}
@@ -281,6 +281,29 @@ pub(crate) fn check_sizes<T: Sample>(
         }
     }
     Ok(())
+}
+
+/// Width and height of the first frame (0 x 0 if none).
+pub(crate) fn dims<T: Sample>(frames: &[Frame<T>]) -> (usize, usize) {
+    frames.first().map_or((0, 0), |f| (f.width(), f.height()))
+}
+
+/// Checks the frame count and sizes of a block.
+pub(crate) fn check_block<T: Sample>(
+    codec: &'static str,
+    axis: Axis,
+    expected: usize,
+    frames: &[Frame<T>],
+) -> Result<(), CodecError> {
+    if frames.len() != expected {
+        return Err(CodecError::FrameCount {
+            codec,
+            axis: axis.name(),
+            expected,
+            found: frames.len(),
+        });
+    }
+    check_sizes(frames, None)
 }
 
 #[cfg(test)]

@@ -19,12 +19,11 @@
 //! SLMaster's shifted Gray code (period-wide stripes offset by half a period) is the same rule
 //! with no margin left at the stripe edges; it decodes too, from its manifest.
 
+use crate::bits::{Band, BitThresholds, GrayScratch, read_inverse_bits, read_threshold_bits};
 use crate::correspondence::{AxisMap, InvalidReason};
 use crate::fast_math;
-use crate::gray::{
-    Band, BitThresholds, GrayCodeSpec, GrayReference, GrayScratch, check_block, dims,
-    read_inverse_bits, read_threshold_bits, stripe_positions,
-};
+use crate::frame::{check_block, dims};
+use crate::gray::{GrayCodeSpec, GrayReference, stripe_positions};
 use crate::kernel::{self, AxisRows, Kernel, fill_out};
 use crate::pattern::{ceil_log2, finite, positive};
 use crate::phase_shift::{

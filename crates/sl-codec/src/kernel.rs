@@ -8,8 +8,9 @@
 
 use rayon::prelude::*;
 
+use crate::bits::GrayScratch;
 use crate::correspondence::{AxisMap, CorrespondenceMap, InvalidReason};
-use crate::gray::{GrayKernel, GrayScratch};
+use crate::gray::GrayKernel;
 use crate::hybrid::{HybridKernel, HybridScratch};
 use crate::phase_shift::{PhaseKernel, PhaseScratch};
 use crate::{Axis, Sample};

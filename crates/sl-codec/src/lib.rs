@@ -65,6 +65,7 @@
 //! - Geometry in `f64` (specs, pattern functions); per-pixel image data in `u8`/`u16`/`f32`.
 #![deny(missing_docs)]
 
+mod bits;
 mod capture;
 mod config;
 mod correspondence;

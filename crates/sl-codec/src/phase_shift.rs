@@ -19,9 +19,10 @@
 
 use std::f64::consts::TAU;
 
+use crate::bits::Band;
 use crate::correspondence::{AxisMap, InvalidReason};
 use crate::fast_math;
-use crate::gray::{Band, check_block, dims};
+use crate::frame::{check_block, dims};
 use crate::kernel::{self, AxisRows, Kernel, fill_out};
 use crate::pattern::{finite, positive};
 use crate::unwrap::{Plan, Unwrap, UnwrapScratch, gcd};

@@ -11,11 +11,12 @@
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::Point3;
 use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
 use crate::adjacency::check_indices;
+use crate::quadric::Quadric;
 use crate::topology::{compact_vertices, edge_uses};
 
 /// A moved triangle whose normal turns by more than this (cosine 0.2: about 78°) is taken for
@@ -25,68 +26,6 @@ const MIN_NORMAL_COSINE: f64 = 0.2;
 /// Weight of the rim-preserving planes relative to the area-weighted face planes: a rim vertex
 /// sliding off its rim costs as much as it would leaving ten triangles' planes.
 const BOUNDARY_WEIGHT: f64 = 10.0;
-
-/// A symmetric 4×4 quadric `[A b; bᵀ c]`: the squared distance sum `xᵀAx + 2bᵀx + c`.
-#[derive(Debug, Clone, Copy)]
-struct Quadric {
-    a: Matrix3<f64>,
-    b: Vector3<f64>,
-    c: f64,
-}
-
-impl Quadric {
-    fn zero() -> Self {
-        Self {
-            a: Matrix3::zeros(),
-            b: Vector3::zeros(),
-            c: 0.0,
-        }
-    }
-
-    /// The squared distance to the plane through `p` with unit normal `n`, times `w`.
-    fn plane(n: Vector3<f64>, p: Point3<f64>, w: f64) -> Self {
-        let d = -n.dot(&p.coords);
-        Self {
-            a: n * n.transpose() * w,
-            b: n * d * w,
-            c: d * d * w,
-        }
-    }
-
-    fn add(&self, o: &Self) -> Self {
-        Self {
-            a: self.a + o.a,
-            b: self.b + o.b,
-            c: self.c + o.c,
-        }
-    }
-
-    fn eval(&self, x: &Point3<f64>) -> f64 {
-        let v = x.coords;
-        (v.dot(&(self.a * v)) + 2.0 * self.b.dot(&v) + self.c).max(0.0)
-    }
-
-    /// The position of least error: the solution of `A x = −b` when `A` is well conditioned,
-    /// else the best of the two ends and the midpoint.
-    fn best(&self, p: Point3<f64>, q: Point3<f64>) -> (Point3<f64>, f64) {
-        let scale = self.a.trace().abs().max(f64::MIN_POSITIVE);
-        if self.a.determinant().abs() > 1e-9 * scale.powi(3)
-            && let Some(inv) = self.a.try_inverse()
-        {
-            let x = Point3::from(-(inv * self.b));
-            // Keep the optimum near the edge: far away it is a sign of a near-singular system.
-            let reach = (q - p).norm() * 2.0;
-            if (x - nalgebra::center(&p, &q)).norm() <= reach {
-                return (x, self.eval(&x));
-            }
-        }
-        [p, q, nalgebra::center(&p, &q)]
-            .into_iter()
-            .map(|x| (x, self.eval(&x)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap_or((p, 0.0))
-    }
-}
 
 /// A candidate collapse in the queue: smallest cost first.
 #[derive(Debug, PartialEq)]
@@ -168,15 +107,15 @@ pub fn decimate(mesh: &mut TriangleMesh, target_triangles: usize) -> Result<Deci
             incident[v as usize].push(t as u32);
         }
     }
-    let mut q = vec![Quadric::zero(); nv];
+    let mut q = vec![Quadric::default(); nv];
     for tri in &tris {
         let [a, b, c] = tri.map(|i| pos[i as usize]);
         let n = (b - a).cross(&(c - a));
         let area2 = n.norm();
         if area2 > 0.0 {
-            let plane = Quadric::plane(n / area2, a, area2 * 0.5);
+            let plane = Quadric::plane_outer(n / area2, &a, area2 * 0.5);
             for &v in tri {
-                q[v as usize] = q[v as usize].add(&plane);
+                q[v as usize].add(&plane);
             }
         }
     }
@@ -200,10 +139,13 @@ pub fn decimate(mesh: &mut TriangleMesh, target_triangles: usize) -> Result<Deci
         let n = e.cross(&face_n);
         let len = n.norm();
         if len > 0.0 {
-            let plane =
-                Quadric::plane(n / len, pos[a as usize], BOUNDARY_WEIGHT * e.norm_squared());
-            q[a as usize] = q[a as usize].add(&plane);
-            q[b as usize] = q[b as usize].add(&plane);
+            let plane = Quadric::plane_outer(
+                n / len,
+                &pos[a as usize],
+                BOUNDARY_WEIGHT * e.norm_squared(),
+            );
+            q[a as usize].add(&plane);
+            q[b as usize].add(&plane);
         }
     }
     let mut version = vec![0u32; nv];
@@ -215,8 +157,8 @@ pub fn decimate(mesh: &mut TriangleMesh, target_triangles: usize) -> Result<Deci
                 a: u32,
                 b: u32| {
         let (_, cost) = q[a as usize]
-            .add(&q[b as usize])
-            .best(pos[a as usize], pos[b as usize]);
+            .sum(&q[b as usize])
+            .best(&pos[a as usize], &pos[b as usize]);
         heap.push(Candidate {
             cost,
             a,
@@ -266,8 +208,8 @@ pub fn decimate(mesh: &mut TriangleMesh, target_triangles: usize) -> Result<Deci
         if ring_a.len() <= 2 || ring_b.len() <= 2 {
             continue;
         }
-        let qab = q[a].add(&q[b]);
-        let (x, cost) = qab.best(pos[a], pos[b]);
+        let qab = q[a].sum(&q[b]);
+        let (x, cost) = qab.best(&pos[a], &pos[b]);
         // No moved triangle may flip or collapse.
         let folds = |v: usize| {
             incident[v].iter().any(|&t| {

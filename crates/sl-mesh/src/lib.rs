@@ -72,6 +72,7 @@ mod holes;
 mod measure;
 mod orientation;
 mod poisson;
+mod quadric;
 mod remesh;
 mod render;
 mod simplify;

@@ -50,6 +50,7 @@ use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
 use crate::adjacency::check_indices;
+use crate::quadric::Quadric;
 use crate::topology::compact_vertices;
 
 /// A moved triangle whose normal turns by more than this (cosine 0.2: about 78°) is taken for a
@@ -141,136 +142,6 @@ pub struct Simplification {
     /// The density of each kept vertex (the larger of the two at each collapse); empty when
     /// no densities were given.
     pub densities: Vec<f64>,
-}
-
-/// A symmetric quadric `xᵀAx + 2bᵀx + c` (A's upper triangle, b, c) and its summed area.
-#[derive(Debug, Clone, Copy, Default)]
-struct Quadric {
-    a: [f64; 6],
-    b: [f64; 3],
-    c: f64,
-    w: f64,
-}
-
-impl Quadric {
-    /// The squared distance to the plane through `p` with unit normal `n`, times `w`.
-    fn plane(n: Vector3<f64>, p: &Point3<f64>, w: f64) -> Self {
-        let d = -n.dot(&p.coords);
-        Self {
-            a: [
-                w * n.x * n.x,
-                w * n.x * n.y,
-                w * n.x * n.z,
-                w * n.y * n.y,
-                w * n.y * n.z,
-                w * n.z * n.z,
-            ],
-            b: [w * n.x * d, w * n.y * d, w * n.z * d],
-            c: w * d * d,
-            w,
-        }
-    }
-
-    fn add(&mut self, o: &Self) {
-        for k in 0..6 {
-            self.a[k] += o.a[k];
-        }
-        for k in 0..3 {
-            self.b[k] += o.b[k];
-        }
-        self.c += o.c;
-        self.w += o.w;
-    }
-
-    fn sum(&self, o: &Self) -> Self {
-        let mut s = *self;
-        s.add(o);
-        s
-    }
-
-    fn eval(&self, p: &Point3<f64>) -> f64 {
-        let [a00, a01, a02, a11, a12, a22] = self.a;
-        let (x, y, z) = (p.x, p.y, p.z);
-        let q = x * (a00 * x + a01 * y + a02 * z)
-            + y * (a01 * x + a11 * y + a12 * z)
-            + z * (a02 * x + a12 * y + a22 * z)
-            + 2.0 * (self.b[0] * x + self.b[1] * y + self.b[2] * z)
-            + self.c;
-        q.max(0.0)
-    }
-
-    /// The mean squared distance at `p`: `Q(p) / W`.
-    fn mean(&self, p: &Point3<f64>) -> f64 {
-        if self.w > 0.0 {
-            self.eval(p) / self.w
-        } else {
-            0.0
-        }
-    }
-
-    /// The position of least error for merging the vertices at `p` and `q` (the minimum of
-    /// `Q` pulled weakly towards the midpoint, see [`MIDPOINT_PULL`]) and its mean squared
-    /// distance; with `plane = Some((g, h))`, the least error on the plane `g·x = h` (the
-    /// positions that keep the enclosed volume, see [`volume_plane`]). Falls back to the
-    /// unconstrained position when the constraint cannot be met near the edge, and to the best
-    /// of the two ends and the midpoint when the system is singular or its answer lies further
-    /// than the edge's length from the midpoint.
-    fn best(
-        &self,
-        p: &Point3<f64>,
-        q: &Point3<f64>,
-        plane: Option<(Vector3<f64>, f64)>,
-    ) -> (Point3<f64>, f64) {
-        let m = nalgebra::center(p, q);
-        let reach = (q - p).norm_squared();
-        let l = MIDPOINT_PULL * self.w;
-        let [a00, a01, a02, a11, a12, a22] = self.a;
-        let (a00, a11, a22) = (a00 + l, a11 + l, a22 + l);
-        // The inverse of the symmetric 3×3 matrix by its cofactors.
-        let c00 = a11 * a22 - a12 * a12;
-        let c01 = a02 * a12 - a01 * a22;
-        let c02 = a01 * a12 - a02 * a11;
-        let det = a00 * c00 + a01 * c01 + a02 * c02;
-        if det.abs() > f64::MIN_POSITIVE {
-            let c11 = a00 * a22 - a02 * a02;
-            let c12 = a01 * a02 - a00 * a12;
-            let c22 = a00 * a11 - a01 * a01;
-            let inv = |r: [f64; 3]| {
-                Vector3::new(
-                    (c00 * r[0] + c01 * r[1] + c02 * r[2]) / det,
-                    (c01 * r[0] + c11 * r[1] + c12 * r[2]) / det,
-                    (c02 * r[0] + c12 * r[1] + c22 * r[2]) / det,
-                )
-            };
-            let x0 = Point3::from(inv([
-                -self.b[0] + l * m.x,
-                -self.b[1] + l * m.y,
-                -self.b[2] + l * m.z,
-            ]));
-            let near = |x: &Point3<f64>| {
-                x.coords.iter().all(|c| c.is_finite()) && (x - m).norm_squared() <= reach
-            };
-            if let Some((g, h)) = plane {
-                // Lagrange: x = x0 + A⁻¹g (h − g·x0) / (g·A⁻¹g).
-                let y = inv([g.x, g.y, g.z]);
-                let gy = g.dot(&y);
-                if gy > 0.0 {
-                    let x = x0 + y * ((h - g.dot(&x0.coords)) / gy);
-                    if near(&x) {
-                        return (x, self.mean(&x));
-                    }
-                }
-            }
-            if near(&x0) {
-                return (x0, self.mean(&x0));
-            }
-        }
-        [*p, *q, m]
-            .into_iter()
-            .map(|x| (x, self.mean(&x)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap_or((m, 0.0))
-    }
 }
 
 /// The plane `g·x = h` of the positions `x` at which merging `a` and `b` keeps the volume the
@@ -937,10 +808,12 @@ impl Work {
                 } else {
                     self.bound_s
                 };
-                let (_, cost) =
-                    self.quad[v]
-                        .sum(&self.quad[u])
-                        .best(&self.pos[v], &self.pos[u], None);
+                let (_, cost) = self.quad[v].sum(&self.quad[u]).best_pulled(
+                    &self.pos[v],
+                    &self.pos[u],
+                    MIDPOINT_PULL,
+                    None,
+                );
                 if cost <= bound {
                     out.push(Candidate {
                         cost: if bound > 0.0 { cost / bound } else { 0.0 },
@@ -1168,7 +1041,7 @@ fn try_collapse(
     let plane = volume_plane(pos, star_a, star_b, ca, cb);
     let both = view.unsupported[a] && view.unsupported[b];
     let bound = if both { view.bound_u } else { view.bound_s };
-    let (best, best_cost) = q.best(&pos[a], &pos[b], Some(plane));
+    let (best, best_cost) = q.best_pulled(&pos[a], &pos[b], MIDPOINT_PULL, Some(plane));
     // The best position, else (where it would fold a triangle, as the midpoint of a flat fan
     // can) either end if it keeps the volume too.
     let (g, h) = plane;
