@@ -1,13 +1,20 @@
 //! Capture sets: a manifest plus the camera frames it lists, loaded from disk or memory.
 
+#[cfg(feature = "image-files")]
 use std::path::{Path, PathBuf};
 
+#[cfg(feature = "image-files")]
 use rayon::prelude::*;
 
+#[cfg(feature = "image-files")]
+use crate::Frame;
+#[cfg(feature = "image-files")]
 use crate::frame::check_sizes;
+#[cfg(feature = "image-files")]
 use crate::image_file::{GreyImage, find_image_file, read_image};
+#[cfg(feature = "image-files")]
 use crate::manifest::MANIFEST_FILE;
-use crate::{CodecError, Frame, Frames, Manifest};
+use crate::{CodecError, Frames, Manifest};
 
 /// A manifest and its frames, in manifest order (block 0's frames first).
 #[derive(Clone, Debug, PartialEq)]
@@ -21,6 +28,7 @@ pub struct CaptureSet {
 }
 
 impl CaptureSet {
+    #[cfg(feature = "image-files")]
     /// Loads `manifest.json` (or a folder holding one) and every frame it lists.
     ///
     /// Frame paths are resolved against the manifest's `frames_dir` (relative to the manifest's
@@ -37,6 +45,7 @@ impl CaptureSet {
         Self::load_with_frames_dir(manifest_path, None)
     }
 
+    #[cfg(feature = "image-files")]
     /// As [`CaptureSet::load`], but frames are looked for in `frames_dir` when given (for
     /// manifests kept apart from read-only data, as this crate's tests do with SLMaster's
     /// captures).
@@ -112,6 +121,7 @@ impl CaptureSet {
     }
 }
 
+#[cfg(feature = "image-files")]
 /// Reads one image file as a grey frame ([`read_image`]): 8-bit grey stays 8-bit, 16-bit
 /// grey stays 16-bit, colour is converted to grey by OpenCV's `COLOR_RGB2GRAY` rule at its own
 /// depth, and float images become 16-bit. BMP, PGM/PPM, PNG, JPEG and TIFF are read.
@@ -125,6 +135,7 @@ pub fn load_frame(path: &Path) -> Result<Frames, CodecError> {
     })
 }
 
+#[cfg(feature = "image-files")]
 /// Loads frames in parallel; if any is 16-bit, all become 16-bit.
 fn load_frames(paths: &[PathBuf]) -> Result<Frames, CodecError> {
     let loaded: Vec<GreyImage> = paths

@@ -21,6 +21,7 @@ pub enum CodecError {
         source: std::io::Error,
     },
     /// An image file could not be decoded or encoded.
+    #[cfg(feature = "image-files")]
     #[error("{path}: image {action} failed: {source}")]
     Image {
         /// The image file.

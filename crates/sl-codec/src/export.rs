@@ -7,7 +7,9 @@
 use std::io::Write;
 use std::path::Path;
 
-use crate::{CodecError, Frame};
+use crate::CodecError;
+#[cfg(feature = "image-files")]
+use crate::Frame;
 
 /// Writes a grey `f32` image as an uncompressed little-endian baseline TIFF (one strip,
 /// `SampleFormat = IEEEFP`, `BitsPerSample = 32`).
@@ -104,6 +106,7 @@ pub fn write_npy_f32(
     write_file(path, &out)
 }
 
+#[cfg(feature = "image-files")]
 /// Writes an 8-bit grey PNG.
 ///
 /// # Errors
@@ -118,6 +121,7 @@ pub fn write_png_grey8(path: &Path, frame: &Frame<u8>) -> Result<(), CodecError>
     )
 }
 
+#[cfg(feature = "image-files")]
 /// Writes a 16-bit grey PNG.
 ///
 /// # Errors
@@ -133,6 +137,7 @@ pub fn write_png_grey16(path: &Path, frame: &Frame<u16>) -> Result<(), CodecErro
     )
 }
 
+#[cfg(feature = "image-files")]
 /// Writes an 8-bit RGB PNG from `width * height * 3` bytes.
 ///
 /// # Errors
@@ -147,6 +152,7 @@ pub fn write_png_rgb8(
     save(path, width, height, rgb, image::ExtendedColorType::Rgb8)
 }
 
+#[cfg(feature = "image-files")]
 fn save(
     path: &Path,
     width: usize,

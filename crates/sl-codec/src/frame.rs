@@ -178,6 +178,7 @@ impl<T: Sample> Frame<T> {
 impl<T> Frame<T> {
     /// Wraps a buffer the caller knows to be `width * height` samples of a non-empty image
     /// (a decoded image file); `Frame::new`'s checks are the caller's.
+    #[cfg(feature = "image-files")]
     pub(crate) fn from_valid_parts(width: usize, height: usize, data: Vec<T>) -> Self {
         debug_assert!(width > 0 && height > 0 && data.len() == width * height);
         Self {

@@ -76,6 +76,7 @@ mod fast_math;
 mod frame;
 mod gray;
 mod hybrid;
+#[cfg(feature = "image-files")]
 mod image_file;
 mod kernel;
 mod manifest;
@@ -88,7 +89,9 @@ mod synthetic;
 mod texture;
 mod unwrap;
 
-pub use capture::{CaptureSet, load_frame};
+pub use capture::CaptureSet;
+#[cfg(feature = "image-files")]
+pub use capture::load_frame;
 pub use config::{
     DEFAULT_DIRECT_GLOBAL_BITS, DEFAULT_MIN_CONTRAST, DEFAULT_MIN_DIRECT, DEFAULT_MIN_MODULATION,
     DEFAULT_ROWS_PER_TASK, DEFAULT_SATURATION_LEVEL, DEFAULT_UNWRAP_TOLERANCE, DecodeConfig,
@@ -96,12 +99,13 @@ pub use config::{
 pub use correspondence::{AxisMap, Correspondence, CorrespondenceMap, InvalidReason};
 pub use decode::{decode, decode_frames, decode_frames_into, decode_into};
 pub use error::CodecError;
-pub use export::{
-    write_npy_f32, write_png_grey8, write_png_grey16, write_png_rgb8, write_tiff_f32,
-};
+pub use export::{write_npy_f32, write_tiff_f32};
+#[cfg(feature = "image-files")]
+pub use export::{write_png_grey8, write_png_grey16, write_png_rgb8};
 pub use frame::{Frame, Frames, Sample};
 pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIFT, decode_gray};
 pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, decode_hybrid};
+#[cfg(feature = "image-files")]
 pub use image_file::{
     GreyImage, IMAGE_EXTENSIONS, find_image_file, is_image_file, read_grey8, read_image,
 };
@@ -111,9 +115,9 @@ pub use phase_shift::{
     MAX_STEPS, MIN_PERIOD_PIXELS, PhaseShiftSpec, ShiftSign, WrappedPhase, decode_phase,
     wrapped_phase,
 };
-pub use pictures::{
-    INVALID_PALETTE, MapFormat, OutputFiles, false_color, invalid_colors, turbo, write_outputs,
-};
+#[cfg(feature = "image-files")]
+pub use pictures::write_outputs;
+pub use pictures::{INVALID_PALETTE, MapFormat, OutputFiles, false_color, invalid_colors, turbo};
 pub use sequence::{PatternSequence, render_pattern};
 pub use smooth::{MAX_SMOOTH_RADIUS, SmoothConfig, smooth_correspondences};
 pub use synthetic::SyntheticScene;

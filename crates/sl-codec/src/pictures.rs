@@ -1,10 +1,15 @@
 //! False-colour pictures and map files of a correspondence map: what people look at first when a
 //! scan goes wrong.
 
-use std::path::{Path, PathBuf};
+#[cfg(feature = "image-files")]
+use std::path::Path;
+use std::path::PathBuf;
 
+use crate::InvalidReason;
+#[cfg(feature = "image-files")]
 use crate::export::{write_npy_f32, write_png_grey8, write_png_rgb8, write_tiff_f32};
-use crate::{CodecError, CorrespondenceMap, Frame, ImageSize, InvalidReason};
+#[cfg(feature = "image-files")]
+use crate::{CodecError, CorrespondenceMap, Frame, ImageSize};
 
 /// Colours of the invalid-reason picture, indexed by the reason's byte value: valid pixels
 /// dark green, inconsistent code red, low modulation blue, shadow black, saturated white.
@@ -18,6 +23,7 @@ pub const INVALID_PALETTE: [[u8; 3]; 5] = [
 
 /// Quantile of the valid qualities mapped to the top of the colour scale, so that a few
 /// specular highlights do not squash the picture into the dark end.
+#[cfg(feature = "image-files")]
 const QUALITY_SCALE_QUANTILE: f64 = 0.99;
 
 /// The "turbo" colour scale (Mikhailov 2019, polynomial fit) at `x` in `[0, 1]`.
@@ -101,6 +107,7 @@ pub struct OutputFiles {
     pub pictures: Vec<PathBuf>,
 }
 
+#[cfg(feature = "image-files")]
 /// Writes `col`, `row` and `quality` as float maps, `invalid.png` (labels), and the
 /// false-colour pictures `col_color.png`, `row_color.png`, `quality_color.png` and
 /// `invalid_color.png` into `dir` (created if needed).
@@ -175,6 +182,7 @@ pub fn write_outputs(
     Ok(files)
 }
 
+#[cfg(feature = "image-files")]
 /// The `q` quantile of the finite values (1 if there is none).
 fn quantile(values: &[f32], q: f64) -> f32 {
     let mut v: Vec<f32> = values.iter().copied().filter(|x| x.is_finite()).collect();

@@ -1,8 +1,10 @@
 //! A whole pattern sequence: the blocks in projection order, their rendering, and the files
 //! written for a projector.
 
+#[cfg(feature = "image-files")]
 use std::path::Path;
 
+#[cfg(feature = "image-files")]
 use rayon::prelude::*;
 
 use crate::manifest::{Manifest, ManifestBlock};
@@ -165,6 +167,7 @@ impl PatternSequence {
         }
     }
 
+    #[cfg(feature = "image-files")]
     /// Writes every pattern as a PNG of `bit_depth` into `dir` (created if needed) together
     /// with `manifest.json`, and returns the manifest.
     ///
