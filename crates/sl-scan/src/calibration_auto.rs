@@ -11,9 +11,8 @@ use std::time::{Duration, Instant};
 use nalgebra::Point2;
 use sl_rig::{Camera, Projector};
 
-use crate::calibration_capture::{
-    CalibrationCapture, CaptureError, PoseCheck, Refusal, TakeOutcome,
-};
+use crate::calibration_capture::{CalibrationCapture, CaptureError, TakeOutcome};
+use crate::pose_gates::{PoseCheck, Refusal};
 
 /// Who moves the board between poses.
 pub trait BoardMover {

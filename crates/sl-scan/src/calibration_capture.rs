@@ -25,11 +25,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use nalgebra::Point2;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use sl_calib::sl_camera::{CameraModel, ImageSize};
-use sl_calib::sl_codec::{
-    Axis, BitDepth, HybridSpec, MANIFEST_FILE, Manifest, Pattern, PatternSequence,
-};
+use sl_calib::sl_codec::{BitDepth, Manifest};
 use sl_calib::{
     BoardCorners, BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera,
     detect_checkerboard,
@@ -37,68 +35,18 @@ use sl_calib::{
 use sl_rig::{Camera, GreyImage, Projector, RigError, Turntable, write_capture_set};
 
 use crate::calibration_coverage::Coverage;
+use crate::calibration_files::{
+    BoardFile, BoardJson, PARTIAL_PREFIX, complete_folder, pose_dir_name, remove_partials,
+};
+use crate::pose_gates::{PoseCheck, PoseGates, Refusal};
 use crate::pose_quality::{BoardGeometry, edge_width_px, nominal_camera, saturated_fraction};
-
-/// Folder of the hand-held poses inside a session.
-pub const BOARD_DIR: &str = "board";
-/// Folder of the turntable views inside a session.
-pub const TURNTABLE_DIR: &str = "turntable";
-/// The board under full white in each capture folder (what corner detection reads).
-pub const WHITE_IMAGE: &str = "white.png";
-/// The per-folder description of the board and the motor angle.
-pub const BOARD_FILE: &str = "board.json";
-
-/// Prefix of a pose folder being written; renamed to `pose_NNN` when complete.
-const PARTIAL_PREFIX: &str = ".partial_";
+use crate::{
+    BOARD_DIR, BOARD_FILE, TURNTABLE_DIR, WHITE_IMAGE, angle_dir_name, calibration_patterns,
+};
 
 /// Poses needed before the camera guess is replaced by a calibration of the poses so far:
 /// Zhang's method needs three views for the focal length and the principal point.
 const MIN_POSES_FOR_CAMERA: usize = 3;
-
-/// Folder name of hand-held pose `k`.
-pub fn pose_dir_name(k: usize) -> String {
-    format!("pose_{k:03}")
-}
-
-/// Folder name of turntable view `k`.
-pub fn angle_dir_name(k: usize) -> String {
-    format!("angle_{k:03}")
-}
-
-/// `count` motor angles spread evenly over −45° … 45° (0 for one): the turntable views of a
-/// calibration session, as `slscan simulate --scene board` takes them for 7 (15° apart).
-pub fn calibration_turntable_angles(count: usize) -> Vec<f64> {
-    match count {
-        0 => Vec::new(),
-        1 => vec![0.0],
-        n => (0..n)
-            .map(|k| -45.0 + 90.0 * k as f64 / (n - 1) as f64)
-            .collect(),
-    }
-}
-
-/// Projector periods across the image of the calibration code: 30 periods (64 projector px on
-/// a 1920 px projector) decode robustly on a board seen at an angle.
-const CALIBRATION_PERIODS: f64 = 30.0;
-/// Phase steps of the calibration code (4: 8 halve the phase noise for twice the frames).
-const CALIBRATION_PHASE_STEPS: u32 = 4;
-
-/// The default pattern sequence of a calibration capture: the complementary hybrid code on
-/// the projector columns, then on its rows (the projector calibration needs both), 4 phase
-/// steps, 30 periods across — as `slscan scan` calibrates the virtual rig.
-pub fn calibration_patterns(projector: ImageSize) -> PatternSequence {
-    let code = |axis, extent: u32| {
-        Pattern::Hybrid(HybridSpec::complementary(
-            axis,
-            projector,
-            CALIBRATION_PHASE_STEPS,
-            f64::from(extent) / CALIBRATION_PERIODS,
-        ))
-    };
-    PatternSequence::new(projector)
-        .with(code(Axis::Column, projector.width))
-        .with(code(Axis::Row, projector.height))
-}
 
 /// Everything that can go wrong in a calibration capture (a refused pose is not an error: see
 /// [`Refusal`]).
@@ -138,7 +86,7 @@ pub enum CaptureError {
 }
 
 impl CaptureError {
-    fn io(path: &Path, source: std::io::Error) -> Self {
+    pub(crate) fn io(path: &Path, source: std::io::Error) -> Self {
         Self::Io {
             path: path.to_path_buf(),
             source,
@@ -156,147 +104,6 @@ impl CaptureError {
     #[cfg(feature = "sim")]
     pub(crate) fn sim(e: impl std::fmt::Display) -> Self {
         Self::Simulator(e.to_string())
-    }
-}
-
-/// The checks a pose must pass.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct PoseGates {
-    /// Largest fraction of the board's pixels at the sensor's top
-    /// ([`crate::SATURATION_LEVEL`]): clipped white squares move the corners. Default 0.02.
-    pub max_saturated_fraction: f64,
-    /// Widest edge (px, [`crate::edge_width_px`]): about 2 for a sharp board, 2.5 σ for a
-    /// blur of σ px. Default 5 (σ ≈ 2 px: corner errors grow past a tenth of a pixel).
-    pub max_edge_width_px: f64,
-    /// A pose is new when its board normal turns at least this much from every earlier pose
-    /// (degrees), … Default 10 (Zhang's least useful tilt difference).
-    pub min_tilt_change_deg: f64,
-    /// … or its centre moves at least this fraction of the image diagonal, … Default 0.1.
-    pub min_shift: f64,
-    /// … or its apparent size changes by at least this fraction. Default 0.25.
-    pub min_size_change: f64,
-}
-
-impl Default for PoseGates {
-    fn default() -> Self {
-        Self {
-            max_saturated_fraction: 0.02,
-            max_edge_width_px: 5.0,
-            min_tilt_change_deg: 10.0,
-            min_shift: 0.1,
-            min_size_change: 0.25,
-        }
-    }
-}
-
-/// Why a pose was refused (nothing is written for it).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub enum Refusal {
-    /// The board is not in the frame, or not all of it.
-    BoardNotFound {
-        /// The detector's reason.
-        reason: String,
-    },
-    /// Too much of the board is saturated.
-    OverExposed {
-        /// Fraction of the board's pixels saturated.
-        saturated_fraction: f64,
-    },
-    /// The board's edges are blurred (motion or focus).
-    Blurred {
-        /// Median edge width (px).
-        edge_width_px: f64,
-    },
-    /// The pose is too close to an earlier one in position, size and tilt.
-    TooClose {
-        /// Number of the earlier pose (its folder `pose_NNN`).
-        pose: usize,
-        /// Angle between the two board normals (degrees).
-        tilt_change_deg: f64,
-        /// Shift of the board centre, as a fraction of the image diagonal.
-        shift: f64,
-    },
-}
-
-impl std::fmt::Display for Refusal {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::BoardNotFound { reason } => write!(f, "board not found: {reason}"),
-            Self::OverExposed { saturated_fraction } => write!(
-                f,
-                "over-exposed: {:.0} % of the board is saturated; lower the camera exposure or \
-                 the projector brightness",
-                100.0 * saturated_fraction
-            ),
-            Self::Blurred { edge_width_px } => write!(
-                f,
-                "blurred: edges {edge_width_px:.1} px wide; hold the board still and check the focus"
-            ),
-            Self::TooClose {
-                pose,
-                tilt_change_deg,
-                shift,
-            } => write!(
-                f,
-                "too close to pose {pose} (tilt {tilt_change_deg:.0} degrees and {:.0} % of the \
-                 image away): move or tilt the board more",
-                100.0 * shift
-            ),
-        }
-    }
-}
-
-/// What the camera sees now, and whether it makes a pose.
-#[derive(Debug, Clone)]
-pub struct PoseCheck {
-    /// The frame under full white.
-    pub white: GreyImage,
-    /// The detected corners, when the whole board was found.
-    pub corners: Option<BoardCorners>,
-    /// Inner corners of the board.
-    pub expected_corners: usize,
-    /// Where and how tilted the board is (with the camera known so far).
-    pub geometry: Option<BoardGeometry>,
-    /// Fraction of the board's pixels saturated.
-    pub saturated_fraction: f64,
-    /// Median width of the board's edges (px).
-    pub edge_width_px: Option<f64>,
-    /// `Ok` when the pose would be taken, else why not.
-    pub verdict: Result<(), Refusal>,
-}
-
-impl PoseCheck {
-    /// One line for the screen: `board found: 54/54 corners, tilt 23°` and the verdict.
-    pub fn summary(&self) -> String {
-        let found = self.corners.as_ref().map_or(0, |c| c.corners.len());
-        let mut s = if found > 0 {
-            format!("board found: {found}/{} corners", self.expected_corners)
-        } else {
-            format!("board not found: 0/{} corners", self.expected_corners)
-        };
-        if let Some(g) = &self.geometry {
-            s.push_str(&format!(", tilt {:.0} degrees", g.tilt_deg));
-        }
-        if let Some(w) = self.edge_width_px {
-            s.push_str(&format!(", edges {w:.1} px"));
-        }
-        if found > 0 {
-            s.push_str(&format!(
-                ", saturated {:.1} %",
-                100.0 * self.saturated_fraction
-            ));
-        }
-        match &self.verdict {
-            Ok(()) => s.push_str(" - ready"),
-            Err(r) => {
-                if found > 0 {
-                    s.push_str(&format!(" - {r}"));
-                } else if let Refusal::BoardNotFound { reason } = r {
-                    s.push_str(&format!(" ({reason})"));
-                }
-            }
-        }
-        s
     }
 }
 
@@ -374,38 +181,6 @@ impl CalibrationCaptureConfig {
             flush_frames: 0,
             detector: DetectorConfig::default(),
             gates: PoseGates::default(),
-        }
-    }
-}
-
-/// The `board.json` of a capture folder: what `slscan calibrate` reads (`motor_angle_deg`)
-/// and what a resumed capture needs (the detected corners).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-struct BoardFile {
-    board: BoardJson,
-    motor_angle_deg: f64,
-    /// Detected inner corners `[x, y]` (px), row by row; empty when the board was not found.
-    detected_corners_px: Vec<[f64; 2]>,
-    /// Fraction of the board's pixels saturated under white.
-    saturated_fraction: f64,
-    /// Median edge width (px).
-    edge_width_px: Option<f64>,
-}
-
-/// The board as `board.json` names it (the keys `slscan simulate` writes for its board).
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
-struct BoardJson {
-    inner_cols: u32,
-    inner_rows: u32,
-    square_mm: f64,
-}
-
-impl BoardJson {
-    fn of(config: &CalibrationCaptureConfig) -> Self {
-        Self {
-            inner_cols: config.board.cols,
-            inner_rows: config.board.rows,
-            square_mm: config.square_mm,
         }
     }
 }
@@ -934,36 +709,6 @@ impl CalibrationCapture {
     }
 }
 
-/// The `board.json` of a complete capture folder (white frame, manifest and board file);
-/// `None` when the folder is missing or incomplete.
-fn complete_folder(dir: &Path) -> Result<Option<BoardFile>, CaptureError> {
-    let file = dir.join(BOARD_FILE);
-    if !(dir.join(WHITE_IMAGE).is_file() && dir.join(MANIFEST_FILE).is_file() && file.is_file()) {
-        return Ok(None);
-    }
-    let text = std::fs::read_to_string(&file).map_err(|e| CaptureError::io(&file, e))?;
-    serde_json::from_str(&text)
-        .map(Some)
-        .map_err(|e| CaptureError::BadFile {
-            path: file,
-            reason: e.to_string(),
-        })
-}
-
-/// Removes the hidden half-written folders an interrupted run left in `dir`.
-fn remove_partials(dir: &Path) -> Result<(), CaptureError> {
-    for e in std::fs::read_dir(dir)
-        .map_err(|e| CaptureError::io(dir, e))?
-        .filter_map(Result::ok)
-    {
-        if e.file_name().to_string_lossy().starts_with(PARTIAL_PREFIX) {
-            let p = e.path();
-            std::fs::remove_dir_all(&p).map_err(|e| CaptureError::io(&p, e))?;
-        }
-    }
-    Ok(())
-}
-
 /// A camera frame as an 8-bit image for the detector (16-bit frames keep their high byte).
 fn to_gray8(img: &GreyImage) -> Result<sl_calib::image::GrayImage, CaptureError> {
     img.clone()
@@ -993,15 +738,5 @@ mod tests {
             std::fs::read_dir(dir.path()).unwrap().next().is_none(),
             "nothing written"
         );
-    }
-
-    #[test]
-    fn turntable_angles_span_ninety_degrees() {
-        assert_eq!(
-            calibration_turntable_angles(7),
-            [-45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0]
-        );
-        assert_eq!(calibration_turntable_angles(1), [0.0]);
-        assert!(calibration_turntable_angles(0).is_empty());
     }
 }

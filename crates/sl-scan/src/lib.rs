@@ -77,6 +77,8 @@ mod virtual_scan;
 mod calibration_auto;
 mod calibration_capture;
 mod calibration_coverage;
+mod calibration_files;
+mod pose_gates;
 mod pose_quality;
 #[cfg(feature = "sim")]
 mod virtual_board;
@@ -85,17 +87,20 @@ pub use calibration_auto::{
     AutoConfig, AutoEvent, BoardMover, HandHeld, capture_poses_auto, wait_for_still_board,
 };
 pub use calibration_capture::{
-    BOARD_DIR, BOARD_FILE, CalibrationCapture, CalibrationCaptureConfig, CaptureError, PoseCheck,
-    PoseGates, PoseRecord, Refusal, TURNTABLE_DIR, TableView, TakeOutcome, WHITE_IMAGE,
-    angle_dir_name, calibration_patterns, calibration_turntable_angles, pose_dir_name,
+    CalibrationCapture, CalibrationCaptureConfig, CaptureError, PoseRecord, TableView, TakeOutcome,
 };
 pub use calibration_coverage::{
     COVERAGE_COLS, COVERAGE_ROWS, Coverage, FLAT_TILT_DEG, TILT_NAMES, tilt_class,
+};
+pub use calibration_files::{
+    BOARD_DIR, BOARD_FILE, TURNTABLE_DIR, WHITE_IMAGE, angle_dir_name, calibration_patterns,
+    calibration_turntable_angles, pose_dir_name,
 };
 pub use calibration_layout::{
     CalibrationLayout, LAYOUT_FORMAT, LAYOUT_VERSION, LayoutError, MIN_POSES, PoseCapture,
     PoseView, check_pose_files, default_turntable_dir, projector_size,
 };
+pub use pose_gates::{PoseCheck, PoseGates, Refusal};
 pub use pose_quality::{
     BoardGeometry, NOMINAL_FOCAL_PER_WIDTH, SATURATION_LEVEL, board_outline, edge_width_px,
     nominal_camera, saturated_fraction,
