@@ -4,7 +4,7 @@
 //!
 //! | stage | file | entry points |
 //! |---|---|---|
-//! | capture a calibration session | `calibration_capture.rs`, `calibration_auto.rs` | [`CalibrationCapture`], [`capture_poses_auto`] |
+//! | capture a calibration session | `calibration_capture.rs`, `calibration_auto.rs`, `pose_gates.rs`, `calibration_files.rs` (the session's folders and `board.json`) | [`CalibrationCapture`], [`capture_poses_auto`] |
 //! | calibrate | `calibrate.rs` | [`calibrate_virtual`], [`load_scan_calibration`] |
 //! | read a calibration session (own or another program's layout) | `calibration_layout.rs` | [`CalibrationLayout`], [`PoseCapture`] |
 //! | calibrate from files (a session folder, board pictures) | `session_calibration.rs` | [`calibrate_session`], [`calibrate_camera_files`], [`calibrate_procam_files`], [`calibrate_turntable_files`] |
