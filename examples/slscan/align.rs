@@ -13,7 +13,7 @@ use sl_icp::{GlobalConfig, MultiwayConfig, align_unordered};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
 use crate::register::{
-    NormalsTowards, check_units, matrix_rows, read_scaled, with_normals_towards, write_preview,
+    NormalsTowards, check_units, read_scaled, with_normals_towards, write_preview,
 };
 
 /// Default voxel size of the descriptors (mm), [`GlobalConfig::default`]'s.
@@ -120,7 +120,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             "units": "mm",
             "views": a.poses.iter().enumerate().map(|(i, p)| serde_json::json!({
                 "view": name(i),
-                "T_world_view": p.as_ref().map(matrix_rows),
+                "T_world_view": p.as_ref().map(sl_camera::pose_to_matrix),
                 "unplaced_because": a.unplaced.iter().find(|u| u.view == i).map(|u| u.why.clone()),
             })).collect::<Vec<_>>(),
         });
@@ -149,7 +149,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 "descriptor_matches": r.map(|r| r.correspondences),
                 "ransac_inliers": r.map(|r| r.ransac.inliers),
                 "ransac_iterations": r.map(|r| r.ransac.iterations),
-                "T_target_source": r.map(|r| matrix_rows(&r.pose)),
+                "T_target_source": r.map(|r| sl_camera::pose_to_matrix(&r.pose)),
                 "reason": p.reason,
             })
         })

@@ -15,7 +15,7 @@ use sl_icp::{
 };
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
-use crate::register::{check_units, matrix_rows, read_scaled, write_preview};
+use crate::register::{check_units, read_scaled, write_preview};
 
 /// Arguments of `slscan merge`.
 #[derive(Debug, clap::Args)]
@@ -266,7 +266,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             "initial_poses_from": source_of_poses,
             "views": args.views.iter().zip(&alignment.poses).map(|(v, p)| serde_json::json!({
                 "view": v.display().to_string(),
-                "T_world_view": matrix_rows(p),
+                "T_world_view": sl_camera::pose_to_matrix(p),
             })).collect::<Vec<_>>(),
         });
         write_atomically(

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use nalgebra::{Isometry3, Matrix4, Point3};
+use nalgebra::{Isometry3, Point3};
 use sl_cloud::{
     MergePolicy, NormalConfig, NormalOrientation, PlyFormat, PointCloud, PreviewColoring,
     PreviewConfig, estimate_normals, read_ply, render_preview, write_ply,
@@ -166,14 +166,6 @@ pub(crate) fn with_normals_towards(
     Ok(cloud.clone().with_normals(est.normals)?)
 }
 
-/// A pose as a row-major 4x4 matrix.
-pub(crate) fn matrix_rows(pose: &Isometry3<f64>) -> Vec<Vec<f64>> {
-    let m = pose.to_homogeneous();
-    (0..4)
-        .map(|r| (0..4).map(|c| m[(r, c)]).collect())
-        .collect()
-}
-
 fn read_init(path: &Path) -> anyhow::Result<Isometry3<f64>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
@@ -183,10 +175,10 @@ fn read_init(path: &Path) -> anyhow::Result<Isometry3<f64>> {
         .get("T_target_source")
         .and_then(|v| v.as_array())
         .with_context(|| format!("{}: no \"T_target_source\" array", path.display()))?;
-    let mut m = Matrix4::zeros();
+    let mut m = [[f64::NAN; 4]; 4];
     for (r, row) in rows.iter().enumerate().take(4) {
         for (c, v) in row.as_array().into_iter().flatten().enumerate().take(4) {
-            m[(r, c)] = v.as_f64().with_context(|| {
+            m[r][c] = v.as_f64().with_context(|| {
                 format!(
                     "{}: T_target_source[{r}][{c}] is not a number",
                     path.display()
@@ -194,16 +186,12 @@ fn read_init(path: &Path) -> anyhow::Result<Isometry3<f64>> {
             })?;
         }
     }
-    let rot = nalgebra::Rotation3::from_matrix(&m.fixed_view::<3, 3>(0, 0).into_owned());
-    let t = nalgebra::Translation3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]);
-    let pose = Isometry3::from_parts(t, rot.into());
-    if (pose.to_homogeneous() - m).abs().max() > 1e-6 {
-        anyhow::bail!(
-            "{}: T_target_source is not a rigid motion (rotation part not orthonormal, or last row not 0 0 0 1)",
+    sl_camera::pose_from_matrix(&m).with_context(|| {
+        format!(
+            "{}: T_target_source is not a rigid motion (4x4 rows, rotation part orthonormal, last row 0 0 0 1)",
             path.display()
-        );
-    }
-    Ok(pose)
+        )
+    })
 }
 
 fn trimming(arg: &Option<String>) -> anyhow::Result<Trimming> {
@@ -297,7 +285,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.stage("write", || -> anyhow::Result<()> {
         write_ply(&ply, &moved, PlyFormat::default())?;
         let transform = serde_json::json!({
-            "T_target_source": matrix_rows(&r.pose),
+            "T_target_source": sl_camera::pose_to_matrix(&r.pose),
             "units": "mm",
             "rmse_mm": r.rmse,
             "fitness": r.fitness,
@@ -334,7 +322,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("converged", r.converged);
     report.figure("rotation_deg", rotation_deg);
     report.figure("translation_mm", r.pose.translation.vector.norm());
-    report.figure("T_target_source", serde_json::json!(matrix_rows(&r.pose)));
+    report.figure(
+        "T_target_source",
+        serde_json::json!(sl_camera::pose_to_matrix(&r.pose)),
+    );
     let path = report.write(&out)?;
     println!(
         "{}: {} iterations ({}), rotation {:.3} deg, translation {:.3} mm, RMSE {:.4} mm, fitness {:.3}",

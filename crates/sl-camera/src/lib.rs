@@ -86,7 +86,8 @@ pub use jacobians::{INTRINSIC_PARAMETERS, PoseProjectionJacobians, ProjectionJac
 pub use layouts::{CalibrationLayout, LoadOptions, LoadedCalibration};
 pub use model::{CameraModel, FieldOfView, PixelJacobian, ProjectorModel};
 pub use pose::{
-    RvecTvec, isometry_from_rt, rotation_from_rvec, rotation_jacobian, rvec_from_rotation,
+    RvecTvec, isometry_from_rt, pose_from_matrix, pose_to_matrix, rotation_from_rvec,
+    rotation_jacobian, rvec_from_rotation,
 };
 pub use ray_table::RayTable;
 pub use turntable::TurntableAxis;

@@ -139,6 +139,41 @@ pub fn isometry_from_rt(r: &Matrix3<f64>, t: &Vector3<f64>) -> Result<Isometry3<
     Ok(Isometry3::from_parts(Translation3::from(*t), rotation))
 }
 
+/// A pose as a 4×4 row-major homogeneous matrix `[R t; 0 0 0 1]` (how numpy and OpenCV users
+/// read poses; the JSON files of the toolkit write poses so).
+///
+/// ```
+/// use sl_camera::{pose_from_matrix, pose_to_matrix};
+/// use sl_camera::nalgebra::{Isometry3, Vector3};
+/// let pose = Isometry3::new(Vector3::new(1.0, 2.0, 3.0), Vector3::new(0.1, -0.2, 0.3));
+/// let m = pose_to_matrix(&pose);
+/// assert_eq!(m[3], [0.0, 0.0, 0.0, 1.0]);
+/// assert_eq!(m[1][3], 2.0);
+/// let back = pose_from_matrix(&m)?;
+/// assert!((back.to_homogeneous() - pose.to_homogeneous()).abs().max() < 1e-12);
+/// # Ok::<(), sl_camera::CameraError>(())
+/// ```
+pub fn pose_to_matrix(pose: &Isometry3<f64>) -> [[f64; 4]; 4] {
+    let m = pose.to_homogeneous();
+    std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
+}
+
+/// The pose of a 4×4 row-major homogeneous matrix ([`pose_to_matrix`]'s inverse).
+///
+/// # Errors
+/// [`CameraError::InvalidParameter`] naming `last row` when it is not `0 0 0 1`, or the
+/// rotation as [`isometry_from_rt`] does (not finite, not orthonormal, a reflection).
+pub fn pose_from_matrix(m: &[[f64; 4]; 4]) -> Result<Isometry3<f64>, CameraError> {
+    if m[3] != [0.0, 0.0, 0.0, 1.0] {
+        return Err(CameraError::invalid(
+            "last row",
+            format!("{:?}: a rigid motion's is 0 0 0 1", m[3]),
+        ));
+    }
+    let r = Matrix3::from_fn(|i, j| m[i][j]);
+    isometry_from_rt(&r, &Vector3::new(m[0][3], m[1][3], m[2][3]))
+}
+
 /// Rotation matrix and translation of a pose (`p_a = R · p_b + t` for `T_a_b`).
 pub(crate) fn isometry_to_rt(pose: &Isometry3<f64>) -> (Matrix3<f64>, Vector3<f64>) {
     (
@@ -281,6 +316,22 @@ mod tests {
         let back = RvecTvec::from_isometry(&pose);
         assert_relative_eq!(back.rvec, w, epsilon = 1e-9);
         assert_eq!(back.tvec, Vector3::new(1.0, 2.0, 3.0));
+    }
+
+    #[test]
+    fn a_matrix_that_is_not_a_rigid_motion_is_refused_naming_what() {
+        let mut m = pose_to_matrix(&Isometry3::identity());
+        m[3] = [0.0, 0.0, 1.0, 1.0];
+        let err = pose_from_matrix(&m).unwrap_err().to_string();
+        assert!(err.contains("last row"), "{err}");
+        let mut m = pose_to_matrix(&Isometry3::identity());
+        m[0][0] = -1.0;
+        let err = pose_from_matrix(&m).unwrap_err().to_string();
+        assert!(err.contains("reflection"), "{err}");
+        let mut m = pose_to_matrix(&Isometry3::identity());
+        m[1][1] = 1.1;
+        let err = pose_from_matrix(&m).unwrap_err().to_string();
+        assert!(err.contains("orthonormal"), "{err}");
     }
 
     #[test]

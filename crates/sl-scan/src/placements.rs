@@ -163,11 +163,6 @@ pub struct PlacementAlignment {
     pub ms: f64,
 }
 
-fn matrix(p: &Isometry3<f64>) -> [[f64; 4]; 4] {
-    let m = p.to_homogeneous();
-    std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
-}
-
 /// Aligns `moving` (the merged cloud of placement `placement`) onto `reference` (the first
 /// placement's) with no pose hint: global registration, then ICP on both clouds at
 /// `refine_voxel_mm`. Returns `T_reference_moving` and the figures.
@@ -210,7 +205,7 @@ pub fn align_placement(
         refined.pose,
         PlacementAlignment {
             placement,
-            pose: matrix(&refined.pose),
+            pose: sl_camera::pose_to_matrix(&refined.pose),
             correspondences: global.correspondences,
             ransac_inliers: global.ransac.inliers,
             global_fitness: global.registration.fitness,

@@ -3,7 +3,6 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::Isometry3;
 use serde::Serialize;
 use sl_camera::{Calibration, Metadata};
 use sl_codec::{Frame, write_png_grey8, write_tiff_f32};
@@ -52,17 +51,8 @@ struct ObjectFile<'a> {
     t_cam_object: [[f64; 4]; 4],
 }
 
-/// A pose as a 4×4 row-major homogeneous matrix (how numpy and OpenCV users read poses).
-pub fn pose_matrix(pose: &Isometry3<f64>) -> [[f64; 4]; 4] {
-    let m = pose.to_homogeneous();
-    let mut out = [[0.0; 4]; 4];
-    for (r, row) in out.iter_mut().enumerate() {
-        for (c, v) in row.iter_mut().enumerate() {
-            *v = m[(r, c)];
-        }
-    }
-    out
-}
+/// A pose as a 4×4 row-major homogeneous matrix: `sl_camera::pose_to_matrix`.
+pub use sl_camera::pose_to_matrix as pose_matrix;
 
 /// Writes a view's ground truth into `dir` (created if needed) and returns the files written:
 ///
