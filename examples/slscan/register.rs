@@ -6,8 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use nalgebra::{Isometry3, Point3};
 use sl_cloud::{
-    MergePolicy, NormalConfig, NormalOrientation, PlyFormat, PointCloud, PreviewColoring,
-    PreviewConfig, estimate_normals, read_ply, render_preview, write_ply,
+    MergePolicy, PlyFormat, PointCloud, PreviewColoring, PreviewConfig, render_preview, write_ply,
 };
 use sl_icp::{
     IcpConfig, Metric, NormalSource, PrepareConfig, PreparedCloud, RobustKernel, Trimming, register,
@@ -80,19 +79,11 @@ pub(crate) struct Args {
 
 /// Reads a PLY and scales its positions (units to mm).
 pub(crate) fn read_scaled(path: &Path, scale: f64) -> anyhow::Result<PointCloud> {
-    if !(scale.is_finite() && scale > 0.0) {
-        anyhow::bail!("--scale {scale}: must be finite and > 0");
-    }
-    let mut cloud = read_ply(path)?;
-    if scale != 1.0 {
-        for p in cloud.positions_mut() {
-            p.coords *= scale;
-        }
-    }
-    if cloud.is_empty() {
-        anyhow::bail!("{}: the cloud has no point", path.display());
-    }
-    Ok(cloud)
+    anyhow::ensure!(
+        scale.is_finite() && scale > 0.0,
+        "--scale {scale}: must be finite and > 0"
+    );
+    Ok(sl_cloud::read_ply_scaled(path, scale)?)
 }
 
 /// A cloud whose bounding-box diagonal is below this many default voxels is taken for one in
@@ -104,15 +95,8 @@ const METRES_EXTENT_VOXELS: f64 = 1.0;
 /// command's default voxel size, or for `slscan mesh` a millimetre): it is almost surely in
 /// metres and needs `--scale 1000`.
 pub(crate) fn check_units(cloud: &PointCloud, path: &Path, voxel: f64) -> anyhow::Result<()> {
-    let extent = cloud.bounding_box().map_or(0.0, |b| b.extent().norm());
-    let limit = METRES_EXTENT_VOXELS * voxel;
-    if extent < limit {
-        anyhow::bail!(
-            "{}: the cloud spans {extent:.4} units (the diagonal of its box), less than {limit} mm: its coordinates are probably metres; read it with --scale 1000",
-            path.display()
-        );
-    }
-    Ok(())
+    sl_cloud::check_millimetres(cloud, path, METRES_EXTENT_VOXELS * voxel)
+        .map_err(|e| anyhow::anyhow!("{e}; read it with --scale 1000"))
 }
 
 /// Neighbours of the normals `--normals-towards` estimates (`slscan align`, `slscan mesh`).
@@ -150,20 +134,14 @@ impl NormalsTowards {
 }
 
 /// `cloud` with normals estimated from [`NORMAL_NEIGHBOURS`] neighbours and turned towards
-/// `viewpoint` (where the scanner stood), in place of its own; its other attributes stay.
-/// `name` names the cloud in the error.
+/// `viewpoint` (where the scanner stood); `name` names the cloud in the error.
 pub(crate) fn with_normals_towards(
     cloud: &PointCloud,
     viewpoint: Point3<f64>,
     name: &str,
 ) -> anyhow::Result<PointCloud> {
-    let cfg = NormalConfig {
-        k: NORMAL_NEIGHBOURS,
-        orientation: NormalOrientation::TowardViewpoint(viewpoint),
-    };
-    let est = estimate_normals(cloud, &cfg)
-        .map_err(|e| anyhow::anyhow!("{name}: cannot estimate normals: {e}"))?;
-    Ok(cloud.clone().with_normals(est.normals)?)
+    sl_cloud::with_normals_towards(cloud, viewpoint, NORMAL_NEIGHBOURS)
+        .with_context(|| format!("{name}: cannot estimate normals"))
 }
 
 fn read_init(path: &Path) -> anyhow::Result<Isometry3<f64>> {

@@ -66,6 +66,19 @@ pub enum CloudError {
         /// What is missing, e.g. `"element 'vertex'"` or `"property 'x' in element 'vertex'"`.
         what: String,
     },
+    /// A cloud spans less than a tool expects of one in millimetres: its coordinates are
+    /// almost surely metres.
+    #[error(
+        "{file}: the cloud spans {extent:.4} units (the diagonal of its box), less than {limit} mm: its coordinates are probably metres (multiply them by 1000)"
+    )]
+    NotMillimetres {
+        /// The file.
+        file: String,
+        /// The diagonal of its bounding box, in its units.
+        extent: f64,
+        /// The smallest diagonal expected (mm).
+        limit: f64,
+    },
     /// An optional attribute was given with a length different from the number of points.
     #[error("attribute '{attribute}' has {found} values but the cloud has {expected} points")]
     AttributeLength {

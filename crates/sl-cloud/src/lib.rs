@@ -58,6 +58,7 @@ mod outliers;
 mod ply;
 mod preview;
 mod sym_eigen;
+mod units;
 mod voxel;
 
 pub use cloud::{Aabb, MergePolicy, PointCloud};
@@ -88,6 +89,7 @@ pub use preview::{
     FRAME_PERCENTILE, FRAME_SLACK, PreviewColoring, PreviewConfig, PreviewImage, colormap,
     render_preview,
 };
+pub use units::{check_millimetres, read_ply_scaled, with_normals_towards};
 pub use voxel::{VoxelDownsample, VoxelGridConfig, voxel_downsample};
 
 /// The README's example, compiled and run by `cargo test --doc`.
