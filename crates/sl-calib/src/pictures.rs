@@ -431,18 +431,18 @@ pub fn residual_plot(
     }
 }
 
-/// Writes a picture as PNG.
+/// Writes a picture as PNG (through `sl_codec::write_png_rgb8`, the workspace's one PNG writer).
 ///
 /// # Errors
-/// [`CalibError::Image`] naming the file when it cannot be written.
+/// [`CalibError::Codec`] naming the file when it cannot be written.
 pub fn save_png(image: &RgbImage, path: impl AsRef<Path>) -> Result<(), CalibError> {
-    let path = path.as_ref();
-    image
-        .save_with_format(path, image::ImageFormat::Png)
-        .map_err(|source| CalibError::Image {
-            file: path.display().to_string(),
-            source,
-        })
+    sl_codec::write_png_rgb8(
+        path.as_ref(),
+        image.width() as usize,
+        image.height() as usize,
+        image.as_raw(),
+    )?;
+    Ok(())
 }
 
 #[cfg(test)]
