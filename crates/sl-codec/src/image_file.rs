@@ -166,22 +166,41 @@ pub fn find_image_file(path: &Path) -> Option<PathBuf> {
 /// # Ok(()) }
 /// ```
 pub fn read_image(path: &Path) -> Result<GreyImage, CodecError> {
-    let image_err = |source| CodecError::Image {
-        path: path.to_path_buf(),
-        action: "decode",
-        source,
-    };
-    let reader = image::ImageReader::open(path)
-        .map_err(|e| image_err(image::ImageError::IoError(e)))?
-        .with_guessed_format()
-        .map_err(|e| image_err(image::ImageError::IoError(e)))?;
-    let img = reader.decode().map_err(image_err)?;
+    let img = reader(path)?.decode().map_err(decode_err(path))?;
     if img.width() == 0 || img.height() == 0 {
         return Err(CodecError::EmptyImage {
             path: path.to_path_buf(),
         });
     }
     Ok(grey_of(img))
+}
+
+/// An image file's width and height, read from its header alone (the format found from the
+/// content, as [`read_image`] does): a cheap check of many files before any is decoded.
+///
+/// # Errors
+/// [`CodecError::Image`] naming the file when it cannot be opened or its header read.
+pub fn read_image_size(path: &Path) -> Result<(u32, u32), CodecError> {
+    reader(path)?.into_dimensions().map_err(decode_err(path))
+}
+
+fn decode_err(path: &Path) -> impl Fn(image::ImageError) -> CodecError + '_ {
+    move |source| CodecError::Image {
+        path: path.to_path_buf(),
+        action: "decode",
+        source,
+    }
+}
+
+/// A reader of `path` with its format guessed from the content.
+fn reader(
+    path: &Path,
+) -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>, CodecError> {
+    let err = decode_err(path);
+    image::ImageReader::open(path)
+        .map_err(|e| err(image::ImageError::IoError(e)))?
+        .with_guessed_format()
+        .map_err(|e| err(image::ImageError::IoError(e)))
 }
 
 /// Reads an image file as 8-bit grey: [`read_image`], then 16-bit values scaled by
@@ -258,6 +277,23 @@ fn grey8(r: u8, g: u8, b: u8) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_size_is_read_from_the_header_and_a_bad_file_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("a.png");
+        let frame = Frame::new(3, 2, vec![0u8; 6]).unwrap();
+        crate::write_png_grey8(&png, &frame).unwrap();
+        assert_eq!(read_image_size(&png).unwrap(), (3, 2));
+        let bad = dir.path().join("b.png");
+        std::fs::write(&bad, b"not an image").unwrap();
+        let err = read_image_size(&bad).unwrap_err().to_string();
+        assert!(err.contains("b.png"), "{err}");
+        let err = read_image_size(&dir.path().join("none.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("none.png"), "{err}");
+    }
 
     #[test]
     fn opencv_grey_of_primaries_and_greys() {

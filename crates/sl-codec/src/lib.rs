@@ -108,6 +108,7 @@ pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, dec
 #[cfg(feature = "image-files")]
 pub use image_file::{
     GreyImage, IMAGE_EXTENSIONS, find_image_file, is_image_file, read_grey8, read_image,
+    read_image_size,
 };
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
 pub use pattern::{Axis, BitDepth, ImageSize, Pattern};

@@ -656,19 +656,15 @@ pub fn check_pose_files(poses: &[PoseCapture]) -> Result<(), LayoutError> {
     Ok(())
 }
 
-/// An image file's size from its header (the format found from the content, as
-/// `sl_codec::read_image` does).
+/// An image file's size from its header (`sl_codec::read_image_size`).
 fn image_size(path: &Path) -> Result<(u32, u32), LayoutError> {
-    let bad = |e: &dyn std::fmt::Display| LayoutError::Image {
+    sl_codec::read_image_size(path).map_err(|e| LayoutError::Image {
         path: path.to_path_buf(),
-        message: e.to_string(),
-    };
-    sl_calib::image::ImageReader::open(path)
-        .map_err(|e| bad(&e))?
-        .with_guessed_format()
-        .map_err(|e| bad(&e))?
-        .into_dimensions()
-        .map_err(|e| bad(&e))
+        message: match e {
+            sl_codec::CodecError::Image { source, .. } => source.to_string(),
+            other => other.to_string(),
+        },
+    })
 }
 
 #[cfg(test)]
