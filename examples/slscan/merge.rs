@@ -10,9 +10,9 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use sl_camera::{Calibration, TurntableAxis};
 use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
 use sl_icp::{
-    IcpError, MergeConfig, PairRegistration, PoseModel, TurntablePrior, ViewPoseSource,
-    align_views, merge_aligned, turntable_poses,
+    IcpError, MergeConfig, PoseModel, TurntablePrior, align_views, merge_aligned, turntable_poses,
 };
+use sl_scan::{alignment_figures, largest_pose_correction_deg, pair_figures};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
 use crate::register::{check_units, read_scaled, write_preview};
@@ -146,31 +146,6 @@ fn initial_poses(args: &Args, n: usize) -> anyhow::Result<(Vec<Isometry3<f64>>, 
 /// in metres.
 const DEFAULT_REGISTRATION_VOXEL_MM: f64 = 1.0;
 
-/// Every pair's figures for `report.json`: views by index and file, fitness, RMSE, whether
-/// used, whether the global-registration fallback gave the pose, and why it failed.
-fn pair_figures(
-    pairs: &[PairRegistration],
-    name: &dyn Fn(usize) -> String,
-) -> Vec<serde_json::Value> {
-    pairs
-        .iter()
-        .map(|p| {
-            serde_json::json!({
-                "target": p.target,
-                "source": p.source,
-                "target_view": name(p.target),
-                "source_view": name(p.source),
-                "used": p.used,
-                "global_registration": p.global,
-                "rmse_mm": p.registration.as_ref().map(|r| r.rmse),
-                "fitness": p.registration.as_ref().map(|r| r.fitness),
-                "iterations": p.registration.as_ref().map(|r| r.iterations),
-                "failure": p.failure,
-            })
-        })
-        .collect()
-}
-
 /// Runs `slscan merge`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("merge");
@@ -234,10 +209,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             // A failed merge still says what every pair measured.
             report.figure("views", n);
             report.figure("initial_poses_from", source_of_poses);
-            report.figure(
-                "pairs",
-                serde_json::Value::Array(pair_figures(&pairs, &name)),
-            );
+            report.figure("pairs", pair_figures(&pairs, &name));
             report.figure("pairs_used", pairs.iter().filter(|p| p.used).count());
             report.figure(
                 "unplaced",
@@ -280,18 +252,6 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     })?;
     bar.finish_and_clear();
 
-    let pairs = pair_figures(&alignment.pairs, &name);
-    let global = alignment
-        .pairs
-        .iter()
-        .filter(|p| p.used && p.global)
-        .count();
-    let used = alignment.pairs.iter().filter(|p| p.used).count();
-    let moved_deg: f64 = initial
-        .iter()
-        .zip(&alignment.poses)
-        .map(|(a, b)| a.rotation.angle_to(&b.rotation).to_degrees())
-        .fold(0.0, f64::max);
     report.figure("views", n);
     report.figure(
         "input_points",
@@ -299,64 +259,15 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     );
     report.figure("merged_points", merged.len());
     report.figure("initial_poses_from", source_of_poses);
-    report.figure("pairs", serde_json::Value::Array(pairs));
-    report.figure("pairs_used", used);
-    report.figure("pairs_from_global_registration", global);
-    report.figure("pose_graph_initial_cost", alignment.pose_graph.initial_cost);
-    report.figure("pose_graph_final_cost", alignment.pose_graph.final_cost);
-    report.figure("pose_graph_iterations", alignment.pose_graph.iterations);
-    report.figure("largest_pose_correction_deg", moved_deg);
-    if let Some(t) = &alignment.turntable {
-        let axis = |a: &TurntableAxis| {
-            serde_json::json!({
-                "direction": [a.direction.x, a.direction.y, a.direction.z],
-                "point_mm": [a.point_mm.x, a.point_mm.y, a.point_mm.z],
-            })
-        };
-        report.figure(
-            "turntable",
-            serde_json::json!({
-                "axis_confirmed": t.axis_confirmed,
-                "axis_distance_sigma": t.axis_distance.is_finite().then_some(t.axis_distance),
-                "variance_factor": t.variance_factor,
-                "angle_scale_corrected": t.angle_scale_corrected,
-                "initial_axis": axis(&t.initial_axis),
-                "registered_axis": axis(&t.registered_axis),
-                "axis": axis(&t.axis),
-                "angle_scale": t.angle_scale,
-                "angles_deg": t.angles_deg,
-            }),
-        );
+    for (key, value) in alignment_figures(&alignment, &initial, &name) {
+        report.figure(key, value);
     }
-    report.figure("pose_summary", alignment.pose_summary());
-    report.figure(
-        "pose_sources",
-        serde_json::Value::Array(
-            alignment
-                .sources
-                .iter()
-                .enumerate()
-                .map(|(k, s)| pose_source_figure(k, s))
-                .collect(),
-        ),
-    );
-    report.figure(
-        "pair_free_motions",
-        serde_json::Value::Array(
-            alignment
-                .pairs
-                .iter()
-                .filter(|p| !p.free_motions.is_empty())
-                .map(|p| {
-                    serde_json::json!({
-                        "target": p.target,
-                        "source": p.source,
-                        "free": p.free_motions.iter().map(ToString::to_string).collect::<Vec<_>>(),
-                    })
-                })
-                .collect(),
-        ),
-    );
+    let used = alignment.pairs.iter().filter(|p| p.used).count();
+    let global = alignment
+        .pairs
+        .iter()
+        .filter(|p| p.used && p.global)
+        .count();
     let path = report.write(&dir)?;
     println!("poses: {}", alignment.pose_summary());
     println!(
@@ -367,29 +278,116 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         alignment.pairs.len(),
         global,
         merged.len(),
-        moved_deg
+        largest_pose_correction_deg(&initial, &alignment.poses)
     );
     println!("report: {}", path.display());
     Ok(())
 }
 
-/// One view's pose source for `report.json`.
-fn pose_source_figure(view: usize, s: &ViewPoseSource) -> serde_json::Value {
-    match s {
-        ViewPoseSource::Reference => serde_json::json!({"view": view, "source": "reference"}),
-        ViewPoseSource::Turntable => serde_json::json!({"view": view, "source": "turntable"}),
-        ViewPoseSource::TurntablePriorOnly { why } => {
-            serde_json::json!({"view": view, "source": "turntable prior only", "why": why})
+#[cfg(test)]
+mod tests {
+    //! `slscan merge` on turntable views of a synthetic blob: the views are the blob turned
+    //! about a known axis, each in its camera's frame; the merge must place them where the
+    //! turntable put them and say so in `report.json` and `poses.json`.
+
+    use clap::Parser;
+    use nalgebra::{Point3, Vector3};
+    use sl_camera::TurntableAxis;
+    use sl_cloud::{PlyFormat, PointCloud, write_ply};
+
+    use crate::{Cli, Command};
+
+    fn slscan(args: &[&str]) -> anyhow::Result<()> {
+        let mut argv = vec!["slscan"];
+        argv.extend_from_slice(args);
+        match Cli::try_parse_from(argv)?.command {
+            Command::Merge(a) => super::run(&a),
+            other => anyhow::bail!("parsed as {other:?}"),
         }
-        ViewPoseSource::Registrations {
-            motor_off_deg,
-            sigmas,
-        } => serde_json::json!({
-            "view": view,
-            "source": "registrations",
-            "motor_off_deg": motor_off_deg,
-            "sigmas": sigmas.is_finite().then_some(*sigmas),
-        }),
-        ViewPoseSource::PoseGraph => serde_json::json!({"view": view, "source": "pose graph"}),
+    }
+
+    /// A bumpy closed blob about 80 mm across, centred on `centre` (mm).
+    fn blob(n: usize, centre: Point3<f64>) -> Vec<Point3<f64>> {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        (0..n)
+            .map(|i| {
+                let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let (r, t) = ((1.0 - y * y).sqrt(), golden * i as f64);
+                let d = Vector3::new(r * t.cos(), y, r * t.sin());
+                let bump = 6.0 * (3.0 * d.x).sin() * (2.0 * d.y + 0.5).cos()
+                    + 5.0 * (4.0 * d.z * d.x).sin()
+                    + 8.0 * (d.y - 0.6).max(0.0);
+                centre + d * (40.0 + bump)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn views_of_a_turntable_land_where_the_turntable_put_them() {
+        let tmp = tempfile::tempdir().unwrap();
+        let axis_point = Point3::new(5.0, 0.0, 300.0);
+        let axis = TurntableAxis::new(Vector3::new(0.0, -1.0, 0.05), axis_point).unwrap();
+        let step = 40.0;
+        let angles: Vec<f64> = (0..4).map(|k| f64::from(k) * step).collect();
+        let truth = sl_icp::turntable_poses(&axis, &angles).unwrap();
+        let world = blob(20_000, axis_point);
+        let mut files = Vec::new();
+        for (k, t_world_view) in truth.iter().enumerate() {
+            let inv = t_world_view.inverse();
+            let view: Vec<Point3<f64>> = world.iter().map(|p| inv * p).collect();
+            let path = tmp.path().join(format!("view_{k}.ply"));
+            write_ply(
+                &path,
+                &PointCloud::from_positions(view),
+                PlyFormat::default(),
+            )
+            .unwrap();
+            files.push(path.display().to_string());
+        }
+        let out = tmp.path().join("merged");
+        let mut args: Vec<&str> = vec!["merge"];
+        args.extend(files.iter().map(String::as_str));
+        let step_arg = step.to_string();
+        args.extend([
+            "--axis",
+            "0,-1,0.05",
+            "--axis-point",
+            "5,0,300",
+            "--step",
+            &step_arg,
+            "--no-loop",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        slscan(&args).unwrap();
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        let f = &report["figures"];
+        assert_eq!(f["views"], 4);
+        assert_eq!(f["initial_poses_from"], "turntable");
+        assert!(f["pairs_used"].as_u64().unwrap() >= 3, "{f}");
+        assert_eq!(f["pose_sources"].as_array().unwrap().len(), 4, "{f}");
+        assert_eq!(f["pose_sources"][0]["source"], "reference", "{f}");
+        assert!(
+            f["largest_pose_correction_deg"].as_f64().unwrap() < 0.05,
+            "{f}"
+        );
+        let poses: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("poses.json")).unwrap())
+                .unwrap();
+        for (k, t) in truth.iter().enumerate() {
+            let rows = &poses["views"][k]["T_world_view"];
+            let m: [[f64; 4]; 4] = serde_json::from_value(rows.clone()).unwrap();
+            let got = sl_camera::pose_from_matrix(&m).unwrap();
+            let turn = got.rotation.angle_to(&t.rotation).to_degrees();
+            let shift = (got.translation.vector - t.translation.vector).norm();
+            assert!(
+                turn < 0.05 && shift < 0.1,
+                "view {k}: {turn} deg, {shift} mm"
+            );
+        }
+        assert!(out.join("merged.ply").is_file());
+        assert!(out.join("preview.png").is_file());
     }
 }

@@ -124,7 +124,10 @@ pub use measure::{
     Measurements, PLATE_SIZE_MM, PLATE_TILT_DEG, SELECT_MM, measure_scan, plate_pose, plate_scene,
     plate_truth, scene_truth,
 };
-pub use merge::{MergeReport, MergeStageConfig, MergedViews, ViewPoseReport, merge_scan};
+pub use merge::{
+    MergeReport, MergeStageConfig, MergedViews, ViewPoseReport, alignment_figures,
+    largest_pose_correction_deg, merge_scan, pair_figures,
+};
 #[cfg(feature = "mesh")]
 pub use mesh::{
     MESH_CELL_PER_SPACING, MeshConfig, MeshFiles, MeshSummary, mesh_stage, mesh_stage_with,

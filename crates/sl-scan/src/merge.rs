@@ -4,9 +4,12 @@
 
 use nalgebra::Isometry3;
 use serde::Serialize;
+use serde_json::{Value, json};
+use sl_camera::TurntableAxis;
 use sl_cloud::PointCloud;
 use sl_icp::{
-    MergeConfig, ViewAlignment, ViewPoseSource, merge_aligned, merge_views, turntable_poses,
+    MergeConfig, PairRegistration, ViewAlignment, ViewPoseSource, merge_aligned, merge_views,
+    turntable_poses,
 };
 
 use crate::{ReconstructedViews, ScanError, ScanProgress};
@@ -216,4 +219,140 @@ pub fn merge_scan(
         total: 1,
     });
     Ok(merged)
+}
+
+/// Every pair's figures for `report.json`: views by index and by `name`, fitness, RMSE,
+/// whether used, whether the global-registration fallback gave the pose, and why it failed.
+pub fn pair_figures(pairs: &[PairRegistration], name: &dyn Fn(usize) -> String) -> Value {
+    pairs
+        .iter()
+        .map(|p| {
+            json!({
+                "target": p.target,
+                "source": p.source,
+                "target_view": name(p.target),
+                "source_view": name(p.source),
+                "used": p.used,
+                "global_registration": p.global,
+                "rmse_mm": p.registration.as_ref().map(|r| r.rmse),
+                "fitness": p.registration.as_ref().map(|r| r.fitness),
+                "iterations": p.registration.as_ref().map(|r| r.iterations),
+                "failure": p.failure,
+            })
+        })
+        .collect()
+}
+
+/// The largest turn (degrees) between a view's initial pose and its aligned one.
+#[must_use]
+pub fn largest_pose_correction_deg(initial: &[Isometry3<f64>], aligned: &[Isometry3<f64>]) -> f64 {
+    initial
+        .iter()
+        .zip(aligned)
+        .map(|(a, b)| a.rotation.angle_to(&b.rotation).to_degrees())
+        .fold(0.0, f64::max)
+}
+
+/// The figures of an alignment of views (`sl_icp::align_views`) for `report.json`, by name:
+/// the pairs ([`pair_figures`]), the pose graph's costs, the largest pose correction from
+/// `initial`, the turntable model's axes and verdict, each view's pose source and the pairs'
+/// free motions. `name` names view `i`.
+pub fn alignment_figures(
+    alignment: &ViewAlignment,
+    initial: &[Isometry3<f64>],
+    name: &dyn Fn(usize) -> String,
+) -> Vec<(&'static str, Value)> {
+    let pairs = &alignment.pairs;
+    let mut f = vec![
+        ("pairs", pair_figures(pairs, name)),
+        ("pairs_used", pairs.iter().filter(|p| p.used).count().into()),
+        (
+            "pairs_from_global_registration",
+            pairs.iter().filter(|p| p.used && p.global).count().into(),
+        ),
+        (
+            "pose_graph_initial_cost",
+            alignment.pose_graph.initial_cost.into(),
+        ),
+        (
+            "pose_graph_final_cost",
+            alignment.pose_graph.final_cost.into(),
+        ),
+        (
+            "pose_graph_iterations",
+            alignment.pose_graph.iterations.into(),
+        ),
+        (
+            "largest_pose_correction_deg",
+            largest_pose_correction_deg(initial, &alignment.poses).into(),
+        ),
+    ];
+    if let Some(t) = &alignment.turntable {
+        let axis = |a: &TurntableAxis| {
+            json!({
+                "direction": [a.direction.x, a.direction.y, a.direction.z],
+                "point_mm": [a.point_mm.x, a.point_mm.y, a.point_mm.z],
+            })
+        };
+        f.push((
+            "turntable",
+            json!({
+                "axis_confirmed": t.axis_confirmed,
+                "axis_distance_sigma": t.axis_distance.is_finite().then_some(t.axis_distance),
+                "variance_factor": t.variance_factor,
+                "angle_scale_corrected": t.angle_scale_corrected,
+                "initial_axis": axis(&t.initial_axis),
+                "registered_axis": axis(&t.registered_axis),
+                "axis": axis(&t.axis),
+                "angle_scale": t.angle_scale,
+                "angles_deg": t.angles_deg,
+            }),
+        ));
+    }
+    f.push(("pose_summary", alignment.pose_summary().into()));
+    f.push((
+        "pose_sources",
+        alignment
+            .sources
+            .iter()
+            .enumerate()
+            .map(|(view, s)| pose_source_figure(view, s))
+            .collect(),
+    ));
+    f.push((
+        "pair_free_motions",
+        pairs
+            .iter()
+            .filter(|p| !p.free_motions.is_empty())
+            .map(|p| {
+                json!({
+                    "target": p.target,
+                    "source": p.source,
+                    "free": p.free_motions.iter().map(ToString::to_string).collect::<Vec<_>>(),
+                })
+            })
+            .collect(),
+    ));
+    f
+}
+
+/// One view's pose source for `report.json`.
+fn pose_source_figure(view: usize, s: &ViewPoseSource) -> Value {
+    match s {
+        ViewPoseSource::Reference => json!({"view": view, "source": "reference"}),
+        ViewPoseSource::Turntable => json!({"view": view, "source": "turntable"}),
+        ViewPoseSource::TurntablePriorOnly { why } => {
+            json!({"view": view, "source": "turntable prior only", "why": why})
+        }
+        ViewPoseSource::Registrations {
+            motor_off_deg,
+            sigmas,
+        } => json!({
+            "view": view,
+            "source": "registrations",
+            "motor_off_deg": motor_off_deg,
+            "sigmas": sigmas.is_finite().then_some(*sigmas),
+        }),
+        ViewPoseSource::PoseGraph => json!({"view": view, "source": "pose graph"}),
+    }
 }
