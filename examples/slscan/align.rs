@@ -8,26 +8,15 @@
 
 use std::path::PathBuf;
 
-use sl_cloud::{MergePolicy, PlyFormat, PointCloud, PreviewColoring, write_ply};
-use sl_icp::{GlobalConfig, MultiwayConfig, align_unordered};
+use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
+use sl_icp::align_unordered;
+use sl_scan::{CombinedScans, combine_aligned, multiway_config_at, multiway_figures};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
-use crate::register::{
-    NormalsTowards, check_units, read_scaled, with_normals_towards, write_preview,
-};
+use crate::register::{NORMAL_NEIGHBOURS, NormalsTowards, check_units, read_scaled, write_preview};
 
 /// Default voxel size of the descriptors (mm), [`GlobalConfig::default`]'s.
 const DEFAULT_VOXEL_MM: f64 = 2.0;
-
-/// Colours of the scans in the preview, in input order (repeating).
-const PALETTE: [[u8; 3]; 6] = [
-    [120, 150, 200],
-    [240, 150, 40],
-    [110, 190, 110],
-    [210, 90, 90],
-    [170, 120, 210],
-    [200, 200, 90],
-];
 
 /// Arguments of `slscan align`.
 #[derive(Debug, clap::Args)]
@@ -49,24 +38,6 @@ pub(crate) struct Args {
     pub(crate) normals: NormalsTowards,
 }
 
-fn config(voxel: f64) -> MultiwayConfig {
-    let d = GlobalConfig::default();
-    let k = voxel / d.voxel_size;
-    let mut global = d;
-    global.voxel_size = voxel;
-    global.fpfh.radius *= k;
-    global.ransac.inlier_distance *= k;
-    global.icp.max_correspondence_distance *= k;
-    let base = MultiwayConfig::default();
-    MultiwayConfig {
-        global,
-        max_rmse: base.max_rmse * k,
-        max_edge_disagreement: base.max_edge_disagreement * k,
-        refine: Some(global.icp),
-        ..base
-    }
-}
-
 /// Runs `slscan align`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("align");
@@ -75,7 +46,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         anyhow::bail!("--voxel {}: must be finite and > 0 (mm)", args.voxel);
     }
     let viewpoint = args.normals.viewpoint()?;
-    let config = config(args.voxel);
+    let config = multiway_config_at(args.voxel);
     let bar = progress(3, "align");
     let clouds: Vec<PointCloud> = report.stage("read", || {
         args.scans
@@ -94,24 +65,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("{}: {e}", name(0)))?;
     bar.inc(1);
 
-    let mut aligned = PointCloud::new();
-    let mut painted = PointCloud::new();
-    for (i, (c, pose)) in clouds.iter().zip(&a.poses).enumerate() {
-        let Some(pose) = pose else { continue };
-        // The scan's own attributes (colours, quality) stay; estimated normals replace its own.
-        let mut moved = match viewpoint {
-            Some(v) => with_normals_towards(c, v, &name(i))?,
-            None => c.clone(),
-        };
-        moved.transform(pose);
-        aligned.extend(&moved, MergePolicy::DropMismatched)?;
-        let bare = PointCloud::from_positions(moved.positions().to_vec());
-        let colour = PALETTE[i % PALETTE.len()];
-        painted.extend(
-            &bare.with_colors(vec![colour; moved.len()])?,
-            MergePolicy::DropMismatched,
-        )?;
-    }
+    let towards = viewpoint.map(|v| (v, NORMAL_NEIGHBOURS));
+    let CombinedScans { aligned, painted } = combine_aligned(&clouds, &a.poses, towards, &name)?;
     let ply = out.join("aligned.ply");
     report.stage("write", || -> anyhow::Result<()> {
         write_ply(&ply, &aligned, PlyFormat::default())?;
@@ -132,51 +87,11 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     })?;
     bar.finish_and_clear();
 
-    let pairs: Vec<serde_json::Value> = a
-        .pairs
-        .iter()
-        .map(|p| {
-            let r = p.registration.as_ref();
-            serde_json::json!({
-                "source": name(p.source),
-                "target": name(p.target),
-                "descriptor_distance": p.descriptor_distance,
-                "verified": p.verified,
-                "pruned": p.pruned,
-                "used": p.used(),
-                "fitness": p.fitness(),
-                "rmse_mm": p.rmse(),
-                "descriptor_matches": r.map(|r| r.correspondences),
-                "ransac_inliers": r.map(|r| r.ransac.inliers),
-                "ransac_iterations": r.map(|r| r.ransac.iterations),
-                "T_target_source": r.map(|r| sl_camera::pose_to_matrix(&r.pose)),
-                "reason": p.reason,
-            })
-        })
-        .collect();
-    let verified = a.pairs.iter().filter(|p| p.verified).count();
     let used = a.pairs.iter().filter(|p| p.used()).count();
     report.figure("views", clouds.len());
-    report.figure("placed_views", clouds.len() - a.unplaced.len());
     report.figure("aligned_points", aligned.len());
-    report.figure("pairs_tried", a.pairs.len());
-    report.figure("pairs_verified", verified);
-    report.figure("pairs_pruned", a.pruned_edges);
-    report.figure("pairs_used", used);
-    report.figure("pairs", serde_json::Value::Array(pairs));
-    report.figure(
-        "unplaced",
-        serde_json::Value::Array(
-            a.unplaced
-                .iter()
-                .map(|u| serde_json::json!({"view": name(u.view), "why": u.why}))
-                .collect(),
-        ),
-    );
-    if let Some(g) = &a.pose_graph {
-        report.figure("pose_graph_initial_cost", g.initial_cost);
-        report.figure("pose_graph_final_cost", g.final_cost);
-        report.figure("pose_graph_iterations", g.iterations);
+    for (key, value) in multiway_figures(&a, &name) {
+        report.figure(key, value);
     }
     report.figure("voxel_mm", args.voxel);
     report.figure("normals", aligned.normals().is_some());

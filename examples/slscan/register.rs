@@ -100,7 +100,7 @@ pub(crate) fn check_units(cloud: &PointCloud, path: &Path, voxel: f64) -> anyhow
 }
 
 /// Neighbours of the normals `--normals-towards` estimates (`slscan align`, `slscan mesh`).
-const NORMAL_NEIGHBOURS: usize = 20;
+pub(crate) const NORMAL_NEIGHBOURS: usize = 20;
 
 /// `--normals-towards X,Y,Z` of `slscan align` and `slscan mesh`.
 #[derive(Debug, clap::Args)]

@@ -46,6 +46,7 @@
 #![deny(missing_docs)]
 #![cfg_attr(docsrs, feature(doc_cfg))]
 
+mod align_scans;
 mod calibrate;
 mod calibration_layout;
 mod capture;
@@ -83,6 +84,9 @@ mod pose_quality;
 #[cfg(feature = "sim")]
 mod virtual_board;
 
+pub use align_scans::{
+    CombinedScans, SCAN_PALETTE, combine_aligned, multiway_config_at, multiway_figures,
+};
 pub use calibration_auto::{
     AutoConfig, AutoEvent, BoardMover, HandHeld, capture_poses_auto, wait_for_still_board,
 };
