@@ -8,9 +8,7 @@ use nalgebra::{Isometry3, Point3};
 use sl_cloud::{
     MergePolicy, PlyFormat, PointCloud, PreviewColoring, PreviewConfig, render_preview, write_ply,
 };
-use sl_icp::{
-    IcpConfig, Metric, NormalSource, PrepareConfig, PreparedCloud, RobustKernel, Trimming, register,
-};
+use sl_icp::{IcpConfig, Metric, RobustKernel, Trimming, register_clouds};
 
 use crate::common::{Report, ensure_out_dir, write_atomically};
 
@@ -231,32 +229,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     check_units(&source, &args.source, DEFAULT_VOXEL_MM)?;
     check_units(&target, &args.target, DEFAULT_VOXEL_MM)?;
     let voxel = (args.voxel > 0.0).then_some(args.voxel);
-    let needs = |side_needs: bool| {
-        if side_needs {
-            NormalSource::default()
-        } else {
-            NormalSource::None
-        }
-    };
-    let (s, t) = report.stage("prepare", || -> anyhow::Result<_> {
-        let s = PreparedCloud::new(
-            &source,
-            &PrepareConfig {
-                voxel_size: voxel,
-                normals: needs(metric == Metric::Generalized),
-            },
-        )?;
-        let t = PreparedCloud::new(
-            &target,
-            &PrepareConfig {
-                voxel_size: voxel,
-                normals: needs(metric != Metric::PointToPoint),
-            },
-        )?;
-        t.build_index();
-        Ok((s, t))
+    let (r, registered_points) = report.stage("register", || {
+        register_clouds(&source, &target, &initial, &config, voxel)
     })?;
-    let r = report.stage("register", || register(&s, &t, &initial, &config))?;
 
     let moved = source.transformed(&r.pose);
     let ply = out.join("registered.ply");
@@ -293,7 +268,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("metric", format!("{:?}", args.metric));
     report.figure("source_points", source.len());
     report.figure("target_points", target.len());
-    report.figure("registered_points", s.len());
+    report.figure("registered_points", registered_points);
     report.figure("rmse_mm", r.rmse);
     report.figure("fitness", r.fitness);
     report.figure("iterations", r.iterations);
@@ -321,4 +296,94 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     );
     println!("report: {}", path.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    //! `slscan register` on a bumpy blob and the same blob moved by a known small motion: the
+    //! transform it writes is that motion; an initial pose that is not a rigid motion is
+    //! refused naming the file.
+
+    use clap::Parser;
+    use nalgebra::{Isometry3, Point3, Vector3};
+    use sl_cloud::{PlyFormat, PointCloud, write_ply};
+
+    use crate::{Cli, Command};
+
+    fn slscan(args: &[&str]) -> anyhow::Result<()> {
+        let mut argv = vec!["slscan"];
+        argv.extend_from_slice(args);
+        match Cli::try_parse_from(argv)?.command {
+            Command::Register(a) => super::run(&a),
+            other => anyhow::bail!("parsed as {other:?}"),
+        }
+    }
+
+    fn blob(n: usize) -> Vec<Point3<f64>> {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        (0..n)
+            .map(|i| {
+                let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let (r, t) = ((1.0 - y * y).sqrt(), golden * i as f64);
+                let d = Vector3::new(r * t.cos(), y, r * t.sin());
+                let bump = 6.0 * (3.0 * d.x).sin() * (2.0 * d.y + 0.5).cos()
+                    + 5.0 * (4.0 * d.z * d.x).sin();
+                Point3::from(d * (40.0 + bump))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_written_transform_is_the_motion_between_the_clouds() {
+        let tmp = tempfile::tempdir().unwrap();
+        let target: Vec<Point3<f64>> = blob(20_000);
+        let truth = Isometry3::new(
+            Vector3::new(1.5, -0.8, 0.6),
+            Vector3::new(0.02, -0.03, 0.04),
+        );
+        let source: Vec<Point3<f64>> = target.iter().map(|p| truth.inverse() * p).collect();
+        let (s, t) = (tmp.path().join("s.ply"), tmp.path().join("t.ply"));
+        for (path, pts) in [(&s, source), (&t, target)] {
+            write_ply(path, &PointCloud::from_positions(pts), PlyFormat::default()).unwrap();
+        }
+        let out = tmp.path().join("out");
+        let (sp, tp, op) = (
+            s.to_str().unwrap(),
+            t.to_str().unwrap(),
+            out.to_str().unwrap(),
+        );
+        slscan(&["register", sp, tp, "--out", op]).unwrap();
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("transform.json")).unwrap())
+                .unwrap();
+        let m: [[f64; 4]; 4] = serde_json::from_value(json["T_target_source"].clone()).unwrap();
+        let got = sl_camera::pose_from_matrix(&m).unwrap();
+        let turn = got.rotation.angle_to(&truth.rotation).to_degrees();
+        let shift = (got.translation.vector - truth.translation.vector).norm();
+        assert!(turn < 0.01 && shift < 0.01, "{turn} deg, {shift} mm");
+        assert_eq!(json["converged"], true, "{json}");
+        assert!(out.join("registered.ply").is_file() && out.join("preview.png").is_file());
+
+        let init = tmp.path().join("init.json");
+        std::fs::write(
+            &init,
+            r#"{"T_target_source": [[2,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}"#,
+        )
+        .unwrap();
+        let err = slscan(&[
+            "register",
+            sp,
+            tp,
+            "--out",
+            op,
+            "--init",
+            init.to_str().unwrap(),
+        ])
+        .unwrap_err();
+        let text = format!("{err:#}");
+        assert!(
+            text.contains("init.json") && text.contains("not a rigid motion"),
+            "{text}"
+        );
+    }
 }

@@ -163,6 +163,58 @@ pub fn register(
     Icp::new(source, target, config)?.run(initial)
 }
 
+/// Registers two raw clouds: each is downsampled to `voxel_size` (none: every point) and gets
+/// the normals `config.metric` needs (the target's for point-to-plane and generalized ICP, the
+/// source's too for generalized; a cloud's own normals are kept, others estimated), then
+/// [`register`]. Returns the registration and how many source points took part.
+///
+/// ```
+/// use nalgebra::{Isometry3, Point3, Vector3};
+/// use sl_icp::{IcpConfig, Metric, PointCloud, register_clouds};
+/// let pts: Vec<_> = (0..3000)
+///     .map(|i| {
+///         let (x, y) = ((i % 60) as f64, (i / 60) as f64);
+///         Point3::new(x, y, 4.0 * (x / 7.0).cos() + 0.05 * y * y)
+///     })
+///     .collect();
+/// let truth = Isometry3::new(Vector3::new(1.0, 0.5, -0.4), Vector3::new(0.01, -0.02, 0.03));
+/// let source = PointCloud::from_positions(pts.iter().map(|p| truth.inverse() * p).collect());
+/// let target = PointCloud::from_positions(pts);
+/// let config = IcpConfig { metric: Metric::PointToPlane, ..IcpConfig::default() };
+/// let (r, used) = register_clouds(&source, &target, &Isometry3::identity(), &config, None)?;
+/// assert_eq!(used, 3000);
+/// assert!(r.converged && r.rmse < 1e-3);
+/// # Ok::<(), sl_icp::IcpError>(())
+/// ```
+///
+/// # Errors
+/// The preparation's errors (too few points for normals, a bad voxel size) and [`register`]'s.
+pub fn register_clouds(
+    source: &sl_cloud::PointCloud,
+    target: &sl_cloud::PointCloud,
+    initial: &Isometry3<f64>,
+    config: &IcpConfig,
+    voxel_size: Option<f64>,
+) -> Result<(Registration, usize), IcpError> {
+    let prepare = |cloud, needs_normals: bool| {
+        PreparedCloud::new(
+            cloud,
+            &crate::PrepareConfig {
+                voxel_size,
+                normals: if needs_normals {
+                    crate::NormalSource::default()
+                } else {
+                    crate::NormalSource::None
+                },
+            },
+        )
+    };
+    let s = prepare(source, config.metric == Metric::Generalized)?;
+    let t = prepare(target, config.metric != Metric::PointToPoint)?;
+    t.build_index();
+    Ok((register(&s, &t, initial, config)?, s.len()))
+}
+
 fn check_pose(pose: &Isometry3<f64>) -> Result<(), IcpError> {
     let finite = pose.translation.vector.iter().all(|v| v.is_finite())
         && pose.rotation.coords.iter().all(|v| v.is_finite());

@@ -90,7 +90,7 @@ pub use global::{
     RansacResult, UnplacedView, align_unordered, compute_fpfh, match_features,
     orient_normals_outward, place_views, ransac_pose, register_global, register_global_prepared,
 };
-pub use icp::{Evaluation, Icp, IcpStep, Registration, register};
+pub use icp::{Evaluation, Icp, IcpStep, Registration, register, register_clouds};
 pub use merge::{
     MergeConfig, MergedScan, PairRegistration, ViewAlignment, ViewPoseSource, align_views,
     merge_aligned, merge_views,
