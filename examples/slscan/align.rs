@@ -131,7 +131,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     //! `slscan align` on partial views of a synthetic blob written as PLY, each in its own
     //! frame (the truth is the rigid motion each was moved by); a cloud in metres is refused
     //! naming `--scale 1000`.
@@ -156,7 +156,7 @@ mod tests {
     }
 
     /// A bumpy closed blob about 80 mm across (mm), as in sl-icp's tests.
-    fn blob(n: usize) -> Vec<Point3<f64>> {
+    pub(crate) fn blob(n: usize) -> Vec<Point3<f64>> {
         let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
         (0..n)
             .map(|i| {

@@ -306,22 +306,6 @@ mod tests {
         }
     }
 
-    /// A bumpy closed blob about 80 mm across, centred on `centre` (mm).
-    fn blob(n: usize, centre: Point3<f64>) -> Vec<Point3<f64>> {
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        (0..n)
-            .map(|i| {
-                let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let (r, t) = ((1.0 - y * y).sqrt(), golden * i as f64);
-                let d = Vector3::new(r * t.cos(), y, r * t.sin());
-                let bump = 6.0 * (3.0 * d.x).sin() * (2.0 * d.y + 0.5).cos()
-                    + 5.0 * (4.0 * d.z * d.x).sin()
-                    + 8.0 * (d.y - 0.6).max(0.0);
-                centre + d * (40.0 + bump)
-            })
-            .collect()
-    }
-
     #[test]
     fn views_of_a_turntable_land_where_the_turntable_put_them() {
         let tmp = tempfile::tempdir().unwrap();
@@ -330,7 +314,10 @@ mod tests {
         let step = 40.0;
         let angles: Vec<f64> = (0..4).map(|k| f64::from(k) * step).collect();
         let truth = sl_icp::turntable_poses(&axis, &angles).unwrap();
-        let world = blob(20_000, axis_point);
+        let world: Vec<Point3<f64>> = crate::align::tests::blob(20_000)
+            .into_iter()
+            .map(|p| p + axis_point.coords)
+            .collect();
         let mut files = Vec::new();
         for (k, t_world_view) in truth.iter().enumerate() {
             let inv = t_world_view.inverse();

@@ -319,24 +319,10 @@ mod tests {
         }
     }
 
-    fn blob(n: usize) -> Vec<Point3<f64>> {
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        (0..n)
-            .map(|i| {
-                let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let (r, t) = ((1.0 - y * y).sqrt(), golden * i as f64);
-                let d = Vector3::new(r * t.cos(), y, r * t.sin());
-                let bump = 6.0 * (3.0 * d.x).sin() * (2.0 * d.y + 0.5).cos()
-                    + 5.0 * (4.0 * d.z * d.x).sin();
-                Point3::from(d * (40.0 + bump))
-            })
-            .collect()
-    }
-
     #[test]
     fn the_written_transform_is_the_motion_between_the_clouds() {
         let tmp = tempfile::tempdir().unwrap();
-        let target: Vec<Point3<f64>> = blob(20_000);
+        let target: Vec<Point3<f64>> = crate::align::tests::blob(20_000);
         let truth = Isometry3::new(
             Vector3::new(1.5, -0.8, 0.6),
             Vector3::new(0.02, -0.03, 0.04),
