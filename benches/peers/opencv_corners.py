@@ -10,7 +10,7 @@ programs measured in issue 15. Each corner is matched to its nearest true corner
 
 `PEERS_PYTHON benches/peers/opencv_corners.py --chessboard $SL_DATA/chessboard`: OpenCV's
 camera RMS on the real sample images (left and right, 9x6), with cornerSubPix 11x11 and 7x7,
-for comparison with ours (`SL_DATA=... cargo test -p sl-calib --test real_chessboard --
+for comparison with ours (`SL_DATA=... cargo test -p sl-calib --test it real_chessboard --
 --nocapture`).
 """
 

@@ -1,5 +1,5 @@
 """OpenCV's `structured_light.GrayCodePattern` for a small 40x24 projector, and OpenCV's own
-decoding of it, for `crates/sl-codec/tests/opencv_graycode.rs`.
+decoding of it, for `crates/sl-codec/tests/it/opencv_graycode.rs`.
 
     /work/peers/bin/python benches/peers/opencv_graycode_patterns.py crates/sl-codec/tests/data/opencv_graycode
 

@@ -1,7 +1,7 @@
 """Writes the small image files of crates/sl-codec/tests/data/opencv_images/ with OpenCV's
 own encoders (cv2.imwrite), so that sl-codec's reader is tested on files it did not write.
 
-Pixel values are those of crates/sl-codec/tests/image_formats.rs (grey8_at, grey16_at,
+Pixel values are those of crates/sl-codec/tests/it/image_formats.rs (grey8_at, grey16_at,
 rgb8_at, rgb16_at, jpeg blocks); keep both in step. Regenerate with
 
     /work/peers/bin/python benches/peers/opencv_image_files.py crates/sl-codec/tests/data/opencv_images

@@ -11,7 +11,7 @@
 mod align;
 /// The Stanford bunny loader of sl-icp's tests (`$SL_DATA/bunny`), for the mesh tests.
 #[cfg(test)]
-#[path = "../../crates/sl-icp/tests/support/bunny.rs"]
+#[path = "../../crates/sl-icp/tests/it/support/bunny.rs"]
 mod bunny_support;
 mod calibrate;
 mod calibrate_capture;

@@ -5,7 +5,7 @@
 //! simulated too: it lays the pebble on its side when the screen asks for it, not before.
 //! A single-placement scan runs through the same seam, without a question.
 //!
-//! Small, as `crates/sl-scan/tests/placements.rs`: half resolution, 8 views per placement,
+//! Small, as `crates/sl-scan/tests/it/placements.rs`: half resolution, 8 views per placement,
 //! the rig's true calibration as `--calib` (the calibration is tested elsewhere). The truth is
 //! the pebble's own mesh: the merged model must cover it (`sl_metrology::surface_coverage`).
 

@@ -3,11 +3,11 @@
 //! The images are OpenCV's samples in `$SL_DATA/chessboard`; without `SL_DATA` the detection
 //! bench uses a synthetic 640×480 board and the calibration bench the corners stored in
 //! `tests/data/left_corners.json`. The 5 MP detection runs on a board rendered by the corner
-//! harness's renderer (`tests/support/board_render.rs`): 2592×1944, 13×9 inner corners of
+//! harness's renderer (`tests/it/support/board_render.rs`): 2592×1944, 13×9 inner corners of
 //! 120 px squares, lens blur σ = 2 px, vignetting, gamma, sensor noise, tilted.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // bench set-up: a failure is the bench failing
 
-#[path = "../tests/support/board_render.rs"]
+#[path = "../tests/it/support/board_render.rs"]
 mod board_render;
 
 use criterion::{Criterion, criterion_group, criterion_main};

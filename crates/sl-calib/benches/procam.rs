@@ -6,7 +6,7 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_calib::{BoardSize, ProcamConfig, calibrate_procam, sl_camera::ImageSize};
 
-#[path = "../tests/support/procam_render.rs"]
+#[path = "../tests/it/support/procam_render.rs"]
 mod procam_render;
 
 fn bench(c: &mut Criterion) {

@@ -8,7 +8,7 @@
 //!
 //! Renders each condition (lens blur, vignetting, gamma, sensor noise, 0.3–5 MP, squares of
 //! 20–120 px, perspective tilt, boards lit by the mean of three phase-shifted fringes; see
-//! `tests/support/board_render.rs`), detects the corners with `detect_checkerboard` (with
+//! `tests/it/support/board_render.rs`), detects the corners with `detect_checkerboard` (with
 //! `DetectorConfig::with_junction_fit()`; `--junction-fraction 0` for the default saddle
 //! points), writes
 //! the images and `manifest.json` (truth per image) to `--out`, runs
@@ -16,7 +16,7 @@
 //! per condition the RMS and largest corner error against truth (px), ours and OpenCV's.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // a command-line tool
 
-#[path = "../tests/support/board_render.rs"]
+#[path = "../tests/it/support/board_render.rs"]
 mod board_render;
 
 use std::path::PathBuf;

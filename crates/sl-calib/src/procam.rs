@@ -251,7 +251,7 @@ fn too_few_views(used: usize, skipped: &[SkippedView], what: &str) -> CalibError
 /// when a view's map and image sizes differ or views differ in size;
 /// [`CalibError::InvalidParameter`] for bad options.
 ///
-/// See `tests/procam.rs` for a run on the virtual rig's renders.
+/// See `tests/it/procam.rs` for a run on the virtual rig's renders.
 pub fn calibrate_procam(
     views: &[ProcamView],
     cfg: &ProcamConfig,

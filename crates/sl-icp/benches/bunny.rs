@@ -16,7 +16,7 @@ use sl_icp::{
     register,
 };
 
-#[path = "../tests/support/bunny.rs"]
+#[path = "../tests/it/support/bunny.rs"]
 mod bunny;
 
 fn bench(c: &mut Criterion) {

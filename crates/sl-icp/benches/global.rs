@@ -21,7 +21,7 @@ use nalgebra::{Point3, Vector3};
 use sl_cloud::{KdIndex, NormalConfig, NormalOrientation, estimate_normals_with_index};
 use sl_icp::{FpfhConfig, GlobalCloud, GlobalConfig, compute_fpfh, register_global_prepared};
 
-#[path = "../tests/support/bunny.rs"]
+#[path = "../tests/it/support/bunny.rs"]
 mod bunny;
 
 /// `n` points of a bumpy closed blob about 80 mm across (mm).

@@ -1,4 +1,4 @@
-//! The 36-view turntable merge of the virtual rig (`tests/support/turntable_scene.rs`): views
+//! The 36-view turntable merge of the virtual rig (`tests/it/support/turntable_scene.rs`): views
 //! of ~100k points with 0.03 mm noise, initial poses from a slightly wrong axis; the issue's
 //! target is at most 5 s on 2 cores. Rendering the views is outside the timing.
 //!
@@ -10,7 +10,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{Rotation3, Vector3};
 use sl_icp::{MergeConfig, PointCloud, align_views, merge_aligned, merge_views, turntable_poses};
 
-#[path = "../tests/support/turntable_scene.rs"]
+#[path = "../tests/it/support/turntable_scene.rs"]
 mod scene;
 
 fn bench(c: &mut Criterion) {

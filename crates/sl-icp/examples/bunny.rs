@@ -14,7 +14,7 @@ use sl_icp::{
     PreparedCloud, register,
 };
 
-#[path = "../tests/support/bunny.rs"]
+#[path = "../tests/it/support/bunny.rs"]
 mod bunny;
 
 /// Runs per figure; the median is reported.

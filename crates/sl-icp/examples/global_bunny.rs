@@ -21,7 +21,7 @@ use sl_icp::{
     GlobalCloud, GlobalConfig, IcpError, PoseError, match_features, ransac_pose, register,
 };
 
-#[path = "../tests/support/bunny.rs"]
+#[path = "../tests/it/support/bunny.rs"]
 mod bunny;
 
 /// Default runs per pair; the median is reported.

@@ -12,7 +12,7 @@ use std::time::Instant;
 use nalgebra::{Point3, Rotation3, Vector3};
 use sl_icp::{IcpError, MergeConfig, PoseError, TurntableAxis, merge_views, turntable_poses};
 
-#[path = "../tests/support/turntable_scene.rs"]
+#[path = "../tests/it/support/turntable_scene.rs"]
 mod scene;
 
 fn main() -> Result<(), IcpError> {

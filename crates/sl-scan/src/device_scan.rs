@@ -743,7 +743,7 @@ mod tests {
         eprintln!("placement 1: {single:?} {single_d:?}\nmerged: {whole:?} {whole_d:?}");
         // One placement misses the flat bottom (15.5 % of the area); both merged cover it:
         // 97 % or more at quarter resolution (the half-resolution scan of
-        // `tests/placements.rs` reaches 99 %), which no single placement can.
+        // `tests/it/placements.rs` reaches 99 %), which no single placement can.
         assert!(single.covered_fraction < 0.845, "{single:?}");
         assert!(whole.covered_fraction >= 0.97, "{whole:?}");
         assert!(

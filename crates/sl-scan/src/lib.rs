@@ -42,7 +42,7 @@
 //!   crate runs on real devices and files only. Implies `mesh`.
 //! - `mesh` (default): the mesh stage and chain (`sl-mesh`: screened Poisson, simplification,
 //!   fairing; faer and parry3d with it): [`mesh_chain`], [`mesh_stage_with`], the mesh of
-//!   [`scan_devices`]. Without `sim` and `mesh`, sl-scan brings 85 packages instead of 135.
+//!   [`scan_devices`]. Without `sim` and `mesh`, sl-scan brings 90 packages instead of 135.
 #![deny(missing_docs)]
 #![cfg_attr(docsrs, feature(doc_cfg))]
 

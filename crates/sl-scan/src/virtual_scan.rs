@@ -4,7 +4,7 @@
 //! ([`scan_session`]), and — what only the virtual rig can add — measure the result against
 //! its truth with `sl-metrology` (the dumbbell for the probing and sphere-spacing errors, then
 //! one capture of a tilted flat plate for the flatness). `slscan scan` is a thin wrapper
-//! around [`scan_virtual`]; `crates/sl-scan/tests/scan_pipeline.rs` runs it small.
+//! around [`scan_virtual`]; `crates/sl-scan/tests/it/scan_pipeline.rs` runs it small.
 
 use std::path::Path;
 use std::time::{Duration, Instant};

@@ -1,4 +1,4 @@
-"""Reference for tests/real_chessboard.rs: cv2.calibrateCamera (OpenCV 5, default flags) on
+"""Reference for tests/it/real_chessboard.rs: cv2.calibrateCamera (OpenCV 5, default flags) on
 the corners our detector found in $SL_DATA/chessboard/left*.jpg (tests/data/left_corners.json,
 written by the test with SL_CALIB_REGENERATE=1). Writes tests/data/opencv_left.json.
 Run with any Python that has OpenCV and numpy; not a dependency of the project."""

@@ -252,7 +252,7 @@ fn distance_to_spheres(
 /// 0.2° and 0.5 mm off, refined by ICP. The calibrated poses alone misplace the spheres by
 /// tenths of a millimetre; the refinement must bring the merged cloud back onto the truth.
 /// Renders 36 views: release only,
-/// `cargo test --release --test session_scan -- --include-ignored dense`.
+/// `cargo test --release -p sl-scan --test it -- --include-ignored session_scan::a_dense`.
 #[test]
 #[cfg_attr(debug_assertions, ignore = "renders 36 views: run in release")]
 fn a_dense_session_with_an_approximate_axis_is_refined_onto_the_true_spheres() {

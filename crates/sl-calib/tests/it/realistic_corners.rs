@@ -4,8 +4,7 @@
 //! `examples/corner_harness.rs`.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test helpers: a failure is the test failing
 
-#[path = "support/board_render.rs"]
-mod board_render;
+use crate::support::board_render;
 
 use board_render::{Fringes, RenderSpec, corner_errors, render, rms};
 use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};

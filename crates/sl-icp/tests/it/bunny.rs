@@ -13,8 +13,7 @@ use sl_icp::{
     align_views, register,
 };
 
-#[path = "support/bunny.rs"]
-mod bunny;
+use crate::support::bunny;
 
 fn prep(voxel: f64, normals: bool) -> PrepareConfig {
     PrepareConfig {

@@ -9,10 +9,9 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_icp::{GlobalCloud, MultiwayConfig, PointCloud, PoseError, align_unordered, place_views};
 
-#[path = "support/bunny.rs"]
-mod bunny;
+use crate::support::bunny;
 
-/// A bumpy closed blob about 80 mm across (mm), as in `tests/global.rs`.
+/// A bumpy closed blob about 80 mm across (mm), as in `tests/it/global.rs`.
 fn blob(n: usize) -> Vec<Point3<f64>> {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     (0..n)

@@ -12,9 +12,9 @@
 //! sphere form (range of radial residuals) and size ≤ 0.05 mm, flatness (range) ≤ 0.1 mm.
 //!
 //! Rendering 1280×720 captures is slow in debug builds: the tests are `#[ignore]`d there and
-//! run with `cargo test --release -p sl-tri --test rendered -- --nocapture`. The ignored
+//! run with `cargo test --release -p sl-tri --test it rendered -- --nocapture`. The ignored
 //! `flatness_knobs` prints how the flatness scales with the capture's knobs
-//! (`cargo test --release -p sl-tri --test rendered flatness_knobs -- --ignored --nocapture`).
+//! (`cargo test --release -p sl-tri --test it rendered::flatness_knobs -- --ignored --nocapture`).
 
 // Test helpers (not `#[test]` functions) unwrap too: a failure there is a test failure.
 #![allow(clippy::unwrap_used, clippy::expect_used)]

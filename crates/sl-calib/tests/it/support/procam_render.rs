@@ -1,7 +1,7 @@
 //! Board poses rendered by the virtual rig with the hybrid code on both projector axes, and
 //! decoded: the input of a projector–camera calibration, with the rig's truth. Shared by
-//! `tests/procam.rs`, `tests/rig_calibration_truth.rs` and `benches/procam.rs` (included with
-//! `#[path]`).
+//! `tests/it/procam.rs`, `tests/it/rig_calibration_truth.rs` and `benches/procam.rs` (which
+//! includes it with `#[path]`).
 
 // The bench reads the views only; the truth is for the tests.
 #![allow(dead_code)]
@@ -16,7 +16,7 @@ use sl_codec::{
 use sl_sim::{BoardTruth, CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig};
 
 /// Electrons per grey level of the default sensor (10 000 e⁻ full well over 255 levels):
-/// read noise of this many electrons is 1 grey level, as in `tests/virtual_rig.rs`.
+/// read noise of this many electrons is 1 grey level, as in `tests/it/virtual_rig.rs`.
 const ONE_GREY_LEVEL_E: f64 = 10_000.0 / 255.0;
 
 /// Views, their truth and the rig.

@@ -1,6 +1,6 @@
 //! Checkerboard images that look like real captures, with exact corner truth: the corner
-//! harness (`examples/corner_harness.rs`) and `tests/realistic_corners.rs` include this file
-//! with `#[path]`.
+//! harness (`examples/corner_harness.rs`) and `benches/calib.rs` include this file with
+//! `#[path]`; `tests/it/realistic_corners.rs` uses it as `support::board_render`.
 //!
 //! The image formation, in order:
 //! 1. a pinhole camera sees a planar board (`cols × rows` inner corners, one white square of

@@ -9,8 +9,7 @@ use sl_icp::{
     merge_views, turntable_poses,
 };
 
-#[path = "support/turntable_scene.rs"]
-mod scene;
+use crate::support::turntable_scene as scene;
 
 /// An imperfect calibration of `axis`: 0.3° off in direction, (0.5, 0, -0.3) mm off in
 /// position, and a 0.1 % angle-scale error (0.36° by the last view).

@@ -15,8 +15,7 @@ use sl_calib::{
 };
 use sl_sim::{BoardTruth, Checkerboard, RigConfig, Scene, calibration_sequence};
 
-#[path = "support/procam_render.rs"]
-mod procam_render;
+use crate::support::procam_render;
 
 /// The scan's hand-held calibration views (seed 0: 12 poses, 4-step hybrid code with 30 px
 /// periods on both axes, the dumbbell scene) with their truth.

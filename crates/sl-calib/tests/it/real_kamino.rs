@@ -4,8 +4,7 @@
 //! and pass (CI does not have the set; `real_chessboard.rs` guards OpenCV's samples there).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test helpers: a failure is the test failing
 
-#[path = "support/held_out.rs"]
-mod held_out;
+use crate::support::held_out;
 
 use std::path::{Path, PathBuf};
 

@@ -9,10 +9,9 @@
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use sl_icp::{IcpError, MergeConfig, PointCloud, PoseError, align_views};
 
-#[path = "support/bunny.rs"]
-mod bunny;
+use crate::support::bunny;
 
-/// The merge settings of `tests/bunny.rs`: the Stanford scans are not in their camera
+/// The merge settings of `tests/it/bunny.rs`: the Stanford scans are not in their camera
 /// frames, so normals are left unoriented.
 fn config() -> MergeConfig {
     MergeConfig {

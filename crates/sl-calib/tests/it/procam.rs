@@ -4,7 +4,7 @@
 //!
 //! Rendering ~45 frames of 1280×720 per board pose is slow in debug builds: the rig tests are
 //! `#[ignore]`d there and run with
-//! `cargo test --release -p sl-calib --test procam -- --nocapture`.
+//! `cargo test --release -p sl-calib --test it procam -- --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test helpers: a failure is the test failing
 
 use std::time::Instant;
@@ -16,8 +16,7 @@ use sl_calib::{
 };
 use sl_sim::{Checkerboard, RigConfig};
 
-#[path = "support/procam_render.rs"]
-mod procam_render;
+use crate::support::procam_render;
 
 #[derive(Default)]
 struct Stats {
@@ -134,7 +133,7 @@ fn rig_calibration_recovers_the_truth() {
     assert!(c.rms_camera < 0.08, "camera rms {}", c.rms_camera);
     assert!(c.rms_projector < 0.08, "projector rms {}", c.rms_projector);
     assert!(c.rms_stereo < 0.08, "stereo rms {}", c.rms_stereo);
-    // End to end, the camera corners' detection error (0.04 px mean, `tests/virtual_rig.rs`)
+    // End to end, the camera corners' detection error (0.04 px mean, `tests/it/virtual_rig.rs`)
     // is scaled by the ~1.5 projector px per camera px; the mapping alone averages the
     // decoding noise (~0.1 projector px per pixel) over ~1500 pixels.
     assert!(

@@ -3,8 +3,7 @@
 
 use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard, load_grey};
 
-#[path = "support/held_out.rs"]
-mod held_out;
+use crate::support::held_out;
 
 fn data_dir() -> Option<std::path::PathBuf> {
     match std::env::var_os("SL_DATA") {
@@ -43,7 +42,7 @@ fn all_26_images_are_detected_in_board_order() {
 
 /// Our corners of the 13 left images, calibrated by us and (offline) by
 /// `cv2.calibrateCamera`: the two must find the same minimum. Regenerate the fixture with
-/// `SL_CALIB_REGENERATE=1 cargo test -p sl-calib --test real_chessboard` (writes
+/// `SL_CALIB_REGENERATE=1 cargo test -p sl-calib --test it real_chessboard` (writes
 /// `tests/data/left_corners.json`), then `python tests/data/opencv_reference.py`.
 #[test]
 fn left_camera_matches_opencv_on_our_corners() {

@@ -151,7 +151,7 @@ fn wall_rms(calibration: &Calibration, depth: f64, method: Method) -> (usize, f6
 /// bottom edge, `Rp Tp` = `T_proj_cam`) triangulates a wall exactly with every method.
 #[test]
 fn slstudio_calibration_file_works() {
-    let text = include_str!("../../sl-camera/tests/data/slstudio_calibration.yml");
+    let text = include_str!("../../../sl-camera/tests/data/slstudio_calibration.yml");
     let calibration = Calibration::from_opencv_yaml(text, "slstudio_calibration.yml").unwrap();
     for method in METHODS {
         let (n, rms) = wall_rms(&calibration, 600.0, method);
@@ -266,7 +266,7 @@ fn column_only_maps_triangulate_with_every_one_axis_method() {
     let config = RigConfig::default();
     let calibration = config.calibration();
     let slstudio = Calibration::from_opencv_yaml(
-        include_str!("../../sl-camera/tests/data/slstudio_calibration.yml"),
+        include_str!("../../../sl-camera/tests/data/slstudio_calibration.yml"),
         "slstudio_calibration.yml",
     )
     .unwrap();

@@ -14,8 +14,7 @@ use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 use sl_icp::{GlobalConfig, PointCloud, PoseError, register_global};
 
-#[path = "support/bunny.rs"]
-mod bunny;
+use crate::support::bunny;
 
 #[test]
 fn bunny_pairs_register_from_no_pose_within_1_mm() {

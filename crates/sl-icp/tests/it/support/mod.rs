@@ -1,0 +1,4 @@
+//! Helpers shared by the test modules (also included by benches and examples with `#[path]`).
+
+pub(crate) mod bunny;
+pub(crate) mod turntable_scene;
