@@ -615,8 +615,10 @@ mod tests {
         assert!((fx - 1.0).abs() < 0.002, "fx ratio {fx}");
     }
 
-    /// Resolution divider of the accuracy test.
-    const DOWNSCALE_A: &str = "1";
+    /// Resolution divider of the accuracy test: half resolution, 34 s in the test build
+    /// instead of 138 s at full resolution (the longest test of the workspace, issue 29); the
+    /// axis lands 0.006° and 0.07 mm from the truth, inside the bounds below.
+    const DOWNSCALE_A: &str = "2";
 
     /// The emulated MX-64 turning the virtual board: the servo's reported angle is what the
     /// virtual turntable is turned to, so the frames show the angle the driver recorded.
