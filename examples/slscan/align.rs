@@ -145,14 +145,7 @@ pub(crate) mod tests {
     use crate::{Cli, Command};
 
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Align(a) => super::run(&a),
-            Command::Register(a) => crate::register::run(&a),
-            Command::Merge(a) => crate::merge::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(args)
     }
 
     /// A bumpy closed blob about 80 mm across (mm), as in sl-icp's tests.

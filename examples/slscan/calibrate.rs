@@ -423,25 +423,17 @@ mod tests {
 
     use std::path::Path;
 
-    use clap::Parser;
     use sl_calib::CalibError;
     use sl_calib::sl_camera::Calibration;
     use sl_calib::sl_codec::{Axis, BitDepth, HybridSpec, ImageSize, Pattern, PatternSequence};
     use sl_sim::{CalibrationSession, Scene, VirtualRig, simulate_calibration};
     use structured_light::scan::scaled_rig_config;
 
-    use crate::{Cli, Command};
-
     /// Quarter resolution: a 20 mm square still spans ~15 camera pixels at 450 mm.
     const DOWNSCALE: u32 = 4;
 
     pub(super) fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Calibrate(a) => crate::calibrate::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(args)
     }
 
     /// Renders a calibration session (`board/` poses with both projector axes coded,

@@ -523,12 +523,7 @@ mod tests {
     use crate::{Cli, Command};
 
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Calibrate(a) => crate::calibrate::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(args)
     }
 
     fn capture_args(args: &[&str]) -> super::Args {

@@ -149,18 +149,8 @@ mod tests {
     //! `slscan decode` on a capture of black frames: an error naming the capture, not an
     //! empty success.
 
-    use clap::Parser;
-
-    use crate::{Cli, Command};
-
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Patterns(a) => crate::patterns::run(&a),
-            Command::Decode(a) => crate::decode::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(args)
     }
 
     #[test]

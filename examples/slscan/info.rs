@@ -235,18 +235,10 @@ mod tests {
 
     use std::path::PathBuf;
 
-    use clap::Parser;
     use sl_camera::{Calibration, CalibrationLayout, LoadOptions};
 
-    use crate::{Cli, Command};
-
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Info(a) => crate::info::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(args)
     }
 
     fn peer_file(name: &str) -> PathBuf {

@@ -79,8 +79,18 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
-    let result = match cli.command {
+    match run(Cli::parse().command) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(err) => {
+            common::print_error(&err);
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// Runs one subcommand.
+fn run(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Info(args) => info::run(&args),
         Command::Devices(args) => devices::run(&args),
         Command::Calibrate(args) => calibrate::run(&args),
@@ -95,12 +105,13 @@ fn main() -> std::process::ExitCode {
         Command::Capture(args) => capture::run(&args),
         Command::Scan(args) => scan::run(&args),
         Command::Report(args) => report::run(&args),
-    };
-    match result {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(err) => {
-            common::print_error(&err);
-            std::process::ExitCode::FAILURE
-        }
     }
+}
+
+/// Runs `slscan ARGS…` in this process, as the shell would (the tests' way in): the command
+/// line parsed, then the subcommand.
+#[cfg(test)]
+fn run_cli(args: &[&str]) -> anyhow::Result<()> {
+    let argv = std::iter::once("slscan").chain(args.iter().copied());
+    run(Cli::try_parse_from(argv)?.command)
 }

@@ -290,20 +290,12 @@ mod tests {
     //! about a known axis, each in its camera's frame; the merge must place them where the
     //! turntable put them and say so in `report.json` and `poses.json`.
 
-    use clap::Parser;
     use nalgebra::{Point3, Vector3};
     use sl_camera::TurntableAxis;
     use sl_cloud::{PlyFormat, PointCloud, write_ply};
 
-    use crate::{Cli, Command};
-
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Merge(a) => super::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(args)
     }
 
     #[test]

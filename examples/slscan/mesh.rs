@@ -286,19 +286,11 @@ mod tests {
     //! `slscan mesh` on a sampled sphere: the files, a closed surface near the sphere, the
     //! figures; and a cloud without normals named in the error.
 
-    use clap::Parser;
     use nalgebra::{Point3, Vector3};
     use sl_cloud::{PointCloud, write_ply};
 
-    use crate::{Cli, Command};
-
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan", "mesh"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Mesh(a) => crate::mesh::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(&[&["mesh"], args].concat())
     }
 
     fn sphere(n: usize, r: f64, c: Point3<f64>) -> (Vec<Point3<f64>>, Vec<Vector3<f64>>) {

@@ -284,18 +284,10 @@ mod tests {
 
     use std::path::Path;
 
-    use clap::Parser;
     use sl_codec::{Axis, Manifest, Pattern};
 
-    use crate::{Cli, Command};
-
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Patterns(a) => crate::patterns::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(args)
     }
 
     fn manifest(dir: &Path) -> Manifest {

@@ -283,23 +283,15 @@ mod tests {
 
     use std::path::{Path, PathBuf};
 
-    use clap::Parser;
     use sl_codec::{Axis, BitDepth, HybridSpec, ImageSize, Pattern, PatternSequence};
     use sl_scan::scaled_rig_config;
     use sl_sim::{Scene, VirtualRig, simulate_scan};
-
-    use crate::{Cli, Command};
 
     /// Quarter resolution, as the other command tests.
     const DOWNSCALE: u32 = 4;
 
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Reconstruct(a) => crate::reconstruct::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(args)
     }
 
     /// Renders one view of the plane with the recommended hybrid code on the columns only;

@@ -304,19 +304,11 @@ mod tests {
     //! transform it writes is that motion; an initial pose that is not a rigid motion is
     //! refused naming the file.
 
-    use clap::Parser;
     use nalgebra::{Isometry3, Point3, Vector3};
     use sl_cloud::{PlyFormat, PointCloud, write_ply};
 
-    use crate::{Cli, Command};
-
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
-        let mut argv = vec!["slscan"];
-        argv.extend_from_slice(args);
-        match Cli::try_parse_from(argv)?.command {
-            Command::Register(a) => super::run(&a),
-            other => anyhow::bail!("parsed as {other:?}"),
-        }
+        crate::run_cli(args)
     }
 
     #[test]

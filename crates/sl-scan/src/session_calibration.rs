@@ -420,15 +420,7 @@ pub fn calibrate_camera_files(
         .collect();
     let cal = report
         .stage("calibrate", || calibrate_camera(&views, image_size, zhang))
-        .map_err(|e| ScanError::Step {
-            what: format!(
-                "camera calibration from {} views with a board ({} skipped{})",
-                views.len(),
-                skipped.len(),
-                skipped_names(&skipped)
-            ),
-            source: Box::new(e.into()),
-        })?;
+        .map_err(failed_on("camera calibration", views.len(), &skipped))?;
     let magnification = report.stage("pictures", || {
         pictures(
             out,
@@ -530,15 +522,7 @@ pub fn calibrate_turntable_files(
         .stage("fit axis", || {
             calibrate_turntable(&calib.camera, &tviews, turntable)
         })
-        .map_err(|e| ScanError::Step {
-            what: format!(
-                "turntable axis from {} views with a board ({} skipped{})",
-                tviews.len(),
-                skipped.len(),
-                skipped_names(&skipped)
-            ),
-            source: Box::new(e.into()),
-        })?;
+        .map_err(failed_on("turntable axis", tviews.len(), &skipped))?;
     let magnification = report.stage("pictures", || {
         pictures(
             out,
@@ -1014,23 +998,36 @@ fn skipped_json(skipped: &[SkippedImage]) -> serde_json::Value {
         .collect()
 }
 
-/// Images skipped for want of a board, for an error message: `: a.png, b.png, c.png, …`
-/// (the first [`SKIPPED_NAMED`]), or nothing.
-fn skipped_names(skipped: &[SkippedImage]) -> String {
-    if skipped.is_empty() {
-        return String::new();
+/// The error of a step (`what`) that failed on `used` views with a board, naming the images
+/// skipped for want of one: `camera calibration from 7 views with a board (2 skipped: a.png,
+/// b.png)` (the first [`SKIPPED_NAMED`], then `…`).
+fn failed_on<'a>(
+    what: &'a str,
+    used: usize,
+    skipped: &'a [SkippedImage],
+) -> impl FnOnce(CalibError) -> ScanError + 'a {
+    move |e| {
+        let mut names: Vec<String> = skipped
+            .iter()
+            .take(SKIPPED_NAMED)
+            .map(|s| s.image.display().to_string())
+            .collect();
+        if skipped.len() > SKIPPED_NAMED {
+            names.push("…".to_owned());
+        }
+        let named = if names.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", names.join(", "))
+        };
+        ScanError::Step {
+            what: format!(
+                "{what} from {used} views with a board ({} skipped{named})",
+                skipped.len()
+            ),
+            source: Box::new(e.into()),
+        }
     }
-    let names: Vec<String> = skipped
-        .iter()
-        .take(SKIPPED_NAMED)
-        .map(|s| s.image.display().to_string())
-        .collect();
-    let more = if skipped.len() > SKIPPED_NAMED {
-        ", …"
-    } else {
-        ""
-    };
-    format!(": {}{more}", names.join(", "))
 }
 
 /// Skipped images named in an error message: enough to find the folder, short enough to read.
