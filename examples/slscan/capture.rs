@@ -15,7 +15,7 @@ use structured_light::scan::{
     DeviceCaptureConfig, SessionCapture, capture_device_session, scaled_rig_config,
 };
 
-use crate::common::{Report, ensure_out_dir, progress};
+use crate::common::{ensure_out_dir, progress};
 
 /// The hardware options shared by `capture` and `scan`.
 #[derive(Debug, Clone, clap::Args)]
@@ -150,32 +150,13 @@ where
 }
 
 /// Writes a captured session's `report.json` into its folder and says what it captured (and
-/// the latency, when measured). `slscan scan` on devices records each of its sessions so.
-pub(crate) fn record_session(capture: &SessionCapture) -> anyhow::Result<PathBuf> {
-    let mut report = Report::new("capture");
-    report.started_before(capture.stages.iter().map(|s| s.ms).sum());
-    if let Some(latency) = &capture.latency {
-        println!(
-            "latency: {} frame(s) to flush, {:.1} ms from show to a frame that shows it",
-            latency.frames, latency.ms
-        );
-        report.figure("latency", serde_json::to_value(latency)?);
+/// the latency, when measured).
+fn record_session(capture: &SessionCapture) -> anyhow::Result<()> {
+    let path = capture.write_report()?;
+    for line in capture.summary(&path) {
+        println!("{line}");
     }
-    report.add_stages(&capture.stages);
-    let summary = &capture.summary;
-    report.figure("views", summary.views.len());
-    report.figure("captured", summary.captured);
-    report.figure("kept_from_earlier_run", summary.skipped);
-    report.figure("views_detail", serde_json::to_value(&summary.views)?);
-    let path = report.write(&capture.session)?;
-    println!(
-        "{}: {} views captured, {} kept from an earlier run (report: {})",
-        capture.session.display(),
-        summary.captured,
-        summary.skipped,
-        path.display()
-    );
-    Ok(path)
+    Ok(())
 }
 
 fn scene(name: &str) -> anyhow::Result<Scene> {

@@ -36,22 +36,6 @@ pub(crate) fn ensure_out_dir(out: &Path) -> anyhow::Result<PathBuf> {
 /// with the library pipelines.
 pub(crate) use sl_scan::{RunReport as Report, write_atomically};
 
-/// The stage timings a pipeline returned, a line each: `  capture        33.76 s`.
-pub(crate) fn print_stages(stages: &[sl_scan::StageTime]) {
-    for s in stages {
-        println!("  {:<12} {:>7.2} s", s.name, s.ms / 1e3);
-    }
-}
-
-/// `watertight` or `NOT watertight`, for the line that names a mesh.
-pub(crate) fn watertight(closed: bool) -> &'static str {
-    if closed {
-        "watertight"
-    } else {
-        "NOT watertight"
-    }
-}
-
 /// A progress bar on stderr for `len` steps (hidden automatically when stderr is not a terminal).
 #[allow(dead_code)] // used by the subcommands that take long; `info` does not.
 pub(crate) fn progress(len: u64, message: &str) -> ProgressBar {

@@ -136,59 +136,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut bars = StageBars::new();
     let result = scan_virtual(&cfg, &out, |p| bars.update(p))?;
     bars.clear();
-    let c = &result.calibration_summary;
-    report.figure(
-        "scene",
-        "dumbbell: two spheres r = 25 mm, centres 120 mm apart; then a tilted 160 x 100 mm plate",
-    );
-    report.figure("views", args.views);
-    report.figure("views_captured_this_run", result.views_captured);
-    report.figure("view_points", result.view_points.clone());
-    report.figure("merged_points", result.merged.len());
-    report.figure("calibration", serde_json::to_value(c)?);
-    report.figure("accuracy", serde_json::to_value(&result.accuracy)?);
-    report.figure("flatness", serde_json::to_value(&result.flatness)?);
-    report.figure("first_view", serde_json::to_value(&result.first_view)?);
-    report.figure("mesh", serde_json::to_value(&result.mesh)?);
-    report.figure("merge", serde_json::to_value(&result.merge)?);
-    report.figure("files", serde_json::to_value(&result.files)?);
-    report.add_stages(&result.stages);
+    result.record(&mut report, args.views)?;
     report.write(&out)?;
     let html = write_summary_html(&out, &result)?;
-
-    println!(
-        "calibration: RMS camera {:.3} px, projector {:.3} px, stereo {:.3} px; axis {:.4} deg / {:.3} mm off the truth",
-        c.rms_camera_px,
-        c.rms_projector_px,
-        c.rms_stereo_px,
-        c.axis_direction_error_deg,
-        c.axis_position_error_mm
-    );
-    if let Some(p) = &c.predicted_error {
-        println!("calibration: {}", p.sentence());
+    for line in result.summary(&out, args.views) {
+        println!("{line}");
     }
-    println!(
-        "{}: {} points merged from {} views",
-        out.join(&result.files.merged).display(),
-        result.merged.len(),
-        args.views
-    );
-    println!("  poses: {}", result.merge.summary);
-    for line in result.accuracy.summary() {
-        println!("  {line}");
-    }
-    for s in &result.first_view.spheres {
-        println!(
-            "  first view alone: {} form {:.4} mm ({:.4} mm trimmed), fit RMS {:.4} mm, {} points",
-            s.name, s.probing_form_mm, s.probing_form_trimmed_mm, s.fit_rms_mm, s.points
-        );
-    }
-    if let Some(f) = &result.flatness {
-        for line in f.summary() {
-            println!("  {line}");
-        }
-    }
-    crate::common::print_stages(&result.stages);
     println!("summary: {}", html.display());
     Ok(())
 }
@@ -243,65 +196,11 @@ fn run_placements(args: &Args) -> anyhow::Result<()> {
     let mut bars = StageBars::new();
     let r = scan_virtual_placements(&cfg, args.placements, &out, |p| bars.update(p))?;
     bars.clear();
-    report.figure(
-        "scene",
-        "pebble: a bumpy body about 80 mm across with a flat bottom, standing, then laid on its side",
-    );
-    report.figure("placements", args.placements);
-    report.figure("views", args.views);
-    report.figure("calibration", serde_json::to_value(&r.calibration_summary)?);
-    report.figure("per_placement", serde_json::to_value(&r.placements)?);
-    report.figure("merged_points", r.merged.len());
-    report.figure("coverage_spacing_mm", r.spacing_mm);
-    report.figure("coverage", serde_json::to_value(&r.coverage)?);
-    report.figure("distance_to_truth", serde_json::to_value(&r.distance)?);
-    report.figure("mesh", serde_json::to_value(&r.mesh)?);
-    report.figure(
-        "files",
-        serde_json::json!({
-            "merged": r.merged_file,
-            "previews": r.previews,
-            "truth_mesh": structured_light::scan::TRUTH_MESH_FILE,
-            "mesh": r.mesh_files,
-        }),
-    );
-    report.add_stages(&r.stages);
+    r.record(&mut report, args.placements, args.views)?;
     report.write(&out)?;
-    for p in &r.placements {
-        let aligned = p.alignment.as_ref().map_or(String::new(), |a| {
-            format!(
-                "; aligned onto placement 1 with no pose hint: fitness {:.3}, RMSE {:.3} mm",
-                a.fitness, a.rmse_mm
-            )
-        });
-        println!(
-            "placement {}: {} points, covers {:.2} % of the true surface, RMS {:.4} mm to it{aligned}",
-            p.placement,
-            p.merged_points,
-            100.0 * p.coverage.covered_fraction,
-            p.distance.rms_mm
-        );
-        println!("  poses: {}", p.merge.summary);
+    for line in r.summary(&out) {
+        println!("{line}");
     }
-    println!(
-        "{}: {} points merged from {} placements: covers {:.2} % of the true surface (within {:.2} mm), RMS {:.4} mm to it ({} points beyond {} mm)",
-        out.join(&r.merged_file).display(),
-        r.merged.len(),
-        args.placements,
-        100.0 * r.coverage.covered_fraction,
-        r.coverage.distance_mm,
-        r.distance.rms_mm,
-        r.distance.outliers,
-        r.distance.select_mm
-    );
-    if let Some(m) = &r.mesh {
-        println!(
-            "  mesh: {} triangles, {}",
-            m.triangles,
-            crate::common::watertight(m.watertight)
-        );
-    }
-    crate::common::print_stages(&r.stages);
     Ok(())
 }
 

@@ -24,8 +24,8 @@ use std::time::Duration;
 
 use sl_rig::{Camera, DEFAULT_DISPLAY_LATENCY, LatencyConfig, Projector, Turntable};
 use structured_light::scan::{
-    DeviceScan, DeviceScanConfig, MergeStageConfig, MeshFiles, MeshSummary, ReconstructConfig,
-    ScanError, ScanOperator, SessionCapture, SessionScanConfig, placement_dir_name, scan_devices,
+    DeviceScan, DeviceScanConfig, MergeStageConfig, ReconstructConfig, ScanError,
+    SessionScanConfig, TerminalOperator, scan_devices,
 };
 
 use crate::common::{Report, StageBars};
@@ -84,7 +84,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         let wait = args.placement_wait;
         // The window lives on the main thread's event loop; the scan runs in the worker.
         let scan = sl_rig::with_devices(&description, move |camera, projector, table| {
-            let terminal = Terminal::new(std::io::stdin().lock(), std::io::stdout(), wait);
+            let terminal = TerminalOperator::new(std::io::stdin().lock(), std::io::stdout(), wait);
             Ok(scan_on(&cfg, &out, camera, projector, table, terminal))
         })??;
         Ok(scan)
@@ -97,14 +97,23 @@ pub(crate) fn run_on(
     args: &Args,
     on_devices: impl FnOnce(DeviceScanConfig) -> anyhow::Result<DeviceScan>,
 ) -> anyhow::Result<()> {
-    let report = Report::new("scan");
+    let mut report = Report::new("scan");
     let cfg = scan_config(args)?;
     let scan = on_devices(cfg)?;
-    if args.placements > 1 {
-        report_placements(args, report, scan)
-    } else {
-        report_single(args, report, scan)
+    let calib = args.rig.calib.clone().unwrap_or_default();
+    scan.record(&mut report, &calib, !args.rig.no_refine)?;
+    report.write(&args.out)?;
+    for line in scan.summary(&args.out, &calib) {
+        println!("{line}");
     }
+    // A mesh that failed keeps the merged cloud and the report on disk, and the error says so.
+    if let Some(Err(e)) = scan.mesh {
+        return Err(anyhow::Error::new(e).context(format!(
+            "{} and its report are written; the mesh stage failed",
+            args.out.join(&scan.files.merged).display()
+        )));
+    }
+    Ok(())
 }
 
 /// The library's scan on `camera`, `projector` and `table`, with progress bars and `terminal`
@@ -115,7 +124,7 @@ pub(crate) fn scan_on<I: BufRead, O: Write>(
     camera: &mut dyn Camera,
     projector: &mut dyn Projector,
     table: &mut dyn Turntable,
-    mut terminal: Terminal<I, O>,
+    mut terminal: TerminalOperator<I, O>,
 ) -> Result<DeviceScan, ScanError> {
     let mut bars = StageBars::new();
     let scan = scan_devices(cfg, out, camera, projector, table, &mut terminal, |p| {
@@ -177,214 +186,6 @@ fn scan_config(args: &Args) -> anyhow::Result<DeviceScanConfig> {
         other => other.into(),
     })?;
     Ok(cfg)
-}
-
-/// What the user is asked to do between two placements.
-pub(crate) const REPLACE_PROMPT: &str = "lay the object on its side and press Enter";
-
-/// The person at the rig, on the terminal (`input` and `output`: stdin and stdout, or a
-/// test's buffers): told which placement is captured, asked to re-place the object in between
-/// (or given `wait_s` seconds to), and each session's record written as it is captured.
-pub(crate) struct Terminal<I, O> {
-    input: I,
-    output: O,
-    wait_s: Option<f64>,
-}
-
-impl<I: BufRead, O: Write> Terminal<I, O> {
-    /// The terminal of `input` and `output`; `wait_s` is `--placement-wait`.
-    pub(crate) fn new(input: I, output: O, wait_s: Option<f64>) -> Self {
-        Self {
-            input,
-            output,
-            wait_s,
-        }
-    }
-}
-
-impl<I: BufRead, O: Write> ScanOperator for Terminal<I, O> {
-    fn replace(&mut self, next: usize, total: usize) -> Result<(), ScanError> {
-        replace_prompt(&mut self.input, &mut self.output, next, total, self.wait_s)
-    }
-
-    fn capturing(&mut self, placement: usize, total: usize, dir: &Path) -> Result<(), ScanError> {
-        if total > 1 {
-            let _ = writeln!(
-                self.output,
-                "placement {placement}: capturing {}",
-                dir.display()
-            );
-        }
-        Ok(())
-    }
-
-    fn captured(&mut self, placement: usize, capture: &SessionCapture) -> Result<(), ScanError> {
-        crate::capture::record_session(capture)
-            .map(|_| ())
-            .map_err(|e| ScanError::Stage {
-                stage: "capture".into(),
-                reason: format!("placement {placement}: {e:#}"),
-            })
-    }
-}
-
-/// Asks the user to re-place the object before placement `next`, then waits for Enter on
-/// `input` — or, with `wait_s`, waits that many seconds without reading anything.
-fn replace_prompt(
-    input: &mut impl BufRead,
-    output: &mut impl Write,
-    next: usize,
-    total: usize,
-    wait_s: Option<f64>,
-) -> Result<(), ScanError> {
-    let failed = |reason: String| ScanError::Stage {
-        stage: "placements".into(),
-        reason,
-    };
-    match wait_s {
-        Some(s) => {
-            let wait = Duration::try_from_secs_f64(s)
-                .map_err(|_| failed(format!("--placement-wait {s}: not a number of seconds")))?;
-            let _ = writeln!(
-                output,
-                "placement {next} of {total}: lay the object on its side; scanning again in {s} s (--placement-wait)"
-            );
-            let _ = output.flush();
-            std::thread::sleep(wait);
-        }
-        None => {
-            let _ = write!(output, "placement {next} of {total}: {REPLACE_PROMPT} ");
-            let _ = output.flush();
-            let mut line = String::new();
-            let read = input
-                .read_line(&mut line)
-                .map_err(|e| failed(format!("reading the answer from stdin: {e}")))?;
-            if read == 0 {
-                return Err(failed(format!(
-                    "stdin closed before placement {next} was confirmed: press Enter in a terminal, or pass --placement-wait SECONDS"
-                )));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// The report and the figures of `slscan scan --placements 2` on the devices.
-fn report_placements(args: &Args, mut report: Report, scan: DeviceScan) -> anyhow::Result<()> {
-    let out = &args.out;
-    report.add_stages(&scan.stages);
-    let mut per_placement = Vec::new();
-    for p in &scan.placements {
-        per_placement.push(serde_json::json!({
-            "placement": p.placement,
-            "views": p.scan.view_points.len(),
-            "view_points": p.scan.view_points,
-            "merged_points": p.scan.merged.len(),
-            "merge": p.scan.merge,
-            "merged": p.files.as_ref().map_or_else(
-                || format!("{}/merged.ply", placement_dir_name(p.placement)),
-                |f| f.merged.clone(),
-            ),
-            "alignment": p.alignment,
-        }));
-    }
-    let calib = args.rig.calib.clone().unwrap_or_default();
-    report.figure("rig", "hardware");
-    report.figure("calibration", calib.display().to_string());
-    report.figure("placements", args.placements);
-    report.figure("per_placement", serde_json::Value::Array(per_placement));
-    report.figure("merged_points", scan.merged.len());
-    report.figure("files", serde_json::to_value(&scan.files)?);
-    for a in scan.placements.iter().filter_map(|p| p.alignment.as_ref()) {
-        println!(
-            "placement {} aligned onto placement 1 with no pose hint: fitness {:.3}, RMSE {:.3} mm",
-            a.placement, a.fitness, a.rmse_mm
-        );
-    }
-    println!(
-        "{}: {} points merged from {} placements (calibration {})",
-        out.join(&scan.files.merged).display(),
-        scan.merged.len(),
-        args.placements,
-        calib.display()
-    );
-    record_mesh(&mut report, scan.mesh, out, &scan.files.merged)?;
-    Ok(())
-}
-
-/// The report and the figures of `slscan scan` on the devices, one placement.
-fn report_single(args: &Args, mut report: Report, scan: DeviceScan) -> anyhow::Result<()> {
-    let out = &args.out;
-    let Some(placement) = scan.placements.first() else {
-        anyhow::bail!("the scan returned no placement");
-    };
-    let s = &placement.scan;
-    let calib = args.rig.calib.clone().unwrap_or_default();
-    report.add_stages(&scan.stages);
-    report.figure("rig", "hardware");
-    report.figure("calibration", calib.display().to_string());
-    report.figure("views", s.view_points.len());
-    report.figure("motor_angles_deg", s.motor_angles_deg.clone());
-    report.figure("platter_angles_deg", s.platter_angles_deg.clone());
-    report.figure("view_points", s.view_points.clone());
-    report.figure("merged_points", scan.merged.len());
-    report.figure("icp_refinement", !args.rig.no_refine);
-    report.figure("merge", serde_json::to_value(&s.merge)?);
-    println!("poses: {}", s.merge.summary);
-    report.figure(
-        "accuracy",
-        "no truth for a real object: run `slscan report merged.ply --truth …` on a scan of a known sphere or plane",
-    );
-    report.figure("files", serde_json::to_value(&scan.files)?);
-    report.figure("session", structured_light::scan::PLACEMENT_SESSION_DIR);
-    let meshed = record_mesh(&mut report, scan.mesh, out, &scan.files.merged)?;
-    println!(
-        "{}: {} points merged from {} views (calibration {})",
-        out.join(&scan.files.merged).display(),
-        scan.merged.len(),
-        s.view_points.len(),
-        calib.display()
-    );
-    if let Some((mesh, mesh_files)) = meshed {
-        println!(
-            "{}: {} triangles, {}",
-            out.join(&mesh_files.ply).display(),
-            mesh.triangles,
-            crate::common::watertight(mesh.watertight)
-        );
-    }
-    crate::common::print_stages(&report.stages);
-    Ok(())
-}
-
-/// Records the mesh stage's outcome in the report and writes it. A mesh that failed keeps the
-/// merged cloud (`merged_file`, relative to `out`) and the report on disk, and the error says so.
-fn record_mesh(
-    report: &mut Report,
-    meshed: Option<Result<(MeshSummary, MeshFiles), ScanError>>,
-    out: &Path,
-    merged_file: &str,
-) -> anyhow::Result<Option<(MeshSummary, MeshFiles)>> {
-    match meshed {
-        Some(Ok((mesh, mesh_files))) => {
-            report.figure("mesh", serde_json::to_value(&mesh)?);
-            report.figure("mesh_files", serde_json::to_value(&mesh_files)?);
-            report.write(out)?;
-            Ok(Some((mesh, mesh_files)))
-        }
-        Some(Err(e)) => {
-            report.figure("mesh_error", e.to_string());
-            report.write(out)?;
-            Err(anyhow::Error::new(e).context(format!(
-                "{} and its report are written; the mesh stage failed",
-                out.join(merged_file).display()
-            )))
-        }
-        None => {
-            report.write(out)?;
-            Ok(None)
-        }
-    }
 }
 
 #[cfg(test)]
@@ -480,30 +281,6 @@ mod tests {
             "{t}"
         );
         assert!(!out.exists(), "nothing is written before the checks");
-    }
-
-    /// Between two placements the user is asked to lay the object on its side and press
-    /// Enter; a closed stdin names the non-interactive option; `--placement-wait` reads
-    /// nothing.
-    #[test]
-    fn the_replace_prompt_waits_for_enter_or_the_given_time() {
-        use super::{REPLACE_PROMPT, replace_prompt};
-        let mut out = Vec::new();
-        replace_prompt(&mut "\n".as_bytes(), &mut out, 2, 2, None).unwrap();
-        let said = String::from_utf8(out).unwrap();
-        assert!(
-            said.contains(REPLACE_PROMPT) && said.contains("placement 2 of 2"),
-            "{said}"
-        );
-        let mut out = Vec::new();
-        let e = replace_prompt(&mut "".as_bytes(), &mut out, 2, 2, None).unwrap_err();
-        assert!(e.to_string().contains("--placement-wait"), "{e}");
-        let mut out = Vec::new();
-        let mut input = "not read\n".as_bytes();
-        replace_prompt(&mut input, &mut out, 2, 2, Some(0.0)).unwrap();
-        assert_eq!(input, b"not read\n");
-        let e = replace_prompt(&mut input, &mut Vec::new(), 2, 2, Some(-1.0)).unwrap_err();
-        assert!(e.to_string().contains("--placement-wait -1"), "{e}");
     }
 
     #[test]

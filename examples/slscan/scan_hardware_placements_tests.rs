@@ -115,7 +115,10 @@ fn two_placements_on_devices_with_enter_between() {
     let mut keys: &[u8] = b"\n";
     let screen = two_placements(&[], &mut keys);
     assert!(
-        screen.contains(&format!("placement 2 of 2: {}", super::REPLACE_PROMPT)),
+        screen.contains(&format!(
+            "placement 2 of 2: {}",
+            structured_light::scan::REPLACE_PROMPT
+        )),
         "{screen}"
     );
     assert!(keys.is_empty(), "Enter was not read");
@@ -196,7 +199,11 @@ fn scan_on_virtual_devices(extra: &[&str], keys: &mut &[u8]) -> DeviceScan {
     let on_virtual_devices = |mut cfg: structured_light::scan::DeviceScanConfig| {
         cfg.capture.display_latency = Duration::ZERO;
         let (mut camera, mut projector, mut table) = person.rig.devices();
-        let terminal = super::Terminal::new(keys, Screen(person.clone()), args.placement_wait);
+        let terminal = structured_light::scan::TerminalOperator::new(
+            keys,
+            Screen(person.clone()),
+            args.placement_wait,
+        );
         Ok(super::scan_on(
             &cfg,
             &args.out,

@@ -64,6 +64,7 @@ mod progress;
 mod reconstruct;
 mod report;
 mod run_report;
+mod scan_records;
 mod session_calibration;
 mod session_scan;
 #[cfg(feature = "sim")]
@@ -153,6 +154,7 @@ pub use reconstruct::{
 pub use report::write_summary_html;
 pub use report::{SessionScanFiles, write_heat_map, write_scan_cloud};
 pub use run_report::{RunReport, write_atomically};
+pub use scan_records::{REPLACE_PROMPT, TerminalOperator, stage_lines, watertight_word};
 pub use session_calibration::{
     CalibrationFilesConfig, CameraFiles, ProcamFiles, SessionCalibration, SkippedImage,
     TurntableFiles, calibrate_camera_files, calibrate_procam_files, calibrate_session,
