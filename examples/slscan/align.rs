@@ -148,27 +148,11 @@ pub(crate) mod tests {
         crate::run_cli(args)
     }
 
-    /// A bumpy closed blob about 80 mm across (mm), as in sl-icp's tests.
-    pub(crate) fn blob(n: usize) -> Vec<Point3<f64>> {
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        (0..n)
-            .map(|i| {
-                let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let (r, t) = ((1.0 - y * y).sqrt(), golden * i as f64);
-                let d = Vector3::new(r * t.cos(), y, r * t.sin());
-                let bump = 6.0 * (3.0 * d.x).sin() * (2.0 * d.y + 0.5).cos()
-                    + 5.0 * (4.0 * d.z * d.x).sin()
-                    + 8.0 * (d.y - 0.6).max(0.0);
-                Point3::from(d * (40.0 + bump))
-            })
-            .collect()
-    }
-
     /// Three views 120° apart, each seeing a bit more than half of the blob, written to
     /// `dir/view_K.ply` in their own frames, scaled by `scale`; returns the files and
     /// `T_world_view` of each (mm).
     fn write_views(dir: &Path, scale: f64) -> Vec<(PathBuf, Isometry3<f64>)> {
-        let b = blob(24_000);
+        let b = crate::blob_support::blob(24_000);
         (0..3)
             .map(|k| {
                 let a = f64::from(k) * 2.0 * std::f64::consts::FRAC_PI_3;

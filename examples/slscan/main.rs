@@ -9,6 +9,10 @@
 //!   code 1 (2 for a malformed command line, as clap does).
 
 mod align;
+/// The synthetic blob of sl-icp's registration tests, for the align, merge and register tests.
+#[cfg(test)]
+#[path = "../../crates/sl-icp/tests/it/support/blob.rs"]
+mod blob_support;
 /// The Stanford bunny loader of sl-icp's tests (`$SL_DATA/bunny`), for the mesh tests.
 #[cfg(test)]
 #[path = "../../crates/sl-icp/tests/it/support/bunny.rs"]

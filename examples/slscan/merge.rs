@@ -306,7 +306,7 @@ mod tests {
         let step = 40.0;
         let angles: Vec<f64> = (0..4).map(|k| f64::from(k) * step).collect();
         let truth = sl_icp::turntable_poses(&axis, &angles).unwrap();
-        let world: Vec<Point3<f64>> = crate::align::tests::blob(20_000)
+        let world: Vec<Point3<f64>> = crate::blob_support::blob(20_000)
             .into_iter()
             .map(|p| p + axis_point.coords)
             .collect();

@@ -314,7 +314,7 @@ mod tests {
     #[test]
     fn the_written_transform_is_the_motion_between_the_clouds() {
         let tmp = tempfile::tempdir().unwrap();
-        let target: Vec<Point3<f64>> = crate::align::tests::blob(20_000);
+        let target: Vec<Point3<f64>> = crate::blob_support::blob(20_000);
         let truth = Isometry3::new(
             Vector3::new(1.5, -0.8, 0.6),
             Vector3::new(0.02, -0.03, 0.04),

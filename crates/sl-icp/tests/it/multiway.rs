@@ -9,23 +9,8 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_icp::{GlobalCloud, MultiwayConfig, PointCloud, PoseError, align_unordered, place_views};
 
+use crate::support::blob::blob;
 use crate::support::bunny;
-
-/// A bumpy closed blob about 80 mm across (mm), as in `tests/it/global.rs`.
-fn blob(n: usize) -> Vec<Point3<f64>> {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let (r, t) = ((1.0 - y * y).sqrt(), golden * i as f64);
-            let d = Vector3::new(r * t.cos(), y, r * t.sin());
-            let bump = 6.0 * (3.0 * d.x).sin() * (2.0 * d.y + 0.5).cos()
-                + 5.0 * (4.0 * d.z * d.x).sin()
-                + 8.0 * (d.y - 0.6).max(0.0);
-            Point3::from(d * (40.0 + bump))
-        })
-        .collect()
-}
 
 /// Four views of the blob from directions 90° apart about y (each sees a bit more than half,
 /// so neighbours overlap by about a third of the surface), each in its own frame:
