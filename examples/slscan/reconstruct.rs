@@ -1,18 +1,11 @@
 //! `slscan reconstruct CAPTURE_DIR --calib FILE --out DIR`: decode a capture set and
 //! triangulate it into a point cloud (PLY), depth maps, a shaded preview and `report.json`.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::Context;
-use sl_camera::Calibration;
-use sl_cloud::{PlyFormat, PreviewColoring, PreviewConfig, render_preview, write_ply};
-use sl_codec::{
-    Axis, CaptureSet, DecodeConfig, Frames, MANIFEST_FILE, decode, load_frame, write_png_rgb8,
-};
-use sl_tri::{
-    DEPTH_PNG_SCALE_MM, Method, PointStatus, Texture, TriConfig, Triangulator, write_depth_png16,
-    write_depth_tiff,
-};
+use sl_codec::Axis;
+use sl_scan::{CaptureReconstructionConfig, reconstruct_capture};
+use sl_tri::{DEPTH_PNG_SCALE_MM, Method, TriConfig};
 
 use crate::common::{Report, ensure_out_dir};
 
@@ -82,197 +75,31 @@ pub(crate) struct Args {
     pub(crate) depth_scale: f64,
 }
 
-/// Per-pixel maximum over all frames, as 8-bit grey.
-fn max_image(frames: &Frames) -> Vec<u8> {
-    match frames {
-        Frames::U8(f) => {
-            let mut out = vec![0u8; f.first().map_or(0, |f| f.len_pixels())];
-            for frame in f {
-                for (o, v) in out.iter_mut().zip(frame.data()) {
-                    *o = (*o).max(*v);
-                }
-            }
-            out
-        }
-        Frames::U16(f) => {
-            let mut out = vec![0u16; f.first().map_or(0, |f| f.len_pixels())];
-            for frame in f {
-                for (o, v) in out.iter_mut().zip(frame.data()) {
-                    *o = (*o).max(*v);
-                }
-            }
-            out.into_iter().map(|v| (v >> 8) as u8).collect()
-        }
-    }
-}
-
-trait LenPixels {
-    fn len_pixels(&self) -> usize;
-}
-
-impl<T: sl_codec::Sample> LenPixels for sl_codec::Frame<T> {
-    fn len_pixels(&self) -> usize {
-        self.width() * self.height()
-    }
-}
-
-/// Writes through a temporary file in the same folder, renamed into place.
-fn atomically<E: Into<anyhow::Error>>(
-    path: &Path,
-    write: impl FnOnce(&Path) -> Result<(), E>,
-) -> anyhow::Result<()> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("tmp");
-    let tmp = path.with_extension(format!("partial.{ext}"));
-    write(&tmp).map_err(Into::into)?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
-}
-
 /// Runs `slscan reconstruct`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("reconstruct");
+    let cfg = CaptureReconstructionConfig {
+        tri: TriConfig {
+            method: Method::from(args.method),
+            min_quality: args.min_quality,
+            min_depth_mm: args.min_depth,
+            max_depth_mm: args.max_depth,
+            max_reprojection_px: args.max_reprojection,
+            max_depth_jump: args.max_depth_jump,
+            ..TriConfig::default()
+        },
+        texture: args.texture.clone(),
+        depth_png_scale_mm: args.depth_scale,
+    };
     let out = ensure_out_dir(&args.out)?;
-    let method = Method::from(args.method);
-    let options = TriConfig {
-        method,
-        min_quality: args.min_quality,
-        min_depth_mm: args.min_depth,
-        max_depth_mm: args.max_depth,
-        max_reprojection_px: args.max_reprojection,
-        max_depth_jump: args.max_depth_jump,
-        ..TriConfig::default()
-    };
-    options.validate()?;
-
-    let calibration = report.stage("read calibration", || Calibration::load(&args.calib))?;
-    let capture = report.stage("read capture", || {
-        CaptureSet::load(&args.capture.join(MANIFEST_FILE))
-    })?;
-    let map = report.stage("decode", || decode(&capture, &DecodeConfig::default()))?;
-    let tri = report.stage("precompute rays", || Triangulator::new(&calibration))?;
-    let texture = match &args.texture {
-        Some(path) => max_image(&load_frame(path)?),
-        None => max_image(&capture.frames),
-    };
-    let result = report
-        .stage("triangulate", || {
-            tri.triangulate_textured(&map, Some(Texture::Grey8(&texture)), &options)
-        })
-        .with_context(|| format!("cannot triangulate {}", args.capture.display()))?;
-    drop(capture);
-    if result.counts.valid == 0 {
-        anyhow::bail!(
-            "{}: no point triangulated with method {} ({})",
-            args.capture.display(),
-            method.name(),
-            why_empty(&result.status, map.valid_fraction())
-        );
-    }
-
-    let ply = out.join("cloud.ply");
-    report.stage("write ply", || {
-        write_ply(&ply, &result.cloud, PlyFormat::default())
-    })?;
-    let depth = result.depth_map();
-    let (w, h) = (result.width, result.height);
-    report.stage("write depth", || -> anyhow::Result<()> {
-        atomically(&out.join("depth.png"), |p| {
-            write_depth_png16(p, w, h, &depth, args.depth_scale)
-        })?;
-        atomically(&out.join("depth.tiff"), |p| {
-            write_depth_tiff(p, w, h, &depth)
-        })
-    })?;
-    let left_out = report.stage("preview", || -> anyhow::Result<usize> {
-        let preview = render_preview(
-            &result.cloud,
-            PreviewColoring::Colors,
-            &PreviewConfig::default(),
-        )?;
-        if let Some(note) = preview.left_out_note(result.cloud.len()) {
-            println!("preview: {note}");
-        }
-        atomically(&out.join("preview.png"), |p| {
-            write_png_rgb8(
-                p,
-                preview.width as usize,
-                preview.height as usize,
-                &preview.rgb,
-            )
-        })?;
-        Ok(preview.left_out)
-    })?;
-
-    let c = result.counts;
-    report.figure("method", method.name());
-    report.figure("width", w);
-    report.figure("height", h);
-    report.figure("points", c.valid);
-    report.figure("decoded_fraction", map.valid_fraction());
-    report.figure("valid_fraction", result.valid_fraction());
-    report.figure(
-        "rms_reprojection_px",
-        nan_to_null(result.rms_reprojection_px()),
-    );
-    report.figure("depth_png_scale_mm", args.depth_scale);
-    report.figure("preview_left_out_points", left_out);
-    let by_status: serde_json::Map<String, serde_json::Value> = PointStatus::ALL
-        .iter()
-        .map(|s| {
-            let n = result.status.iter().filter(|x| *x == s).count();
-            (s.name().to_owned(), n.into())
-        })
-        .collect();
-    report.figure("pixels_by_status", serde_json::Value::Object(by_status));
-    if let Some(b) = result.cloud.bounding_box() {
-        report.figure("bbox_min_mm", vec![b.min.x, b.min.y, b.min.z]);
-        report.figure("bbox_max_mm", vec![b.max.x, b.max.y, b.max.z]);
-    }
+    let r = reconstruct_capture(&args.capture, &args.calib, &cfg, &out)?;
+    r.record(&mut report);
     let path = report.write(&out)?;
-    println!(
-        "{}: {} points ({:.1} % of {}x{} pixels, decoded {:.1} %), method {}, RMS reprojection {:.3} px",
-        ply.display(),
-        c.valid,
-        100.0 * result.valid_fraction(),
-        w,
-        h,
-        100.0 * map.valid_fraction(),
-        method.name(),
-        result.rms_reprojection_px()
-    );
+    for line in r.summary() {
+        println!("{line}");
+    }
     println!("report: {}", path.display());
     Ok(())
-}
-
-/// Why a triangulation gave no point: the pixel statuses that took them, largest first, with
-/// the decoded fraction (`nothing decoded` when the decoder found no code at all).
-fn why_empty(status: &[PointStatus], decoded_fraction: f64) -> String {
-    let mut counts: Vec<(usize, PointStatus)> = PointStatus::ALL
-        .iter()
-        .map(|s| (status.iter().filter(|x| *x == s).count(), *s))
-        .filter(|(n, s)| *n > 0 && *s != PointStatus::Valid)
-        .collect();
-    counts.sort_by_key(|c| std::cmp::Reverse(c.0));
-    let statuses: Vec<String> = counts
-        .iter()
-        .map(|(n, s)| format!("{n} pixels {}", s.name()))
-        .collect();
-    if decoded_fraction == 0.0 {
-        format!("nothing decoded: {}", statuses.join(", "))
-    } else {
-        format!(
-            "decoded {:.1} % of the pixels, then {}",
-            100.0 * decoded_fraction,
-            statuses.join(", ")
-        )
-    }
-}
-
-fn nan_to_null(v: f64) -> serde_json::Value {
-    if v.is_finite() {
-        v.into()
-    } else {
-        serde_json::Value::Null
-    }
 }
 
 #[cfg(test)]

@@ -50,6 +50,7 @@ mod align_scans;
 mod calibrate;
 mod calibration_layout;
 mod capture;
+mod capture_reconstruction;
 mod device_scan;
 mod error;
 #[cfg(feature = "sim")]
@@ -118,6 +119,9 @@ pub use virtual_board::{
 pub use calibrate::{load_scan_calibration, require_turntable_axis};
 pub use capture::{
     SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_session, full_turn_motor_angles, scan_patterns,
+};
+pub use capture_reconstruction::{
+    CaptureReconstruction, CaptureReconstructionConfig, reconstruct_capture,
 };
 pub use device_scan::{
     DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig, ScanOperator,

@@ -1,0 +1,303 @@
+//! One capture folder (`manifest.json` and its frames) decoded and triangulated with a
+//! calibration into a cloud, depth maps and a preview: what `slscan reconstruct` runs.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::Serialize;
+use sl_camera::Calibration;
+use sl_cloud::{PlyFormat, PreviewColoring, PreviewConfig, render_preview, write_ply};
+use sl_codec::{
+    CaptureSet, DecodeConfig, Frames, MANIFEST_FILE, decode, load_frame, write_png_rgb8,
+};
+use sl_tri::{
+    DEPTH_PNG_SCALE_MM, PointStatus, Texture, TriConfig, Triangulator, write_depth_png16,
+    write_depth_tiff,
+};
+
+use crate::error::io;
+use crate::{RunReport, ScanError, StageTime};
+
+/// What [`reconstruct_capture`] does beside the triangulation's own settings.
+#[derive(Debug, Clone)]
+pub struct CaptureReconstructionConfig {
+    /// The triangulation (method, quality and depth bounds, ...).
+    pub tri: TriConfig,
+    /// An image of the object under full light for the colours; `None`: the per-pixel maximum
+    /// over the capture's frames (the fully lit image for complementary patterns).
+    pub texture: Option<PathBuf>,
+    /// Millimetres per unit of the 16-bit depth PNG.
+    pub depth_png_scale_mm: f64,
+}
+
+impl Default for CaptureReconstructionConfig {
+    fn default() -> Self {
+        Self {
+            tri: TriConfig::default(),
+            texture: None,
+            depth_png_scale_mm: DEPTH_PNG_SCALE_MM,
+        }
+    }
+}
+
+/// What [`reconstruct_capture`] made and wrote (`cloud.ply`, `depth.png`, `depth.tiff`,
+/// `preview.png` in the output folder).
+#[derive(Debug, Clone, Serialize)]
+pub struct CaptureReconstruction {
+    /// The triangulation method's name.
+    pub method: &'static str,
+    /// Camera image width (px).
+    pub width: usize,
+    /// Camera image height (px).
+    pub height: usize,
+    /// Points of the cloud.
+    pub points: usize,
+    /// Fraction of the pixels the decoder gave a code.
+    pub decoded_fraction: f64,
+    /// Fraction of the pixels that became a point.
+    pub valid_fraction: f64,
+    /// RMS reprojection error of the points (px; NaN when no point has one).
+    pub rms_reprojection_px: f64,
+    /// Millimetres per unit of the depth PNG.
+    pub depth_png_scale_mm: f64,
+    /// Points the preview could not show (beyond its budget).
+    pub preview_left_out_points: usize,
+    /// What the preview left out, in words, when it left something out.
+    pub preview_note: Option<String>,
+    /// Pixels per status of the triangulation (`valid`, `out_of_depth_range`, ...).
+    pub pixels_by_status: Vec<(&'static str, usize)>,
+    /// Corners of the cloud's bounding box (mm), when it has a point.
+    pub bbox_mm: Option<([f64; 3], [f64; 3])>,
+    /// The cloud.
+    pub cloud: PathBuf,
+    /// Wall time per stage: `read calibration`, `read capture`, `decode`, `precompute rays`,
+    /// `triangulate`, `write ply`, `write depth`, `preview`.
+    pub stages: Vec<StageTime>,
+}
+
+/// Runs `f` as the stage `name`, recording its wall time in `stages`.
+fn timed<T>(stages: &mut Vec<StageTime>, name: &str, f: impl FnOnce() -> T) -> T {
+    let t = Instant::now();
+    let out = f();
+    stages.push(StageTime::since(name, t));
+    out
+}
+
+/// Writes `path` through `write` into a temporary name beside it, renamed into place: a
+/// failure never leaves a half-written file in place of a good one.
+fn via_temporary<E: Into<ScanError>>(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), E>,
+) -> Result<(), ScanError> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("tmp");
+    let tmp = path.with_extension(format!("partial.{ext}"));
+    write(&tmp).map_err(Into::into)?;
+    std::fs::rename(&tmp, path).map_err(io(path))
+}
+
+/// Per-pixel maximum over all frames, as 8-bit grey (16-bit values by their high byte).
+fn max_image(frames: &Frames) -> Vec<u8> {
+    fn max_of<T: sl_codec::Sample + Ord>(frames: &[sl_codec::Frame<T>]) -> Vec<T> {
+        let mut out = vec![T::default(); frames.first().map_or(0, |f| f.data().len())];
+        for frame in frames {
+            for (o, v) in out.iter_mut().zip(frame.data()) {
+                *o = (*o).max(*v);
+            }
+        }
+        out
+    }
+    match frames {
+        Frames::U8(f) => max_of(f),
+        Frames::U16(f) => max_of(f).into_iter().map(|v| (v >> 8) as u8).collect(),
+    }
+}
+
+/// Why a triangulation gave no point: the pixel statuses that took them, largest first, with
+/// the decoded fraction (`nothing decoded` when the decoder found no code at all).
+fn why_empty(status: &[PointStatus], decoded_fraction: f64) -> String {
+    let mut counts: Vec<(usize, PointStatus)> = PointStatus::ALL
+        .iter()
+        .map(|s| (status.iter().filter(|x| *x == s).count(), *s))
+        .filter(|(n, s)| *n > 0 && *s != PointStatus::Valid)
+        .collect();
+    counts.sort_by_key(|c| std::cmp::Reverse(c.0));
+    let statuses: Vec<String> = counts
+        .iter()
+        .map(|(n, s)| format!("{n} pixels {}", s.name()))
+        .collect();
+    if decoded_fraction == 0.0 {
+        format!("nothing decoded: {}", statuses.join(", "))
+    } else {
+        format!(
+            "decoded {:.1} % of the pixels, then {}",
+            100.0 * decoded_fraction,
+            statuses.join(", ")
+        )
+    }
+}
+
+/// Decodes the capture in `capture` (its `manifest.json` and frames), triangulates it with the
+/// calibration file `calibration` and writes into `out` (created when missing) `cloud.ply`,
+/// `depth.png` (16-bit, [`CaptureReconstructionConfig::depth_png_scale_mm`] per unit),
+/// `depth.tiff` (32-bit float, mm) and `preview.png`.
+///
+/// # Errors
+/// The triangulation's settings out of range ([`ScanError::Tri`]); the calibration's and the
+/// capture's files; [`ScanError::Step`] naming the capture when it cannot be triangulated
+/// (the calibration does not fit it, or it codes an axis the method does not use);
+/// [`ScanError::Session`] naming the capture when no point came out, with the pixel statuses
+/// that took them; the outputs' files.
+pub fn reconstruct_capture(
+    capture: &Path,
+    calibration: &Path,
+    cfg: &CaptureReconstructionConfig,
+    out: &Path,
+) -> Result<CaptureReconstruction, ScanError> {
+    cfg.tri.validate()?;
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    let mut stages = Vec::new();
+    let calibration = timed(&mut stages, "read calibration", || {
+        Calibration::load(calibration)
+    })?;
+    let set = timed(&mut stages, "read capture", || {
+        CaptureSet::load(&capture.join(MANIFEST_FILE))
+    })?;
+    let map = timed(&mut stages, "decode", || {
+        decode(&set, &DecodeConfig::default())
+    })?;
+    let tri = timed(&mut stages, "precompute rays", || {
+        Triangulator::new(&calibration)
+    })?;
+    let texture = match &cfg.texture {
+        Some(path) => max_image(&load_frame(path)?),
+        None => max_image(&set.frames),
+    };
+    let method = cfg.tri.method;
+    let result = timed(&mut stages, "triangulate", || {
+        tri.triangulate_textured(&map, Some(Texture::Grey8(&texture)), &cfg.tri)
+    })
+    .map_err(|e| ScanError::Step {
+        what: format!("cannot triangulate {}", capture.display()),
+        source: Box::new(e.into()),
+    })?;
+    drop(set);
+    if result.counts.valid == 0 {
+        return Err(ScanError::Session {
+            path: capture.to_path_buf(),
+            reason: format!(
+                "no point triangulated with method {} ({})",
+                method.name(),
+                why_empty(&result.status, map.valid_fraction())
+            ),
+        });
+    }
+    let ply = out.join("cloud.ply");
+    timed(&mut stages, "write ply", || {
+        write_ply(&ply, &result.cloud, PlyFormat::default())
+    })?;
+    let depth = result.depth_map();
+    let (w, h) = (result.width, result.height);
+    timed(&mut stages, "write depth", || -> Result<(), ScanError> {
+        via_temporary(&out.join("depth.png"), |p| {
+            write_depth_png16(p, w, h, &depth, cfg.depth_png_scale_mm)
+        })?;
+        via_temporary(&out.join("depth.tiff"), |p| {
+            write_depth_tiff(p, w, h, &depth)
+        })
+    })?;
+    let (left_out, note) = timed(&mut stages, "preview", || -> Result<_, ScanError> {
+        let preview = render_preview(
+            &result.cloud,
+            PreviewColoring::Colors,
+            &PreviewConfig::default(),
+        )?;
+        via_temporary(&out.join("preview.png"), |p| {
+            write_png_rgb8(
+                p,
+                preview.width as usize,
+                preview.height as usize,
+                &preview.rgb,
+            )
+        })?;
+        Ok((preview.left_out, preview.left_out_note(result.cloud.len())))
+    })?;
+    Ok(CaptureReconstruction {
+        method: method.name(),
+        width: w,
+        height: h,
+        points: result.counts.valid,
+        decoded_fraction: map.valid_fraction(),
+        valid_fraction: result.valid_fraction(),
+        rms_reprojection_px: result.rms_reprojection_px(),
+        depth_png_scale_mm: cfg.depth_png_scale_mm,
+        preview_left_out_points: left_out,
+        preview_note: note,
+        pixels_by_status: PointStatus::ALL
+            .iter()
+            .map(|s| (s.name(), result.status.iter().filter(|x| *x == s).count()))
+            .collect(),
+        bbox_mm: result
+            .cloud
+            .bounding_box()
+            .map(|b| ([b.min.x, b.min.y, b.min.z], [b.max.x, b.max.y, b.max.z])),
+        cloud: ply,
+        stages,
+    })
+}
+
+impl CaptureReconstruction {
+    /// Records the figures of `slscan reconstruct`'s `report.json` and the stage times in
+    /// `report`.
+    pub fn record(&self, report: &mut RunReport) {
+        report.add_stages(&self.stages);
+        report.figure("method", self.method);
+        report.figure("width", self.width);
+        report.figure("height", self.height);
+        report.figure("points", self.points);
+        report.figure("decoded_fraction", self.decoded_fraction);
+        report.figure("valid_fraction", self.valid_fraction);
+        report.figure(
+            "rms_reprojection_px",
+            if self.rms_reprojection_px.is_finite() {
+                self.rms_reprojection_px.into()
+            } else {
+                serde_json::Value::Null
+            },
+        );
+        report.figure("depth_png_scale_mm", self.depth_png_scale_mm);
+        report.figure("preview_left_out_points", self.preview_left_out_points);
+        let by_status: serde_json::Map<String, serde_json::Value> = self
+            .pixels_by_status
+            .iter()
+            .map(|(name, n)| ((*name).to_owned(), (*n).into()))
+            .collect();
+        report.figure("pixels_by_status", serde_json::Value::Object(by_status));
+        if let Some((min, max)) = self.bbox_mm {
+            report.figure("bbox_min_mm", min.to_vec());
+            report.figure("bbox_max_mm", max.to_vec());
+        }
+    }
+
+    /// What the reconstruction made, a line each: what the preview left out (when it did),
+    /// then the cloud.
+    #[must_use]
+    pub fn summary(&self) -> Vec<String> {
+        let mut lines: Vec<String> = self
+            .preview_note
+            .iter()
+            .map(|note| format!("preview: {note}"))
+            .collect();
+        lines.push(format!(
+            "{}: {} points ({:.1} % of {}x{} pixels, decoded {:.1} %), method {}, RMS reprojection {:.3} px",
+            self.cloud.display(),
+            self.points,
+            100.0 * self.valid_fraction,
+            self.width,
+            self.height,
+            100.0 * self.decoded_fraction,
+            self.method,
+            self.rms_reprojection_px
+        ));
+        lines
+    }
+}
