@@ -2,12 +2,11 @@
 //! row of every camera pixel, written as float maps, false-colour pictures and `report.json`.
 
 use std::path::PathBuf;
-use std::time::Instant;
 
-use anyhow::Context;
-use sl_codec::{CaptureSet, DecodeConfig, InvalidReason, MapFormat, decode, write_outputs};
+use sl_codec::{DecodeConfig, MapFormat};
+use sl_scan::decode_capture;
 
-use crate::common::{Report, ensure_out_dir};
+use crate::common::{Report, StageBars, ensure_out_dir};
 
 /// File format of the float maps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -61,65 +60,24 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         robust: !args.no_robust,
         ..DecodeConfig::default()
     };
-    config.validate()?;
-    let bar = crate::common::progress(3, "decode");
-    let capture = report
-        .stage("read", || {
-            CaptureSet::load_with_frames_dir(&args.capture, args.frames.as_deref())
-        })
-        .with_context(|| format!("cannot load the capture set {}", args.capture.display()))?;
-    bar.inc(1);
-    let started = Instant::now();
-    let map = report.stage("decode", || decode(&capture, &config))?;
-    let decode_ms = started.elapsed().as_secs_f64() * 1e3;
-    bar.inc(1);
     let format = match args.format {
         FormatArg::Tiff => MapFormat::Tiff,
         FormatArg::Npy => MapFormat::Npy,
     };
-    let files = report.stage("write", || {
-        write_outputs(&map, &out, format, Some(capture.manifest.projector))
-    })?;
-    bar.finish_and_clear();
-
-    let counts = map.reason_counts();
-    println!(
-        "{}: {} frames of {}x{} ({}-bit), {} block(s)",
-        args.capture.display(),
-        capture.frames.len(),
-        map.width,
-        map.height,
-        capture.frames.bit_depth(),
-        capture.manifest.blocks.len()
-    );
-    println!(
-        "valid {:.1}% in {decode_ms:.1} ms",
-        100.0 * map.valid_fraction()
-    );
-    for (reason, n) in InvalidReason::ALL.iter().zip(counts) {
-        if !reason.is_valid() && n > 0 {
-            println!("  {:<18} {n}", reason.name());
-        }
+    let mut bars = StageBars::new();
+    let d = decode_capture(
+        &args.capture,
+        args.frames.as_deref(),
+        &config,
+        format,
+        &out,
+        |p| bars.update(p),
+    )?;
+    bars.clear();
+    for line in d.summary(&args.capture) {
+        println!("{line}");
     }
-    report.figure("width", map.width);
-    report.figure("height", map.height);
-    report.figure("frames", capture.frames.len());
-    report.figure("valid_fraction", map.valid_fraction());
-    report.figure("decode_ms", decode_ms);
-    let reasons: serde_json::Map<String, serde_json::Value> = InvalidReason::ALL
-        .iter()
-        .zip(counts)
-        .map(|(r, n)| (r.name().to_owned(), n.into()))
-        .collect();
-    report.figure("pixels_by_reason", serde_json::Value::Object(reasons));
-    let written: Vec<String> = files
-        .maps
-        .iter()
-        .chain([&files.labels])
-        .chain(&files.pictures)
-        .map(|p| p.display().to_string())
-        .collect();
-    report.figure("files", written);
+    d.record(&mut report);
     let path = report.write(&out)?;
     println!(
         "maps and pictures in {}; report: {}",
@@ -127,17 +85,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         path.display()
     );
     // No empty success: the maps and the report stay for the diagnosis, the exit code says it.
-    if map.valid_fraction() == 0.0 {
-        let why: Vec<String> = InvalidReason::ALL
-            .iter()
-            .zip(counts)
-            .filter(|(r, n)| !r.is_valid() && *n > 0)
-            .map(|(r, n)| format!("{n} pixels {}", r.name()))
-            .collect();
+    if let Some(why) = d.nothing_decoded() {
         anyhow::bail!(
-            "{}: no pixel decoded ({}); the invalid-pixel picture in {} shows where",
+            "{}: no pixel decoded ({why}); the invalid-pixel picture in {} shows where",
             args.capture.display(),
-            why.join(", "),
             out.display()
         );
     }

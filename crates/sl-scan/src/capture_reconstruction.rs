@@ -1,5 +1,6 @@
-//! One capture folder (`manifest.json` and its frames) decoded and triangulated with a
-//! calibration into a cloud, depth maps and a preview: what `slscan reconstruct` runs.
+//! One capture folder (`manifest.json` and its frames) decoded into maps and pictures (what
+//! `slscan decode` runs), or decoded and triangulated with a calibration into a cloud, depth
+//! maps and a preview (what `slscan reconstruct` runs).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -8,7 +9,8 @@ use serde::Serialize;
 use sl_camera::Calibration;
 use sl_cloud::{PlyFormat, PreviewColoring, PreviewConfig, render_preview, write_ply};
 use sl_codec::{
-    CaptureSet, DecodeConfig, Frames, MANIFEST_FILE, decode, load_frame, write_png_rgb8,
+    CaptureSet, DecodeConfig, Frames, InvalidReason, MANIFEST_FILE, MapFormat, decode, load_frame,
+    write_outputs, write_png_rgb8,
 };
 use sl_tri::{
     DEPTH_PNG_SCALE_MM, PointStatus, Texture, TriConfig, Triangulator, write_depth_png16,
@@ -16,7 +18,7 @@ use sl_tri::{
 };
 
 use crate::error::io;
-use crate::{RunReport, ScanError, StageTime};
+use crate::{RunReport, ScanError, ScanProgress, StageTime};
 
 /// What [`reconstruct_capture`] does beside the triangulation's own settings.
 #[derive(Debug, Clone)]
@@ -299,5 +301,161 @@ impl CaptureReconstruction {
             self.rms_reprojection_px
         ));
         lines
+    }
+}
+
+/// What [`decode_capture`] decoded and wrote.
+#[derive(Debug, Clone, Serialize)]
+pub struct CaptureDecoding {
+    /// Camera image width (px).
+    pub width: usize,
+    /// Camera image height (px).
+    pub height: usize,
+    /// Frames of the capture.
+    pub frames: usize,
+    /// Bits per sample of the frames.
+    pub bit_depth: u32,
+    /// Pattern blocks of the manifest.
+    pub blocks: usize,
+    /// Fraction of the pixels given a code.
+    pub valid_fraction: f64,
+    /// Wall time of the decoding alone (ms).
+    pub decode_ms: f64,
+    /// Pixels per reason (`valid`, `shadow`, ...), every reason listed.
+    pub pixels_by_reason: Vec<(&'static str, usize)>,
+    /// The files written: the float maps, the label PNG, the pictures.
+    pub files: Vec<PathBuf>,
+    /// Wall time per stage: `read`, `decode`, `write`.
+    pub stages: Vec<StageTime>,
+}
+
+/// Decodes the capture `capture` (a folder holding `manifest.json`, or the manifest itself;
+/// the frames looked for in `frames_dir` when given) and writes into `out` the column, row and
+/// quality maps in `format`, the label PNG and the false-colour pictures (sl-codec's
+/// `write_outputs`), reporting each of the three steps as progress of the stage `decode`.
+/// A capture where no pixel decoded is written all the same (the pictures show why) and is
+/// not an error here: see [`CaptureDecoding::nothing_decoded`].
+///
+/// # Errors
+/// The settings out of range; [`ScanError::Step`] naming the capture when it cannot be read;
+/// the outputs' files.
+pub fn decode_capture(
+    capture: &Path,
+    frames_dir: Option<&Path>,
+    config: &DecodeConfig,
+    format: MapFormat,
+    out: &Path,
+    mut progress: impl FnMut(ScanProgress<'_>),
+) -> Result<CaptureDecoding, ScanError> {
+    config.validate()?;
+    let mut step = |done| {
+        progress(ScanProgress {
+            stage: "decode",
+            done,
+            total: 3,
+        });
+    };
+    let mut stages = Vec::new();
+    step(0);
+    let set = timed(&mut stages, "read", || {
+        CaptureSet::load_with_frames_dir(capture, frames_dir)
+    })
+    .map_err(|e| ScanError::Step {
+        what: format!("cannot load the capture set {}", capture.display()),
+        source: Box::new(e.into()),
+    })?;
+    step(1);
+    let started = Instant::now();
+    let map = timed(&mut stages, "decode", || decode(&set, config))?;
+    let decode_ms = started.elapsed().as_secs_f64() * 1e3;
+    step(2);
+    let files = timed(&mut stages, "write", || {
+        write_outputs(&map, out, format, Some(set.manifest.projector))
+    })?;
+    step(3);
+    Ok(CaptureDecoding {
+        width: map.width,
+        height: map.height,
+        frames: set.frames.len(),
+        bit_depth: set.frames.bit_depth(),
+        blocks: set.manifest.blocks.len(),
+        valid_fraction: map.valid_fraction(),
+        decode_ms,
+        pixels_by_reason: InvalidReason::ALL
+            .iter()
+            .zip(map.reason_counts())
+            .map(|(r, n)| (r.name(), n))
+            .collect(),
+        files: files
+            .maps
+            .into_iter()
+            .chain([files.labels])
+            .chain(files.pictures)
+            .collect(),
+        stages,
+    })
+}
+
+impl CaptureDecoding {
+    /// Records the figures of `slscan decode`'s `report.json` and the stage times in `report`.
+    pub fn record(&self, report: &mut RunReport) {
+        report.add_stages(&self.stages);
+        report.figure("width", self.width);
+        report.figure("height", self.height);
+        report.figure("frames", self.frames);
+        report.figure("valid_fraction", self.valid_fraction);
+        report.figure("decode_ms", self.decode_ms);
+        let reasons: serde_json::Map<String, serde_json::Value> = self
+            .pixels_by_reason
+            .iter()
+            .map(|(name, n)| ((*name).to_owned(), (*n).into()))
+            .collect();
+        report.figure("pixels_by_reason", serde_json::Value::Object(reasons));
+        let files: Vec<String> = self.files.iter().map(|p| p.display().to_string()).collect();
+        report.figure("files", files);
+    }
+
+    /// The invalid pixels by reason, `N pixels REASON`, for the reasons that took some.
+    fn invalid(&self) -> impl Iterator<Item = (&'static str, usize)> + '_ {
+        self.pixels_by_reason
+            .iter()
+            .copied()
+            .filter(|&(name, n)| name != InvalidReason::Valid.name() && n > 0)
+    }
+
+    /// What the decoding found, a line each: the capture (`capture`, as given), the valid
+    /// fraction and time, the invalid pixels by reason.
+    #[must_use]
+    pub fn summary(&self, capture: &Path) -> Vec<String> {
+        let mut lines = vec![
+            format!(
+                "{}: {} frames of {}x{} ({}-bit), {} block(s)",
+                capture.display(),
+                self.frames,
+                self.width,
+                self.height,
+                self.bit_depth,
+                self.blocks
+            ),
+            format!(
+                "valid {:.1}% in {:.1} ms",
+                100.0 * self.valid_fraction,
+                self.decode_ms
+            ),
+        ];
+        lines.extend(self.invalid().map(|(name, n)| format!("  {name:<18} {n}")));
+        lines
+    }
+
+    /// When no pixel decoded: why, `N pixels REASON, …` (the outputs stay for the diagnosis;
+    /// a caller should not call it a success).
+    #[must_use]
+    pub fn nothing_decoded(&self) -> Option<String> {
+        (self.valid_fraction == 0.0).then(|| {
+            self.invalid()
+                .map(|(name, n)| format!("{n} pixels {name}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
     }
 }

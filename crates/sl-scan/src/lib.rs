@@ -121,7 +121,8 @@ pub use capture::{
     SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_session, full_turn_motor_angles, scan_patterns,
 };
 pub use capture_reconstruction::{
-    CaptureReconstruction, CaptureReconstructionConfig, reconstruct_capture,
+    CaptureDecoding, CaptureReconstruction, CaptureReconstructionConfig, decode_capture,
+    reconstruct_capture,
 };
 pub use device_scan::{
     DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig, ScanOperator,
