@@ -13,7 +13,7 @@ use sl_icp::align_unordered;
 use sl_scan::{CombinedScans, combine_aligned, multiway_config_at, multiway_figures};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
-use crate::register::{NORMAL_NEIGHBOURS, NormalsTowards, check_units, read_scaled, write_preview};
+use crate::register::{NORMAL_NEIGHBOURS, NormalsTowards, check_units, read_scaled};
 
 /// Default voxel size of the descriptors (mm), [`GlobalConfig::default`]'s.
 const DEFAULT_VOXEL_MM: f64 = 2.0;
@@ -83,7 +83,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             &out.join("poses.json"),
             serde_json::to_string_pretty(&poses)?.as_bytes(),
         )?;
-        write_preview(&out, &painted, PreviewColoring::Colors)
+        sl_scan::write_preview_png(&out, &painted, PreviewColoring::Colors)?;
+        Ok(())
     })?;
     bar.finish_and_clear();
 

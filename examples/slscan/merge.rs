@@ -8,14 +8,12 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_camera::{Calibration, TurntableAxis};
-use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
-use sl_icp::{
-    IcpError, MergeConfig, PoseModel, TurntablePrior, align_views, merge_aligned, turntable_poses,
-};
-use sl_scan::{alignment_figures, largest_pose_correction_deg, pair_figures};
+use sl_cloud::PointCloud;
+use sl_icp::{IcpError, MergeConfig, PoseModel, TurntablePrior, turntable_poses};
+use sl_scan::{ScanError, merge_and_write, pair_figures};
 
-use crate::common::{Report, ensure_out_dir, progress, write_atomically};
-use crate::register::{check_units, read_scaled, write_preview};
+use crate::common::{Report, StageBars, ensure_out_dir};
+use crate::register::{check_units, read_scaled};
 
 /// Arguments of `slscan merge`.
 #[derive(Debug, clap::Args)]
@@ -179,7 +177,6 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         },
         ..MergeConfig::default()
     };
-    let bar = progress(4, "merge");
     let views: Vec<PointCloud> = report.stage("read", || {
         args.views
             .iter()
@@ -191,22 +188,28 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             })
             .collect::<anyhow::Result<_>>()
     })?;
-    bar.inc(1);
-    let name = |i: usize| {
-        args.views
-            .get(i)
-            .map_or_else(|| format!("view {i}"), |p| p.display().to_string())
-    };
-    let alignment = match report.stage("register views", || align_views(&views, &initial, &config))
-    {
-        Ok(a) => a,
-        Err(IcpError::ViewsNotPlaced {
+    let names: Vec<String> = args.views.iter().map(|p| p.display().to_string()).collect();
+    let mut bars = StageBars::new();
+    let merged = merge_and_write(
+        &views,
+        &names,
+        &initial,
+        source_of_poses,
+        &config,
+        &ply,
+        &dir,
+        |p| bars.update(p),
+    );
+    bars.clear();
+    let merged = match merged {
+        Ok(m) => m,
+        Err(ScanError::Icp(IcpError::ViewsNotPlaced {
             views: lost,
             why,
             pairs,
-        }) => {
-            bar.finish_and_clear();
+        })) => {
             // A failed merge still says what every pair measured.
+            let name = |i: usize| names.get(i).cloned().unwrap_or_else(|| format!("view {i}"));
             report.figure("views", n);
             report.figure("initial_poses_from", source_of_poses);
             report.figure("pairs", pair_figures(&pairs, &name));
@@ -217,69 +220,21 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             );
             report.figure("unplaced_because", why.clone());
             let path = report.write(&dir)?;
-            let names: Vec<String> = lost.iter().map(|&v| name(v)).collect();
+            let lost: Vec<String> = lost.iter().map(|&v| name(v)).collect();
             anyhow::bail!(
                 "{} of {n} views could not be placed: {} ({why}); every pair's fitness, RMSE and reason are in {}",
                 lost.len(),
-                names.join(", "),
+                lost.join(", "),
                 path.display()
             );
         }
         Err(e) => return Err(e.into()),
     };
-    bar.inc(1);
-    let merged = report.stage("merge", || merge_aligned(&views, &alignment.poses, &config))?;
-    bar.inc(1);
-    report.stage("write", || -> anyhow::Result<()> {
-        write_ply(&ply, &merged, PlyFormat::default())?;
-        let poses = serde_json::json!({
-            "world": "camera frame of view 0",
-            "units": "mm",
-            "initial_poses_from": source_of_poses,
-            "views": args.views.iter().zip(&alignment.poses).map(|(v, p)| serde_json::json!({
-                "view": v.display().to_string(),
-                "T_world_view": sl_camera::pose_to_matrix(p),
-            })).collect::<Vec<_>>(),
-        });
-        write_atomically(
-            &dir.join("poses.json"),
-            serde_json::to_string_pretty(&poses)?.as_bytes(),
-        )?;
-        Ok(())
-    })?;
-    report.stage("preview", || {
-        write_preview(&dir, &merged, PreviewColoring::Grey)
-    })?;
-    bar.finish_and_clear();
-
-    report.figure("views", n);
-    report.figure(
-        "input_points",
-        views.iter().map(PointCloud::len).sum::<usize>(),
-    );
-    report.figure("merged_points", merged.len());
-    report.figure("initial_poses_from", source_of_poses);
-    for (key, value) in alignment_figures(&alignment, &initial, &name) {
-        report.figure(key, value);
-    }
-    let used = alignment.pairs.iter().filter(|p| p.used).count();
-    let global = alignment
-        .pairs
-        .iter()
-        .filter(|p| p.used && p.global)
-        .count();
+    merged.record(&mut report);
     let path = report.write(&dir)?;
-    println!("poses: {}", alignment.pose_summary());
-    println!(
-        "{}: {} views ({} pairs used of {}, {} by global registration), {} points; largest pose correction {:.3} deg",
-        ply.display(),
-        n,
-        used,
-        alignment.pairs.len(),
-        global,
-        merged.len(),
-        largest_pose_correction_deg(&initial, &alignment.poses)
-    );
+    for line in merged.summary() {
+        println!("{line}");
+    }
     println!("report: {}", path.display());
     Ok(())
 }

@@ -5,12 +5,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use nalgebra::{Isometry3, Point3};
-use sl_cloud::{
-    MergePolicy, PlyFormat, PointCloud, PreviewColoring, PreviewConfig, render_preview, write_ply,
-};
-use sl_icp::{IcpConfig, Metric, RobustKernel, Trimming, register_clouds};
+use sl_cloud::PointCloud;
+use sl_icp::{IcpConfig, Metric, RobustKernel, Trimming};
+use sl_scan::{read_transform, register_and_write};
 
-use crate::common::{Report, ensure_out_dir, write_atomically};
+use crate::common::{Report, ensure_out_dir};
 
 /// Default voxel size of `register` (mm): a 100 mm object keeps ~10k points.
 const DEFAULT_VOXEL_MM: f64 = 1.0;
@@ -142,34 +141,6 @@ pub(crate) fn with_normals_towards(
         .with_context(|| format!("{name}: cannot estimate normals"))
 }
 
-fn read_init(path: &Path) -> anyhow::Result<Isometry3<f64>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let json: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-    let rows = json
-        .get("T_target_source")
-        .and_then(|v| v.as_array())
-        .with_context(|| format!("{}: no \"T_target_source\" array", path.display()))?;
-    let mut m = [[f64::NAN; 4]; 4];
-    for (r, row) in rows.iter().enumerate().take(4) {
-        for (c, v) in row.as_array().into_iter().flatten().enumerate().take(4) {
-            m[r][c] = v.as_f64().with_context(|| {
-                format!(
-                    "{}: T_target_source[{r}][{c}] is not a number",
-                    path.display()
-                )
-            })?;
-        }
-    }
-    sl_camera::pose_from_matrix(&m).with_context(|| {
-        format!(
-            "{}: T_target_source is not a rigid motion (4x4 rows, rotation part orthonormal, last row 0 0 0 1)",
-            path.display()
-        )
-    })
-}
-
 fn trimming(arg: &Option<String>) -> anyhow::Result<Trimming> {
     Ok(match arg.as_deref() {
         None => Trimming::None,
@@ -180,24 +151,6 @@ fn trimming(arg: &Option<String>) -> anyhow::Result<Trimming> {
                 .with_context(|| format!("--trim {v}: expected a number in (0, 1] or \"auto\""))?,
         },
     })
-}
-
-/// Renders `cloud` (grey shading from its normals, or its colours) into `out/preview.png`.
-pub(crate) fn write_preview(
-    out: &Path,
-    cloud: &PointCloud,
-    coloring: PreviewColoring<'_>,
-) -> anyhow::Result<()> {
-    let preview = render_preview(cloud, coloring, &PreviewConfig::default())?;
-    let path = out.join("preview.png");
-    let tmp = out.join(".preview.partial.png");
-    sl_codec::write_png_rgb8(
-        &tmp,
-        preview.width as usize,
-        preview.height as usize,
-        &preview.rgb,
-    )?;
-    std::fs::rename(&tmp, &path).with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// Runs `slscan register`.
@@ -217,7 +170,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     };
     config.validate()?;
     let initial = match &args.init {
-        Some(p) => read_init(p)?,
+        Some(p) => read_transform(p)?,
         None => Isometry3::identity(),
     };
     let (source, target) = report.stage("read", || -> anyhow::Result<_> {
@@ -229,71 +182,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     check_units(&source, &args.source, DEFAULT_VOXEL_MM)?;
     check_units(&target, &args.target, DEFAULT_VOXEL_MM)?;
     let voxel = (args.voxel > 0.0).then_some(args.voxel);
-    let (r, registered_points) = report.stage("register", || {
-        register_clouds(&source, &target, &initial, &config, voxel)
-    })?;
-
-    let moved = source.transformed(&r.pose);
-    let ply = out.join("registered.ply");
-    report.stage("write", || -> anyhow::Result<()> {
-        write_ply(&ply, &moved, PlyFormat::default())?;
-        let transform = serde_json::json!({
-            "T_target_source": sl_camera::pose_to_matrix(&r.pose),
-            "units": "mm",
-            "rmse_mm": r.rmse,
-            "fitness": r.fitness,
-            "inliers": r.inliers,
-            "iterations": r.iterations,
-            "converged": r.converged,
-            "information": (0..6).map(|i| (0..6).map(|j| r.information[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-        });
-        write_atomically(
-            &out.join("transform.json"),
-            serde_json::to_string_pretty(&transform)?.as_bytes(),
-        )?;
-        Ok(())
-    })?;
-    report.stage("preview", || -> anyhow::Result<()> {
-        // Target in blue-grey, the moved source in orange: where they interleave, they agree.
-        let paint = |c: &PointCloud, rgb: [u8; 3]| -> anyhow::Result<PointCloud> {
-            let bare = PointCloud::from_positions(c.positions().to_vec());
-            Ok(bare.with_colors(vec![rgb; c.len()])?)
-        };
-        let mut both = paint(&target, [120, 150, 200])?;
-        both.extend(&paint(&moved, [240, 150, 40])?, MergePolicy::DropMismatched)?;
-        write_preview(&out, &both, PreviewColoring::Colors)
-    })?;
-
-    let rotation_deg = r.pose.rotation.angle().to_degrees();
-    report.figure("metric", format!("{:?}", args.metric));
-    report.figure("source_points", source.len());
-    report.figure("target_points", target.len());
-    report.figure("registered_points", registered_points);
-    report.figure("rmse_mm", r.rmse);
-    report.figure("fitness", r.fitness);
-    report.figure("iterations", r.iterations);
-    report.figure("converged", r.converged);
-    report.figure("rotation_deg", rotation_deg);
-    report.figure("translation_mm", r.pose.translation.vector.norm());
-    report.figure(
-        "T_target_source",
-        serde_json::json!(sl_camera::pose_to_matrix(&r.pose)),
-    );
+    let r = register_and_write(&source, &target, &initial, &config, voxel, &out)?;
+    r.record(&mut report, &format!("{:?}", args.metric));
     let path = report.write(&out)?;
-    println!(
-        "{}: {} iterations ({}), rotation {:.3} deg, translation {:.3} mm, RMSE {:.4} mm, fitness {:.3}",
-        ply.display(),
-        r.iterations,
-        if r.converged {
-            "converged"
-        } else {
-            "NOT converged"
-        },
-        rotation_deg,
-        r.pose.translation.vector.norm(),
-        r.rmse,
-        r.fitness
-    );
+    println!("{}", r.summary());
     println!("report: {}", path.display());
     Ok(())
 }

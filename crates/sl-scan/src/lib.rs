@@ -68,6 +68,7 @@ mod run_report;
 mod scan_records;
 mod session_calibration;
 mod session_scan;
+mod view_files;
 #[cfg(feature = "sim")]
 mod virtual_calibrate;
 #[cfg(feature = "sim")]
@@ -167,6 +168,10 @@ pub use session_calibration::{
     session_projector_size, turntable_views,
 };
 pub use session_scan::{SessionScan, SessionScanConfig, scan_session};
+pub use view_files::{
+    CloudRegistration, TRANSFORM_FILE, ViewsMerge, merge_and_write, read_transform,
+    register_and_write, write_preview_png,
+};
 #[cfg(feature = "sim")]
 pub use virtual_calibrate::{CalibrationSummary, calibrate_virtual};
 #[cfg(feature = "sim")]
