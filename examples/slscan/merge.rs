@@ -197,7 +197,6 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         source_of_poses,
         &config,
         &ply,
-        &dir,
         |p| bars.update(p),
     );
     bars.clear();

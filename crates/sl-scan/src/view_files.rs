@@ -224,8 +224,8 @@ pub struct ViewsMerge {
 }
 
 /// Aligns `views` (named `names`, in mm) from their `initial` poses `T_world_view` (which came
-/// from `initial_from`), merges them and writes the merged cloud to `ply`, the poses to
-/// `dir/poses.json` and a picture to `dir/preview.png`, reporting each step as progress of the
+/// from `initial_from`), merges them and writes the merged cloud to `ply`, and beside it the
+/// poses (`poses.json`) and a picture (`preview.png`), reporting each step as progress of the
 /// stage `merge`.
 ///
 /// # Errors
@@ -238,9 +238,12 @@ pub fn merge_and_write(
     initial_from: &str,
     config: &MergeConfig,
     ply: &Path,
-    dir: &Path,
     mut progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<ViewsMerge, ScanError> {
+    let dir = ply
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let mut step = |done| {
         progress(ScanProgress {
             stage: "merge",
