@@ -11,11 +11,9 @@ use anyhow::Context;
 use sl_cloud::PreviewConfig;
 use sl_mesh::{
     BilateralConfig, FairConfig, PoissonConfig, RemeshConfig, SimplifyConfig, TaubinConfig,
-    write_ply_mesh, write_stl,
 };
-use sl_metrology::{EvaluateConfig, MeshSampling, Truth, evaluate_mesh};
-
-use sl_scan::{MeshChainConfig, MeshSmoothing, ScanError, mesh_chain, write_mesh_pictures};
+use sl_metrology::Truth;
+use sl_scan::{MeshChainConfig, MeshSmoothing, ScanError, mesh_chain};
 
 use crate::common::{Report, ensure_out_dir};
 use crate::register::{NormalsTowards, check_units, read_scaled, with_normals_towards};
@@ -218,66 +216,43 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             100.0 * UNORIENTED_FRACTION
         );
     }
-    if let Some((f, _)) = &chain.faired {
-        if f.curvature_converged {
-            println!(
-                "faired {} unseen vertices in {} gap(s), {} of them in smooth surface ({} rim \
-                 vertices put on the surface nearby first)",
-                f.vertices_moved, f.gaps, f.smooth_gaps, f.rim_moved
-            );
-        } else if f.vertices_moved > 0 {
-            println!(
-                "faired {} unseen vertices in {} gap(s) by the thin plate (the curvature steps \
-                 did not settle)",
-                f.vertices_moved, f.gaps
-            );
-        }
+    if let Some(line) = chain.fairing_summary() {
+        println!("{line}");
     }
-    let (mesh, topo) = (chain.mesh, chain.topology);
-    let (ply, stl) = (out.join("mesh.ply"), out.join("mesh.stl"));
-    report.stage("write", || -> anyhow::Result<()> {
-        write_ply_mesh(&ply, &mesh)?;
-        write_stl(&stl, &mesh)?;
-        Ok(())
-    })?;
-    let mut errors: Option<Vec<f32>> = None;
-    if let Some(path) = &args.truth {
-        let truth = Truth::load(path)?;
-        let cfg = EvaluateConfig::default();
-        let by_vertex = report.stage("measure", || {
-            evaluate_mesh(&mesh, &truth, MeshSampling::Vertices, &cfg)
-        })?;
-        let by_area = evaluate_mesh(&mesh, &truth, MeshSampling::default(), &cfg)?;
-        println!("mesh measured at its vertices:");
-        for line in by_vertex.summary() {
-            println!("  {line}");
-        }
-        report.figure("rms_to_truth_vertices_mm", by_vertex.rms_to_reference_mm);
-        report.figure("rms_to_truth_area_mm", by_area.rms_to_reference_mm);
-        report.figure("metrology_vertices", serde_json::to_value(&by_vertex)?);
-        report.figure("metrology_area", serde_json::to_value(&by_area)?);
-        errors = Some(by_vertex.signed_distances_mm);
-    }
+    let truth = args.truth.as_deref().map(Truth::load).transpose()?;
     let view = PreviewConfig {
         azimuth_deg: args.azimuth,
         elevation_deg: args.elevation,
         ..PreviewConfig::default()
     };
     let title = format!("slscan mesh {}", args.cloud.display());
-    let html = report.stage("preview", || {
-        write_mesh_pictures(&out, &mesh, errors.as_deref(), &view, title)
-    })?;
+    let outputs = chain.write_outputs(&out, truth.as_ref(), &view, title)?;
+    report.add_stages(&outputs.stages);
+    if let Some((by_vertex, by_area)) = &outputs.measured {
+        println!("mesh measured at its vertices:");
+        for line in by_vertex.summary() {
+            println!("  {line}");
+        }
+        report.figure("rms_to_truth_vertices_mm", by_vertex.rms_to_reference_mm);
+        report.figure("rms_to_truth_area_mm", by_area.rms_to_reference_mm);
+        report.figure_of("metrology_vertices", by_vertex)?;
+        report.figure_of("metrology_area", by_area)?;
+    }
     report.figure("cloud", args.cloud.display().to_string());
     let path = report.write(&out)?;
     println!(
         "{}: {} vertices, {} triangles; watertight {}, manifold {}",
-        ply.display(),
-        mesh.vertices.len(),
-        mesh.triangles.len(),
-        topo.is_watertight(),
-        topo.is_manifold()
+        outputs.ply.display(),
+        chain.mesh.vertices.len(),
+        chain.mesh.triangles.len(),
+        chain.topology.is_watertight(),
+        chain.topology.is_manifold()
     );
-    println!("report: {}; 3-D view: {}", path.display(), html.display());
+    println!(
+        "report: {}; 3-D view: {}",
+        path.display(),
+        outputs.page.display()
+    );
     Ok(())
 }
 

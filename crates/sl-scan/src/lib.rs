@@ -141,8 +141,8 @@ pub use merge::{
 };
 #[cfg(feature = "mesh")]
 pub use mesh::{
-    MESH_CELL_PER_SPACING, MeshConfig, MeshFiles, MeshSummary, mesh_stage, mesh_stage_with,
-    scan_poisson_config, write_mesh_pictures,
+    MESH_CELL_PER_SPACING, MeshConfig, MeshFiles, MeshOutputs, MeshSummary, mesh_stage,
+    mesh_stage_with, scan_poisson_config, write_mesh_pictures,
 };
 #[cfg(feature = "mesh")]
 pub use mesh_chain::{MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};

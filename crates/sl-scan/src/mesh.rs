@@ -309,3 +309,90 @@ pub fn write_mesh_pictures(
     }
     Ok(html)
 }
+
+/// What [`MeshChain::write_outputs`] wrote and measured.
+#[derive(Debug, Clone)]
+pub struct MeshOutputs {
+    /// The mesh as PLY.
+    pub ply: PathBuf,
+    /// The mesh as binary STL.
+    pub stl: PathBuf,
+    /// The interactive 3-D page.
+    pub page: PathBuf,
+    /// The mesh measured against the truth, at its vertices and over its area (when a truth
+    /// was given).
+    pub measured: Option<(Report, Report)>,
+    /// Wall time per stage: `write`, `measure` (with a truth), `preview`.
+    pub stages: Vec<crate::StageTime>,
+}
+
+impl crate::MeshChain {
+    /// Writes the chain's mesh into `out` (`mesh.ply`, `mesh.stl`), measures it against
+    /// `truth` when given (at its vertices and over its area) and draws its pictures
+    /// ([`write_mesh_pictures`], coloured by the error at the vertices when measured).
+    ///
+    /// # Errors
+    /// The files'; the measurement's.
+    pub fn write_outputs(
+        &self,
+        out: &Path,
+        truth: Option<&Truth>,
+        view: &PreviewConfig,
+        title: String,
+    ) -> Result<MeshOutputs, ScanError> {
+        let mut stages = Vec::new();
+        let mut timed = |name: &str, t: std::time::Instant| {
+            stages.push(crate::StageTime::since(name, t));
+        };
+        let (ply, stl) = (out.join("mesh.ply"), out.join("mesh.stl"));
+        let t = std::time::Instant::now();
+        write_ply_mesh(&ply, &self.mesh)?;
+        write_stl(&stl, &self.mesh)?;
+        timed("write", t);
+        let measured = match truth {
+            Some(truth) => {
+                let cfg = EvaluateConfig::default();
+                let t = std::time::Instant::now();
+                let by_vertex = evaluate_mesh(&self.mesh, truth, MeshSampling::Vertices, &cfg)?;
+                timed("measure", t);
+                let by_area = evaluate_mesh(&self.mesh, truth, MeshSampling::default(), &cfg)?;
+                Some((by_vertex, by_area))
+            }
+            None => None,
+        };
+        let t = std::time::Instant::now();
+        let errors = measured
+            .as_ref()
+            .map(|(v, _)| v.signed_distances_mm.as_slice());
+        let page = write_mesh_pictures(out, &self.mesh, errors, view, title)?;
+        timed("preview", t);
+        Ok(MeshOutputs {
+            ply,
+            stl,
+            page,
+            measured,
+            stages,
+        })
+    }
+
+    /// What the fairing did, in a sentence, when it moved vertices.
+    #[must_use]
+    pub fn fairing_summary(&self) -> Option<String> {
+        let (f, _) = self.faired.as_ref()?;
+        if f.curvature_converged {
+            Some(format!(
+                "faired {} unseen vertices in {} gap(s), {} of them in smooth surface ({} rim \
+                 vertices put on the surface nearby first)",
+                f.vertices_moved, f.gaps, f.smooth_gaps, f.rim_moved
+            ))
+        } else if f.vertices_moved > 0 {
+            Some(format!(
+                "faired {} unseen vertices in {} gap(s) by the thin plate (the curvature steps \
+                 did not settle)",
+                f.vertices_moved, f.gaps
+            ))
+        } else {
+            None
+        }
+    }
+}
