@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use sl_codec::{
-    Axis, BitDepth, GrayCodeSpec, GrayReference, HybridSpec, ImageSize, Pattern, PatternSequence,
-    PhaseShiftSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, Unwrap,
+    Axis, BitDepth, CodecError, GrayCodeSpec, GrayReference, HybridSpec, ImageSize, Pattern,
+    PatternSequence, PhaseShiftSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, Unwrap,
 };
 
 use crate::common::{Report, ensure_out_dir};
@@ -170,34 +170,26 @@ fn steps_and_period(args: &Args) -> (u32, f64) {
 }
 
 /// The block of one axis.
-fn block(args: &Args, axis: Axis) -> Pattern {
+fn block(args: &Args, axis: Axis) -> anyhow::Result<Pattern> {
     let p = args.projector;
     let extent = f64::from(axis.extent(p));
     let (steps, period_px) = steps_and_period(args);
-    match args.codec {
+    Ok(match args.codec {
         CodecArg::Gray | CodecArg::Binary => {
-            let mut s = GrayCodeSpec::per_pixel(axis, p, !args.no_center);
-            let w = args.stripe_width.max(1);
-            if w > 1 {
-                let stripes = u64::from(axis.extent(p).div_ceil(w));
-                s.bits = 64 - (stripes.max(2) - 1).leading_zeros();
-                s.stripe_width = f64::from(w);
-                let offset = if args.no_center {
-                    0.0
-                } else {
-                    ((1u64 << s.bits).saturating_sub(stripes) / 2) as f64
-                };
-                s.origin = -0.5 - offset * f64::from(w);
-            }
+            let mut s = GrayCodeSpec::striped(axis, p, args.stripe_width, !args.no_center)
+                .map_err(|e| match e {
+                    CodecError::Parameter { message, .. } => {
+                        anyhow::anyhow!("--stripe-width {}: {message}", args.stripe_width)
+                    }
+                    other => other.into(),
+                })?;
             s.reference = args.reference.into();
             s.binary = args.codec == CodecArg::Binary;
             Pattern::Gray(s)
         }
         CodecArg::Phase => {
             let periods = if args.periods.is_empty() {
-                let p1 = extent / period_px;
-                let p2 = p1 * 7.0 / 8.0;
-                vec![p1, p2, 2.0 * p2 - p1 + 0.9]
+                PhaseShiftSpec::heterodyne_periods(extent, period_px)
             } else {
                 args.periods.clone()
             };
@@ -212,7 +204,7 @@ fn block(args: &Args, axis: Axis) -> Pattern {
             s.gray.reference = args.reference.into();
             Pattern::Hybrid(s)
         }
-    }
+    })
 }
 
 /// Runs `slscan patterns`.
@@ -231,7 +223,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     };
     let mut sequence = PatternSequence::new(args.projector);
     for &axis in axes {
-        sequence = sequence.with(block(args, axis));
+        sequence = sequence.with(block(args, axis)?);
     }
     sequence
         .validate()
@@ -377,5 +369,28 @@ mod tests {
         };
         assert_eq!(p.steps, 4);
         assert_eq!(p.periods[0], 8.0);
+    }
+
+    /// A stripe of no pixel is refused naming the option, not widened to one pixel.
+    #[test]
+    fn a_zero_stripe_width_is_refused_by_its_option() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("p");
+        let e = slscan(&[
+            "patterns",
+            "--projector",
+            "64x32",
+            "--stripe-width",
+            "0",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap_err();
+        let text = format!("{e:#}");
+        assert!(
+            text.starts_with("--stripe-width 0: must be at least 1"),
+            "{text}"
+        );
+        assert!(!out.join("manifest.json").exists());
     }
 }

@@ -117,6 +117,49 @@ impl GrayCodeSpec {
         }
     }
 
+    /// A code of stripes `stripe_width` projector pixels wide along `axis` (1: per pixel, as
+    /// [`GrayCodeSpec::per_pixel`]): `ceil(log2(stripes))` bits (at least one), centred like
+    /// the per-pixel code when `centered`.
+    ///
+    /// ```
+    /// use sl_codec::{Axis, GrayCodeSpec, ImageSize};
+    /// let p = ImageSize::new(1280, 800);
+    /// let s = GrayCodeSpec::striped(Axis::Column, p, 4, true)?;
+    /// assert_eq!((s.bits, s.stripe_width), (9, 4.0)); // 320 stripes in 512 codes
+    /// assert_eq!(GrayCodeSpec::striped(Axis::Column, p, 1, true)?, GrayCodeSpec::per_pixel(Axis::Column, p, true));
+    /// assert!(GrayCodeSpec::striped(Axis::Column, p, 0, true).is_err());
+    /// # Ok::<(), sl_codec::CodecError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`CodecError::Parameter`] naming `stripe_width` when it is 0.
+    pub fn striped(
+        axis: Axis,
+        projector: ImageSize,
+        stripe_width: u32,
+        centered: bool,
+    ) -> Result<Self, CodecError> {
+        if stripe_width == 0 {
+            return Err(CodecError::parameter(
+                "stripe_width",
+                "must be at least 1 projector pixel",
+            ));
+        }
+        let mut s = Self::per_pixel(axis, projector, centered);
+        if stripe_width > 1 {
+            let stripes = u64::from(axis.extent(projector).div_ceil(stripe_width));
+            s.bits = 64 - (stripes.max(2) - 1).leading_zeros();
+            s.stripe_width = f64::from(stripe_width);
+            let offset = if centered {
+                ((1u64 << s.bits).saturating_sub(stripes) / 2) as f64
+            } else {
+                0.0
+            };
+            s.origin = -0.5 - offset * f64::from(stripe_width);
+        }
+        Ok(s)
+    }
+
     /// The `origin` of a per-pixel code: `-0.5`, minus the centring offset if `centered`.
     pub fn per_pixel_origin(extent: u32, bits: u32, centered: bool) -> f64 {
         let offset = if centered && bits < 64 {

@@ -138,6 +138,25 @@ impl PhaseShiftSpec {
         }
     }
 
+    /// Three frequencies for heterodyne unwrapping whose finest period is `finest_period_px`
+    /// projector pixels across an `extent` of pixels: `p1 = extent / finest_period_px`
+    /// periods, `p2 = 7/8 p1` (their beat: `p1 / 8` periods) and `p3 = 2 p2 − p1 + 0.9`, so
+    /// that the beat of the two beats is 0.9 period across the projector — one unambiguous
+    /// phase from edge to edge.
+    ///
+    /// ```
+    /// let p = sl_codec::PhaseShiftSpec::heterodyne_periods(1280.0, 20.0);
+    /// assert_eq!(p[0], 64.0);
+    /// // The beat of the beats, (p1 - p2) - (p2 - p3), is 0.9 period across.
+    /// assert!(((p[0] - p[1]) - (p[1] - p[2]) - 0.9).abs() < 1e-12);
+    /// ```
+    #[must_use]
+    pub fn heterodyne_periods(extent: f64, finest_period_px: f64) -> Vec<f64> {
+        let p1 = extent / finest_period_px;
+        let p2 = p1 * 7.0 / 8.0;
+        vec![p1, p2, 2.0 * p2 - p1 + 0.9]
+    }
+
     /// Number of frames: `steps * periods.len()`.
     pub fn frame_count(&self) -> usize {
         self.steps as usize * self.periods.len()
