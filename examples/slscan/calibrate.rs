@@ -57,7 +57,7 @@ pub(crate) enum What {
 pub(crate) struct BoardArgs {
     /// Inner corners of the board, `COLSxROWS`.
     #[arg(long, default_value = "9x6")]
-    pub(crate) board: String,
+    pub(crate) board: BoardSize,
     /// Side of a square (mm).
     #[arg(long, default_value_t = 20.0)]
     pub(crate) square: f64,
@@ -78,7 +78,7 @@ impl BoardArgs {
     /// The board and files these options ask for.
     fn files_config(&self) -> anyhow::Result<CalibrationFilesConfig> {
         Ok(CalibrationFilesConfig {
-            board: parse_board(&self.board)?,
+            board: self.board,
             square_mm: self.square,
             corners: self.corners,
             yaml: self.yaml,
@@ -399,15 +399,6 @@ fn parse_pair(text: &str, flag: &str, example: &str) -> anyhow::Result<(u32, u32
     let b: u32 = b.trim().parse().with_context(bad)?;
     anyhow::ensure!(a > 0 && b > 0, "{}", bad());
     Ok((a, b))
-}
-
-pub(crate) fn parse_board(text: &str) -> anyhow::Result<BoardSize> {
-    let (cols, rows) = parse_pair(text, "--board", "9x6")?;
-    anyhow::ensure!(
-        cols >= 2 && rows >= 2,
-        "--board {text}: at least 2x2 inner corners"
-    );
-    Ok(BoardSize::new(cols, rows))
 }
 
 fn parse_size(text: &str) -> anyhow::Result<ImageSize> {

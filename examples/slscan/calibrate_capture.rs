@@ -61,7 +61,7 @@ pub(crate) struct Args {
     pub(crate) virtual_rig: bool,
     /// Inner corners of the board, `COLSxROWS`.
     #[arg(long, default_value = "9x6")]
-    pub(crate) board: String,
+    pub(crate) board: sl_calib::BoardSize,
     /// Side of a square (mm).
     #[arg(long, default_value_t = 20.0)]
     pub(crate) square: f64,
@@ -99,7 +99,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
 
 /// The board of `--board` and `--square`.
 fn board(args: &Args) -> anyhow::Result<(sl_calib::BoardSize, f64)> {
-    let size = crate::calibrate::parse_board(&args.board)?;
+    let size = args.board;
     anyhow::ensure!(
         args.square.is_finite() && args.square > 0.0,
         "--square {}: a square's side in mm, positive",

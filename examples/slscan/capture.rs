@@ -160,15 +160,11 @@ fn record_session(capture: &SessionCapture) -> anyhow::Result<()> {
 }
 
 fn scene(name: &str) -> anyhow::Result<Scene> {
-    Ok(match name {
-        "sphere" => Scene::sphere(),
-        "dumbbell" => Scene::dumbbell(),
-        "plane" => Scene::plane(),
-        "box" => Scene::cuboid(),
-        "cylinder" => Scene::cylinder(),
-        other => {
-            anyhow::bail!("--scene {other}: expected sphere, dumbbell, plane, box or cylinder")
-        }
+    Scene::named(name).with_context(|| {
+        format!(
+            "--scene {name}: expected one of {}",
+            Scene::NAMES.join(", ")
+        )
     })
 }
 

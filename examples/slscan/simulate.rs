@@ -53,7 +53,7 @@ pub(crate) struct Args {
     pub(crate) gamma: Option<f64>,
     /// Inner corners of the `board` scene, `COLSxROWS`.
     #[arg(long, default_value = "9x6")]
-    pub(crate) board: String,
+    pub(crate) board: sl_calib::BoardSize,
     /// Square size of the `board` scene (mm).
     #[arg(long, default_value_t = 20.0)]
     pub(crate) square_mm: f64,
@@ -89,7 +89,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
 
     let captures = if board {
         let mut session = CalibrationSession {
-            board: checkerboard(&args.board, args.square_mm)?,
+            board: checkerboard(args.board, args.square_mm)?,
             ..CalibrationSession::default()
         };
         session.poses.count = args.views;
@@ -157,16 +157,10 @@ fn config(args: &Args, board: bool) -> anyhow::Result<RigConfig> {
     Ok(c)
 }
 
-fn checkerboard(corners: &str, square_mm: f64) -> anyhow::Result<Checkerboard> {
-    let parsed = corners
-        .split_once(['x', 'X'])
-        .and_then(|(c, r)| Some((c.trim().parse::<u32>().ok()?, r.trim().parse::<u32>().ok()?)));
-    let Some((inner_cols, inner_rows)) = parsed else {
-        anyhow::bail!("--board {corners}: expected inner corners as COLSxROWS, e.g. 9x6");
-    };
+fn checkerboard(size: sl_calib::BoardSize, square_mm: f64) -> anyhow::Result<Checkerboard> {
     let board = Checkerboard {
-        inner_cols,
-        inner_rows,
+        inner_cols: size.cols,
+        inner_rows: size.rows,
         square_mm,
         ..Checkerboard::default()
     };
@@ -175,18 +169,17 @@ fn checkerboard(corners: &str, square_mm: f64) -> anyhow::Result<Checkerboard> {
 }
 
 fn scene(name: &str) -> anyhow::Result<Scene> {
-    Ok(match name {
-        "plane" => Scene::plane(),
-        "sphere" => Scene::sphere(),
-        "dumbbell" => Scene::dumbbell(),
-        "box" => Scene::cuboid(),
-        "cylinder" => Scene::cylinder(),
-        "bunny" => mesh_scene(&bunny_path()?)?,
-        file if file.to_ascii_lowercase().ends_with(".ply") => mesh_scene(Path::new(file))?,
+    if let Some(scene) = Scene::named(name) {
+        return Ok(scene);
+    }
+    match name {
+        "bunny" => mesh_scene(&bunny_path()?),
+        file if file.to_ascii_lowercase().ends_with(".ply") => mesh_scene(Path::new(file)),
         other => anyhow::bail!(
-            "--scene {other}: expected plane, sphere, dumbbell, box, cylinder, bunny, board or a .ply file"
+            "--scene {other}: expected {}, bunny, board or a .ply file",
+            Scene::NAMES.join(", ")
         ),
-    })
+    }
 }
 
 /// `bun000.ply` of the Stanford bunny in `$SL_DATA/bunny` (or `../shared/data/bunny`).

@@ -22,6 +22,45 @@ pub struct BoardSize {
     pub rows: u32,
 }
 
+/// `COLSxROWS`, as [`BoardSize`] parses it.
+impl std::fmt::Display for BoardSize {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}x{}", self.cols, self.rows)
+    }
+}
+
+/// Parses `COLSxROWS` (`9x6`; `X` too, spaces around the numbers allowed): at least 2×2 inner
+/// corners, the smallest grid a board pose can be told from.
+///
+/// ```
+/// use sl_calib::BoardSize;
+/// assert_eq!("9x6".parse::<BoardSize>()?, BoardSize::new(9, 6));
+/// assert_eq!(BoardSize::new(9, 6).to_string(), "9x6");
+/// assert!("9".parse::<BoardSize>().is_err() && "1x6".parse::<BoardSize>().is_err());
+/// # Ok::<(), sl_calib::CalibError>(())
+/// ```
+impl std::str::FromStr for BoardSize {
+    type Err = CalibError;
+
+    fn from_str(s: &str) -> Result<Self, CalibError> {
+        let bad = |reason: &str| CalibError::InvalidParameter {
+            name: "board".to_owned(),
+            reason: format!("{s:?}: {reason}"),
+        };
+        let (c, r) = s
+            .split_once(['x', 'X'])
+            .ok_or_else(|| bad("expected inner corners as COLSxROWS, e.g. 9x6"))?;
+        let count = |t: &str| t.trim().parse::<u32>().ok();
+        let (Some(cols), Some(rows)) = (count(c), count(r)) else {
+            return Err(bad("expected inner corners as COLSxROWS, e.g. 9x6"));
+        };
+        if cols < 2 || rows < 2 {
+            return Err(bad("at least 2x2 inner corners"));
+        }
+        Ok(Self::new(cols, rows))
+    }
+}
+
 impl BoardSize {
     /// A board of `cols × rows` inner corners.
     pub fn new(cols: u32, rows: u32) -> Self {

@@ -352,6 +352,29 @@ impl Scene {
         Ok(())
     }
 
+    /// The names [`Scene::named`] knows, in the order a help text lists them.
+    pub const NAMES: [&str; 5] = ["plane", "sphere", "dumbbell", "box", "cylinder"];
+
+    /// The built-in scene called `name` (one of [`Scene::NAMES`]: `box` is
+    /// [`Scene::cuboid`]), or `None`.
+    ///
+    /// ```
+    /// use sl_sim::Scene;
+    /// assert!(Scene::NAMES.iter().all(|n| Scene::named(n).is_some()));
+    /// assert!(Scene::named("teapot").is_none());
+    /// ```
+    #[must_use]
+    pub fn named(name: &str) -> Option<Self> {
+        Some(match name {
+            "plane" => Self::plane(),
+            "sphere" => Self::sphere(),
+            "dumbbell" => Self::dumbbell(),
+            "box" => Self::cuboid(),
+            "cylinder" => Self::cylinder(),
+            _ => return None,
+        })
+    }
+
     /// A 300 × 200 mm white plane standing upright on the axis, facing the camera at angle 0.
     pub fn plane() -> Self {
         let pose =
