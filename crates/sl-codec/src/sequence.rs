@@ -232,7 +232,7 @@ pub fn render_pattern<T: Sample>(
             }
         }
     }
-    Frame::new(w, h, data)
+    Ok(Frame::new(w, h, data)?)
 }
 
 /// The 1-D profile of a pattern frame along its axis, quantised to `T`, one value per

@@ -12,8 +12,14 @@ impl GreyImage {
     pub fn save_png(&self, path: &Path) -> Result<(), RigError> {
         let (w, h) = (self.width as usize, self.height as usize);
         match &self.pixels {
-            Pixels::U8(p) => write_png_grey8(path, &Frame::new(w, h, p.clone())?)?,
-            Pixels::U16(p) => write_png_grey16(path, &Frame::new(w, h, p.clone())?)?,
+            Pixels::U8(p) => write_png_grey8(
+                path,
+                &Frame::new(w, h, p.clone()).map_err(sl_codec::CodecError::from)?,
+            )?,
+            Pixels::U16(p) => write_png_grey16(
+                path,
+                &Frame::new(w, h, p.clone()).map_err(sl_codec::CodecError::from)?,
+            )?,
         }
         Ok(())
     }

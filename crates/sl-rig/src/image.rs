@@ -128,7 +128,7 @@ impl GreyImage {
     pub fn into_frame8(self) -> Result<sl_codec::Frame<u8>, RigError> {
         let (w, h) = (self.width as usize, self.height as usize);
         let grey = self.into_gray8()?;
-        Ok(sl_codec::Frame::new(w, h, grey.into_raw())?)
+        Ok(sl_codec::Frame::new(w, h, grey.into_raw()).map_err(sl_codec::CodecError::from)?)
     }
 
     /// The value of pixel `(x, y)` in the image's own units (0–255 or 0–65535), or `None`

@@ -37,7 +37,7 @@ impl RigConfig {
             .map(|p| {
                 self.camera
                     .project(p)
-                    .filter(|q| self.camera.size.contains(q))
+                    .filter(|q| self.camera.size.contains(q.x, q.y))
             })
             .collect();
         let corners_projector = corners_cam
@@ -45,7 +45,7 @@ impl RigConfig {
             .map(|p| {
                 self.projector
                     .project(&self.t_cam_proj.inverse_transform_point(p))
-                    .filter(|q| self.projector.size.contains(q))
+                    .filter(|q| self.projector.size.contains(q.x, q.y))
             })
             .collect();
         BoardTruth {

@@ -78,7 +78,7 @@ fn plane_projector_coordinates_match_the_closed_form() {
             let p = Point3::from(d * s);
             assert_relative_eq!(t.depth_mm[i], p.z, max_relative = 1e-12);
             let q = config.projector.project(&(t_proj_cam * p));
-            match q.filter(|q| config.projector.size.contains(q)) {
+            match q.filter(|q| config.projector.size.contains(q.x, q.y)) {
                 Some(q) => {
                     // Both sides are f64 evaluations of the same model through different
                     // intersection formulas: a few ulps of 1000 px, far below 1e-6 px.
@@ -175,7 +175,7 @@ fn shadows_fall_where_the_projector_cannot_see() {
         let q_proj = config
             .projector
             .project(&config.t_cam_proj.inverse_transform_point(&p));
-        let in_projector = q_proj.is_some_and(|q| config.projector.size.contains(&q));
+        let in_projector = q_proj.is_some_and(|q| config.projector.size.contains(q.x, q.y));
         // Pixels within 1e-6 mm of the shadow's edge could go either way.
         let edge = ((q.x - 40.0).abs() - 20.0).abs() < 1e-6 || (q.y.abs() - 20.0).abs() < 1e-6;
         if edge || !in_projector {
