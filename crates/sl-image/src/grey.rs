@@ -1,6 +1,6 @@
 //! A grey image at either depth.
 
-use crate::Frame;
+use crate::{Frame, ImageError, ImageSize};
 
 /// A grey image at the depth it was made with: read from a file, captured by a camera, or shown
 /// by a projector.
@@ -25,6 +25,15 @@ pub enum GreyImage {
 }
 
 impl GreyImage {
+    /// An 8-bit image where every pixel has the value `value` (a flat projector image: full
+    /// white, full black).
+    ///
+    /// # Errors
+    /// As [`Frame::filled`]: a zero dimension, or a size that overflows `usize`.
+    pub fn filled_u8(width: usize, height: usize, value: u8) -> Result<Self, ImageError> {
+        Ok(Self::U8(Frame::filled(width, height, value)?))
+    }
+
     /// Width in pixels.
     pub fn width(&self) -> usize {
         match self {
@@ -41,12 +50,52 @@ impl GreyImage {
         }
     }
 
+    /// Width and height as an [`ImageSize`] (a dimension beyond `u32::MAX`, which no camera
+    /// or projector has, saturates to it).
+    pub fn size(&self) -> ImageSize {
+        let c = |v: usize| u32::try_from(v).unwrap_or(u32::MAX);
+        ImageSize::new(c(self.width()), c(self.height()))
+    }
+
     /// Bits per sample: 8 or 16.
     pub fn bit_depth(&self) -> u32 {
         match self {
             Self::U8(_) => 8,
             Self::U16(_) => 16,
         }
+    }
+
+    /// Largest value a pixel can hold: 255 or 65535.
+    pub fn max_value(&self) -> u16 {
+        match self {
+            Self::U8(_) => u16::from(u8::MAX),
+            Self::U16(_) => u16::MAX,
+        }
+    }
+
+    /// The value of pixel `(x, y)` in the image's own units (0–255 or 0–65535), or `None`
+    /// outside the image.
+    pub fn get(&self, x: usize, y: usize) -> Option<u16> {
+        match self {
+            Self::U8(f) => f.get(x, y).map(u16::from),
+            Self::U16(f) => f.get(x, y),
+        }
+    }
+
+    /// The value of pixel `(x, y)` as a fraction of full scale in `[0, 1]`, or `None` outside
+    /// the image.
+    pub fn get_normalised(&self, x: usize, y: usize) -> Option<f64> {
+        self.get(x, y)
+            .map(|v| f64::from(v) / f64::from(self.max_value()))
+    }
+
+    /// Mean of all pixels as a fraction of full scale in `[0, 1]`.
+    pub fn mean_normalised(&self) -> f64 {
+        let (sum, n): (f64, usize) = match self {
+            Self::U8(f) => (f.data().iter().map(|&v| f64::from(v)).sum(), f.data().len()),
+            Self::U16(f) => (f.data().iter().map(|&v| f64::from(v)).sum(), f.data().len()),
+        };
+        sum / n.max(1) as f64 / f64::from(self.max_value())
     }
 
     /// The image at 8 bits: 16-bit values scaled by `round(v / 257)`.
@@ -100,6 +149,21 @@ mod tests {
         assert_eq!(scale_16_to_8(128), 0);
         assert_eq!(scale_16_to_8(129), 1);
         assert_eq!(scale_16_to_8(65535), 255);
+    }
+
+    #[test]
+    fn pixel_reads_in_own_units_and_normalised() {
+        let img = GreyImage::from(Frame::new(2, 1, vec![0u16, 0x8000]).unwrap());
+        assert_eq!(img.max_value(), 65535);
+        assert_eq!(img.size(), ImageSize::new(2, 1));
+        assert_eq!(img.get(1, 0), Some(0x8000));
+        assert_eq!(img.get(2, 0), None);
+        assert_eq!(img.get_normalised(0, 0), Some(0.0));
+        let white = GreyImage::filled_u8(3, 2, 255).unwrap();
+        assert_eq!(white.get_normalised(2, 1), Some(1.0));
+        assert_eq!(white.get_normalised(0, 2), None);
+        assert!((white.mean_normalised() - 1.0).abs() < 1e-15);
+        assert!(GreyImage::filled_u8(0, 2, 0).is_err());
     }
 
     #[test]

@@ -5,7 +5,8 @@
 //! `cargo bench -p sl-rig --bench render -- --warm-up-time 1 --measurement-time 3`
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use sl_sim::{GreyImage, Pixels, RigConfig, Scene, SimError, VirtualRig};
+use sl_image::Frame;
+use sl_sim::{GreyImage, RigConfig, Scene, SimError, VirtualRig};
 
 /// Gray-code bit `bit` (MSB = 10) of every projector column (or row), and its inverse.
 fn gray_set(w: u32, h: u32) -> Vec<GreyImage> {
@@ -22,11 +23,9 @@ fn gray_set(w: u32, h: u32) -> Vec<GreyImage> {
                         if on != inverse { 255 } else { 0 }
                     })
                     .collect();
-                out.push(GreyImage {
-                    width: w,
-                    height: h,
-                    pixels: Pixels::U8(px),
-                });
+                out.push(GreyImage::U8(
+                    Frame::new(w as usize, h as usize, px).expect("w x h values"),
+                ));
             }
         }
     }

@@ -255,11 +255,11 @@ fn capture_view(
 ) -> Result<BoardCapture, SimError> {
     let cfg = rig.config();
     let (pw, ph) = (cfg.projector.size.width, cfg.projector.size.height);
-    let white = view.capture(&GreyImage::filled_u8(pw, ph, u8::MAX), 0)?;
+    let white = view.capture(&GreyImage::filled_u8(pw as usize, ph as usize, u8::MAX)?, 0)?;
     let frames = match sequence {
         Some(seq) => (0..seq.frame_count())
             .map(|k| {
-                let img = GreyImage::from_sequence(seq, k, false)?;
+                let img = seq.render_image(k, sl_codec::BitDepth::Eight)?;
                 view.capture(&img, k as u64 + 1)
             })
             .collect::<Result<Vec<_>, SimError>>()?,
