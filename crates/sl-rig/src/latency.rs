@@ -122,13 +122,13 @@ where
 /// #     fn rotate_to(&mut self, a: f64) -> Result<f64, RigError> { self.0 = a; Ok(a) }
 /// #     fn angle_deg(&mut self) -> Result<f64, RigError> { Ok(self.0) }
 /// # }
-/// # fn devices() -> (Mirror, Mirror, Table) {
+/// # fn devices() -> Result<(Mirror, Mirror, Table), RigError> {
 /// #     let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)?));
-/// #     (Mirror(screen.clone()), Mirror(screen), Table(0.0))
+/// #     Ok((Mirror(screen.clone()), Mirror(screen), Table(0.0)))
 /// # }
 /// # fn main() -> Result<(), sl_rig::RigError> {
 /// // A camera that sees exactly what the projector shows (any devices behind the traits do).
-/// let (camera, mut projector, _) = devices();
+/// let (camera, mut projector, _) = devices()?;
 /// // A camera whose driver queues 2 frames.
 /// let mut camera = BufferedCamera::new(camera, 2);
 /// let latency = measure_latency(&mut camera, &mut projector, &LatencyConfig::default())?;

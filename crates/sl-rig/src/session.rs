@@ -171,14 +171,14 @@ struct SessionFile {
 /// #     fn rotate_to(&mut self, a: f64) -> Result<f64, RigError> { self.0 = a; Ok(a) }
 /// #     fn angle_deg(&mut self) -> Result<f64, RigError> { Ok(self.0) }
 /// # }
-/// # fn devices() -> (Mirror, Mirror, Table) {
+/// # fn devices() -> Result<(Mirror, Mirror, Table), RigError> {
 /// #     let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)?));
-/// #     (Mirror(screen.clone()), Mirror(screen), Table(0.0))
+/// #     Ok((Mirror(screen.clone()), Mirror(screen), Table(0.0)))
 /// # }
 /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// // Any devices behind the traits; here a 64x36 camera that sees exactly what the projector
 /// // shows, and a turntable.
-/// let (mut camera, mut projector, mut table) = devices();
+/// let (mut camera, mut projector, mut table) = devices()?;
 /// // Gray code columns of the 64x36 projector, two views.
 /// use sl_codec::{Axis, BitDepth, GrayCodeSpec, Pattern, PatternSequence, ImageSize};
 /// let p = ImageSize::new(64, 36);
