@@ -5,6 +5,7 @@
 //!
 //! | module | crate | what it holds |
 //! |---|---|---|
+//! | [`image`] | `sl-image` | the shared image types: image size, grey frames, grey images |
 //! | [`camera`] | `sl-camera` | pinhole intrinsics, OpenCV distortion, projection, poses, calibration files |
 //! | [`cloud`] | `sl-cloud` | point clouds, PLY, voxel grid, neighbours, normals, outliers |
 //! | [`codec`] | `sl-codec` | pattern sequences and decoders |
@@ -29,6 +30,7 @@ pub use sl_camera as camera;
 pub use sl_cloud as cloud;
 pub use sl_codec as codec;
 pub use sl_icp as icp;
+pub use sl_image as image;
 pub use sl_mesh as mesh;
 pub use sl_metrology as metrology;
 pub use sl_rig as rig;

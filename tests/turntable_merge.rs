@@ -28,14 +28,14 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_cloud::{PlyFormat, read_ply, write_ply};
 use sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, ImageSize, Pattern,
+    Axis, BitDepth, CaptureSet, DecodeConfig, Frames, HybridSpec, ImageSize, Pattern,
     PatternSequence, decode,
 };
 use sl_icp::{
     MergeConfig, PointCloud, PoseError, PoseModel, TurntableAxis, TurntablePrior, merge_aligned,
     merge_views, turntable_poses,
 };
-use sl_rig::{GreyImage, Pixels};
+use sl_rig::GreyImage;
 use sl_scan::{ReconstructConfig, reconstruct_decoded};
 use sl_sim::{RigConfig, Scene, VirtualRig, projector_images};
 use sl_tri::{Method, TriConfig, Triangulator};
@@ -71,15 +71,12 @@ const CACHE_ENV: &str = "SL_TURNTABLE_MERGE_CACHE";
 const CUBE_SIDE_MM: f64 = 100.0;
 
 fn to_frames(images: Vec<GreyImage>) -> Frames {
-    let (w, h) = images
-        .first()
-        .map_or((0, 0), |i| (i.width as usize, i.height as usize));
     let mut u8s = Vec::new();
     let mut u16s = Vec::new();
     for img in images {
-        match img.pixels {
-            Pixels::U8(v) => u8s.push(Frame::new(w, h, v).unwrap()),
-            Pixels::U16(v) => u16s.push(Frame::new(w, h, v).unwrap()),
+        match img {
+            GreyImage::U8(f) => u8s.push(f),
+            GreyImage::U16(f) => u16s.push(f),
         }
     }
     assert!(u8s.is_empty() || u16s.is_empty(), "mixed bit depths");

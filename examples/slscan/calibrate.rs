@@ -696,9 +696,7 @@ mod tests {
         std::fs::create_dir_all(&images).unwrap();
         for (k, pose) in poses.iter().enumerate() {
             let cap = sl_sim::capture_board(&rig, &board, pose, None, k as u64).unwrap();
-            cap.white
-                .save_png(&images.join(format!("board_{k}.png")))
-                .unwrap();
+            sl_codec::write_png_grey(&images.join(format!("board_{k}.png")), &cap.white).unwrap();
         }
         let out = tmp.path().join("out");
         slscan(&[

@@ -191,7 +191,9 @@ fn validate(views: &[ProcamView], cfg: &ProcamConfig) -> Result<(), CalibError> 
             format!("{} is not a positive length", cfg.square_mm),
         ));
     }
-    cfg.projector_size.validate()?;
+    cfg.projector_size
+        .validate()
+        .map_err(sl_camera::CameraError::from)?;
     if cfg.min_projector_corners < 4 {
         return Err(CalibError::param(
             "min_projector_corners",

@@ -268,7 +268,7 @@ fn validate(
             views.len()
         )));
     }
-    size.validate()?;
+    size.validate().map_err(sl_camera::CameraError::from)?;
     if let Some(r) = config.aspect_ratio
         && !(r.is_finite() && r > 0.0)
     {

@@ -107,6 +107,24 @@ fn hint_suffix(hint: &Option<String>) -> String {
         .map_or_else(String::new, |h| format!(" ({h})"))
 }
 
+/// An invalid image size or buffer becomes [`CameraError::InvalidParameter`] naming the same
+/// parameter (`width`, `height`), so `size.validate()?` reads as it did when the size was this
+/// crate's.
+impl From<sl_image::ImageError> for CameraError {
+    fn from(e: sl_image::ImageError) -> Self {
+        match e {
+            sl_image::ImageError::InvalidParameter { name, reason } => Self::InvalidParameter {
+                parameter: name,
+                message: reason,
+            },
+            other => Self::InvalidParameter {
+                parameter: "image".to_owned(),
+                message: other.to_string(),
+            },
+        }
+    }
+}
+
 impl CameraError {
     /// Shorthand for [`CameraError::InvalidParameter`].
     pub(crate) fn invalid(parameter: impl Into<String>, message: impl Into<String>) -> Self {

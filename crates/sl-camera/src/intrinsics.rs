@@ -1,4 +1,4 @@
-//! Pinhole intrinsics and image size.
+//! Pinhole intrinsics.
 
 use nalgebra::{Matrix3, Point2};
 use serde::{Deserialize, Serialize};
@@ -135,69 +135,6 @@ impl Intrinsics {
     }
 }
 
-/// Size of an image in pixels.
-///
-/// With OpenCV's convention (pixel (0, 0) is the centre of the top-left pixel) the image
-/// covers the continuous rectangle `[-0.5, width - 0.5) × [-0.5, height - 0.5)`.
-///
-/// ```
-/// use sl_camera::ImageSize;
-/// use nalgebra::Point2;
-/// let size = ImageSize::new(1280, 720);
-/// assert!(size.contains(&Point2::new(-0.5, 719.4)));
-/// assert!(!size.contains(&Point2::new(1279.5, 0.0)));
-/// assert_eq!(size.to_string(), "1280x720");
-/// ```
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ImageSize {
-    /// Width in pixels (number of columns).
-    pub width: u32,
-    /// Height in pixels (number of rows).
-    pub height: u32,
-}
-
-impl ImageSize {
-    /// A size.
-    pub fn new(width: u32, height: u32) -> Self {
-        Self { width, height }
-    }
-
-    /// Number of pixels.
-    pub fn pixel_count(&self) -> usize {
-        self.width as usize * self.height as usize
-    }
-
-    /// Whether a pixel position lies on the image: `-0.5 <= u < width - 0.5` and likewise
-    /// for `v`.
-    pub fn contains(&self, px: &Point2<f64>) -> bool {
-        px.x >= -0.5
-            && px.x < f64::from(self.width) - 0.5
-            && px.y >= -0.5
-            && px.y < f64::from(self.height) - 0.5
-    }
-
-    /// Checks that both dimensions are non-zero.
-    ///
-    /// # Errors
-    /// [`CameraError::InvalidParameter`] naming `width` or `height`.
-    pub fn validate(&self) -> Result<(), CameraError> {
-        if self.width == 0 {
-            return Err(CameraError::invalid("width", "must be at least 1 pixel"));
-        }
-        if self.height == 0 {
-            return Err(CameraError::invalid("height", "must be at least 1 pixel"));
-        }
-        Ok(())
-    }
-}
-
-impl std::fmt::Display for ImageSize {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}x{}", self.width, self.height)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -235,16 +172,5 @@ mod tests {
         assert!(e.contains("`fx`"), "{e}");
         let m = Intrinsics::new(100.0, f64::NAN, 50.0, 50.0).matrix();
         assert!(Intrinsics::from_matrix(&m).is_err());
-    }
-
-    #[test]
-    fn image_size_bounds_follow_pixel_centre_convention() {
-        let s = ImageSize::new(4, 3);
-        assert!(s.contains(&Point2::new(-0.5, -0.5)));
-        assert!(s.contains(&Point2::new(3.49, 2.49)));
-        assert!(!s.contains(&Point2::new(3.5, 0.0)));
-        assert!(!s.contains(&Point2::new(0.0, -0.51)));
-        assert_eq!(s.pixel_count(), 12);
-        assert!(ImageSize::new(0, 3).validate().is_err());
     }
 }

@@ -81,7 +81,7 @@ pub use calibration::{
 };
 pub use distortion::{DISTORTION_PARAMETERS, Distortion, DistortionJacobians, DistortionModel};
 pub use error::CameraError;
-pub use intrinsics::{ImageSize, Intrinsics};
+pub use intrinsics::Intrinsics;
 pub use jacobians::{INTRINSIC_PARAMETERS, PoseProjectionJacobians, ProjectionJacobians};
 pub use layouts::{CalibrationLayout, LoadOptions, LoadedCalibration};
 pub use model::{CameraModel, FieldOfView, PixelJacobian, ProjectorModel};
@@ -91,6 +91,10 @@ pub use pose::{
 };
 pub use ray_table::RayTable;
 pub use turntable::TurntableAxis;
+
+/// Size of an image in pixels: the workspace's one image size, defined in `sl-image` and
+/// re-exported so camera users need one import.
+pub use sl_image::ImageSize;
 
 /// Re-export of the linear algebra crate used in the public API.
 pub use nalgebra;

@@ -82,7 +82,7 @@ impl CameraModel {
             .map_err(|e| prefix_parameter(e, "intrinsics"))?;
         self.size
             .validate()
-            .map_err(|e| prefix_parameter(e, "size"))
+            .map_err(|e| prefix_parameter(e.into(), "size"))
     }
 
     /// Projects a point of the camera frame to a pixel; `None` if `z <= 0` (or not finite) or

@@ -9,9 +9,11 @@ use rayon::prelude::*;
 #[cfg(feature = "image-files")]
 use crate::Frame;
 #[cfg(feature = "image-files")]
+use crate::GreyImage;
+#[cfg(feature = "image-files")]
 use crate::frame::check_sizes;
 #[cfg(feature = "image-files")]
-use crate::image_file::{GreyImage, find_image_file, read_image};
+use crate::image_file::{find_image_file, read_image};
 #[cfg(feature = "image-files")]
 use crate::manifest::MANIFEST_FILE;
 use crate::{CodecError, Frames, Manifest};

@@ -130,6 +130,35 @@ pub enum CodecError {
     Frames(String),
 }
 
+/// A frame's dimension or buffer error becomes [`CodecError::Parameter`] or
+/// [`CodecError::FrameBuffer`] (frame `<memory>`), as when `Frame` was this crate's.
+impl From<sl_image::ImageError> for CodecError {
+    fn from(e: sl_image::ImageError) -> Self {
+        match e {
+            sl_image::ImageError::InvalidParameter { name, reason } => Self::Parameter {
+                name,
+                message: reason,
+            },
+            sl_image::ImageError::BufferLength {
+                width,
+                height,
+                expected,
+                found,
+            } => Self::FrameBuffer {
+                frame: "<memory>".into(),
+                width,
+                height,
+                expected,
+                found,
+            },
+            other => Self::Parameter {
+                name: "image".into(),
+                message: other.to_string(),
+            },
+        }
+    }
+}
+
 impl CodecError {
     /// Shorthand for [`CodecError::Parameter`].
     pub(crate) fn parameter(name: impl Into<String>, message: impl Into<String>) -> Self {

@@ -9,7 +9,7 @@ use std::path::Path;
 
 use crate::CodecError;
 #[cfg(feature = "image-files")]
-use crate::Frame;
+use crate::{Frame, GreyImage};
 
 /// Writes a grey `f32` image as an uncompressed little-endian baseline TIFF (one strip,
 /// `SampleFormat = IEEEFP`, `BitsPerSample = 32`).
@@ -119,6 +119,18 @@ pub fn write_png_grey8(path: &Path, frame: &Frame<u8>) -> Result<(), CodecError>
         frame.data(),
         image::ExtendedColorType::L8,
     )
+}
+
+#[cfg(feature = "image-files")]
+/// Writes a grey image as a PNG at its own depth: [`write_png_grey8`] or [`write_png_grey16`].
+///
+/// # Errors
+/// [`CodecError::Image`] naming the file.
+pub fn write_png_grey(path: &Path, image: &GreyImage) -> Result<(), CodecError> {
+    match image {
+        GreyImage::U8(f) => write_png_grey8(path, f),
+        GreyImage::U16(f) => write_png_grey16(path, f),
+    }
 }
 
 #[cfg(feature = "image-files")]

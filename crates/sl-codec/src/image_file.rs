@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 
 use image::DynamicImage;
 
-use crate::{CodecError, Frame};
+use crate::{CodecError, Frame, GreyImage};
 
 /// File extensions (lower case, without the dot) of the image files this crate reads; a
 /// folder listing filters on them (case-insensitively) with [`is_image_file`].
@@ -46,67 +46,6 @@ const B2Y: u32 = 3735;
 const GREY_SHIFT: u32 = 15;
 /// Half of the fixed-point unit, added before the shift to round half up.
 const GREY_ROUND: u32 = 1 << (GREY_SHIFT - 1);
-
-/// A grey image as read from a file, at the depth the file holds.
-#[derive(Clone, Debug, PartialEq)]
-pub enum GreyImage {
-    /// 8-bit samples (8-bit grey, or 8-bit colour converted to grey).
-    U8(Frame<u8>),
-    /// 16-bit samples (16-bit grey or colour, or float files scaled to `[0, 65535]`).
-    U16(Frame<u16>),
-}
-
-impl GreyImage {
-    /// Width in pixels.
-    pub fn width(&self) -> usize {
-        match self {
-            Self::U8(f) => f.width(),
-            Self::U16(f) => f.width(),
-        }
-    }
-
-    /// Height in pixels.
-    pub fn height(&self) -> usize {
-        match self {
-            Self::U8(f) => f.height(),
-            Self::U16(f) => f.height(),
-        }
-    }
-
-    /// Bits per sample: 8 or 16.
-    pub fn bit_depth(&self) -> u32 {
-        match self {
-            Self::U8(_) => 8,
-            Self::U16(_) => 16,
-        }
-    }
-
-    /// The image at 8 bits: 16-bit values scaled by `round(v / 257)`.
-    pub fn into_u8(self) -> Frame<u8> {
-        match self {
-            Self::U8(f) => f,
-            Self::U16(f) => {
-                let (w, h) = (f.width(), f.height());
-                let data = f.into_data().into_iter().map(scale_16_to_8).collect();
-                Frame::from_valid_parts(w, h, data)
-            }
-        }
-    }
-
-    /// The image at 16 bits: 8-bit values widened by `v * 257` (255 becomes 65535).
-    pub fn into_u16(self) -> Frame<u16> {
-        match self {
-            Self::U8(f) => f.to_u16(),
-            Self::U16(f) => f,
-        }
-    }
-}
-
-/// `round(v / 257)`: the 8-bit value whose widening `v8 * 257` is nearest to `v`.
-fn scale_16_to_8(v: u16) -> u8 {
-    // (v + 128) / 257 <= (65535 + 128) / 257 = 255.5, so the result fits.
-    u8::try_from((u32::from(v) + 128) / 257).unwrap_or(u8::MAX)
-}
 
 /// Whether a path names a file with one of the [`IMAGE_EXTENSIONS`] (case-insensitive). Only
 /// the name is looked at, not the file.
@@ -172,7 +111,7 @@ pub fn read_image(path: &Path) -> Result<GreyImage, CodecError> {
             path: path.to_path_buf(),
         });
     }
-    Ok(grey_of(img))
+    grey_of(img)
 }
 
 /// An image file's width and height, read from its header alone (the format found from the
@@ -212,53 +151,58 @@ pub fn read_grey8(path: &Path) -> Result<Frame<u8>, CodecError> {
     Ok(read_image(path)?.into_u8())
 }
 
-/// Grey of a decoded image of at least one pixel (see the module docs).
-pub(crate) fn grey_of(img: DynamicImage) -> GreyImage {
+/// Grey of a decoded image (see the module docs).
+///
+/// # Errors
+/// [`CodecError::Parameter`] for an image of no pixels (`read_image` refuses those first).
+fn grey_of(img: DynamicImage) -> Result<GreyImage, CodecError> {
     let (w, h) = (img.width() as usize, img.height() as usize);
-    match img {
-        DynamicImage::ImageLuma8(b) => GreyImage::U8(Frame::from_valid_parts(w, h, b.into_raw())),
-        DynamicImage::ImageLuma16(b) => GreyImage::U16(Frame::from_valid_parts(w, h, b.into_raw())),
-        DynamicImage::ImageLumaA8(b) => GreyImage::U8(Frame::from_valid_parts(
-            w,
-            h,
-            b.pixels().map(|p| p.0[0]).collect(),
-        )),
-        DynamicImage::ImageLumaA16(b) => GreyImage::U16(Frame::from_valid_parts(
-            w,
-            h,
-            b.pixels().map(|p| p.0[0]).collect(),
-        )),
-        DynamicImage::ImageRgb8(b) => GreyImage::U8(Frame::from_valid_parts(
+    let grey = match img {
+        DynamicImage::ImageLuma8(b) => Frame::new(w, h, b.into_raw())?.into(),
+        DynamicImage::ImageLuma16(b) => Frame::new(w, h, b.into_raw())?.into(),
+        DynamicImage::ImageLumaA8(b) => {
+            Frame::new(w, h, b.pixels().map(|p| p.0[0]).collect())?.into()
+        }
+        DynamicImage::ImageLumaA16(b) => {
+            Frame::new(w, h, b.pixels().map(|p| p.0[0]).collect())?.into()
+        }
+        DynamicImage::ImageRgb8(b) => Frame::new(
             w,
             h,
             b.pixels().map(|p| grey8(p.0[0], p.0[1], p.0[2])).collect(),
-        )),
-        DynamicImage::ImageRgba8(b) => GreyImage::U8(Frame::from_valid_parts(
+        )?
+        .into(),
+        DynamicImage::ImageRgba8(b) => Frame::new(
             w,
             h,
             b.pixels().map(|p| grey8(p.0[0], p.0[1], p.0[2])).collect(),
-        )),
-        DynamicImage::ImageRgb16(b) => GreyImage::U16(Frame::from_valid_parts(
+        )?
+        .into(),
+        DynamicImage::ImageRgb16(b) => Frame::new(
             w,
             h,
             b.pixels().map(|p| grey16(p.0[0], p.0[1], p.0[2])).collect(),
-        )),
-        DynamicImage::ImageRgba16(b) => GreyImage::U16(Frame::from_valid_parts(
+        )?
+        .into(),
+        DynamicImage::ImageRgba16(b) => Frame::new(
             w,
             h,
             b.pixels().map(|p| grey16(p.0[0], p.0[1], p.0[2])).collect(),
-        )),
+        )?
+        .into(),
         // Float images (and any variant a later `image` adds): through 16-bit RGB, which
         // clamps floats to [0, 1] and scales them to [0, 65535].
         other => {
             let b = other.to_rgb16();
-            GreyImage::U16(Frame::from_valid_parts(
+            Frame::new(
                 w,
                 h,
                 b.pixels().map(|p| grey16(p.0[0], p.0[1], p.0[2])).collect(),
-            ))
+            )?
+            .into()
         }
-    }
+    };
+    Ok(grey)
 }
 
 /// OpenCV's fixed-point RGB → grey at 16 bits (the weights sum to 2¹⁵, so the result never
@@ -313,16 +257,6 @@ mod tests {
         assert_eq!(grey16(65535, 0, 0), 19596);
         assert_eq!(grey16(0, 65535, 0), 38469);
         assert_eq!(grey16(0, 0, 65535), 7470);
-    }
-
-    #[test]
-    fn sixteen_to_eight_inverts_the_widening() {
-        for v in 0..=255u8 {
-            assert_eq!(scale_16_to_8(u16::from(v) * 257), v);
-        }
-        assert_eq!(scale_16_to_8(128), 0);
-        assert_eq!(scale_16_to_8(129), 1);
-        assert_eq!(scale_16_to_8(65535), 255);
     }
 
     #[test]

@@ -101,14 +101,13 @@ pub use decode::{decode, decode_frames, decode_frames_into, decode_into};
 pub use error::CodecError;
 pub use export::{write_npy_f32, write_tiff_f32};
 #[cfg(feature = "image-files")]
-pub use export::{write_png_grey8, write_png_grey16, write_png_rgb8};
+pub use export::{write_png_grey, write_png_grey8, write_png_grey16, write_png_rgb8};
 pub use frame::{Frame, Frames, Sample};
 pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIFT, decode_gray};
 pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, decode_hybrid};
 #[cfg(feature = "image-files")]
 pub use image_file::{
-    GreyImage, IMAGE_EXTENSIONS, find_image_file, is_image_file, read_grey8, read_image,
-    read_image_size,
+    IMAGE_EXTENSIONS, find_image_file, is_image_file, read_grey8, read_image, read_image_size,
 };
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
 pub use pattern::{Axis, BitDepth, ImageSize, Pattern};
@@ -120,6 +119,12 @@ pub use phase_shift::{
 pub use pictures::write_outputs;
 pub use pictures::{INVALID_PALETTE, MapFormat, OutputFiles, false_color, invalid_colors, turbo};
 pub use sequence::{PatternSequence, render_pattern};
+/// A grey image at either depth, as [`read_image`] returns it: the workspace's one grey image,
+/// defined in `sl-image` and re-exported here.
+pub use sl_image::GreyImage;
+/// The error of `sl-image`'s types ([`Frame::new`], [`ImageSize::validate`]); it converts
+/// into [`CodecError`].
+pub use sl_image::ImageError;
 pub use smooth::{MAX_SMOOTH_RADIUS, SmoothConfig, smooth_correspondences};
 pub use synthetic::SyntheticScene;
 pub use texture::{CaptureTexture, TextureSource, capture_texture};

@@ -3,9 +3,9 @@
 
 use crate::{CodecError, GrayCodeSpec, HybridSpec, PhaseShiftSpec};
 
-/// Size of the projector image in pixels: the workspace's one image size, [`sl_camera::ImageSize`],
+/// Size of the projector image in pixels: the workspace's one image size, [`sl_image::ImageSize`],
 /// re-exported so codec users need one import.
-pub use sl_camera::ImageSize;
+pub use sl_image::ImageSize;
 
 /// The projector coordinate a block codes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

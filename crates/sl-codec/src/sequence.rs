@@ -8,7 +8,7 @@ use std::path::Path;
 use rayon::prelude::*;
 
 use crate::manifest::{Manifest, ManifestBlock};
-use crate::{Axis, BitDepth, CodecError, Frame, ImageSize, Pattern, Sample};
+use crate::{Axis, BitDepth, CodecError, Frame, GreyImage, ImageSize, Pattern, Sample};
 
 /// The blocks of a scan in projection order, for one projector.
 ///
@@ -108,6 +108,18 @@ impl PatternSequence {
     pub fn pattern_value(&self, frame: usize, x: f64, y: f64) -> Option<f64> {
         let (b, f) = self.locate(frame)?;
         self.blocks.get(b)?.pattern_value(f, x, y)
+    }
+
+    /// Renders global frame `frame` at the projector's size as the grey image a projector
+    /// shows, at `depth` ([`PatternSequence::render`] at `u8` or `u16`).
+    ///
+    /// # Errors
+    /// [`CodecError::Parameter`] if `frame >= frame_count()`.
+    pub fn render_image(&self, frame: usize, depth: BitDepth) -> Result<GreyImage, CodecError> {
+        Ok(match depth {
+            BitDepth::Eight => GreyImage::U8(self.render::<u8>(frame)?),
+            BitDepth::Sixteen => GreyImage::U16(self.render::<u16>(frame)?),
+        })
     }
 
     /// Renders global frame `frame` at the projector's size.
@@ -232,7 +244,7 @@ pub fn render_pattern<T: Sample>(
             }
         }
     }
-    Frame::new(w, h, data)
+    Ok(Frame::new(w, h, data)?)
 }
 
 /// The 1-D profile of a pattern frame along its axis, quantised to `T`, one value per

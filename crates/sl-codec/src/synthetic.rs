@@ -292,7 +292,7 @@ impl SyntheticScene {
                 T::from_u16_saturating(q as u16)
             })
             .collect();
-        Frame::new(self.camera_width, self.camera_height, data)
+        Ok(Frame::new(self.camera_width, self.camera_height, data)?)
     }
 }
 

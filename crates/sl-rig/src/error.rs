@@ -83,6 +83,9 @@ pub enum RigError {
     /// A camera or projector model, or the calibration file, was refused by `sl-camera`.
     #[error(transparent)]
     Camera(#[from] sl_camera::CameraError),
+    /// An image of no pixels, or a pixel buffer of the wrong length (`sl-image`).
+    #[error(transparent)]
+    Image(#[from] sl_image::ImageError),
     /// A pattern sequence, manifest or image file was refused by `sl-codec`.
     #[error(transparent)]
     Codec(#[from] sl_codec::CodecError),

@@ -1,39 +1,10 @@
-//! Writing what the devices produce: grey images as PNG, projector images from a pattern
-//! sequence, and frames as a capture set in `sl-codec`'s format.
+//! Writing what the devices produce: frames as a capture set in `sl-codec`'s format.
 
 use std::path::Path;
 
-use sl_codec::{Frame, Manifest, PatternSequence, write_png_grey8, write_png_grey16};
+use sl_codec::{Manifest, write_png_grey};
 
-use crate::{GreyImage, Pixels, RigError};
-
-impl GreyImage {
-    /// Writes the image as an 8- or 16-bit grey PNG.
-    pub fn save_png(&self, path: &Path) -> Result<(), RigError> {
-        let (w, h) = (self.width as usize, self.height as usize);
-        match &self.pixels {
-            Pixels::U8(p) => write_png_grey8(path, &Frame::new(w, h, p.clone())?)?,
-            Pixels::U16(p) => write_png_grey16(path, &Frame::new(w, h, p.clone())?)?,
-        }
-        Ok(())
-    }
-
-    /// The image `frame` of a pattern sequence, as the projector shows it (8- or 16-bit as
-    /// asked).
-    pub fn from_sequence(
-        sequence: &PatternSequence,
-        frame: usize,
-        sixteen_bits: bool,
-    ) -> Result<Self, RigError> {
-        let (w, h) = (sequence.projector.width, sequence.projector.height);
-        let pixels = if sixteen_bits {
-            Pixels::U16(sequence.render::<u16>(frame)?.into_data())
-        } else {
-            Pixels::U8(sequence.render::<u8>(frame)?.into_data())
-        };
-        Self::new(w, h, pixels)
-    }
-}
+use crate::{GreyImage, RigError};
 
 /// Writes a capture set: `frames[k]` as the file the manifest names for frame `k` (PNG),
 /// and the manifest (`manifest.json`, with a `description`) into `dir` (created if needed).
@@ -61,7 +32,7 @@ pub fn write_capture_set(
         ));
     }
     for (name, frame) in names.iter().zip(frames) {
-        frame.save_png(&dir.join(name.as_str()))?;
+        write_png_grey(&dir.join(name.as_str()), frame)?;
     }
     let mut m = manifest.clone();
     m.frames_dir = None;

@@ -63,13 +63,7 @@ pub struct Latency {
 
 /// Mean of a frame as a fraction of its full scale.
 fn mean_level(frame: &GreyImage) -> f64 {
-    let n = frame.pixels.len().max(1) as f64;
-    let full = f64::from(frame.pixels.max_value());
-    let sum: f64 = match &frame.pixels {
-        crate::Pixels::U8(p) => p.iter().map(|&v| f64::from(v)).sum(),
-        crate::Pixels::U16(p) => p.iter().map(|&v| f64::from(v)).sum(),
-    };
-    sum / n / full
+    frame.mean_normalised()
 }
 
 /// One transition: show `image`, capture the window, return the frame means and the time from
@@ -128,13 +122,13 @@ where
 /// #     fn rotate_to(&mut self, a: f64) -> Result<f64, RigError> { self.0 = a; Ok(a) }
 /// #     fn angle_deg(&mut self) -> Result<f64, RigError> { Ok(self.0) }
 /// # }
-/// # fn devices() -> (Mirror, Mirror, Table) {
-/// #     let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)));
-/// #     (Mirror(screen.clone()), Mirror(screen), Table(0.0))
+/// # fn devices() -> Result<(Mirror, Mirror, Table), RigError> {
+/// #     let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)?));
+/// #     Ok((Mirror(screen.clone()), Mirror(screen), Table(0.0)))
 /// # }
 /// # fn main() -> Result<(), sl_rig::RigError> {
 /// // A camera that sees exactly what the projector shows (any devices behind the traits do).
-/// let (camera, mut projector, _) = devices();
+/// let (camera, mut projector, _) = devices()?;
 /// // A camera whose driver queues 2 frames.
 /// let mut camera = BufferedCamera::new(camera, 2);
 /// let latency = measure_latency(&mut camera, &mut projector, &LatencyConfig::default())?;
@@ -164,8 +158,8 @@ where
         return Err(RigError::param("flashes", "at least one flash"));
     }
     let (w, h) = projector.image_size();
-    let black = GreyImage::filled_u8(w, h, 0);
-    let white = GreyImage::filled_u8(w, h, u8::MAX);
+    let black = GreyImage::filled_u8(w as usize, h as usize, 0)?;
+    let white = GreyImage::filled_u8(w as usize, h as usize, u8::MAX)?;
     let settled = |levels: &[f64]| {
         let tail = &levels[levels.len() - config.stable_frames..];
         tail.iter().sum::<f64>() / tail.len() as f64

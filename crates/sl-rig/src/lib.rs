@@ -38,9 +38,9 @@
 //!         Ok(())
 //!     }
 //! }
-//! let screen = Rc::new(RefCell::new(GreyImage::filled_u8(4, 2, 0)));
+//! let screen = Rc::new(RefCell::new(GreyImage::filled_u8(4, 2, 0)?));
 //! let (mut camera, mut projector) = (Mirror(screen.clone()), Mirror(screen));
-//! let patterns = [GreyImage::filled_u8(4, 2, 255), GreyImage::filled_u8(4, 2, 0)];
+//! let patterns = [GreyImage::filled_u8(4, 2, 255)?, GreyImage::filled_u8(4, 2, 0)?];
 //! let frames = capture_sequence(&mut camera, &mut projector, &patterns)?;
 //! assert_eq!(frames, patterns);
 //! # Ok(())
@@ -59,7 +59,6 @@ mod device;
 mod dynamixel;
 mod error;
 mod files;
-mod image;
 mod latency;
 mod open;
 mod pixel_format;
@@ -79,7 +78,6 @@ pub use dynamixel::{
 };
 pub use error::RigError;
 pub use files::write_capture_set;
-pub use image::{GreyImage, Pixels};
 pub use latency::{BufferedCamera, Latency, LatencyConfig, MIN_FLASH_CONTRAST, measure_latency};
 pub use open::{
     BoxedCamera, BoxedTurntable, DeviceDescription, open_camera, open_turntable, with_devices,
@@ -95,6 +93,9 @@ pub use session::{
     SessionConfig, SessionDevices, SessionPlan, SessionSummary, ViewOutcome, ViewState,
     read_session_plan, turntable_angles, view_dir_name,
 };
+/// The grey images the devices exchange (camera frames, projector images): the workspace's one
+/// grey image, defined in `sl-image` and re-exported so rig users need one import.
+pub use sl_image::GreyImage;
 #[cfg(feature = "v4l")]
 pub use v4l_camera::{
     DEFAULT_FRAME_TIMEOUT, DEFAULT_IN_FLIGHT_FRAMES, DEFAULT_V4L_BUFFERS, V4lCamera,

@@ -3,7 +3,9 @@
 //! Plain functions, compiled with or without the `v4l` feature, so that every conversion a real
 //! camera needs is unit-tested on machines without a camera.
 
-use crate::{GreyImage, Pixels, RigError};
+use sl_image::Frame;
+
+use crate::{GreyImage, RigError};
 
 /// A pixel format a camera delivers, as V4L2 names it (its four-character code).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -151,7 +153,7 @@ pub fn convert_frame(
     match layout.format {
         PixelFormat::Grey => {
             let rows = packed_rows(frame, layout, 1, what)?;
-            GreyImage::new(layout.width, layout.height, Pixels::U8(rows))
+            grey(layout.width, layout.height, rows)
         }
         PixelFormat::Y16 => {
             let rows = packed_rows(frame, layout, 2, what)?;
@@ -159,7 +161,7 @@ pub fn convert_frame(
                 .chunks_exact(2)
                 .map(|b| u16::from_le_bytes([b[0], b[1]]))
                 .collect();
-            GreyImage::new(layout.width, layout.height, Pixels::U16(values))
+            grey(layout.width, layout.height, values)
         }
         PixelFormat::Yuyv => {
             if !layout.width.is_multiple_of(2) {
@@ -174,7 +176,7 @@ pub fn convert_frame(
             let rows = packed_rows(frame, layout, 2, what)?;
             // Y0 U Y1 V: the luma of every pixel is at the even bytes.
             let luma = rows.iter().step_by(2).copied().collect();
-            GreyImage::new(layout.width, layout.height, Pixels::U8(luma))
+            grey(layout.width, layout.height, luma)
         }
         PixelFormat::Mjpg => decode_mjpg(frame, layout, what),
     }
@@ -264,7 +266,18 @@ fn decode_mjpg(frame: &[u8], layout: &FrameLayout, what: &str) -> Result<GreyIma
         .map_err(|e| bad(format!("MJPG frame does not decode: {e}")))?;
     // Rec. 601 luma, as the JPEG's own Y channel (image's `to_luma8`).
     let luma = decoded.into_luma8();
-    GreyImage::new(width, height, Pixels::U8(luma.into_raw()))
+    grey(width, height, luma.into_raw())
+}
+
+/// The grey image of `width × height` values (8- or 16-bit).
+///
+/// # Errors
+/// [`RigError::Image`] when `values` does not hold `width × height` of them.
+fn grey<T: sl_image::Sample>(width: u32, height: u32, values: Vec<T>) -> Result<GreyImage, RigError>
+where
+    GreyImage: From<Frame<T>>,
+{
+    Ok(Frame::new(width as usize, height as usize, values)?.into())
 }
 
 #[cfg(test)]
@@ -298,7 +311,10 @@ mod tests {
             stride: 5,
         };
         let img = convert_frame(&frame, &layout, "f").unwrap();
-        assert_eq!(img.pixels, Pixels::U8(vec![1, 2, 3, 4, 5, 6]));
+        assert_eq!(
+            img,
+            GreyImage::U8(Frame::new(3, 2, vec![1, 2, 3, 4, 5, 6]).unwrap())
+        );
     }
 
     #[test]
@@ -315,7 +331,10 @@ mod tests {
             convert_frame(&frame, &FrameLayout::packed(PixelFormat::Yuyv, w, h), "f").unwrap();
         for y in 0..h {
             for x in 0..w {
-                assert_eq!(img.get(x, y), Some(u16::from((10 * y + x) as u8)));
+                assert_eq!(
+                    img.get(x as usize, y as usize),
+                    Some(u16::from((10 * y + x) as u8))
+                );
             }
         }
     }
@@ -324,7 +343,10 @@ mod tests {
     fn y16_is_little_endian() {
         let frame = [0x34, 0x12, 0xFF, 0xFF];
         let img = convert_frame(&frame, &FrameLayout::packed(PixelFormat::Y16, 2, 1), "f").unwrap();
-        assert_eq!(img.pixels, Pixels::U16(vec![0x1234, 0xFFFF]));
+        assert_eq!(
+            img,
+            GreyImage::U16(Frame::new(2, 1, vec![0x1234, 0xFFFF]).unwrap())
+        );
     }
 
     #[test]
@@ -384,10 +406,10 @@ mod tests {
         let frame = jpeg(&pixels, w, h, 100);
         let img =
             convert_frame(&frame, &FrameLayout::packed(PixelFormat::Mjpg, w, h), "f").unwrap();
-        let Pixels::U8(got) = &img.pixels else {
+        let GreyImage::U8(got) = &img else {
             panic!("8-bit expected")
         };
-        for (i, (&a, &b)) in got.iter().zip(&pixels).enumerate() {
+        for (i, (&a, &b)) in got.data().iter().zip(&pixels).enumerate() {
             assert!(a.abs_diff(b) <= 3, "pixel {i}: {a} vs {b}");
         }
     }

@@ -22,7 +22,7 @@ use winit::monitor::MonitorHandle;
 use winit::platform::run_on_demand::EventLoopExtRunOnDemand as _;
 use winit::window::{Fullscreen, Window, WindowId};
 
-use crate::{GreyImage, Pixels, Projector, RigError};
+use crate::{GreyImage, Projector, RigError};
 
 /// Default longest wait for the event loop to present one image: far above a frame time, short
 /// enough that a dead display is reported rather than waited on.
@@ -372,15 +372,16 @@ impl<T: Send + 'static> App<T> {
 
 /// Refuses an image of another size than the window's: patterns are never scaled.
 fn check_size(image: &GreyImage, (width, height): (u32, u32)) -> Result<(), RigError> {
-    if (image.width, image.height) == (width, height) {
+    let size = image.size();
+    if (size.width, size.height) == (width, height) {
         return Ok(());
     }
     Err(RigError::ImageSize {
         what: "projector image".to_owned(),
         expected_width: width,
         expected_height: height,
-        width: image.width,
-        height: image.height,
+        width: size.width,
+        height: size.height,
     })
 }
 
@@ -388,9 +389,9 @@ fn check_size(image: &GreyImage, (width, height): (u32, u32)) -> Result<(), RigE
 /// display takes 8 bits).
 fn grey_words(image: &GreyImage) -> Vec<u32> {
     let word = |v: u8| u32::from(v) * 0x0001_0101;
-    match &image.pixels {
-        Pixels::U8(v) => v.iter().map(|&p| word(p)).collect(),
-        Pixels::U16(v) => v.iter().map(|&p| word(p.to_be_bytes()[0])).collect(),
+    match image {
+        GreyImage::U8(f) => f.data().iter().map(|&p| word(p)).collect(),
+        GreyImage::U16(f) => f.data().iter().map(|&p| word(p.to_be_bytes()[0])).collect(),
     }
 }
 
@@ -477,7 +478,7 @@ impl<T: Send + 'static> ApplicationHandler<Request> for App<T> {
 /// # fn main() -> Result<(), sl_rig::RigError> {
 /// let (w, h) = run_projector(ProjectorWindowConfig::default(), |mut projector| {
 ///     let (w, h) = projector.image_size();
-///     projector.show(&GreyImage::filled_u8(w, h, 255))?; // full white
+///     projector.show(&GreyImage::filled_u8(w as usize, h as usize, 255)?)?; // full white
 ///     Ok((w, h))
 /// })?;
 /// println!("the projector is {w}x{h}");
@@ -522,9 +523,9 @@ mod tests {
 
     #[test]
     fn grey_words_replicate_the_grey_value() {
-        let img = GreyImage::new(3, 1, Pixels::U8(vec![0, 0x80, 0xFF])).unwrap();
+        let img = GreyImage::U8(sl_image::Frame::new(3, 1, vec![0, 0x80, 0xFF]).unwrap());
         assert_eq!(grey_words(&img), vec![0, 0x0080_8080, 0x00FF_FFFF]);
-        let img = GreyImage::new(2, 1, Pixels::U16(vec![0x12FF, 0xFFFF])).unwrap();
+        let img = GreyImage::U16(sl_image::Frame::new(2, 1, vec![0x12FF, 0xFFFF]).unwrap());
         assert_eq!(grey_words(&img), vec![0x0012_1212, 0x00FF_FFFF]);
     }
 }

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
-use sl_codec::{BitDepth as PatternDepth, MANIFEST_FILE, Manifest};
+use sl_codec::{MANIFEST_FILE, Manifest, write_png_grey};
 
 use crate::{Camera, GreyImage, Projector, RigError, Turntable};
 
@@ -171,14 +171,14 @@ struct SessionFile {
 /// #     fn rotate_to(&mut self, a: f64) -> Result<f64, RigError> { self.0 = a; Ok(a) }
 /// #     fn angle_deg(&mut self) -> Result<f64, RigError> { Ok(self.0) }
 /// # }
-/// # fn devices() -> (Mirror, Mirror, Table) {
-/// #     let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)));
-/// #     (Mirror(screen.clone()), Mirror(screen), Table(0.0))
+/// # fn devices() -> Result<(Mirror, Mirror, Table), RigError> {
+/// #     let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)?));
+/// #     Ok((Mirror(screen.clone()), Mirror(screen), Table(0.0)))
 /// # }
 /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// // Any devices behind the traits; here a 64x36 camera that sees exactly what the projector
 /// // shows, and a turntable.
-/// let (mut camera, mut projector, mut table) = devices();
+/// let (mut camera, mut projector, mut table) = devices()?;
 /// // Gray code columns of the 64x36 projector, two views.
 /// use sl_codec::{Axis, BitDepth, GrayCodeSpec, Pattern, PatternSequence, ImageSize};
 /// let p = ImageSize::new(64, 36);
@@ -372,7 +372,8 @@ impl CaptureSession {
                         .capture_one(camera, projector, pattern)
                         .map_err(at(Some(k)))?;
                     let path = dir.join(name);
-                    write_atomically(&path, |tmp| frame.save_png(tmp)).map_err(at(Some(k)))?;
+                    write_atomically(&path, |tmp| Ok(write_png_grey(tmp, &frame)?))
+                        .map_err(at(Some(k)))?;
                 }
                 self.write_view_manifest(&dir, index, angle, reached)
                     .map_err(at(None))?;
@@ -417,13 +418,14 @@ impl CaptureSession {
         }
         let frame = camera.capture()?;
         let expected = camera.frame_size();
-        if (frame.width, frame.height) != expected {
+        let size = frame.size();
+        if (size.width, size.height) != expected {
             return Err(RigError::ImageSize {
                 what: "camera frame".to_owned(),
                 expected_width: expected.0,
                 expected_height: expected.1,
-                width: frame.width,
-                height: frame.height,
+                width: size.width,
+                height: size.height,
             });
         }
         Ok(frame)
@@ -539,9 +541,8 @@ fn pattern_images(manifest: &Manifest, projector: (u32, u32)) -> Result<Vec<Grey
             height: size.1,
         });
     }
-    let sixteen = manifest.bit_depth == PatternDepth::Sixteen;
     (0..sequence.frame_count())
-        .map(|k| GreyImage::from_sequence(&sequence, k, sixteen))
+        .map(|k| Ok(sequence.render_image(k, manifest.bit_depth)?))
         .collect()
 }
 

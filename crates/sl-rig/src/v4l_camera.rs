@@ -679,9 +679,9 @@ mod tests {
         })
         .unwrap();
         let frame = camera.capture().unwrap();
-        assert_eq!((frame.width, frame.height), (w, h));
+        assert_eq!((frame.width(), frame.height()), (w as usize, h as usize));
         camera.flush().unwrap();
         let frame = camera.capture().unwrap();
-        assert_eq!((frame.width, frame.height), (w, h));
+        assert_eq!((frame.width(), frame.height()), (w as usize, h as usize));
     }
 }

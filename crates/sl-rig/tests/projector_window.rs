@@ -10,7 +10,8 @@
 
 use std::time::{Duration, Instant};
 
-use sl_rig::{GreyImage, Pixels, Projector, ProjectorWindowConfig, list_monitors, run_projector};
+use sl_image::Frame;
+use sl_rig::{GreyImage, Projector, ProjectorWindowConfig, list_monitors, run_projector};
 use x11rb::connection::Connection;
 use x11rb::protocol::xproto::{ConnectionExt as _, ImageFormat, ImageOrder};
 
@@ -31,7 +32,7 @@ fn gray_stripes(w: u32, h: u32, bit: u32) -> GreyImage {
         })
         .collect();
     let pixels = (0..h).flat_map(|_| row.iter().copied()).collect();
-    GreyImage::new(w, h, Pixels::U8(pixels)).unwrap()
+    GreyImage::U8(Frame::new(w as usize, h as usize, pixels).unwrap())
 }
 
 /// A diagonal ramp over all 256 grey levels, 16-bit (the window shows the high byte).
@@ -39,14 +40,14 @@ fn ramp16(w: u32, h: u32) -> GreyImage {
     let pixels = (0..h)
         .flat_map(|y| (0..w).map(move |x| (((x + 3 * y) % 256) as u16) << 8 | 0x7F))
         .collect();
-    GreyImage::new(w, h, Pixels::U16(pixels)).unwrap()
+    GreyImage::U16(Frame::new(w as usize, h as usize, pixels).unwrap())
 }
 
 /// The grey levels the screen should show: the 8-bit values, or the high byte of 16-bit ones.
 fn expected_levels(image: &GreyImage) -> Vec<u8> {
-    match &image.pixels {
-        Pixels::U8(v) => v.clone(),
-        Pixels::U16(v) => v.iter().map(|p| (p >> 8) as u8).collect(),
+    match image {
+        GreyImage::U8(f) => f.data().to_vec(),
+        GreyImage::U16(f) => f.data().iter().map(|p| (p >> 8) as u8).collect(),
     }
 }
 
@@ -157,7 +158,9 @@ fn patterns_appear_pixel_for_pixel() {
             results.push((name, outcome, start.elapsed()));
         }
         // A wrong size is refused before it reaches the window.
-        let refused = projector.show(&GreyImage::filled_u8(w + 1, h, 0)).is_err();
+        let refused = projector
+            .show(&GreyImage::filled_u8(w as usize + 1, h as usize, 0)?)
+            .is_err();
         Ok((projector.image_size(), results, refused))
     })
     .unwrap();

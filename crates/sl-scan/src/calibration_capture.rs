@@ -27,7 +27,7 @@ use std::time::Duration;
 use nalgebra::Point2;
 use serde::Serialize;
 use sl_calib::sl_camera::{CameraModel, ImageSize};
-use sl_calib::sl_codec::{BitDepth, Manifest};
+use sl_calib::sl_codec::{BitDepth, Manifest, write_png_grey};
 use sl_calib::{
     BoardCorners, BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera,
     detect_checkerboard,
@@ -270,10 +270,10 @@ impl CalibrationCapture {
             )
         })?;
         let sequence = m.sequence();
-        let sixteen = m.bit_depth == BitDepth::Sixteen;
         let patterns = (0..sequence.frame_count())
-            .map(|k| GreyImage::from_sequence(&sequence, k, sixteen))
-            .collect::<Result<Vec<_>, RigError>>()?;
+            .map(|k| sequence.render_image(k, m.bit_depth))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(RigError::from)?;
         let board_dir = dir.join(BOARD_DIR);
         for d in [&board_dir, &dir.join(TURNTABLE_DIR)] {
             std::fs::create_dir_all(d).map_err(|e| CaptureError::io(d, e))?;
@@ -340,7 +340,7 @@ impl CalibrationCapture {
             verdict: Ok(()),
             white,
         };
-        let max_value = f64::from(check.white.pixels.max_value());
+        let max_value = f64::from(check.white.max_value());
         let grey = match to_gray8(&check.white) {
             Ok(g) => g,
             Err(e) => {
@@ -414,13 +414,13 @@ impl CalibrationCapture {
         C: Camera + ?Sized,
         P: Projector + ?Sized,
     {
-        let white = self.white_image(projector.image_size());
+        let white = self.white_image(projector.image_size())?;
         let frame = self.show_and_capture(camera, projector, &white)?;
         Ok(self.check(frame))
     }
 
-    fn white_image(&self, (w, h): (u32, u32)) -> GreyImage {
-        GreyImage::filled_u8(w, h, u8::MAX)
+    fn white_image(&self, (w, h): (u32, u32)) -> Result<GreyImage, CaptureError> {
+        Ok(GreyImage::filled_u8(w as usize, h as usize, u8::MAX).map_err(RigError::from)?)
     }
 
     /// Show → wait for the display latency → flush → capture.
@@ -533,7 +533,7 @@ impl CalibrationCapture {
         })?;
         let file = partial.join(BOARD_FILE);
         std::fs::write(&file, json).map_err(|e| CaptureError::io(&file, e))?;
-        white.save_png(&partial.join(WHITE_IMAGE))?;
+        write_png_grey(&partial.join(WHITE_IMAGE), white).map_err(RigError::from)?;
         if dir.exists() {
             std::fs::remove_dir_all(dir).map_err(|e| CaptureError::io(dir, e))?;
         }
@@ -583,7 +583,7 @@ impl CalibrationCapture {
                 continue;
             }
             let reached = turntable.rotate_to(angle)?;
-            let white = self.white_image(projector.image_size());
+            let white = self.white_image(projector.image_size())?;
             let white = self.show_and_capture(camera, projector, &white)?;
             let check = self.check(white);
             let frames = self.capture_patterns(camera, projector)?;
@@ -709,11 +709,18 @@ impl CalibrationCapture {
     }
 }
 
-/// A camera frame as an 8-bit image for the detector (16-bit frames keep their high byte).
+/// A camera frame as an 8-bit image for the detector (16-bit frames by `round(v / 257)`,
+/// [`GreyImage::into_u8`], as 16-bit image files are read).
 fn to_gray8(img: &GreyImage) -> Result<sl_calib::image::GrayImage, CaptureError> {
-    img.clone()
-        .into_gray8()
-        .map_err(|e| CaptureError::param("frame", e.to_string()))
+    gray8(img.clone()).ok_or_else(|| CaptureError::param("frame", format!("{} frame", img.size())))
+}
+
+/// An image as the 8-bit `image::GrayImage` `sl-calib`'s detector takes: 16-bit pixels by
+/// `round(v / 257)` ([`GreyImage::into_u8`]). `None` only for an image wider or higher than
+/// `u32::MAX` pixels.
+pub(crate) fn gray8(img: GreyImage) -> Option<sl_calib::image::GrayImage> {
+    let size = img.size();
+    sl_calib::image::GrayImage::from_raw(size.width, size.height, img.into_u8().into_data())
 }
 
 #[cfg(test)]

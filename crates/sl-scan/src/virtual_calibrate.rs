@@ -50,16 +50,13 @@ pub struct CalibrationSummary {
 }
 
 fn grey_image(img: GreyImage, what: &str) -> Result<sl_calib::image::GrayImage, ScanError> {
-    img.into_gray8()
-        .map_err(|e| stage_err("calibrate", format!("{what}: {e}")))
+    let size = img.size();
+    crate::calibration_capture::gray8(img)
+        .ok_or_else(|| stage_err("calibrate", format!("{what}: a {size} image")))
 }
 
-fn frames_u8(images: Vec<GreyImage>) -> Result<Frames, ScanError> {
-    let frames = images
-        .into_iter()
-        .map(GreyImage::into_frame8)
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(Frames::U8(frames))
+fn frames_u8(images: Vec<GreyImage>) -> Frames {
+    Frames::U8(images.into_iter().map(GreyImage::into_u8).collect())
 }
 
 /// Calibrates the rig from simulated board captures: camera, projector and `T_cam_proj` by
@@ -84,7 +81,7 @@ pub fn calibrate_virtual(
     let mut views = Vec::with_capacity(poses);
     for k in 0..poses {
         let cap = captures.hand_held(k, Some(&sequence))?;
-        let set = CaptureSet::from_frames(manifest.clone(), frames_u8(cap.frames)?)?;
+        let set = CaptureSet::from_frames(manifest.clone(), frames_u8(cap.frames))?;
         views.push(ProcamView {
             name: format!("board pose {k}"),
             lit: grey_image(cap.white, "white")?,

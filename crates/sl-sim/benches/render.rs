@@ -5,10 +5,11 @@
 //! `cargo bench -p sl-rig --bench render -- --warm-up-time 1 --measurement-time 3`
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use sl_sim::{GreyImage, Pixels, RigConfig, Scene, SimError, VirtualRig};
+use sl_image::Frame;
+use sl_sim::{GreyImage, RigConfig, Scene, SimError, VirtualRig};
 
 /// Gray-code bit `bit` (MSB = 10) of every projector column (or row), and its inverse.
-fn gray_set(w: u32, h: u32) -> Vec<GreyImage> {
+fn gray_set(w: u32, h: u32) -> Result<Vec<GreyImage>, SimError> {
     let mut out = Vec::with_capacity(44);
     for axis in 0..2 {
         for bit in (0..11).rev() {
@@ -22,22 +23,18 @@ fn gray_set(w: u32, h: u32) -> Vec<GreyImage> {
                         if on != inverse { 255 } else { 0 }
                     })
                     .collect();
-                out.push(GreyImage {
-                    width: w,
-                    height: h,
-                    pixels: Pixels::U8(px),
-                });
+                out.push(GreyImage::U8(Frame::new(w as usize, h as usize, px)?));
             }
         }
     }
-    out
+    Ok(out)
 }
 
 fn benches(c: &mut Criterion) -> Result<(), SimError> {
     let config = RigConfig::default();
     let (pw, ph) = (config.projector.size.width, config.projector.size.height);
     let rig = VirtualRig::new(config, Scene::sphere())?;
-    let patterns = gray_set(pw, ph);
+    let patterns = gray_set(pw, ph)?;
     let mut group = c.benchmark_group("virtual_rig");
     group.sample_size(10);
     group.bench_function("camera_rays_1280x720_ss2", |b| {

@@ -37,7 +37,7 @@ impl RigConfig {
             .map(|p| {
                 self.camera
                     .project(p)
-                    .filter(|q| self.camera.size.contains(q))
+                    .filter(|q| self.camera.size.contains(q.x, q.y))
             })
             .collect();
         let corners_projector = corners_cam
@@ -45,7 +45,7 @@ impl RigConfig {
             .map(|p| {
                 self.projector
                     .project(&self.t_cam_proj.inverse_transform_point(p))
-                    .filter(|q| self.projector.size.contains(q))
+                    .filter(|q| self.projector.size.contains(q.x, q.y))
             })
             .collect();
         BoardTruth {
@@ -255,11 +255,11 @@ fn capture_view(
 ) -> Result<BoardCapture, SimError> {
     let cfg = rig.config();
     let (pw, ph) = (cfg.projector.size.width, cfg.projector.size.height);
-    let white = view.capture(&GreyImage::filled_u8(pw, ph, u8::MAX), 0)?;
+    let white = view.capture(&GreyImage::filled_u8(pw as usize, ph as usize, u8::MAX)?, 0)?;
     let frames = match sequence {
         Some(seq) => (0..seq.frame_count())
             .map(|k| {
-                let img = GreyImage::from_sequence(seq, k, false)?;
+                let img = seq.render_image(k, sl_codec::BitDepth::Eight)?;
                 view.capture(&img, k as u64 + 1)
             })
             .collect::<Result<Vec<_>, SimError>>()?,

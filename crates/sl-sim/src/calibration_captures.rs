@@ -61,7 +61,7 @@ pub fn calibration_sequence(projector: ImageSize) -> PatternSequence {
 /// let first = captures.hand_held(0, None)?;
 /// assert_eq!(first.board.t_cam_board, captures.poses()[0]);
 /// let on_table = captures.on_table(0, None)?;
-/// assert_eq!((on_table.white.width, on_table.white.height), (1280, 720));
+/// assert_eq!((on_table.white.width(), on_table.white.height()), (1280, 720));
 /// # Ok(())
 /// # }
 /// ```

@@ -121,7 +121,10 @@ pub fn write_view_truth(truth: &ViewTruth, dir: &Path) -> Result<Vec<PathBuf>, S
     ];
     for (name, data) in masks {
         let p = dir.join(name);
-        write_png_grey8(&p, &Frame::new(w, h, data)?)?;
+        write_png_grey8(
+            &p,
+            &Frame::new(w, h, data).map_err(sl_codec::CodecError::from)?,
+        )?;
         files.push(p);
     }
     let view = ViewFile {

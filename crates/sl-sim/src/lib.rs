@@ -42,9 +42,9 @@
 //! let rig = VirtualRig::new(config, Scene::sphere())?;
 //! // Cast the view with the turntable at 30 degrees, then render a frame under full white.
 //! let view = rig.view(30.0, 0)?;
-//! let white = GreyImage::filled_u8(1920, 1080, 255);
+//! let white = GreyImage::filled_u8(1920, 1080, 255)?;
 //! let frame = view.capture(&white, 0)?;
-//! assert_eq!((frame.width, frame.height), (64, 36));
+//! assert_eq!((frame.width(), frame.height()), (64, 36));
 //! // The truth: the centre pixel sees the sphere, lit by the projector.
 //! let centre = 18 * 64 + 32;
 //! assert!(view.truth.lit(centre));
@@ -121,7 +121,7 @@ pub use virtual_rig::{View, VirtualCamera, VirtualProjector, VirtualRig, Virtual
 
 // The device layer the virtual devices implement, re-exported so that one import serves.
 pub use sl_rig::{
-    Camera, GreyImage, Pixels, Projector, RigError, Turntable, turntable_angles, write_capture_set,
+    Camera, GreyImage, Projector, RigError, Turntable, turntable_angles, write_capture_set,
 };
 
 /// The README's example, compiled and run by `cargo test --doc`.

@@ -4,7 +4,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::UNLIT;
-use crate::{GreyImage, Pixels, RigError, SimError, ViewGeometry, blur};
+use crate::{GreyImage, RigError, SimError, ViewGeometry, blur};
 
 /// The light in the scene: the room's ambient light and the projector's response and optics.
 ///
@@ -261,27 +261,30 @@ impl ViewGeometry {
         image: &GreyImage,
         light: &Illumination,
     ) -> Result<Vec<f32>, SimError> {
-        if image.width != self.projector_width || image.height != self.projector_height {
+        let size = image.size();
+        if (size.width, size.height) != (self.projector_width, self.projector_height) {
             return Err(RigError::ImageSize {
                 what: "projector image".to_owned(),
                 expected_width: self.projector_width,
                 expected_height: self.projector_height,
-                width: image.width,
-                height: image.height,
+                width: size.width,
+                height: size.height,
             }
             .into());
         }
         if !light.hard_pixels() {
-            let (w, h) = (image.width as usize, image.height as usize);
+            let (w, h) = (image.width(), image.height());
             let sigma = light.spread();
-            let field = match &image.pixels {
-                Pixels::U8(p) => {
+            let field = match image {
+                GreyImage::U8(f) => {
+                    let p = f.data();
                     let lut = output_lut(light, u8::MAX.into());
                     LightField::new(p, w, h, sigma, |v| {
                         lut.get(usize::from(v)).copied().unwrap_or(0.0)
                     })
                 }
-                Pixels::U16(p) => {
+                GreyImage::U16(f) => {
+                    let p = f.data();
                     let lut = output_lut(light, u16::MAX.into());
                     LightField::new(p, w, h, sigma, |v| {
                         lut.get(usize::from(v)).copied().unwrap_or(0.0)
@@ -290,8 +293,9 @@ impl ViewGeometry {
             };
             return Ok(self.render_light(&field, light));
         }
-        Ok(match &image.pixels {
-            Pixels::U8(p) => {
+        Ok(match image {
+            GreyImage::U8(f) => {
+                let p = f.data();
                 let lut = output_lut(light, u8::MAX.into());
                 self.lookup(light, |i| {
                     p.get(i)
@@ -300,7 +304,8 @@ impl ViewGeometry {
                         .unwrap_or(0.0)
                 })
             }
-            Pixels::U16(p) => {
+            GreyImage::U16(f) => {
+                let p = f.data();
                 let lut = output_lut(light, u16::MAX.into());
                 self.lookup(light, |i| {
                     p.get(i)

@@ -7,7 +7,9 @@ use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::{GreyImage, Pixels, SimError, blur};
+use sl_image::Frame;
+
+use crate::{GreyImage, SimError, blur};
 
 /// Bits per pixel of the frames a camera delivers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -285,6 +287,9 @@ impl NoiseKey {
 /// Applies the camera effects to a direct image of radiances (`width × height`, row-major)
 /// and returns the frame. `depth_mm` (same layout, NaN where nothing was hit) drives the
 /// defocus; `fx` is the camera's focal length in pixels.
+///
+/// # Errors
+/// [`SimError::Image`] for an image of no pixels.
 pub(crate) fn expose(
     mut radiance: Vec<f32>,
     width: usize,
@@ -293,7 +298,7 @@ pub(crate) fn expose(
     fx: f64,
     effects: &CameraEffects,
     key: NoiseKey,
-) -> GreyImage {
+) -> Result<GreyImage, SimError> {
     if let Some(gi) = effects.global_illumination.filter(|g| g.weight > 0.0) {
         let blurred = blur::box3(&radiance, width, height, gi.sigma_px);
         let w = gi.weight as f32;
@@ -338,7 +343,7 @@ pub(crate) fn expose(
             );
         }
     };
-    let pixels = match s.bit_depth {
+    Ok(match s.bit_depth {
         BitDepth::Eight => {
             let mut px = vec![0u8; width * height];
             px.par_chunks_mut(width.max(1))
@@ -351,7 +356,7 @@ pub(crate) fn expose(
                         }
                     });
                 });
-            Pixels::U8(px)
+            GreyImage::U8(Frame::new(width, height, px)?)
         }
         BitDepth::Sixteen => {
             let mut px = vec![0u16; width * height];
@@ -365,14 +370,9 @@ pub(crate) fn expose(
                         }
                     });
                 });
-            Pixels::U16(px)
+            GreyImage::U16(Frame::new(width, height, px)?)
         }
-    };
-    GreyImage {
-        width: width as u32,
-        height: height as u32,
-        pixels,
-    }
+    })
 }
 
 /// Depth-dependent blur by a stack of Gaussian blurs at σ = 0, 0.5, 1, ... px, each pixel
@@ -426,9 +426,9 @@ mod tests {
     use approx::assert_abs_diff_eq;
 
     fn stats(img: &GreyImage) -> (f64, f64) {
-        let v: Vec<f64> = match &img.pixels {
-            Pixels::U8(p) => p.iter().map(|&x| f64::from(x)).collect(),
-            Pixels::U16(p) => p.iter().map(|&x| f64::from(x)).collect(),
+        let v: Vec<f64> = match img {
+            GreyImage::U8(f) => f.data().iter().map(|&x| f64::from(x)).collect(),
+            GreyImage::U16(f) => f.data().iter().map(|&x| f64::from(x)).collect(),
         };
         let n = v.len() as f64;
         let mean = v.iter().sum::<f64>() / n;
@@ -468,7 +468,8 @@ mod tests {
                     view: 0,
                     frame: 0,
                 },
-            );
+            )
+            .unwrap();
             let (mean, var) = stats(&img);
             // Closed form: e = exposure * full_well * L electrons, variance e + read², scaled by
             // g = max / full_well, plus 1/12 for uniform rounding.
@@ -501,10 +502,10 @@ mod tests {
             view: 2,
             frame: 3,
         };
-        let img = expose(vec![10.0; w * h], w, h, &[], 1000.0, &effects, key);
-        assert_eq!(img.pixels, Pixels::U8(vec![255; w * h]));
-        let a = expose(vec![0.3; w * h], w, h, &[], 1000.0, &effects, key);
-        let b = expose(vec![0.3; w * h], w, h, &[], 1000.0, &effects, key);
+        let img = expose(vec![10.0; w * h], w, h, &[], 1000.0, &effects, key).unwrap();
+        assert_eq!(img, GreyImage::filled_u8(w, h, 255).unwrap());
+        let a = expose(vec![0.3; w * h], w, h, &[], 1000.0, &effects, key).unwrap();
+        let b = expose(vec![0.3; w * h], w, h, &[], 1000.0, &effects, key).unwrap();
         assert_eq!(a, b);
         let c = expose(
             vec![0.3; w * h],
@@ -514,7 +515,8 @@ mod tests {
             1000.0,
             &effects,
             NoiseKey { frame: 4, ..key },
-        );
+        )
+        .unwrap();
         assert_ne!(a, c);
     }
 
@@ -542,11 +544,12 @@ mod tests {
             }),
             ..CameraEffects::default()
         };
-        let img = expose(vec![0.4; w * h], w, h, &[], 1000.0, &gi, key);
+        let img = expose(vec![0.4; w * h], w, h, &[], 1000.0, &gi, key).unwrap();
         let want = (0.4 * 1.25 * quiet.exposure * 65535.0f64).round() as u16;
-        let Pixels::U16(px) = &img.pixels else {
+        let GreyImage::U16(px) = &img else {
             panic!("16-bit expected")
         };
+        let px = px.data();
         // f32 radiance: within one grey level of the closed form.
         assert!(
             px.iter().all(|&v| v.abs_diff(want) <= 1),
@@ -569,12 +572,13 @@ mod tests {
             lens_blur_px: 0.0,
             global_illumination: None,
         };
-        let sharp = expose(edge.clone(), w, h, &vec![450.0; w * h], fx, &blur, key);
-        let soft = expose(edge.clone(), w, h, &vec![600.0; w * h], fx, &blur, key);
+        let sharp = expose(edge.clone(), w, h, &vec![450.0; w * h], fx, &blur, key).unwrap();
+        let soft = expose(edge.clone(), w, h, &vec![600.0; w * h], fx, &blur, key).unwrap();
         let row = |img: &GreyImage| -> Vec<f64> {
-            let Pixels::U16(p) = &img.pixels else {
+            let GreyImage::U16(p) = img else {
                 return Vec::new();
             };
+            let p = p.data();
             (0..w).map(|x| f64::from(p[50 * w + x])).collect()
         };
         let (a, b) = (row(&sharp), row(&soft));

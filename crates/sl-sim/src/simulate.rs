@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::Serialize;
-use sl_codec::{BitDepth as PatternDepth, Manifest};
+use sl_codec::{Manifest, write_png_grey};
 use sl_rig::write_capture_set;
 
 use crate::files::write_json;
@@ -51,9 +51,8 @@ pub fn projector_images(rig: &VirtualRig, manifest: &Manifest) -> Result<Vec<Gre
             ),
         ));
     }
-    let sixteen = manifest.bit_depth == PatternDepth::Sixteen;
     (0..sequence.frame_count())
-        .map(|k| GreyImage::from_sequence(&sequence, k, sixteen).map_err(SimError::from))
+        .map(|k| Ok(sequence.render_image(k, manifest.bit_depth)?))
         .collect()
 }
 
@@ -219,7 +218,7 @@ fn write_board_capture(
         &cap.frames,
         &format!("sl-sim virtual rig, {what}"),
     )?;
-    cap.white.save_png(&dir.join("white.png"))?;
+    write_png_grey(&dir.join("white.png"), &cap.white)?;
     write_view_truth(&cap.view.truth, &dir.join(TRUTH_DIR))?;
     let b = &cap.board;
     let file = BoardFile {

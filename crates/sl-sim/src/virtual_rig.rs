@@ -146,12 +146,20 @@ impl View {
         let radiance = self
             .geometry
             .render_image(image, &self.render.illumination)?;
-        Ok(self.expose(radiance, frame))
+        self.expose(radiance, frame)
     }
 
     /// Renders the frame the camera captures while the projector shows the pattern `pattern`
     /// (a function of the projector coordinate returning a value in `[0, 1]`).
-    pub fn capture_fn<F>(&self, pattern: F, sampling: ProjectorSampling, frame: u64) -> GreyImage
+    ///
+    /// # Errors
+    /// [`SimError::Image`] if the camera has no pixels.
+    pub fn capture_fn<F>(
+        &self,
+        pattern: F,
+        sampling: ProjectorSampling,
+        frame: u64,
+    ) -> Result<GreyImage, SimError>
     where
         F: Fn(f64, f64) -> f64 + Sync,
     {
@@ -187,7 +195,7 @@ impl View {
             .collect()
     }
 
-    fn expose(&self, radiance: Vec<f32>, frame: u64) -> GreyImage {
+    fn expose(&self, radiance: Vec<f32>, frame: u64) -> Result<GreyImage, SimError> {
         let key = NoiseKey {
             seed: self.render.seed,
             view: self.index,
@@ -274,7 +282,7 @@ impl Camera for VirtualCamera {
         match shown {
             Some(img) => Ok(view.capture(&img, frame)?),
             // Nothing shown yet: the projector is dark.
-            None => Ok(view.capture_fn(|_, _| 0.0, ProjectorSampling::Nearest, frame)),
+            None => Ok(view.capture_fn(|_, _| 0.0, ProjectorSampling::Nearest, frame)?),
         }
     }
 }
@@ -285,13 +293,14 @@ impl Projector for VirtualProjector {
     }
 
     fn show(&mut self, image: &GreyImage) -> Result<(), RigError> {
-        if (image.width, image.height) != self.size {
+        let size = image.size();
+        if (size.width, size.height) != self.size {
             return Err(RigError::ImageSize {
                 what: "projector image".to_owned(),
                 expected_width: self.size.0,
                 expected_height: self.size.1,
-                width: image.width,
-                height: image.height,
+                width: size.width,
+                height: size.height,
             });
         }
         lock(&self.state).shown = Some(image.clone());

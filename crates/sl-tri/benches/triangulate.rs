@@ -35,7 +35,7 @@ fn wall_map(tri: &Triangulator, calibration: &sl_camera::Calibration) -> Corresp
                 .camera_rays()
                 .get(x as u32, y as u32)
                 .and_then(|ray| proj.project(&(t_proj_cam * Point3::from(ray * 450.0))))
-                .filter(|px| proj.size.contains(px));
+                .filter(|px| proj.size.contains(px.x, px.y));
             if let (Some(px), Some(c), Some(r), Some(q)) = (
                 px,
                 map.col.get_mut(i),

@@ -73,7 +73,7 @@ fn scene_map(
                     let t = scene_depth(scene, &ray)?;
                     proj.project(&(t_proj_cam * Point3::from(ray * t)))
                 })
-                .filter(|px| proj.size.contains(px));
+                .filter(|px| proj.size.contains(px.x, px.y));
             if let (Some(px), Some(c), Some(r), Some(q)) = (
                 px,
                 map.col.get_mut(i),

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use sl_codec::{Frame, write_png_grey16, write_tiff_f32};
+use sl_codec::{CodecError, Frame, write_png_grey16, write_tiff_f32};
 
 use crate::TriError;
 
@@ -45,7 +45,8 @@ pub fn write_depth_png16(
             format!("{scale_mm} is not a positive number"),
         ));
     }
-    let frame = Frame::new(width, height, depth_to_u16(depth_mm, scale_mm))?;
+    let frame =
+        Frame::new(width, height, depth_to_u16(depth_mm, scale_mm)).map_err(CodecError::from)?;
     Ok(write_png_grey16(path, &frame)?)
 }
 

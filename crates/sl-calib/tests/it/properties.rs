@@ -36,7 +36,7 @@ fn project_view(cam: &CameraModel, pose: &Isometry3<f64>) -> Option<CalibrationV
     let mut image_points = Vec::new();
     for p in &object_points {
         let q = cam.project(&(pose * p))?;
-        if !cam.size.contains(&q) {
+        if !cam.size.contains(q.x, q.y) {
             return None;
         }
         image_points.push(q);

@@ -24,7 +24,7 @@ fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>
         let cap = captures.hand_held(k, None).unwrap();
         out.push((
             format!("pose {k}"),
-            cap.white.into_gray8().unwrap(),
+            crate::support::gray8(cap.white).unwrap(),
             truth(&cap.board),
         ));
     }
@@ -32,7 +32,7 @@ fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>
         let cap = captures.on_table(k, None).unwrap();
         out.push((
             format!("table {angle}"),
-            cap.white.into_gray8().unwrap(),
+            crate::support::gray8(cap.white).unwrap(),
             truth(&cap.board),
         ));
     }

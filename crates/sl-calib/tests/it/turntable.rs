@@ -165,7 +165,7 @@ fn rendered_board_on_the_turntable_meets_the_targets() {
     let mut views = Vec::new();
     for (k, m) in (-3..=3).map(|k| f64::from(k) * 15.0).enumerate() {
         let cap = capture_board_on_table(&rig, &board, m, None, k as u64).unwrap();
-        let img = cap.white.into_gray8().unwrap();
+        let img = crate::support::gray8(cap.white).unwrap();
         views.push(
             TurntableView::detect(
                 &img,

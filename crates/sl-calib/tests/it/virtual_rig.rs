@@ -29,7 +29,7 @@ fn render(count: usize, seed: u64) -> Rendered {
     let mut truth = Vec::new();
     for k in 0..captures.poses().len() {
         let cap = captures.hand_held(k, None).unwrap();
-        images.push(cap.white.into_gray8().unwrap());
+        images.push(crate::support::gray8(cap.white).unwrap());
         truth.push(cap.board.corners_px.iter().map(|c| c.unwrap()).collect());
     }
     Rendered {

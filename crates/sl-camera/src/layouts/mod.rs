@@ -384,11 +384,12 @@ fn resolve_size(
         }
         (Some((s, line)), _) => {
             s.validate()
-                .map_err(|e| doc.bad(key, line, message_of(e)))?;
+                .map_err(|e| doc.bad(key, line, message_of(e.into())))?;
             s
         }
         (None, Some(o)) => {
-            o.validate().map_err(|e| doc.bad(key, 0, message_of(e)))?;
+            o.validate()
+                .map_err(|e| doc.bad(key, 0, message_of(e.into())))?;
             o
         }
         (None, None) => return Err(doc.missing(key, Some(missing_hint))),

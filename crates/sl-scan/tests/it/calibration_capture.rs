@@ -7,7 +7,8 @@
 use std::path::Path;
 
 use sl_calib::sl_camera::{ImageSize, Intrinsics};
-use sl_rig::{Camera, GreyImage, Pixels, Projector};
+use sl_codec::Frame;
+use sl_rig::{Camera, GreyImage, Projector};
 use sl_scan::{
     AutoConfig, AutoEvent, BoardMover, CalibrationCapture, CalibrationCaptureConfig, Refusal,
     TakeOutcome, VirtualBoardRig, calibration_turntable_angles, capture_poses_auto,
@@ -63,15 +64,17 @@ fn folders(dir: &Path) -> Vec<String> {
 }
 
 fn map_pixels(img: &GreyImage, f: impl Fn(u8) -> u8) -> GreyImage {
-    let Pixels::U8(p) = &img.pixels else {
+    let GreyImage::U8(p) = img else {
         panic!("8-bit frames expected");
     };
-    GreyImage::new(
-        img.width,
-        img.height,
-        Pixels::U8(p.iter().map(|&v| f(v)).collect()),
+    GreyImage::U8(
+        Frame::new(
+            p.width(),
+            p.height(),
+            p.data().iter().map(|&v| f(v)).collect(),
+        )
+        .unwrap(),
     )
-    .unwrap()
 }
 
 #[test]
@@ -136,17 +139,20 @@ fn each_refusal_writes_nothing_and_says_why() {
     mover.next_pose().unwrap();
     let fresh = s.look(&mut camera, &mut projector).unwrap();
     assert!(fresh.verdict.is_ok(), "{}", fresh.summary());
+    let size = fresh.white.size();
     let g = sl_calib::image::GrayImage::from_raw(
-        fresh.white.width,
-        fresh.white.height,
-        match &fresh.white.pixels {
-            Pixels::U8(p) => p.clone(),
-            Pixels::U16(_) => panic!("8-bit"),
+        size.width,
+        size.height,
+        match &fresh.white {
+            GreyImage::U8(p) => p.data().to_vec(),
+            GreyImage::U16(_) => panic!("8-bit"),
         },
     )
     .unwrap();
     let blurred = sl_calib::image::imageops::blur(&g, 4.0);
-    let blurred = GreyImage::new(g.width(), g.height(), Pixels::U8(blurred.into_raw())).unwrap();
+    let blurred = GreyImage::U8(
+        Frame::new(g.width() as usize, g.height() as usize, blurred.into_raw()).unwrap(),
+    );
     let check = s.check(blurred);
     match &check.verdict {
         // 2.5 sigma = 10 px, wider than the 5 px allowed.

@@ -168,7 +168,7 @@ proptest! {
                 let i = (y * t.width + x) as usize;
                 let d = config.camera.unproject(&Point2::new(f64::from(x), f64::from(y))).unwrap();
                 let p = Point3::from(d * (n.dot(&pose.translation.vector) / n.dot(&d)));
-                let q = config.projector.project(&(t_proj_cam * p)).filter(|q| config.projector.size.contains(q));
+                let q = config.projector.project(&(t_proj_cam * p)).filter(|q| config.projector.size.contains(q.x, q.y));
                 prop_assert_eq!(t.lit(i), q.is_some());
                 if let Some(q) = q {
                     prop_assert!((t.projector[i] - q).norm() < 1e-6);

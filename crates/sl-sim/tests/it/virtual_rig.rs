@@ -8,8 +8,8 @@ use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3}
 use sl_camera::{CameraModel, ImageSize, Intrinsics};
 use sl_rig::capture_sequence;
 use sl_sim::{
-    Camera, GreyImage, NO_OBJECT, Pixels, Projector, ProjectorSampling, RigConfig, Scene,
-    SceneObject, SensorConfig, Shape, Texture, Turntable, VirtualRig,
+    Camera, GreyImage, NO_OBJECT, Projector, ProjectorSampling, RigConfig, Scene, SceneObject,
+    SensorConfig, Shape, Texture, Turntable, VirtualRig,
 };
 
 /// The default rig with both images scaled down by 4 (same fields of view, same distortion),
@@ -78,7 +78,7 @@ fn plane_projector_coordinates_match_the_closed_form() {
             let p = Point3::from(d * s);
             assert_relative_eq!(t.depth_mm[i], p.z, max_relative = 1e-12);
             let q = config.projector.project(&(t_proj_cam * p));
-            match q.filter(|q| config.projector.size.contains(q)) {
+            match q.filter(|q| config.projector.size.contains(q.x, q.y)) {
                 Some(q) => {
                     // Both sides are f64 evaluations of the same model through different
                     // intersection formulas: a few ulps of 1000 px, far below 1e-6 px.
@@ -175,7 +175,7 @@ fn shadows_fall_where_the_projector_cannot_see() {
         let q_proj = config
             .projector
             .project(&config.t_cam_proj.inverse_transform_point(&p));
-        let in_projector = q_proj.is_some_and(|q| config.projector.size.contains(&q));
+        let in_projector = q_proj.is_some_and(|q| config.projector.size.contains(q.x, q.y));
         // Pixels within 1e-6 mm of the shadow's edge could go either way.
         let edge = ((q.x - 40.0).abs() - 20.0).abs() < 1e-6 || (q.y.abs() - 20.0).abs() < 1e-6;
         if edge || !in_projector {
@@ -191,15 +191,12 @@ fn shadows_fall_where_the_projector_cannot_see() {
 
     // In the rendered frame under full white, the shadow is only as bright as the ambient
     // light: mean over shadow pixels ≈ exposure · full_well · albedo · ambient · g + dark level.
-    let white = GreyImage::filled_u8(
-        config.projector.size.width,
-        config.projector.size.height,
-        255,
-    );
+    let white = filled(config.projector.size, 255);
     let frame = view.capture(&white, 0).unwrap();
-    let Pixels::U8(px) = &frame.pixels else {
+    let GreyImage::U8(px) = &frame else {
         panic!("8-bit expected")
     };
+    let px = px.data();
     let s = config.render.effects.sensor;
     let g = 255.0 / s.full_well_electrons;
     let want = s.exposure * s.full_well_electrons * 0.6 * config.render.illumination.ambient * g
@@ -258,10 +255,13 @@ fn white_frame_radiance_matches_lambert() {
     let t = &view.truth;
     let (w, h) = (config.projector.size.width, config.projector.size.height);
     let v = 128u8;
-    let frame = view.capture(&GreyImage::filled_u8(w, h, v), 0).unwrap();
-    let Pixels::U16(px) = &frame.pixels else {
+    let frame = view
+        .capture(&filled(sl_camera::ImageSize::new(w, h), v), 0)
+        .unwrap();
+    let GreyImage::U16(px) = &frame else {
         panic!("16-bit expected")
     };
+    let px = px.data();
     let il = config.render.illumination;
     let s = config.render.effects.sensor;
     let centre = Point3::from(config.t_cam_proj.translation.vector);
@@ -306,25 +306,27 @@ fn image_and_function_paths_agree_and_devices_match_views() {
             0.0
         }
     };
-    let img = GreyImage::new(
-        w,
-        h,
-        Pixels::U8(
+    let img = GreyImage::U8(
+        sl_codec::Frame::new(
+            w as usize,
+            h as usize,
             (0..w * h)
                 .map(|i| (stripes(f64::from(i % w), 0.0) * 255.0) as u8)
                 .collect(),
-        ),
-    )
-    .unwrap();
+        )
+        .unwrap(),
+    );
     let view = rig.view(30.0, 3).unwrap();
     let a = view.capture(&img, 5).unwrap();
-    let b = view.capture_fn(stripes, ProjectorSampling::Nearest, 5);
+    let b = view
+        .capture_fn(stripes, ProjectorSampling::Nearest, 5)
+        .unwrap();
     assert_eq!(a, b);
 
     // Through the device traits: turn the table, show the images, capture.
     let (mut cam, mut proj, mut table) = rig.devices();
     assert_eq!(table.rotate_to(30.0).unwrap(), 30.0);
-    let black = GreyImage::filled_u8(w, h, 0);
+    let black = filled(config.projector.size, 0);
     let frames = capture_sequence(&mut cam, &mut proj, &[black.clone(), img.clone()]).unwrap();
     assert_eq!(frames.len(), 2);
     assert_eq!(
@@ -339,7 +341,9 @@ fn image_and_function_paths_agree_and_devices_match_views() {
         .unwrap();
     assert_eq!(frames, direct);
     // A wrong-size image is refused, naming the image.
-    let err = proj.show(&GreyImage::filled_u8(10, 10, 0)).unwrap_err();
+    let err = proj
+        .show(&filled(sl_camera::ImageSize::new(10, 10), 0))
+        .unwrap_err();
     assert!(err.to_string().contains("projector image"), "{err}");
 }
 
@@ -383,9 +387,10 @@ fn board_texture_matches_the_printed_squares() {
     let rig = VirtualRig::new(config.clone(), Scene::plane()).unwrap();
     let cap = sl_sim::capture_board(&rig, &board, &t_cam_board, None, 0).unwrap();
     assert!(cap.frames.is_empty());
-    let Pixels::U16(px) = &cap.white.pixels else {
+    let GreyImage::U16(px) = &cap.white else {
         panic!("16-bit expected")
     };
+    let px = px.data();
     let t = &cap.view.truth;
     let il = config.render.illumination;
     let s = config.render.effects.sensor;
@@ -428,11 +433,7 @@ fn board_texture_matches_the_printed_squares() {
 fn frames_do_not_depend_on_the_number_of_threads() {
     let config = small_rig();
     let rig = VirtualRig::new(config.clone(), Scene::dumbbell()).unwrap();
-    let img = GreyImage::filled_u8(
-        config.projector.size.width,
-        config.projector.size.height,
-        200,
-    );
+    let img = filled(config.projector.size, 200);
     let many = rig.view(10.0, 1).unwrap().capture(&img, 7).unwrap();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -475,9 +476,9 @@ fn fringe_column_error(blur_px: f64) -> (f64, f64) {
                 ProjectorSampling::Nearest,
                 k as u64,
             );
-            match img.pixels {
-                Pixels::U16(p) => p.into_iter().map(f64::from).collect(),
-                Pixels::U8(_) => panic!("16-bit frames expected"),
+            match img.unwrap() {
+                GreyImage::U16(p) => p.into_data().into_iter().map(f64::from).collect(),
+                GreyImage::U8(_) => panic!("16-bit frames expected"),
             }
         })
         .collect();
@@ -604,6 +605,7 @@ fn moire_diagnostics() {
                         sl_sim::ProjectorSampling::Continuous,
                         k as u64,
                     )
+                    .unwrap()
                 })
                 .collect()
         } else {
@@ -612,12 +614,11 @@ fn moire_diagnostics() {
         };
         let frames = frames
             .into_iter()
-            .map(|img| match img.pixels {
-                Pixels::U8(v) => sl_codec::Frame::new(img.width as usize, img.height as usize, v),
-                Pixels::U16(_) => panic!("the variants render 8-bit frames"),
+            .map(|img| match img {
+                GreyImage::U8(f) => f,
+                GreyImage::U16(_) => panic!("the variants render 8-bit frames"),
             })
-            .collect::<Result<Vec<_>, _>>()
-            .unwrap();
+            .collect::<Vec<_>>();
         let capture = CaptureSet::from_frames(manifest, sl_codec::Frames::U8(frames)).unwrap();
         let map = decode(&capture, &DecodeConfig::default()).unwrap();
         let t = &view.truth;
@@ -640,4 +641,9 @@ fn moire_diagnostics() {
             (sq / n as f64).sqrt()
         );
     }
+}
+
+/// A flat 8-bit image of `size`.
+fn filled(size: sl_camera::ImageSize, value: u8) -> GreyImage {
+    GreyImage::filled_u8(size.width as usize, size.height as usize, value).unwrap()
 }

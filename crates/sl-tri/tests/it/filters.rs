@@ -55,7 +55,7 @@ fn map_of(depth: impl Fn(usize, usize) -> f64) -> (CorrespondenceMap, Vec<Point3
             let p = Point3::from(ray * depth(x, y));
             match proj
                 .project(&(t_proj_cam * p))
-                .filter(|px| proj.size.contains(px))
+                .filter(|px| proj.size.contains(px.x, px.y))
             {
                 Some(px) => {
                     map.col[i] = px.x as f32;

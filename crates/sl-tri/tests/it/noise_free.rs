@@ -119,7 +119,7 @@ fn wall_map(calibration: &Calibration, depth: f64) -> (CorrespondenceMap, Vec<Po
                 .unproject(&Point2::new(x as f64, y as f64))
                 .map(|ray| Point3::from(ray * depth))
                 .and_then(|p| proj.project(&(t_proj_cam * p)).map(|px| (p, px)))
-                .filter(|(_, px)| proj.size.contains(px));
+                .filter(|(_, px)| proj.size.contains(px.x, px.y));
             if let Some((p, px)) = hit {
                 map.col[i] = px.x as f32;
                 map.row[i] = px.y as f32;

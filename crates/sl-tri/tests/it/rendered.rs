@@ -21,10 +21,10 @@
 
 use nalgebra::Point3;
 use sl_codec::{
-    Axis, BitDepth, CaptureSet, DecodeConfig, Frame, Frames, HybridSpec, ImageSize, Pattern,
+    Axis, BitDepth, CaptureSet, DecodeConfig, Frames, HybridSpec, ImageSize, Pattern,
     PatternSequence, decode,
 };
-use sl_sim::{GreyImage, Pixels, RigConfig, Scene, VirtualRig, projector_images};
+use sl_sim::{GreyImage, RigConfig, Scene, VirtualRig, projector_images};
 use sl_tri::{Method, TriConfig, Triangulator, fit_plane, fit_sphere};
 
 /// Issue 6 target for the plane's flatness RMS and the sphere's radius error (mm).
@@ -101,16 +101,13 @@ struct Scan {
 }
 
 fn to_frames(images: Vec<GreyImage>) -> Frames {
-    let (w, h) = images
-        .first()
-        .map_or((0, 0), |i| (i.width as usize, i.height as usize));
-    if matches!(images.first().map(|i| &i.pixels), Some(Pixels::U16(_))) {
+    if matches!(images.first(), Some(GreyImage::U16(_))) {
         Frames::U16(
             images
                 .into_iter()
-                .map(|img| match img.pixels {
-                    Pixels::U16(v) => Frame::new(w, h, v).unwrap(),
-                    Pixels::U8(_) => panic!("mixed bit depths"),
+                .map(|img| match img {
+                    GreyImage::U16(f) => f,
+                    GreyImage::U8(_) => panic!("mixed bit depths"),
                 })
                 .collect(),
         )
@@ -118,9 +115,9 @@ fn to_frames(images: Vec<GreyImage>) -> Frames {
         Frames::U8(
             images
                 .into_iter()
-                .map(|img| match img.pixels {
-                    Pixels::U8(v) => Frame::new(w, h, v).unwrap(),
-                    Pixels::U16(_) => panic!("mixed bit depths"),
+                .map(|img| match img {
+                    GreyImage::U8(f) => f,
+                    GreyImage::U16(_) => panic!("mixed bit depths"),
                 })
                 .collect(),
         )

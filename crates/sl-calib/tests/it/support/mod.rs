@@ -6,3 +6,5 @@
 pub(crate) mod board_render;
 pub(crate) mod held_out;
 pub(crate) mod procam_render;
+
+pub(crate) use procam_render::gray8;

@@ -69,16 +69,12 @@ pub(crate) fn render_with(
     let t = Instant::now();
     for k in 0..captures.poses().len() {
         let cap = captures.hand_held(k, Some(sequence)).unwrap();
-        let frames: Vec<Frame<u8>> = cap
-            .frames
-            .into_iter()
-            .map(|img| img.into_frame8().unwrap())
-            .collect();
+        let frames: Vec<Frame<u8>> = cap.frames.into_iter().map(|img| img.into_u8()).collect();
         let set = CaptureSet::from_frames(manifest.clone(), Frames::U8(frames)).unwrap();
         let map = decode(&set, &DecodeConfig::default()).unwrap();
         views.push(ProcamView {
             name: format!("pose {k}"),
-            lit: cap.white.into_gray8().unwrap(),
+            lit: gray8(cap.white).unwrap(),
             map,
         });
         truth.push(cap.board);
@@ -93,4 +89,11 @@ pub(crate) fn render_with(
         truth,
         config,
     }
+}
+
+/// A simulated frame as the 8-bit image the detector takes (16-bit pixels by `round(v / 257)`,
+/// `GreyImage::into_u8`); `None` only for an image beyond `u32::MAX` pixels a side.
+pub(crate) fn gray8(img: sl_sim::GreyImage) -> Option<sl_calib::image::GrayImage> {
+    let size = img.size();
+    sl_calib::image::GrayImage::from_raw(size.width, size.height, img.into_u8().into_data())
 }
