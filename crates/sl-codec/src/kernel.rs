@@ -149,8 +149,10 @@ pub(crate) fn run<T: Sample>(
         return;
     }
     let chunk = width * rows_per_task.max(1);
-    // Runtime CPU dispatch (AVX2 + FMA where available): the band loops below, all inlined into
-    // the dispatched closure, are then vectorised 8 lanes wide instead of 4 (SSE2 baseline).
+    // Runtime CPU dispatch (AVX2 + FMA where available; feature `simd`): the band loops below,
+    // all inlined into the dispatched closure, are then vectorised 8 lanes wide instead of 4
+    // (SSE2 baseline).
+    #[cfg(feature = "simd")]
     let arch = pulp::Arch::new();
     let rows_per_task = rows_per_task.max(1);
     map.col
@@ -190,6 +192,7 @@ pub(crate) fn run<T: Sample>(
                         quality: &mut *quality,
                         invalid: &mut *invalid,
                     };
+                    #[cfg(feature = "simd")]
                     arch.dispatch(BandJob {
                         kernel,
                         y0,
@@ -197,11 +200,14 @@ pub(crate) fn run<T: Sample>(
                         out: &mut out,
                         scratch: s,
                     });
+                    #[cfg(not(feature = "simd"))]
+                    kernel.decode_band(y0, rows, &mut out, s);
                 }
             },
         );
 }
 
+#[cfg(feature = "simd")]
 /// One kernel on one band, as a `pulp` operation: `with_simd` is inlined (with everything it
 /// calls) into a function compiled for the detected instruction set, so the loops are
 /// vectorised for it. A struct rather than a closure because only trait methods marked
@@ -214,6 +220,7 @@ struct BandJob<'k, 'a, 'o, 's, T: Sample> {
     scratch: &'s mut Scratch,
 }
 
+#[cfg(feature = "simd")]
 impl<T: Sample> pulp::WithSimd for BandJob<'_, '_, '_, '_, T> {
     type Output = ();
 
