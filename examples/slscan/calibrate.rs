@@ -137,7 +137,7 @@ pub(crate) struct ProjectorArgs {
     /// Projector size, `WIDTHxHEIGHT` (default: the capture manifest's; another size is an
     /// error, the decoded coordinates being in the manifest's pixels).
     #[arg(long)]
-    pub(crate) projector: Option<String>,
+    pub(crate) projector: Option<ImageSize>,
     #[command(flatten)]
     pub(crate) common: BoardArgs,
     #[command(flatten)]
@@ -234,7 +234,7 @@ fn run_with(
             let cfg = a.common.files_config()?;
             let layout = a.layout.load()?;
             let poses = session_poses(&a.session, layout.as_ref())?;
-            let given = a.projector.as_deref().map(parse_size).transpose()?;
+            let given = a.projector;
             let projector_size = sl_scan::projector_size(&poses, given)?;
             let files = calibrate_procam_files(
                 &poses,
@@ -389,21 +389,6 @@ fn print_axis(files: &TurntableFiles, out: &Path) {
         fit.rms,
         out.join("calibration.json").display()
     );
-}
-
-/// `AxB` of two positive integers (`--board 9x6`, `--projector 1920x1080`).
-fn parse_pair(text: &str, flag: &str, example: &str) -> anyhow::Result<(u32, u32)> {
-    let bad = || format!("{flag} {text}: expected two positive integers as in {example}");
-    let (a, b) = text.split_once(['x', 'X']).with_context(bad)?;
-    let a: u32 = a.trim().parse().with_context(bad)?;
-    let b: u32 = b.trim().parse().with_context(bad)?;
-    anyhow::ensure!(a > 0 && b > 0, "{}", bad());
-    Ok((a, b))
-}
-
-fn parse_size(text: &str) -> anyhow::Result<ImageSize> {
-    let (w, h) = parse_pair(text, "--projector", "1920x1080")?;
-    Ok(ImageSize::new(w, h))
 }
 
 #[cfg(test)]

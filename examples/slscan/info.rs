@@ -25,11 +25,11 @@ pub(crate) struct Args {
     pub(crate) layout: Option<CalibrationLayout>,
     /// The camera's image size (`WxH`), for layouts that do not store it (scan3d-capture,
     /// OpenCV's stereo sample).
-    #[arg(long, value_parser = parse_image_size)]
+    #[arg(long)]
     pub(crate) camera_size: Option<ImageSize>,
     /// The projector's size (`WxH`), for layouts that do not store it (scan3d-capture,
     /// SLMaster, OpenCV's stereo sample).
-    #[arg(long, value_parser = parse_image_size)]
+    #[arg(long)]
     pub(crate) projector_size: Option<ImageSize>,
     /// Write the calibration back to this file (.json, .yml, .yaml or .xml), in `--format`.
     #[arg(long)]
@@ -42,20 +42,6 @@ pub(crate) struct Args {
 
 fn parse_layout(s: &str) -> Result<CalibrationLayout, String> {
     s.parse().map_err(|e: sl_camera::CameraError| e.to_string())
-}
-
-fn parse_image_size(s: &str) -> Result<ImageSize, String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{s}`: expected WIDTHxHEIGHT, e.g. 1280x1024"))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|&n| n > 0)
-            .ok_or_else(|| format!("`{s}`: `{v}` is not a positive whole number of pixels"))
-    };
-    Ok(ImageSize::new(parse(w)?, parse(h)?))
 }
 
 /// Runs `slscan info`.

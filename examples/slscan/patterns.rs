@@ -84,7 +84,7 @@ impl From<UnwrapArg> for Unwrap {
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
     /// Projector size, `WIDTHxHEIGHT` (any size, not only powers of two).
-    #[arg(long, value_parser = parse_size)]
+    #[arg(long)]
     pub(crate) projector: ImageSize,
     /// Coding method.
     #[arg(long, value_enum, default_value_t = CodecArg::Gray)]
@@ -126,24 +126,6 @@ pub(crate) struct Args {
     /// Bit depth of the pattern images (8 or 16).
     #[arg(long, default_value_t = 8)]
     pub(crate) bit_depth: u8,
-}
-
-fn parse_size(s: &str) -> Result<ImageSize, String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .map_err(|_| format!("bad width in '{s}'"))?;
-    let h: u32 = h
-        .trim()
-        .parse()
-        .map_err(|_| format!("bad height in '{s}'"))?;
-    if w == 0 || h == 0 {
-        return Err(format!("'{s}': the projector must not be empty"));
-    }
-    Ok(ImageSize::new(w, h))
 }
 
 /// Phase steps of `--codec phase` when `--steps` is not given: 4, the classic choice that keeps

@@ -67,6 +67,36 @@ impl std::fmt::Display for ImageSize {
     }
 }
 
+/// Parses `WIDTHxHEIGHT` (`1280x720`; `X` too, spaces around the numbers allowed), both at
+/// least one pixel.
+///
+/// ```
+/// use sl_image::ImageSize;
+/// assert_eq!("1280x720".parse::<ImageSize>()?, ImageSize::new(1280, 720));
+/// assert!("1280".parse::<ImageSize>().is_err() && "0x720".parse::<ImageSize>().is_err());
+/// # Ok::<(), sl_image::ImageError>(())
+/// ```
+impl std::str::FromStr for ImageSize {
+    type Err = ImageError;
+
+    fn from_str(s: &str) -> Result<Self, ImageError> {
+        let bad = |reason: &str| ImageError::InvalidParameter {
+            name: "size".to_owned(),
+            reason: format!("{s:?}: {reason}"),
+        };
+        let (w, h) = s
+            .split_once(['x', 'X'])
+            .ok_or_else(|| bad("expected WIDTHxHEIGHT, e.g. 1280x720"))?;
+        let count = |t: &str| t.trim().parse::<u32>().ok().filter(|&n| n > 0);
+        match (count(w), count(h)) {
+            (Some(w), Some(h)) => Ok(Self::new(w, h)),
+            _ => Err(bad(
+                "expected two whole numbers of pixels, at least 1, as WIDTHxHEIGHT",
+            )),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
