@@ -11,6 +11,30 @@ use serde::{Deserialize, Serialize};
 
 use crate::{Camera, Projector, RigError, SessionDevices, Turntable};
 
+/// Name prefixes of the serial device nodes a USB–serial adapter (U2D2, FTDI: `ttyUSB`) or a
+/// CDC-ACM board (`ttyACM`) gets.
+const SERIAL_PREFIXES: [&str; 2] = ["ttyUSB", "ttyACM"];
+
+/// The serial ports a turntable can be on: the `ttyUSB*` and `ttyACM*` nodes of `dev` (`/dev`),
+/// sorted; none when `dev` cannot be read.
+#[must_use]
+pub fn serial_ports(dev: &std::path::Path) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dev) else {
+        return Vec::new();
+    };
+    let mut ports: Vec<PathBuf> = entries
+        .filter_map(Result::ok)
+        .filter(|e| {
+            e.file_name()
+                .to_str()
+                .is_some_and(|n| SERIAL_PREFIXES.iter().any(|p| n.starts_with(p)))
+        })
+        .map(|e| e.path())
+        .collect();
+    ports.sort();
+    ports
+}
+
 /// The real devices of a rig: which camera, which monitor the projector is, which serial port
 /// and servo id the turntable answers on.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -204,6 +228,20 @@ where
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn serial_ports_are_usb_and_acm_nodes_sorted() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["ttyUSB1", "ttyS0", "ttyACM0", "ttyUSB0", "video0"] {
+            std::fs::write(dir.path().join(name), b"").unwrap();
+        }
+        let names: Vec<String> = super::serial_ports(dir.path())
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, ["ttyACM0", "ttyUSB0", "ttyUSB1"]);
+        assert!(super::serial_ports(&dir.path().join("missing")).is_empty());
+    }
+
     use super::*;
 
     fn description(port: PathBuf) -> DeviceDescription {

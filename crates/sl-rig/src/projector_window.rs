@@ -51,6 +51,39 @@ pub struct MonitorInfo {
     pub primary: bool,
 }
 
+/// `INDEX: NAME WxH at (X, Y), scale S[, R Hz][, primary]`.
+impl std::fmt::Display for MonitorInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let refresh = self
+            .refresh_millihertz
+            .map(|r| format!(", {:.2} Hz", f64::from(r) / 1000.0))
+            .unwrap_or_default();
+        write!(
+            f,
+            "{}: {} {}x{} at ({}, {}), scale {}{refresh}{}",
+            self.index,
+            self.name,
+            self.size.0,
+            self.size.1,
+            self.position.0,
+            self.position.1,
+            self.scale_factor,
+            if self.primary { ", primary" } else { "" }
+        )
+    }
+}
+
+impl MonitorInfo {
+    /// The monitor as JSON: index, name, size, position, scale factor, primary.
+    #[must_use]
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "index": self.index, "name": self.name, "size": self.size, "position": self.position,
+            "scale_factor": self.scale_factor, "primary": self.primary,
+        })
+    }
+}
+
 /// How [`run_projector`] opens the projector window.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProjectorWindowConfig {

@@ -67,6 +67,61 @@ pub struct V4lDeviceInfo {
     pub error: Option<String>,
 }
 
+/// `PATH: NAME (driver DRIVER, BUS)` and a line per format, `    FOURCC (DESCRIPTION): SIZES`
+/// (`[not converted]` for a format this crate cannot convert); `PATH: cannot open: WHY` for a
+/// device that could not be queried.
+impl std::fmt::Display for V4lDeviceInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(err) = &self.error {
+            return write!(f, "{}: cannot open: {err}", self.path.display());
+        }
+        write!(
+            f,
+            "{}: {} (driver {}, {})",
+            self.path.display(),
+            self.name,
+            self.driver,
+            self.bus
+        )?;
+        for format in &self.formats {
+            let sizes: Vec<String> = format
+                .sizes
+                .iter()
+                .map(|(w, h)| format!("{w}x{h}"))
+                .collect();
+            let usable = if format.pixel_format.is_some() {
+                ""
+            } else {
+                " [not converted]"
+            };
+            write!(
+                f,
+                "\n    {} ({}){usable}: {}",
+                format.fourcc,
+                format.description,
+                sizes.join(" ")
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl V4lDeviceInfo {
+    /// The device as JSON: path, name, driver, error and each format's code and sizes.
+    #[must_use]
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "path": self.path.display().to_string(),
+            "name": self.name,
+            "driver": self.driver,
+            "error": self.error,
+            "formats": self.formats.iter().map(|f| serde_json::json!({
+                "fourcc": f.fourcc, "sizes": f.sizes,
+            })).collect::<Vec<_>>(),
+        })
+    }
+}
+
 /// The video capture devices among `/dev/video*`, in numeric order.
 ///
 /// Nodes that are not video capture devices (a UVC camera's metadata node, an output or a
