@@ -11,9 +11,7 @@ use sl_camera::Calibration;
 use sl_codec::{MANIFEST_FILE, Manifest};
 use sl_rig::{Camera, DeviceDescription, LatencyConfig, Projector, SessionDevices, Turntable};
 use sl_sim::{Scene, VirtualRig};
-use structured_light::scan::{
-    DeviceCaptureConfig, SessionCapture, capture_device_session, scaled_rig_config,
-};
+use structured_light::scan::{DeviceCaptureConfig, capture_device_session, scaled_rig_config};
 
 use crate::common::{ensure_out_dir, progress};
 
@@ -145,13 +143,6 @@ where
         |_| bar.inc(1),
     )?;
     bar.finish_and_clear();
-    record_session(&capture)?;
-    Ok(())
-}
-
-/// Writes a captured session's `report.json` into its folder and says what it captured (and
-/// the latency, when measured).
-fn record_session(capture: &SessionCapture) -> anyhow::Result<()> {
     let path = capture.write_report()?;
     for line in capture.summary(&path) {
         println!("{line}");
@@ -176,13 +167,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
     let rig = VirtualRig::new(scaled_rig_config(args.downscale), scene(&args.scene)?)
         .context("cannot build the virtual rig")?;
-    let c = rig.config().camera.size;
-    let p = rig.config().projector.size;
-    let devices = SessionDevices {
-        camera: format!("virtual camera {}x{}", c.width, c.height),
-        projector: format!("virtual projector {}x{}", p.width, p.height),
-        turntable: format!("virtual turntable, scene {}", args.scene),
-    };
+    let devices = rig.session_devices(&format!("virtual turntable, scene {}", args.scene));
     let (mut camera, mut projector, mut table) = rig.devices();
     // The rig's exact calibration beside the session, for `slscan reconstruct`.
     rig.config()

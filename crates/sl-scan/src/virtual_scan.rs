@@ -15,9 +15,7 @@ use sl_camera::{Calibration, ImageSize, Intrinsics};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::BitDepth;
 use sl_metrology::{Report, Truth};
-use sl_rig::{
-    SessionConfig, SessionDevices, SessionPlan, SessionSummary, turntable_angles, view_dir_name,
-};
+use sl_rig::{SessionConfig, SessionPlan, SessionSummary, turntable_angles, view_dir_name};
 use sl_sim::{RigConfig, Scene, VirtualRig};
 use sl_tri::Triangulator;
 
@@ -227,16 +225,11 @@ pub(crate) fn capture_virtual(
     progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<SessionSummary, ScanError> {
     let psize = rig.config().projector.size;
-    let csize = rig.config().camera.size;
     let plan = SessionPlan {
         angles_deg,
         manifest: scan_patterns(ImageSize::new(psize.width, psize.height), cfg.period_px)
             .manifest(BitDepth::Eight),
-        devices: SessionDevices {
-            camera: format!("virtual camera {}x{}", csize.width, csize.height),
-            projector: format!("virtual projector {}x{}", psize.width, psize.height),
-            turntable: turntable.to_owned(),
-        },
+        devices: rig.session_devices(turntable),
         calibration: Some(calibration.to_path_buf()),
     };
     let config = SessionConfig {

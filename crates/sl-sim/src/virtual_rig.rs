@@ -118,6 +118,18 @@ impl VirtualRig {
         })
     }
 
+    /// How a capture session names this rig's devices: `virtual camera WxH`, `virtual
+    /// projector WxH` and the given `turntable`.
+    #[must_use]
+    pub fn session_devices(&self, turntable: &str) -> sl_rig::SessionDevices {
+        let (c, p) = (self.config().camera.size, self.config().projector.size);
+        sl_rig::SessionDevices {
+            camera: format!("virtual camera {}x{}", c.width, c.height),
+            projector: format!("virtual projector {}x{}", p.width, p.height),
+            turntable: turntable.to_owned(),
+        }
+    }
+
     /// The rig as three devices sharing one state: showing an image on the projector changes
     /// what the camera captures, turning the table changes the view.
     pub fn devices(&self) -> (VirtualCamera, VirtualProjector, VirtualTurntable) {
