@@ -18,7 +18,7 @@ use sl_codec::{MANIFEST_FILE, Manifest};
 use sl_rig::{Camera, Projector, Turntable};
 use sl_scan::{
     AutoConfig, AutoEvent, BoardMover, CalibrationCapture, CalibrationCaptureConfig, HandHeld,
-    PoseCheck, TakeOutcome, VirtualBoardRig, calibration_turntable_angles, capture_poses_auto,
+    TakeOutcome, VirtualBoardRig, calibration_turntable_angles, capture_poses_auto,
     wait_for_still_board,
 };
 use sl_sim::{BoardPoseConfig, Checkerboard};
@@ -319,7 +319,14 @@ where
     let mut message = String::from("ready");
     loop {
         let check = session.look(camera, projector)?;
-        draw(session, &check, target, &message, mover.moves_itself());
+        let mut out = std::io::stdout().lock();
+        // A terminal that cannot be written to has nothing to show: the capture goes on.
+        let _ = out.write_all(
+            session
+                .screen(&check, target, &message, mover.moves_itself())
+                .as_bytes(),
+        );
+        let _ = out.flush();
         let Some(key) = keys.next(KEY_POLL)? else {
             continue;
         };
@@ -361,38 +368,6 @@ where
         }
     }
     Ok(counts)
-}
-
-/// Draws the interactive view: the check of the current frame, the coverage and the keys.
-fn draw(
-    session: &CalibrationCapture,
-    check: &PoseCheck,
-    target: usize,
-    message: &str,
-    virtual_board: bool,
-) {
-    let coverage = session.coverage();
-    let mut s = String::from("\x1b[2J\x1b[H");
-    s.push_str(&format!(
-        "slscan calibrate capture: {} - pose {} of {}\n\n",
-        session.dir().display(),
-        session.poses().len(),
-        target
-    ));
-    s.push_str(&check.summary());
-    s.push_str("\n\n");
-    s.push_str(&coverage.draw());
-    s.push_str(&format!("hint: {}\n\n", coverage.hint(target)));
-    s.push_str(&format!("last: {message}\n"));
-    s.push_str("keys: space/enter take pose, d drop last pose, q finish");
-    if virtual_board {
-        s.push_str(", n move the virtual board");
-    }
-    s.push('\n');
-    let mut out = std::io::stdout().lock();
-    // A terminal that cannot be written to has nothing to show: the capture goes on.
-    let _ = out.write_all(s.as_bytes());
-    let _ = out.flush();
 }
 
 /// Waits for enter on standard input (line mode).

@@ -324,6 +324,34 @@ impl CalibrationCapture {
         )
     }
 
+    /// The text of an interactive capture's view, for a terminal (cleared first): the check
+    /// of the current frame, the coverage of the image and the tilts with a hint for the next
+    /// of the `target` poses, the `last` thing that happened, and the keys (with `n` when the
+    /// board is virtual and moves itself).
+    #[must_use]
+    pub fn screen(
+        &self,
+        check: &PoseCheck,
+        target: usize,
+        last: &str,
+        virtual_board: bool,
+    ) -> String {
+        let coverage = self.coverage();
+        format!(
+            "\x1b[2J\x1b[Hcalibration capture: {} - pose {} of {target}\n\n{}\n\n{}hint: {}\n\nlast: {last}\nkeys: space/enter take pose, d drop last pose, q finish{}\n",
+            self.dir().display(),
+            self.poses().len(),
+            check.summary(),
+            coverage.draw(),
+            coverage.hint(target),
+            if virtual_board {
+                ", n move the virtual board"
+            } else {
+                ""
+            }
+        )
+    }
+
     fn board_size(&self) -> BoardSize {
         self.config.board
     }
