@@ -8,8 +8,8 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use sl_codec::{BitDepth, ImageSize};
-use sl_rig::{CaptureSession, SessionConfig, SessionDevices, SessionPlan};
+use sl_codec::BitDepth;
+use sl_rig::{CaptureSession, SessionConfig, SessionPlan};
 use sl_scan::{
     MeshChainConfig, SCAN_PERIOD_PX, SessionScanConfig, VirtualScanConfig, calibrate_virtual,
     full_turn_motor_angles, load_scan_calibration, mesh_chain, scaled_rig_config, scan_patterns,
@@ -34,37 +34,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..VirtualScanConfig::default()
     };
     let (calibration, summary) = calibrate_virtual(&rig, &cfg, |_| {})?;
+    let (s, a) = (&summary, summary.axis_direction_error_deg);
     println!(
-        "calibrated from {} poses: RMS camera {:.3} / projector {:.3} / stereo {:.3} px; axis {:.4}° / {:.3} mm off the truth",
-        summary.poses_used,
-        summary.rms_camera_px,
-        summary.rms_projector_px,
-        summary.rms_stereo_px,
-        summary.axis_direction_error_deg,
-        summary.axis_position_error_mm
+        "calibrated from {} poses: RMS camera {:.3}, projector {:.3} px; axis {a:.4}° off",
+        s.poses_used, s.rms_camera_px, s.rms_projector_px
     );
     let calib_path = out.join("calibration.json");
     calibration.save(&calib_path)?;
     let calibration = load_scan_calibration(&calib_path)?;
 
     // 2. Capture a session through the device traits: a full platter turn in 8 views.
-    let p = rig.config().projector.size;
     let plan = SessionPlan {
         angles_deg: full_turn_motor_angles(calibration.turntable.as_ref(), 8)?,
-        manifest: scan_patterns(ImageSize::new(p.width, p.height), SCAN_PERIOD_PX)
+        manifest: scan_patterns(rig.config().projector.size, SCAN_PERIOD_PX)
             .manifest(BitDepth::Eight),
-        devices: SessionDevices {
-            camera: "virtual".into(),
-            projector: "virtual".into(),
-            turntable: "virtual".into(),
-        },
+        devices: rig.session_devices("virtual turntable"),
         calibration: Some(calib_path),
     };
     let session_dir = out.join("session");
     let config = SessionConfig {
         display_latency: Duration::ZERO,
-        flush_frames: 0,
         overwrite: true,
+        ..SessionConfig::default()
     };
     let (mut camera, mut projector, mut table) = rig.devices();
     CaptureSession::open(&session_dir, plan, config)?.run(
