@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use serde_json::json;
-use sl_camera::{Calibration, CalibrationLayout, ImageSize, LoadOptions};
+use sl_camera::{Calibration, CalibrationLayout, ImageSize, LoadConfig};
 use sl_cloud::{PlyPropertyKind, read_ply, read_ply_header};
 
 use crate::common::{Report, ensure_out_dir};
@@ -137,7 +137,7 @@ fn ply_info(path: &Path, report: &mut Report) -> anyhow::Result<()> {
 
 fn calibration_info(args: &Args, report: &mut Report) -> anyhow::Result<()> {
     let path = &args.file;
-    let options = LoadOptions {
+    let options = LoadConfig {
         layout: args.layout,
         camera_size: args.camera_size,
         projector_size: args.projector_size,
@@ -221,7 +221,7 @@ mod tests {
 
     use std::path::PathBuf;
 
-    use sl_camera::{Calibration, CalibrationLayout, LoadOptions};
+    use sl_camera::{Calibration, CalibrationLayout, LoadConfig};
 
     fn slscan(args: &[&str]) -> anyhow::Result<()> {
         crate::run_cli(args)
@@ -265,12 +265,12 @@ mod tests {
         assert_eq!(r["figures"]["layout"], "scan3d-capture");
         assert_eq!(r["figures"]["written_layout"], "slmaster");
         // The SLMaster file holds the same rig (its projector size under an extra key).
-        let back = Calibration::load_with(&out, &LoadOptions::default()).unwrap();
+        let back = Calibration::load_with(&out, &LoadConfig::default()).unwrap();
         assert_eq!(back.layout, CalibrationLayout::SlMaster);
-        let options = LoadOptions {
+        let options = LoadConfig {
             camera_size: Some(sl_camera::ImageSize::new(1280, 1024)),
             projector_size: Some(sl_camera::ImageSize::new(1024, 768)),
-            ..LoadOptions::default()
+            ..LoadConfig::default()
         };
         let orig = Calibration::load_with(&src, &options).unwrap().calibration;
         assert_eq!(back.calibration.camera, orig.camera);

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::filestorage::{Document, parse_xml, parse_yaml, to_xml, to_yaml};
 use crate::layouts::{
-    self, CalibrationLayout, LoadOptions, LoadedCalibration, extrinsics_sibling, intrinsics_sibling,
+    self, CalibrationLayout, LoadConfig, LoadedCalibration, extrinsics_sibling, intrinsics_sibling,
 };
 use crate::pose::PoseRepr;
 use crate::{CameraError, CameraModel, DistortionModel, ProjectorModel, TurntableAxis};
@@ -234,7 +234,7 @@ impl Calibration {
     /// and the errors of [`Calibration::from_json`], [`Calibration::from_opencv_yaml`] and
     /// [`Calibration::from_opencv_xml`], which name the file, the line and the key.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, CameraError> {
-        Ok(Self::load_with(path, &LoadOptions::default())?.calibration)
+        Ok(Self::load_with(path, &LoadConfig::default())?.calibration)
     }
 
     /// Loads a calibration in any [`CalibrationLayout`] (detected by its keys unless
@@ -245,7 +245,7 @@ impl Calibration {
     /// extrinsics).
     ///
     /// ```
-    /// use sl_camera::{Calibration, CalibrationLayout, ImageSize, LoadOptions};
+    /// use sl_camera::{Calibration, CalibrationLayout, ImageSize, LoadConfig};
     /// // A scan3d-capture calibration.yml, as cv::FileStorage writes it (no image sizes).
     /// let m = |rows: usize, cols: usize, data: &str| {
     ///     format!("!!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {data} ]\n")
@@ -263,10 +263,10 @@ impl Calibration {
     /// let path = dir.path().join("calibration.yml");
     /// std::fs::write(&path, text).unwrap();
     /// assert!(Calibration::load(&path).is_err()); // the image sizes are needed
-    /// let options = LoadOptions {
+    /// let options = LoadConfig {
     ///     camera_size: Some(ImageSize::new(1280, 1024)),
     ///     projector_size: Some(ImageSize::new(1024, 768)),
-    ///     ..LoadOptions::default()
+    ///     ..LoadConfig::default()
     /// };
     /// let loaded = Calibration::load_with(&path, &options)?;
     /// assert_eq!(loaded.layout, CalibrationLayout::Scan3dCapture);
@@ -281,7 +281,7 @@ impl Calibration {
     /// and the option that gives it.
     pub fn load_with(
         path: impl AsRef<Path>,
-        options: &LoadOptions,
+        options: &LoadConfig,
     ) -> Result<LoadedCalibration, CameraError> {
         let path = path.as_ref();
         let format = CalibrationFormat::from_path(path)?;
@@ -537,7 +537,7 @@ impl Calibration {
     /// [`CameraError::Syntax`] and [`CameraError::BadValue`] with the line,
     /// [`CameraError::MissingKey`].
     pub fn from_opencv_yaml(text: &str, file: &str) -> Result<Self, CameraError> {
-        from_document(&parse_yaml(text, file)?, &LoadOptions::default())
+        from_document(&parse_yaml(text, file)?, &LoadConfig::default())
     }
 
     /// Reads an OpenCV FileStorage XML file (see the type docs for the layouts).
@@ -545,7 +545,7 @@ impl Calibration {
     /// # Errors
     /// As [`Calibration::from_opencv_yaml`].
     pub fn from_opencv_xml(text: &str, file: &str) -> Result<Self, CameraError> {
-        from_document(&parse_xml(text, file)?, &LoadOptions::default())
+        from_document(&parse_xml(text, file)?, &LoadConfig::default())
     }
 
     /// Writes OpenCV FileStorage YAML that `cv::FileStorage` reads.
@@ -641,7 +641,7 @@ impl Calibration {
 
 /// Reads a FileStorage document in any layout (one file; OpenCV's stereo sample from its
 /// intrinsics file alone).
-fn from_document(doc: &Document, options: &LoadOptions) -> Result<Calibration, CameraError> {
+fn from_document(doc: &Document, options: &LoadConfig) -> Result<Calibration, CameraError> {
     let layout = match options.layout {
         Some(l) => l,
         None => layouts::detect(doc).ok_or_else(|| layouts::unknown_layout(doc))?,

@@ -83,7 +83,7 @@ pub use distortion::{DISTORTION_PARAMETERS, Distortion, DistortionJacobians, Dis
 pub use error::CameraError;
 pub use intrinsics::Intrinsics;
 pub use jacobians::{INTRINSIC_PARAMETERS, PoseProjectionJacobians, ProjectionJacobians};
-pub use layouts::{CalibrationLayout, LoadOptions, LoadedCalibration};
+pub use layouts::{CalibrationLayout, LoadConfig, LoadedCalibration};
 pub use model::{CameraModel, FieldOfView, PixelJacobian, ProjectorModel};
 pub use pose::{
     RvecTvec, isometry_from_rt, pose_from_matrix, pose_to_matrix, rotation_from_rvec,

@@ -144,7 +144,7 @@ impl FromStr for CalibrationLayout {
 
 /// Options of [`Calibration::load_with`]: what a file may lack.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LoadOptions {
+pub struct LoadConfig {
     /// Read the file as this layout instead of detecting it by its keys.
     pub layout: Option<CalibrationLayout>,
     /// The camera's image size, for layouts that do not store it (scan3d-capture, OpenCV's
@@ -203,7 +203,7 @@ pub(crate) fn unknown_layout(doc: &Document) -> CameraError {
 pub(crate) fn read_document(
     doc: &Document,
     layout: CalibrationLayout,
-    options: &LoadOptions,
+    options: &LoadConfig,
 ) -> Result<Calibration, CameraError> {
     refuse_fisheye(doc)?;
     let calibration = match layout {
@@ -226,7 +226,7 @@ pub(crate) fn read_document(
 pub(crate) fn read_stereo_pair(
     intrinsics: &Document,
     extrinsics: Option<&Document>,
-    options: &LoadOptions,
+    options: &LoadConfig,
 ) -> Result<Calibration, CameraError> {
     refuse_fisheye(intrinsics)?;
     let calibration = opencv_stereo::read(intrinsics, extrinsics, options)?;
@@ -401,7 +401,7 @@ fn resolve_size(
 fn size_hint(layout: CalibrationLayout, device: &str, option: &str, flag: &str) -> String {
     format!(
         "the {} layout does not store the {device}'s image size: give it \
-         (LoadOptions::{option}, or slscan {flag} WxH)",
+         (LoadConfig::{option}, or slscan {flag} WxH)",
         layout.name()
     )
 }

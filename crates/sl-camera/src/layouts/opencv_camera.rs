@@ -8,9 +8,9 @@ use super::{
     size_from_keys, size_item,
 };
 use crate::filestorage::{Document, Item};
-use crate::{Calibration, CameraError, LoadOptions};
+use crate::{Calibration, CameraError, LoadConfig};
 
-pub(super) fn read(doc: &Document, options: &LoadOptions) -> Result<Calibration, CameraError> {
+pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, CameraError> {
     let stored = size_from_keys(doc, "image_width", "image_height")?;
     let size = resolve_size(
         doc,

@@ -15,7 +15,7 @@ use super::{
     size_from_keys, size_hint, t_cam_proj_from,
 };
 use crate::filestorage::Document;
-use crate::{Calibration, CameraError, LoadOptions};
+use crate::{Calibration, CameraError, LoadConfig};
 
 const LAYOUT: CalibrationLayout = CalibrationLayout::OpenCvStereo;
 
@@ -57,7 +57,7 @@ pub(crate) fn intrinsics_sibling(path: &Path) -> PathBuf {
 pub(super) fn read(
     intrinsics: &Document,
     extrinsics: Option<&Document>,
-    options: &LoadOptions,
+    options: &LoadConfig,
 ) -> Result<Calibration, CameraError> {
     if !intrinsics.has("M1") {
         return Err(intrinsics.missing(

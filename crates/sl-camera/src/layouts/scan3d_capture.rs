@@ -10,11 +10,11 @@ use super::{
     size_from_keys, size_hint, t_cam_proj_from,
 };
 use crate::filestorage::{Document, Item};
-use crate::{Calibration, CameraError, LoadOptions};
+use crate::{Calibration, CameraError, LoadConfig};
 
 const LAYOUT: CalibrationLayout = CalibrationLayout::Scan3dCapture;
 
-pub(super) fn read(doc: &Document, options: &LoadOptions) -> Result<Calibration, CameraError> {
+pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, CameraError> {
     let stored = size_from_keys(doc, CAMERA_SIZE_KEYS.0, CAMERA_SIZE_KEYS.1)?;
     let size = resolve_size(
         doc,

@@ -10,7 +10,7 @@ use super::{
     push_size_extra, resolve_size, rms_from, rt_items, size_from_keys, size_hint, t_cam_proj_from,
 };
 use crate::filestorage::{Document, Item};
-use crate::{Calibration, CameraError, ImageSize, LoadOptions};
+use crate::{Calibration, CameraError, ImageSize, LoadConfig};
 
 const LAYOUT: CalibrationLayout = CalibrationLayout::SlMaster;
 
@@ -41,7 +41,7 @@ fn size_of_s(doc: &Document) -> Result<Option<(ImageSize, usize)>, CameraError> 
     }
 }
 
-pub(super) fn read(doc: &Document, options: &LoadOptions) -> Result<Calibration, CameraError> {
+pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, CameraError> {
     let size = resolve_size(
         doc,
         size_of_s(doc)?,

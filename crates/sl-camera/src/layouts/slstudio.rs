@@ -7,11 +7,11 @@ use super::{
     rt_items, size_from_keys, size_hint, size_item, t_cam_proj_from,
 };
 use crate::filestorage::{Document, Item};
-use crate::{Calibration, CameraError, LoadOptions};
+use crate::{Calibration, CameraError, LoadConfig};
 
 const LAYOUT: CalibrationLayout = CalibrationLayout::SlStudio;
 
-pub(super) fn read(doc: &Document, options: &LoadOptions) -> Result<Calibration, CameraError> {
+pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, CameraError> {
     let stored = size_from_keys(doc, "frameWidth", "frameHeight")?;
     let size = resolve_size(
         doc,

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
 use sl_camera::{
-    Calibration, CalibrationLayout, CameraModel, Distortion, ImageSize, Intrinsics, LoadOptions,
+    Calibration, CalibrationLayout, CameraModel, Distortion, ImageSize, Intrinsics, LoadConfig,
     Metadata, RmsErrors, TurntableAxis,
 };
 
@@ -40,11 +40,11 @@ fn size(v: &serde_json::Value) -> ImageSize {
 }
 
 /// The sizes the generator's rig has and the files (but SLMaster's `S`) do not store.
-fn sizes(truth: &serde_json::Value) -> LoadOptions {
-    LoadOptions {
+fn sizes(truth: &serde_json::Value) -> LoadConfig {
+    LoadConfig {
         camera_size: Some(size(&truth["camera_size"])),
         projector_size: Some(size(&truth["projector_size"])),
-        ..LoadOptions::default()
+        ..LoadConfig::default()
     }
 }
 
@@ -109,9 +109,9 @@ fn scan3d_capture_calibration_yml() {
         e.contains("calibration.yml") && e.contains("camera_width") && e.contains("--camera-size"),
         "{e}"
     );
-    let only_camera = LoadOptions {
+    let only_camera = LoadConfig {
         camera_size: Some(ImageSize::new(1280, 1024)),
-        ..LoadOptions::default()
+        ..LoadConfig::default()
     };
     let e = Calibration::load_with(&path, &only_camera)
         .unwrap_err()
@@ -124,16 +124,16 @@ fn slmaster_cali_info_yml() {
     let truth = truth();
     let path = data("slmaster/caliInfo.yml");
     // S holds the camera size; the projector's is not in the file.
-    let options = LoadOptions {
+    let options = LoadConfig {
         projector_size: Some(size(&truth["projector_size"])),
-        ..LoadOptions::default()
+        ..LoadConfig::default()
     };
     let loaded = Calibration::load_with(&path, &options).unwrap();
     assert_eq!(loaded.layout, CalibrationLayout::SlMaster);
     check_rig(&loaded.calibration, &truth, "d5", "SLMaster");
     assert_eq!(loaded.calibration.rms, RmsErrors::default());
     // A camera size in the options that contradicts S is an error naming S.
-    let wrong = LoadOptions {
+    let wrong = LoadConfig {
         camera_size: Some(ImageSize::new(640, 480)),
         ..options
     };
@@ -201,7 +201,7 @@ fn layouts_are_detected_by_their_keys() {
             CalibrationLayout::OpenCvCamera,
         ),
     ] {
-        let loaded = Calibration::load_with(fixtures.join(file), &LoadOptions::default()).unwrap();
+        let loaded = Calibration::load_with(fixtures.join(file), &LoadConfig::default()).unwrap();
         assert_eq!(loaded.layout, layout, "{file}");
     }
     let e = Calibration::from_opencv_yaml("%YAML:1.0\nfoo: 1\n", "odd.yml")
@@ -311,7 +311,7 @@ fn every_layout_round_trips() {
                 1
             };
             assert_eq!(files.len(), want_files, "{layout}: {files:?}");
-            let loaded = Calibration::load_with(&path, &LoadOptions::default()).unwrap();
+            let loaded = Calibration::load_with(&path, &LoadConfig::default()).unwrap();
             assert_eq!(loaded.layout, layout, "{layout} .{ext}");
             assert_same(calib, &loaded.calibration, &format!("{layout} .{ext}"));
         }
@@ -320,7 +320,7 @@ fn every_layout_round_trips() {
     for layout in [CalibrationLayout::SlMaster, CalibrationLayout::SlStudio] {
         let path = dir.path().join(format!("alone_{layout}.yml"));
         camera_only.save_as(&path, layout).unwrap();
-        let loaded = Calibration::load_with(&path, &LoadOptions::default()).unwrap();
+        let loaded = Calibration::load_with(&path, &LoadConfig::default()).unwrap();
         assert_eq!(loaded.layout, layout);
         assert_same(&camera_only, &loaded.calibration, layout.name());
     }
@@ -426,7 +426,7 @@ fn real_files_under_sl_data() {
         );
     }
     for path in found {
-        let mut options = LoadOptions::default();
+        let mut options = LoadConfig::default();
         let sizes = path.with_file_name("sizes.json");
         if sizes.is_file() {
             let v: serde_json::Value =
