@@ -310,7 +310,7 @@ pub fn write_mesh_pictures(
     Ok(html)
 }
 
-/// What [`MeshChain::write_outputs`] wrote and measured.
+/// What [`MeshChain::write_outputs`](crate::MeshChain::write_outputs) wrote and measured.
 #[derive(Debug, Clone)]
 pub struct MeshOutputs {
     /// The mesh as PLY.
