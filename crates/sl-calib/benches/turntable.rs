@@ -18,10 +18,10 @@ fn bench(c: &mut Criterion) {
     let mut images = Vec::new();
     for (k, m) in (-3..=3).map(|k| f64::from(k) * 15.0).enumerate() {
         let cap = capture_board_on_table(&rig, &board, m, None, k as u64).unwrap();
-        let img = cap.white.into_gray8().unwrap();
+        let img = cap.white.into_frame8().unwrap();
         images.push((m, img));
     }
-    let detect = |(m, img): &(f64, image::GrayImage)| {
+    let detect = |(m, img): &(f64, sl_calib::sl_codec::Frame<u8>)| {
         TurntableView::detect(
             img,
             &format!("angle {m}"),

@@ -143,12 +143,12 @@ fn main() {
             let set = CaptureSet::from_frames(manifest.clone(), Frames::U8(frames)).unwrap();
             maps.push(decode(&set, &DecodeConfig::default()).unwrap());
         }
-        whites.push((format!("pose {k}"), cap.white.into_gray8().unwrap()));
+        whites.push((format!("pose {k}"), cap.white.into_frame8().unwrap()));
         truths.push(cap.board);
     }
     for (k, &a) in session.turntable_angles_deg.iter().enumerate() {
         let cap = captures.on_table(k, None).unwrap();
-        whites.push((format!("table {a:+.0}"), cap.white.into_gray8().unwrap()));
+        whites.push((format!("table {a:+.0}"), cap.white.into_frame8().unwrap()));
         truths.push(cap.board);
     }
 

@@ -7,12 +7,13 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test helpers: a failure is the test failing
 
 use nalgebra::{Point2, Vector2};
+use sl_calib::sl_codec::Frame;
 use sl_calib::{BoardSize, CornerRefiner, DetectorConfig, detect_checkerboard};
 use sl_sim::{CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig};
 
 /// The white frames of `slscan scan`'s calibration stage (seed 0: 12 hand-held poses, then
 /// the board on the turntable at −45° to 45° in 15° steps) with their true corner pixels.
-fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>>)> {
+fn scan_calibration_captures() -> Vec<(String, Frame<u8>, Vec<Point2<f64>>)> {
     let mut config = RigConfig::default();
     config.render.seed = 0;
     let session = CalibrationSession::with_poses(12, 0);
@@ -24,7 +25,7 @@ fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>
         let cap = captures.hand_held(k, None).unwrap();
         out.push((
             format!("pose {k}"),
-            cap.white.into_gray8().unwrap(),
+            cap.white.into_frame8().unwrap(),
             truth(&cap.board),
         ));
     }
@@ -32,7 +33,7 @@ fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>
         let cap = captures.on_table(k, None).unwrap();
         out.push((
             format!("table {angle}"),
-            cap.white.into_gray8().unwrap(),
+            cap.white.into_frame8().unwrap(),
             truth(&cap.board),
         ));
     }
@@ -41,7 +42,7 @@ fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>
 
 /// Mean error vector (px) and RMS error (px) of `config`'s corners over all captures.
 fn errors(
-    captures: &[(String, image::GrayImage, Vec<Point2<f64>>)],
+    captures: &[(String, Frame<u8>, Vec<Point2<f64>>)],
     config: &DetectorConfig,
 ) -> (Vector2<f64>, f64) {
     let mut sum = Vector2::zeros();

@@ -78,7 +78,7 @@ pub(crate) fn render_with(
         let map = decode(&set, &DecodeConfig::default()).unwrap();
         views.push(ProcamView {
             name: format!("pose {k}"),
-            lit: cap.white.into_gray8().unwrap(),
+            lit: cap.white.into_frame8().unwrap(),
             map,
         });
         truth.push(cap.board);
