@@ -27,7 +27,7 @@ use std::time::Duration;
 use nalgebra::Point2;
 use serde::Serialize;
 use sl_calib::sl_camera::{CameraModel, ImageSize};
-use sl_calib::sl_codec::{BitDepth, Manifest};
+use sl_calib::sl_codec::{BitDepth, Frame, Manifest};
 use sl_calib::{
     BoardCorners, BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera,
     detect_checkerboard,
@@ -341,7 +341,7 @@ impl CalibrationCapture {
             white,
         };
         let max_value = f64::from(check.white.pixels.max_value());
-        let grey = match to_gray8(&check.white) {
+        let grey = match to_frame8(&check.white) {
             Ok(g) => g,
             Err(e) => {
                 check.verdict = Err(Refusal::BoardNotFound {
@@ -709,10 +709,10 @@ impl CalibrationCapture {
     }
 }
 
-/// A camera frame as an 8-bit image for the detector (16-bit frames keep their high byte).
-fn to_gray8(img: &GreyImage) -> Result<sl_calib::image::GrayImage, CaptureError> {
+/// A camera frame as an 8-bit frame for the detector (16-bit frames keep their high byte).
+fn to_frame8(img: &GreyImage) -> Result<Frame<u8>, CaptureError> {
     img.clone()
-        .into_gray8()
+        .into_frame8()
         .map_err(|e| CaptureError::param("frame", e.to_string()))
 }
 

@@ -49,8 +49,8 @@ pub struct CalibrationSummary {
     pub predicted_error: Option<sl_calib::PredictedError>,
 }
 
-fn grey_image(img: GreyImage, what: &str) -> Result<sl_calib::image::GrayImage, ScanError> {
-    img.into_gray8()
+fn grey_image(img: GreyImage, what: &str) -> Result<sl_codec::Frame<u8>, ScanError> {
+    img.into_frame8()
         .map_err(|e| stage_err("calibrate", format!("{what}: {e}")))
 }
 

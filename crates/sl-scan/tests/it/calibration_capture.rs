@@ -136,7 +136,7 @@ fn each_refusal_writes_nothing_and_says_why() {
     mover.next_pose().unwrap();
     let fresh = s.look(&mut camera, &mut projector).unwrap();
     assert!(fresh.verdict.is_ok(), "{}", fresh.summary());
-    let g = sl_calib::image::GrayImage::from_raw(
+    let g = image::GrayImage::from_raw(
         fresh.white.width,
         fresh.white.height,
         match &fresh.white.pixels {
@@ -145,7 +145,7 @@ fn each_refusal_writes_nothing_and_says_why() {
         },
     )
     .unwrap();
-    let blurred = sl_calib::image::imageops::blur(&g, 4.0);
+    let blurred = image::imageops::blur(&g, 4.0);
     let blurred = GreyImage::new(g.width(), g.height(), Pixels::U8(blurred.into_raw())).unwrap();
     let check = s.check(blurred);
     match &check.verdict {
