@@ -552,7 +552,7 @@ mod tests {
         let mut converted = 0;
         for f in crate::common::files_below(&session) {
             if f.extension().is_some_and(|e| e == "png") {
-                let img = sl_calib::image::open(&f).unwrap();
+                let img = image::open(&f).unwrap();
                 img.save(f.with_extension("bmp")).unwrap();
                 std::fs::remove_file(&f).unwrap();
                 converted += 1;
@@ -716,9 +716,8 @@ mod tests {
         let images = tmp.path().join("blank");
         std::fs::create_dir_all(&images).unwrap();
         for k in 0..3 {
-            let img =
-                sl_calib::image::GrayImage::from_pixel(160, 120, sl_calib::image::Luma([128]));
-            img.save(images.join(format!("blank_{k}.png"))).unwrap();
+            let img = sl_codec::Frame::filled(160, 120, 128).unwrap();
+            sl_codec::write_png_grey8(&images.join(format!("blank_{k}.png")), &img).unwrap();
         }
         let out = tmp.path().join("out");
         let err = slscan(&[

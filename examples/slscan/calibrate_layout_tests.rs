@@ -11,8 +11,8 @@
 use std::path::{Path, PathBuf};
 
 use sl_calib::CalibError;
-use sl_calib::image::{GrayImage, Luma};
 use sl_calib::sl_camera::Calibration;
+use sl_codec::{Frame, write_png_grey8};
 use sl_scan::LayoutError;
 
 use super::tests::{simulate_with, slscan};
@@ -58,17 +58,15 @@ fn kamino_like(rendered: &Path, session: &Path, layout_dir: &Path) -> PathBuf {
             }
         }
         let white = sl_calib::load_grey(src.join("white.png")).unwrap();
-        let (w, h) = white.dimensions();
+        let (w, h) = (white.width(), white.height());
         if k == BLANK_POSE {
-            GrayImage::from_pixel(w, h, Luma([128]))
-                .save(dst.join("img_white.png"))
-                .unwrap();
+            let blank = Frame::filled(w, h, 128).unwrap();
+            write_png_grey8(&dst.join("img_white.png"), &blank).unwrap();
         } else {
-            white.save(dst.join("img_white.png")).unwrap();
+            write_png_grey8(&dst.join("img_white.png"), &white).unwrap();
         }
-        GrayImage::from_pixel(w, h, Luma([0]))
-            .save(dst.join("img_black.png"))
-            .unwrap();
+        let black = Frame::filled(w, h, 0).unwrap();
+        write_png_grey8(&dst.join("img_black.png"), &black).unwrap();
         manifest = Some(m);
     }
     std::fs::write(
@@ -255,9 +253,8 @@ fn too_few_poses_left_is_an_error_naming_the_skipped_ones() {
             .chain(["white.png".to_owned()].iter())
             .enumerate()
         {
-            GrayImage::from_pixel(64, 48, Luma([40 + i as u8]))
-                .save(dir.join(name))
-                .unwrap();
+            let frame = Frame::filled(64, 48, 40 + i as u8).unwrap();
+            write_png_grey8(&dir.join(name), &frame).unwrap();
         }
     }
     let manifest = serde_json::json!({

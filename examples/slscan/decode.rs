@@ -120,10 +120,10 @@ mod tests {
         ])
         .unwrap();
         // The "camera" saw nothing: every frame black.
-        let black = sl_calib::image::GrayImage::new(64, 32);
+        let black = sl_codec::Frame::filled(64, 32, 0).unwrap();
         for f in crate::common::files_below(&capture) {
             if f.extension().is_some_and(|e| e == "png") {
-                black.save(&f).unwrap();
+                sl_codec::write_png_grey8(&f, &black).unwrap();
             }
         }
         let out = tmp.path().join("out");

@@ -11,24 +11,25 @@
 mod board_render;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use sl_calib::sl_codec::Frame;
 use sl_calib::{
     BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera, detect_checkerboard,
 };
 
-fn image() -> Option<image::GrayImage> {
+fn image() -> Option<Frame<u8>> {
     let dir = std::env::var_os("SL_DATA")?;
     sl_calib::load_grey(std::path::Path::new(&dir).join("chessboard/left02.jpg")).ok()
 }
 
-fn synthetic() -> image::GrayImage {
-    image::GrayImage::from_fn(640, 480, |x, y| {
-        let (i, j) = (
-            (x as i32 - 120).div_euclid(40),
-            (y as i32 - 100).div_euclid(40),
-        );
+fn synthetic() -> Frame<u8> {
+    let (w, h) = (640, 480);
+    let pixels = (0..w * h).map(|k| {
+        let (x, y) = ((k % w) as i32, (k / w) as i32);
+        let (i, j) = ((x - 120).div_euclid(40), (y - 100).div_euclid(40));
         let inside = (0..10).contains(&i) && (0..7).contains(&j);
-        image::Luma([if inside && (i + j) % 2 == 0 { 30 } else { 220 }])
-    })
+        if inside && (i + j) % 2 == 0 { 30 } else { 220 }
+    });
+    Frame::new(w, h, pixels.collect()).unwrap()
 }
 
 fn views() -> Option<Vec<CalibrationView>> {
@@ -74,7 +75,7 @@ fn bench(c: &mut Criterion) {
     c.bench_function("detect_checkerboard 2592x1944 13x9 blur 2", |b| {
         b.iter(|| detect_checkerboard(&big, BoardSize::new(13, 9), &cfg, "bench").is_ok())
     });
-    let blank = image::GrayImage::from_pixel(640, 480, image::Luma([128]));
+    let blank = Frame::filled(640, 480, 128).unwrap();
     c.bench_function("detect_checkerboard 640x480 no board", |b| {
         b.iter(|| detect_checkerboard(&blank, BoardSize::new(9, 6), &cfg, "bench").is_err())
     });

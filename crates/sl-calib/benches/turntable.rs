@@ -18,10 +18,10 @@ fn bench(c: &mut Criterion) {
     let mut images = Vec::new();
     for (k, m) in (-3..=3).map(|k| f64::from(k) * 15.0).enumerate() {
         let cap = capture_board_on_table(&rig, &board, m, None, k as u64).unwrap();
-        let img = gray8(cap.white).unwrap();
+        let img = cap.white.into_u8();
         images.push((m, img));
     }
-    let detect = |(m, img): &(f64, image::GrayImage)| {
+    let detect = |(m, img): &(f64, sl_calib::sl_codec::Frame<u8>)| {
         TurntableView::detect(
             img,
             &format!("angle {m}"),
@@ -47,10 +47,3 @@ fn bench(c: &mut Criterion) {
 
 criterion_group!(benches, bench);
 criterion_main!(benches);
-
-/// A simulated frame as the 8-bit image the detector takes (16-bit pixels by `round(v / 257)`,
-/// `GreyImage::into_u8`); `None` only for an image beyond `u32::MAX` pixels a side.
-fn gray8(img: sl_sim::GreyImage) -> Option<sl_calib::image::GrayImage> {
-    let size = img.size();
-    sl_calib::image::GrayImage::from_raw(size.width, size.height, img.into_u8().into_data())
-}

@@ -240,7 +240,8 @@ fn main() {
             };
             let board = render(&spec);
             let file = format!("c{ci}_{k}.png");
-            board.image.save(out.join(&file)).expect("write the image");
+            sl_calib::sl_codec::write_png_grey8(&out.join(&file), &board.image)
+                .expect("write the image");
             let size = BoardSize::new(spec.cols, spec.rows);
             let mut best = f64::INFINITY;
             let mut found = detect_checkerboard(&board.image, size, &cfg, &file);

@@ -139,12 +139,12 @@ fn main() {
             let set = CaptureSet::from_frames(manifest.clone(), Frames::U8(frames)).unwrap();
             maps.push(decode(&set, &DecodeConfig::default()).unwrap());
         }
-        whites.push((format!("pose {k}"), gray8(cap.white).unwrap()));
+        whites.push((format!("pose {k}"), cap.white.into_u8()));
         truths.push(cap.board);
     }
     for (k, &a) in session.turntable_angles_deg.iter().enumerate() {
         let cap = captures.on_table(k, None).unwrap();
-        whites.push((format!("table {a:+.0}"), gray8(cap.white).unwrap()));
+        whites.push((format!("table {a:+.0}"), cap.white.into_u8()));
         truths.push(cap.board);
     }
 
@@ -383,11 +383,4 @@ fn shape_error_mm(pairs: &[(nalgebra::Point3<f64>, nalgebra::Point3<f64>)]) -> f
         .map(|(a, b)| (r * (a.coords - ca) + cb - b.coords).norm_squared())
         .sum();
     (sq / n).sqrt()
-}
-
-/// A simulated frame as the 8-bit image the detector takes (16-bit pixels by `round(v / 257)`,
-/// `GreyImage::into_u8`); `None` only for an image beyond `u32::MAX` pixels a side.
-fn gray8(img: sl_sim::GreyImage) -> Option<sl_calib::image::GrayImage> {
-    let size = img.size();
-    sl_calib::image::GrayImage::from_raw(size.width, size.height, img.into_u8().into_data())
 }

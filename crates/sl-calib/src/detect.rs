@@ -5,6 +5,7 @@ use std::collections::{HashMap, VecDeque};
 
 use nalgebra::{Point2, Vector2};
 use serde::{Deserialize, Serialize};
+use sl_codec::Frame;
 
 use crate::CalibError;
 use crate::grey::GreyF32;
@@ -296,19 +297,23 @@ struct Candidate {
 ///
 /// ```
 /// use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
+/// use sl_calib::sl_codec::Frame;
 /// // A synthetic 4x3 board of 20 px squares.
-/// let img = image::GrayImage::from_fn(160, 140, |x, y| {
-///     let (i, j) = ((x as i32 - 30).div_euclid(20), (y as i32 - 30).div_euclid(20));
+/// let (w, h) = (160, 140);
+/// let pixels = (0..w * h).map(|k| {
+///     let (x, y) = ((k % w) as i32, (k / w) as i32);
+///     let (i, j) = ((x - 30).div_euclid(20), (y - 30).div_euclid(20));
 ///     let inside = (0..5).contains(&i) && (0..4).contains(&j);
-///     image::Luma([if inside && (i + j) % 2 == 0 { 30 } else { 220 }])
+///     if inside && (i + j) % 2 == 0 { 30 } else { 220 }
 /// });
+/// let img = Frame::new(w, h, pixels.collect())?;
 /// let found = detect_checkerboard(&img, BoardSize::new(4, 3), &DetectorConfig::default(), "synthetic")?;
 /// // The first inner corner sits between the squares at (30..50, 30..50) and its neighbours.
 /// assert!((found.corners[0].x - 49.5).abs() < 0.05 && (found.corners[0].y - 49.5).abs() < 0.05);
 /// # Ok::<(), sl_calib::CalibError>(())
 /// ```
 pub fn detect_checkerboard(
-    image: &image::GrayImage,
+    image: &Frame<u8>,
     size: BoardSize,
     config: &DetectorConfig,
     label: &str,
@@ -927,9 +932,9 @@ mod tests {
     /// A 9x6 board of `square` px squares, origin square's top-left at `(ox, oy)`, each
     /// pixel the exact area average of the board over its square (perfect box-filter
     /// rendering), so the corners sit at exact sub-pixel positions.
-    fn board(w: u32, h: u32, ox: f64, oy: f64, square: f64) -> image::GrayImage {
-        image::GrayImage::from_fn(w, h, |x, y| {
-            let (x0, y0) = (f64::from(x) - 0.5, f64::from(y) - 0.5);
+    fn board(w: usize, h: usize, ox: f64, oy: f64, square: f64) -> Frame<u8> {
+        let pixels = (0..w * h).map(|k| {
+            let (x0, y0) = ((k % w) as f64 - 0.5, (k / w) as f64 - 0.5);
             let cell = |v: f64, o: f64| ((v - o) / square).floor() as i64;
             let mut dark_area = 0.0f64;
             for j in cell(y0, oy)..=cell(y0 + 1.0, oy) {
@@ -944,8 +949,9 @@ mod tests {
                     dark_area += ovx * ovy;
                 }
             }
-            image::Luma([(220.0 - 190.0 * dark_area).round() as u8])
-        })
+            (220.0 - 190.0 * dark_area).round() as u8
+        });
+        Frame::new(w, h, pixels.collect()).unwrap()
     }
 
     #[test]
@@ -970,7 +976,7 @@ mod tests {
         let cfg = DetectorConfig::default();
         let a = detect_checkerboard(&img, BoardSize::new(9, 6), &cfg, "a").unwrap();
         // The same board turned by 180° in the image: corner k must be the same board corner.
-        let rotated = image::imageops::rotate180(&img);
+        let rotated = Frame::new(480, 360, img.data().iter().rev().copied().collect()).unwrap();
         let b = detect_checkerboard(&rotated, BoardSize::new(9, 6), &cfg, "b").unwrap();
         for (p, q) in a.corners.iter().zip(&b.corners) {
             // Rotation by 180° about the image centre: (x, y) -> (w - 1 - x, h - 1 - y).
@@ -981,7 +987,7 @@ mod tests {
 
     #[test]
     fn no_board_is_a_clear_error() {
-        let img = image::GrayImage::from_pixel(640, 480, image::Luma([128]));
+        let img = Frame::filled(640, 480, 128).unwrap();
         let err = detect_checkerboard(
             &img,
             BoardSize::new(9, 6),

@@ -5,14 +5,6 @@ use sl_camera::CameraError;
 /// Everything that can go wrong while detecting a board or calibrating.
 #[derive(Debug, thiserror::Error)]
 pub enum CalibError {
-    /// An image file could not be read or decoded.
-    #[error("image {file}: {source}")]
-    Image {
-        /// The file at fault.
-        file: String,
-        /// What the decoder said.
-        source: image::ImageError,
-    },
     /// The checkerboard was not found in an image; `reason` says why.
     #[error("{image}: checkerboard {cols}x{rows} not found: {reason}")]
     BoardNotFound {
@@ -98,8 +90,8 @@ pub enum CalibError {
     /// An error of the camera model (e.g. an estimate outside the model's valid range).
     #[error(transparent)]
     Camera(#[from] CameraError),
-    /// An image file that `sl-codec`'s reader refused for another reason than decoding (an
-    /// empty image); the message names the file.
+    /// An image file that `sl-codec`'s reader could not read or decode, or found empty
+    /// ([`load_grey`](crate::load_grey)); the message names the file.
     #[error(transparent)]
     Codec(#[from] sl_codec::CodecError),
 }

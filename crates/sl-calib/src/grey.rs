@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use rayon::prelude::*;
+use sl_codec::Frame;
 
 use crate::CalibError;
 
@@ -13,25 +14,9 @@ use crate::CalibError;
 /// OpenCV's.
 ///
 /// # Errors
-/// [`CalibError::Image`] naming the file when it cannot be read or decoded, or is empty.
-pub fn load_grey(path: impl AsRef<Path>) -> Result<image::GrayImage, CalibError> {
-    let path = path.as_ref();
-    let frame = sl_codec::read_grey8(path).map_err(|e| match e {
-        sl_codec::CodecError::Image { source, .. } => CalibError::Image {
-            file: path.display().to_string(),
-            source,
-        },
-        other => CalibError::Codec(other),
-    })?;
-    // The frame was decoded from an image of u32 dimensions, so these conversions hold.
-    let empty = || {
-        CalibError::Codec(sl_codec::CodecError::EmptyImage {
-            path: path.to_path_buf(),
-        })
-    };
-    let w = u32::try_from(frame.width()).map_err(|_| empty())?;
-    let h = u32::try_from(frame.height()).map_err(|_| empty())?;
-    image::GrayImage::from_raw(w, h, frame.into_data()).ok_or_else(empty)
+/// [`CalibError::Codec`] naming the file when it cannot be read or decoded, or is empty.
+pub fn load_grey(path: impl AsRef<Path>) -> Result<Frame<u8>, CalibError> {
+    Ok(sl_codec::read_grey8(path.as_ref())?)
 }
 
 /// Row-major `f32` grey image; pixel `(x, y)` at `y · width + x`.
@@ -47,11 +32,11 @@ pub(crate) struct GreyF32 {
 const KERNEL_SIGMAS: f32 = 3.0;
 
 impl GreyF32 {
-    pub(crate) fn from_luma(img: &image::GrayImage) -> Self {
+    pub(crate) fn from_luma(img: &Frame<u8>) -> Self {
         Self {
-            width: img.width() as usize,
-            height: img.height() as usize,
-            data: img.as_raw().iter().map(|&v| f32::from(v)).collect(),
+            width: img.width(),
+            height: img.height(),
+            data: img.data().iter().map(|&v| f32::from(v)).collect(),
         }
     }
 

@@ -10,12 +10,16 @@
 //!
 //! ```
 //! use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
+//! use sl_calib::sl_codec::Frame;
 //! // A synthetic 5x4 board of 16 px squares on a white page.
-//! let img = image::GrayImage::from_fn(200, 180, |x, y| {
-//!     let (i, j) = ((x as i32 - 40).div_euclid(16), (y as i32 - 40).div_euclid(16));
+//! let (w, h) = (200, 180);
+//! let pixels = (0..w * h).map(|k| {
+//!     let (x, y) = ((k % w) as i32, (k / w) as i32);
+//!     let (i, j) = ((x - 40).div_euclid(16), (y - 40).div_euclid(16));
 //!     let inside = (0..6).contains(&i) && (0..5).contains(&j);
-//!     image::Luma([if inside && (i + j) % 2 == 0 { 20 } else { 230 }])
+//!     if inside && (i + j) % 2 == 0 { 20 } else { 230 }
 //! });
+//! let img = Frame::new(w, h, pixels.collect())?;
 //! let board = detect_checkerboard(&img, BoardSize::new(5, 4), &DetectorConfig::default(), "page")?;
 //! assert_eq!(board.corners.len(), 20);
 //! // Corner order is fixed by the board: first row first, left to right here.
@@ -73,11 +77,10 @@ pub use zhang::{
     CalibrationView, CameraCalibration, ParameterStdDev, ZhangConfig, calibrate_camera,
 };
 
-/// Re-export of the image crate whose `GrayImage` the detector takes.
-pub use image;
 /// Re-export of `sl-camera`, whose models the calibration produces.
 pub use sl_camera;
-/// Re-export of `sl-codec`, whose decoded maps the projector calibration takes.
+/// Re-export of `sl-codec`, whose grey frames ([`sl_codec::Frame<u8>`]) the detector takes and
+/// whose decoded maps the projector calibration takes.
 pub use sl_codec;
 
 /// The README's example, compiled and run by `cargo test --doc`.

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use image::{GrayImage, Rgb, RgbImage};
+use image::{Rgb, RgbImage};
 use imageproc::drawing::{
     draw_antialiased_line_segment_mut, draw_filled_circle_mut, draw_filled_rect_mut,
     draw_hollow_circle_mut, draw_line_segment_mut, draw_polygon_mut,
@@ -12,6 +12,7 @@ use imageproc::pixelops::interpolate;
 use imageproc::point::Point;
 use imageproc::rect::Rect;
 use nalgebra::{Point2, Vector2};
+use sl_codec::Frame;
 
 use crate::{BoardCorners, CalibError};
 
@@ -146,7 +147,7 @@ fn marker_radius(width: u32, height: u32) -> i32 {
 /// ```
 /// use sl_calib::{BoardCorners, BoardSize, draw_corners};
 /// use nalgebra::Point2;
-/// let img = image::GrayImage::from_pixel(100, 80, image::Luma([128]));
+/// let img = sl_calib::sl_codec::Frame::filled(100, 80, 128)?;
 /// let corners = BoardCorners {
 ///     size: BoardSize::new(2, 2),
 ///     corners: vec![Point2::new(20.0, 20.0), Point2::new(60.0, 20.0),
@@ -154,16 +155,19 @@ fn marker_radius(width: u32, height: u32) -> i32 {
 /// };
 /// let pic = draw_corners(&img, &corners);
 /// assert_eq!(pic.get_pixel(20, 20).0, [255, 0, 0]); // corner 0 in red
+/// # Ok::<(), sl_calib::CalibError>(())
 /// ```
-pub fn draw_corners(image: &GrayImage, corners: &BoardCorners) -> RgbImage {
-    let mut out = RgbImage::from_fn(image.width(), image.height(), |x, y| {
-        let v = image.get_pixel(x, y).0[0];
+pub fn draw_corners(image: &Frame<u8>, corners: &BoardCorners) -> RgbImage {
+    // A side beyond u32 (4·10⁹ px, more than any camera's) is drawn cut at u32::MAX.
+    let side = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    let (w, h) = (side(image.width()), side(image.height()));
+    let mut out = RgbImage::from_fn(w, h, |x, y| {
+        let v = image.get(x as usize, y as usize).unwrap_or(0);
         Rgb([v, v, v])
     });
-    let r = marker_radius(image.width(), image.height());
+    let r = marker_radius(w, h);
     let cols = (corners.size.cols as usize).max(1);
     let colour = |k: usize| PALETTE[(k / cols) % PALETTE.len()];
-    let (w, h) = (image.width(), image.height());
     for (k, pair) in corners.corners.windows(2).enumerate() {
         if let [a, b] = pair
             && let Some((t0, t1)) = clip(a, b, f64::from(w), f64::from(h))

@@ -2,12 +2,11 @@
 //! mapped into the projector by local homographies of the decoded patterns, each device
 //! calibrated by Zhang's method, then everything refined jointly.
 
-use image::GrayImage;
 use nalgebra::{Isometry3, Matrix3, Point2, Point3, Vector2, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use sl_camera::{Calibration, ImageSize, RmsErrors, RvecTvec, isometry_from_rt};
-use sl_codec::CorrespondenceMap;
+use sl_codec::{CorrespondenceMap, Frame};
 
 use crate::predicted::PredictedError;
 use crate::stereo::{StereoOptions, StereoStart, StereoView, refine_stereo};
@@ -24,7 +23,7 @@ pub struct ProcamView {
     /// Name used in messages and reports (e.g. the capture folder).
     pub name: String,
     /// The board under full white projector light (for corner detection).
-    pub lit: GrayImage,
+    pub lit: Frame<u8>,
     /// The decoded pattern sequence: projector column and row per camera pixel, both axes
     /// coded (same size as `lit`).
     pub map: CorrespondenceMap,
@@ -203,11 +202,11 @@ fn validate(views: &[ProcamView], cfg: &ProcamConfig) -> Result<(), CalibError> 
             ),
         ));
     }
-    let first = views.first().map(|v| v.lit.dimensions());
+    let first = views.first().map(|v| (v.lit.width(), v.lit.height()));
     for v in views {
-        let (w, h) = (v.lit.width() as usize, v.lit.height() as usize);
+        let (w, h) = (v.lit.width(), v.lit.height());
         if let Some((fw, fh)) = first
-            && v.lit.dimensions() != (fw, fh)
+            && (w, h) != (fw, fh)
         {
             return Err(CalibError::Frame {
                 frame: v.name.clone(),
@@ -285,11 +284,26 @@ pub fn calibrate_procam(
             Err(e) => return Err(e),
         }
     }
-    let camera_size = views
-        .first()
-        .map(|v| ImageSize::new(v.lit.width(), v.lit.height()))
-        .unwrap_or(ImageSize::new(0, 0));
+    let camera_size = match views.first() {
+        Some(v) => lit_size(v)?,
+        None => ImageSize::new(0, 0),
+    };
     calibrate_from_corners(found, camera_size, cfg, skipped_views)
+}
+
+/// The size of a view's lit image as the camera models' [`ImageSize`].
+///
+/// # Errors
+/// [`CalibError::Frame`] naming the view if a side does not fit the models' `u32`.
+fn lit_size(v: &ProcamView) -> Result<ImageSize, CalibError> {
+    let (w, h) = (v.lit.width(), v.lit.height());
+    match (u32::try_from(w), u32::try_from(h)) {
+        (Ok(w), Ok(h)) => Ok(ImageSize::new(w, h)),
+        _ => Err(CalibError::Frame {
+            frame: v.name.clone(),
+            reason: format!("the lit image is {w}x{h}: a camera image side must fit in u32"),
+        }),
+    }
 }
 
 /// One view whose board was found: its corners in the camera and in the projector.
@@ -683,9 +697,9 @@ mod tests {
 
     #[test]
     fn malformed_views_are_named() {
-        let view = |name: &str, w: u32, mw: usize| ProcamView {
+        let view = |name: &str, w: usize, mw: usize| ProcamView {
             name: name.to_owned(),
-            lit: GrayImage::new(w, 10),
+            lit: Frame::filled(w, 10, 0).unwrap(),
             map: CorrespondenceMap::new(mw, 10),
         };
         let err = calibrate_procam(

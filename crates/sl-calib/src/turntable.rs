@@ -14,6 +14,7 @@ use nalgebra::{
 };
 use serde::{Deserialize, Serialize};
 use sl_camera::{CameraModel, RvecTvec, TurntableAxis, isometry_from_rt, rotation_from_rvec};
+use sl_codec::Frame;
 
 use crate::homography::homography_dlt;
 use crate::lm::{INITIAL_DAMPING, MAX_DAMPING};
@@ -76,7 +77,7 @@ impl TurntableView {
     /// # Errors
     /// [`CalibError::BoardNotFoundAtAngle`] naming the angle and the image (`label`).
     pub fn detect(
-        image: &image::GrayImage,
+        image: &Frame<u8>,
         label: &str,
         motor_angle_deg: f64,
         size: BoardSize,

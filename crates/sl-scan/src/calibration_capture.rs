@@ -369,15 +369,8 @@ impl CalibrationCapture {
             white,
         };
         let max_value = f64::from(check.white.max_value());
-        let grey = match to_gray8(&check.white) {
-            Ok(g) => g,
-            Err(e) => {
-                check.verdict = Err(Refusal::BoardNotFound {
-                    reason: e.to_string(),
-                });
-                return check;
-            }
-        };
+        // 16-bit frames by `round(v / 257)` (`GreyImage::into_u8`), as 16-bit image files are read.
+        let grey = check.white.clone().into_u8();
         let corners = match detect_checkerboard(&grey, size, &self.config.detector, "frame") {
             Ok(c) => c,
             Err(e) => {
@@ -735,20 +728,6 @@ impl CalibrationCapture {
             }
         }
     }
-}
-
-/// A camera frame as an 8-bit image for the detector (16-bit frames by `round(v / 257)`,
-/// [`GreyImage::into_u8`], as 16-bit image files are read).
-fn to_gray8(img: &GreyImage) -> Result<sl_calib::image::GrayImage, CaptureError> {
-    gray8(img.clone()).ok_or_else(|| CaptureError::param("frame", format!("{} frame", img.size())))
-}
-
-/// An image as the 8-bit `image::GrayImage` `sl-calib`'s detector takes: 16-bit pixels by
-/// `round(v / 257)` ([`GreyImage::into_u8`]). `None` only for an image wider or higher than
-/// `u32::MAX` pixels.
-pub(crate) fn gray8(img: GreyImage) -> Option<sl_calib::image::GrayImage> {
-    let size = img.size();
-    sl_calib::image::GrayImage::from_raw(size.width, size.height, img.into_u8().into_data())
 }
 
 #[cfg(test)]

@@ -34,11 +34,10 @@
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
-use sl_calib::image::GrayImage;
 use sl_calib::{CalibError, ProcamView, load_grey};
 use sl_camera::ImageSize;
 use sl_codec::{
-    CaptureSet, CodecError, DecodeConfig, MANIFEST_FILE, Manifest, capture_texture, decode,
+    CaptureSet, CodecError, DecodeConfig, Frame, MANIFEST_FILE, Manifest, capture_texture, decode,
     find_image_file,
 };
 
@@ -504,11 +503,11 @@ impl PoseCapture {
         let (lit, board_image, white_frame) = match &self.white {
             Some(white) => {
                 let lit = load_grey(white)?;
-                if (lit.width() as usize, lit.height() as usize) != (map.width, map.height) {
+                if (lit.width(), lit.height()) != (map.width, map.height) {
                     return Err(LayoutError::ImageSize {
                         file: white.clone(),
-                        width: lit.width(),
-                        height: lit.height(),
+                        width: u32::try_from(lit.width()).unwrap_or(u32::MAX),
+                        height: u32::try_from(lit.height()).unwrap_or(u32::MAX),
                         first: PathBuf::from(set.frame_names.first().cloned().unwrap_or_default()),
                         first_width: u32::try_from(map.width).unwrap_or(u32::MAX),
                         first_height: u32::try_from(map.height).unwrap_or(u32::MAX),
@@ -527,9 +526,7 @@ impl PoseCapture {
                     path: self.folder.clone(),
                     message: format!("texture of {w}x{h} px"),
                 };
-                let w32 = u32::try_from(w).map_err(|_| bad())?;
-                let h32 = u32::try_from(h).map_err(|_| bad())?;
-                let lit = GrayImage::from_raw(w32, h32, texture.to_u8()).ok_or_else(bad)?;
+                let lit = Frame::new(w, h, texture.to_u8()).map_err(|_| bad())?;
                 (lit, texture.source.to_string(), false)
             }
         };
@@ -676,10 +673,9 @@ mod tests {
 
     use std::path::{Path, PathBuf};
 
-    use sl_calib::image::{GrayImage, Luma};
     use sl_codec::{
-        Axis, BitDepth, DecodeConfig, GrayCodeSpec, ImageSize, MANIFEST_FILE, Pattern,
-        PatternSequence,
+        Axis, BitDepth, DecodeConfig, Frame, GrayCodeSpec, ImageSize, MANIFEST_FILE, Pattern,
+        PatternSequence, write_png_grey8,
     };
 
     use super::{CalibrationLayout, LayoutError, MIN_POSES, projector_size};
@@ -704,9 +700,8 @@ mod tests {
             let dir = session.join(format!("capture_{k}"));
             seq.write(&dir, BitDepth::Eight).unwrap();
             std::fs::remove_file(dir.join(MANIFEST_FILE)).unwrap();
-            GrayImage::from_pixel(W, H, Luma([255]))
-                .save(dir.join("bright.png"))
-                .unwrap();
+            let white = Frame::filled(W as usize, H as usize, 255).unwrap();
+            write_png_grey8(&dir.join("bright.png"), &white).unwrap();
         }
         let layout_dir = root.join("layout");
         std::fs::create_dir_all(&layout_dir).unwrap();
@@ -821,9 +816,8 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let (session, layout) = session(tmp.path(), 3);
         let odd = session.join("capture_2/bright.png");
-        GrayImage::from_pixel(W + 1, H, Luma([255]))
-            .save(&odd)
-            .unwrap();
+        let wide = Frame::filled(W as usize + 1, H as usize, 255).unwrap();
+        write_png_grey8(&odd, &wide).unwrap();
         let err = CalibrationLayout::load(&layout)
             .unwrap()
             .poses(&session)

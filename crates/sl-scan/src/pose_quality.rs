@@ -8,6 +8,7 @@ use nalgebra::{Point2, Vector3};
 use serde::{Deserialize, Serialize};
 use sl_calib::sl_camera::{CameraModel, Distortion, ImageSize, Intrinsics};
 use sl_calib::{BoardCorners, CalibrationView, board_pose};
+use sl_codec::Frame;
 
 /// A pixel at or above this fraction of the full scale counts as saturated: the sensor's last
 /// few codes are where its response flattens (and where 8-bit JPEG cameras clip).
@@ -147,16 +148,12 @@ fn inside(quad: &[Point2<f64>; 4], p: &Point2<f64>) -> bool {
 
 /// Fraction of the board's pixels (inside [`board_outline`]) at or above
 /// [`SATURATION_LEVEL`] of `max_value`; 0 when the outline is empty.
-pub fn saturated_fraction(
-    image: &sl_calib::image::GrayImage,
-    max_value: f64,
-    corners: &BoardCorners,
-) -> f64 {
+pub fn saturated_fraction(image: &Frame<u8>, max_value: f64, corners: &BoardCorners) -> f64 {
     let Some(quad) = board_outline(corners) else {
         return 0.0;
     };
-    let (w, h) = image.dimensions();
-    let lo = |v: f64, n: u32| (v.floor().max(0.0) as u32).min(n.saturating_sub(1));
+    let (w, h) = (image.width(), image.height());
+    let lo = |v: f64, n: usize| (v.floor().max(0.0) as usize).min(n.saturating_sub(1));
     let x0 = lo(quad.iter().map(|p| p.x).fold(f64::INFINITY, f64::min), w);
     let x1 = lo(
         quad.iter().map(|p| p.x).fold(f64::NEG_INFINITY, f64::max),
@@ -171,9 +168,9 @@ pub fn saturated_fraction(
     let (mut total, mut saturated) = (0usize, 0usize);
     for y in y0..=y1 {
         for x in x0..=x1 {
-            if inside(&quad, &Point2::new(f64::from(x), f64::from(y))) {
+            if inside(&quad, &Point2::new(x as f64, y as f64)) {
                 total += 1;
-                if f64::from(image.get_pixel(x, y).0[0]) >= level {
+                if f64::from(image.get(x, y).unwrap_or(0)) >= level {
                     saturated += 1;
                 }
             }
@@ -190,13 +187,14 @@ pub fn saturated_fraction(
 /// by the steepest gradient near the corner: about 2 px for a sharp, anti-aliased edge (the
 /// central difference spreads a step over two pixels) and 2.5 σ for an edge blurred by a
 /// Gaussian of σ px (defocus, motion). `None` when no corner has contrast.
-pub fn edge_width_px(image: &sl_calib::image::GrayImage, corners: &BoardCorners) -> Option<f64> {
-    let (w, h) = image.dimensions();
+pub fn edge_width_px(image: &Frame<u8>, corners: &BoardCorners) -> Option<f64> {
+    let (w, h) = (image.width() as i64, image.height() as i64);
     let cols = corners.size.cols as usize;
+    // Clamped to the frame, so `get` always finds the pixel.
     let px = |x: i64, y: i64| -> f64 {
-        let x = x.clamp(0, i64::from(w) - 1) as u32;
-        let y = y.clamp(0, i64::from(h) - 1) as u32;
-        f64::from(image.get_pixel(x, y).0[0])
+        let x = x.clamp(0, w - 1) as usize;
+        let y = y.clamp(0, h - 1) as usize;
+        f64::from(image.get(x, y).unwrap_or(0))
     };
     let mut widths = Vec::with_capacity(corners.corners.len());
     for (k, p) in corners.corners.iter().enumerate() {
@@ -243,26 +241,32 @@ pub fn edge_width_px(image: &sl_calib::image::GrayImage, corners: &BoardCorners)
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use sl_calib::image::{GrayImage, Luma};
     use sl_calib::{BoardSize, DetectorConfig, detect_checkerboard};
 
     /// A 5x4 board of 20 px squares at (40, 40), dark 30, light `light`.
-    fn board(light: u8) -> GrayImage {
-        GrayImage::from_fn(200, 180, |x, y| {
-            let (i, j) = (
-                (x as i32 - 40).div_euclid(20),
-                (y as i32 - 40).div_euclid(20),
-            );
+    fn board(light: u8) -> Frame<u8> {
+        let (w, h) = (200, 180);
+        let pixels = (0..w * h).map(|k| {
+            let (x, y) = ((k % w) as i32, (k / w) as i32);
+            let (i, j) = ((x - 40).div_euclid(20), (y - 40).div_euclid(20));
             let inside = (0..6).contains(&i) && (0..5).contains(&j);
-            Luma([if inside && (i + j) % 2 == 0 {
+            if inside && (i + j) % 2 == 0 {
                 30
             } else {
                 light
-            }])
-        })
+            }
+        });
+        Frame::new(w, h, pixels.collect()).unwrap()
     }
 
-    fn corners(img: &GrayImage) -> BoardCorners {
+    /// `img` blurred by the `image` crate's Gaussian of `sigma` px.
+    fn blur(img: &Frame<u8>, sigma: f32) -> Frame<u8> {
+        let (w, h) = (img.width(), img.height());
+        let g = image::GrayImage::from_raw(w as u32, h as u32, img.data().to_vec()).unwrap();
+        Frame::new(w, h, image::imageops::blur(&g, sigma).into_raw()).unwrap()
+    }
+
+    fn corners(img: &Frame<u8>) -> BoardCorners {
         detect_checkerboard(img, BoardSize::new(5, 4), &DetectorConfig::default(), "t").unwrap()
     }
 
@@ -284,7 +288,7 @@ mod tests {
         let w0 = edge_width_px(&sharp, &c).unwrap();
         assert!((w0 - 2.0).abs() < 0.1, "{w0}");
         // Gaussian blur of sigma 3: about 2.5 sigma.
-        let blurred = sl_calib::image::imageops::blur(&sharp, 3.0);
+        let blurred = blur(&sharp, 3.0);
         let w3 = edge_width_px(&blurred, &c).unwrap();
         assert!(w3 > 6.0 && w3 < 9.0, "{w3}");
     }

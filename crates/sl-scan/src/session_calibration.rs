@@ -21,7 +21,7 @@ use sl_calib::{
     load_grey, residual_plot, save_png,
 };
 use sl_camera::{Calibration, ImageSize};
-use sl_codec::{DecodeConfig, MANIFEST_FILE, Manifest, find_image_file, is_image_file};
+use sl_codec::{DecodeConfig, Frame, MANIFEST_FILE, Manifest, find_image_file, is_image_file};
 
 use crate::error::{ScanError, io};
 use crate::run_report::{RunReport, write_atomically};
@@ -916,7 +916,7 @@ struct Detected {
     /// Index of the image in the input list.
     index: usize,
     name: String,
-    image: sl_calib::image::GrayImage,
+    image: Frame<u8>,
     corners: BoardCorners,
 }
 
@@ -931,7 +931,7 @@ fn detect_all(
 ) -> Result<(Vec<Detected>, Vec<SkippedImage>, ImageSize), ScanError> {
     let mut found = Vec::new();
     let mut skipped = Vec::new();
-    let mut dims: Option<(u32, u32, String)> = None;
+    let mut dims: Option<(usize, usize, String)> = None;
     let detector = cfg.detector();
     report.figure("corners", cfg.corners.name());
     report.stage("read and detect", || -> Result<(), ScanError> {
@@ -940,7 +940,7 @@ fn detect_all(
             let image = load_grey(path)?;
             match &dims {
                 None => dims = Some((image.width(), image.height(), name.clone())),
-                Some((w, h, first)) if (*w, *h) != image.dimensions() => {
+                Some((w, h, first)) if (*w, *h) != (image.width(), image.height()) => {
                     return Err(ScanError::Session {
                         path: path.clone(),
                         reason: format!(
@@ -982,13 +982,19 @@ fn detect_all(
         }
         Ok(())
     })?;
-    let Some((w, h, _)) = dims else {
+    let Some((w, h, first)) = dims else {
         return Err(ScanError::Stage {
             stage: "detect".into(),
             reason: "no images given".into(),
         });
     };
-    Ok((found, skipped, ImageSize::new(w, h)))
+    let (Ok(w32), Ok(h32)) = (u32::try_from(w), u32::try_from(h)) else {
+        return Err(ScanError::Stage {
+            stage: "detect".into(),
+            reason: format!("{first} has {w}x{h} pixels: a camera image side must fit in u32"),
+        });
+    };
+    Ok((found, skipped, ImageSize::new(w32, h32)))
 }
 
 fn skipped_json(skipped: &[SkippedImage]) -> serde_json::Value {

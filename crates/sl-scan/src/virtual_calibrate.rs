@@ -15,7 +15,6 @@ use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frames, ImageSize, decode};
 use sl_rig::GreyImage;
 use sl_sim::{CalibrationCaptures, CalibrationSession, VirtualRig, calibration_sequence};
 
-use crate::error::stage_err;
 use crate::{ScanError, ScanProgress, StageTime, VirtualScanConfig};
 
 /// How the calibration was obtained and how far it is from the rig's truth.
@@ -49,12 +48,6 @@ pub struct CalibrationSummary {
     pub predicted_error: Option<sl_calib::PredictedError>,
 }
 
-fn grey_image(img: GreyImage, what: &str) -> Result<sl_calib::image::GrayImage, ScanError> {
-    let size = img.size();
-    crate::calibration_capture::gray8(img)
-        .ok_or_else(|| stage_err("calibrate", format!("{what}: a {size} image")))
-}
-
 fn frames_u8(images: Vec<GreyImage>) -> Frames {
     Frames::U8(images.into_iter().map(GreyImage::into_u8).collect())
 }
@@ -84,7 +77,7 @@ pub fn calibrate_virtual(
         let set = CaptureSet::from_frames(manifest.clone(), frames_u8(cap.frames))?;
         views.push(ProcamView {
             name: format!("board pose {k}"),
-            lit: grey_image(cap.white, "white")?,
+            lit: cap.white.into_u8(),
             map: decode(&set, &DecodeConfig::default())?,
         });
         progress(ScanProgress {
@@ -108,7 +101,7 @@ pub fn calibrate_virtual(
         let cap = captures.on_table(k, None)?;
         let label = format!("board on the turntable at {angle} degrees");
         table_views.push(TurntableView::detect(
-            &grey_image(cap.white, &label)?,
+            &cap.white.into_u8(),
             &label,
             angle,
             size,

@@ -2,8 +2,9 @@
 //! proportional to the RMS values, residual arrows point where the residuals do.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test helpers: a failure is the test failing
 
-use image::{GrayImage, Luma, Rgb};
+use image::Rgb;
 use nalgebra::{Point2, Vector2};
+use sl_calib::sl_codec::Frame;
 use sl_calib::{
     BAR, BoardCorners, BoardSize, FIRST_CORNER, OUTLIER_BAR, PALETTE, PictureConfig, draw_corners,
     error_bars, residual_plot, save_png,
@@ -24,7 +25,7 @@ fn grid(cols: u32, rows: u32, step: f64, origin: f64) -> BoardCorners {
 
 #[test]
 fn corners_are_drawn_first_in_red_rows_in_palette_order() {
-    let img = GrayImage::from_pixel(320, 240, Luma([128]));
+    let img = Frame::filled(320, 240, 128).unwrap();
     let corners = grid(4, 3, 40.0, 60.0);
     let pic = draw_corners(&img, &corners);
     // Corner 0: the red disc.
@@ -154,7 +155,7 @@ fn absurd_residuals_are_clipped_not_fatal() {
     assert_eq!(*plot.image.get_pixel(390, 100), PALETTE[0]);
     assert_eq!(*plot.image.get_pixel(250, 200), Rgb([255, 255, 255]));
     // Corners far outside the image (a broken detection) are drawn as far as they show.
-    let img = GrayImage::from_pixel(100, 80, Luma([128]));
+    let img = Frame::filled(100, 80, 128).unwrap();
     let wild = BoardCorners {
         size: BoardSize::new(2, 2),
         corners: vec![

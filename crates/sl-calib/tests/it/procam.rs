@@ -10,6 +10,7 @@
 use std::time::Instant;
 
 use procam_render::render;
+use sl_calib::sl_codec::Frame;
 use sl_calib::{
     BoardCorners, BoardSize, CalibError, ProcamConfig, calibrate_procam, projector_corners,
     sl_camera::ImageSize,
@@ -156,7 +157,7 @@ fn rig_calibration_recovers_the_truth() {
 fn unusable_views_are_named() {
     let mut r = render(3, 9);
     // A view without a board.
-    r.views[1].lit = image::GrayImage::from_pixel(1280, 720, image::Luma([128]));
+    r.views[1].lit = Frame::filled(1280, 720, 128).unwrap();
     r.views[1].name = "blank wall".to_owned();
     let err = calibrate_procam(&r.views, &rig_config()).unwrap_err();
     let msg = err.to_string();

@@ -9,6 +9,7 @@ use crate::support::held_out;
 use std::path::{Path, PathBuf};
 
 use sl_calib::sl_camera::ImageSize;
+use sl_calib::sl_codec::Frame;
 use sl_calib::{
     BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera, detect_checkerboard,
     load_grey,
@@ -40,7 +41,7 @@ fn saddle_only() -> DetectorConfig {
 }
 
 /// The white frame (40) of each pose.
-fn white_frames(dir: &Path) -> Vec<(String, image::GrayImage)> {
+fn white_frames(dir: &Path) -> Vec<(String, Frame<u8>)> {
     (0..POSES)
         .map(|k| {
             let path = dir.join(format!("capture_{k}/graycode_40.png"));
@@ -52,7 +53,7 @@ fn white_frames(dir: &Path) -> Vec<(String, image::GrayImage)> {
 /// The mean of the 40 pattern frames (20 Gray-code pairs: every pixel lit in half of them) of
 /// each pose, rounded to 8 bits: the board under the structured light alone, with no white
 /// frame; what `benches/peers/real_corner_rms.py` calls the fringe mean.
-fn fringe_means(dir: &Path) -> Vec<(String, image::GrayImage)> {
+fn fringe_means(dir: &Path) -> Vec<(String, Frame<u8>)> {
     (0..POSES)
         .map(|k| {
             let mut sum: Vec<u32> = Vec::new();
@@ -60,9 +61,9 @@ fn fringe_means(dir: &Path) -> Vec<(String, image::GrayImage)> {
                 let path = dir.join(format!("capture_{k}/graycode_{f:02}.png"));
                 let img = load_grey(&path).unwrap();
                 if sum.is_empty() {
-                    sum = vec![0; img.as_raw().len()];
+                    sum = vec![0; img.data().len()];
                 }
-                for (s, &v) in sum.iter_mut().zip(img.as_raw()) {
+                for (s, &v) in sum.iter_mut().zip(img.data()) {
                     *s += u32::from(v);
                 }
             }
@@ -70,13 +71,13 @@ fn fringe_means(dir: &Path) -> Vec<(String, image::GrayImage)> {
             let mean: Vec<u8> = sum.iter().map(|&s| ((s + 20) / 40) as u8).collect();
             (
                 format!("capture_{k} fringe mean"),
-                image::GrayImage::from_raw(SIZE.width, SIZE.height, mean).unwrap(),
+                Frame::new(SIZE.width as usize, SIZE.height as usize, mean).unwrap(),
             )
         })
         .collect()
 }
 
-fn views(images: &[(String, image::GrayImage)], config: &DetectorConfig) -> Vec<CalibrationView> {
+fn views(images: &[(String, Frame<u8>)], config: &DetectorConfig) -> Vec<CalibrationView> {
     images
         .iter()
         .map(|(label, img)| {
@@ -88,7 +89,7 @@ fn views(images: &[(String, image::GrayImage)], config: &DetectorConfig) -> Vec<
 }
 
 /// (calibration RMS, held-out RMS, held-out RMS per view) of one refiner on one image set.
-fn figures(images: &[(String, image::GrayImage)], config: &DetectorConfig) -> (f64, f64, Vec<f64>) {
+fn figures(images: &[(String, Frame<u8>)], config: &DetectorConfig) -> (f64, f64, Vec<f64>) {
     let v = views(images, config);
     let rms = calibrate_camera(&v, SIZE, &ZhangConfig::default())
         .unwrap()

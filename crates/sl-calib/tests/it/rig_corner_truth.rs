@@ -7,12 +7,16 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test helpers: a failure is the test failing
 
 use nalgebra::{Point2, Vector2};
+use sl_calib::sl_codec::Frame;
 use sl_calib::{BoardSize, CornerRefiner, DetectorConfig, detect_checkerboard};
 use sl_sim::{CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig};
 
+/// A capture's name, its white frame and its true corner pixels.
+type Capture = (String, Frame<u8>, Vec<Point2<f64>>);
+
 /// The white frames of `slscan scan`'s calibration stage (seed 0: 12 hand-held poses, then
 /// the board on the turntable at −45° to 45° in 15° steps) with their true corner pixels.
-fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>>)> {
+fn scan_calibration_captures() -> Vec<Capture> {
     let mut config = RigConfig::default();
     config.render.seed = 0;
     let session = CalibrationSession::with_poses(12, 0);
@@ -22,17 +26,13 @@ fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>
     let mut out = Vec::new();
     for k in 0..captures.poses().len() {
         let cap = captures.hand_held(k, None).unwrap();
-        out.push((
-            format!("pose {k}"),
-            crate::support::gray8(cap.white).unwrap(),
-            truth(&cap.board),
-        ));
+        out.push((format!("pose {k}"), cap.white.into_u8(), truth(&cap.board)));
     }
     for (k, angle) in session.turntable_angles_deg.iter().enumerate() {
         let cap = captures.on_table(k, None).unwrap();
         out.push((
             format!("table {angle}"),
-            crate::support::gray8(cap.white).unwrap(),
+            cap.white.into_u8(),
             truth(&cap.board),
         ));
     }
@@ -41,7 +41,7 @@ fn scan_calibration_captures() -> Vec<(String, image::GrayImage, Vec<Point2<f64>
 
 /// Mean error vector (px) and RMS error (px) of `config`'s corners over all captures.
 fn errors(
-    captures: &[(String, image::GrayImage, Vec<Point2<f64>>)],
+    captures: &[Capture],
     config: &DetectorConfig,
 ) -> (Vector2<f64>, f64) {
     let mut sum = Vector2::zeros();

@@ -7,6 +7,7 @@
 use approx::assert_abs_diff_eq;
 use nalgebra::{Isometry3, Point3, Vector3};
 use sl_calib::sl_camera::{CameraModel, TurntableAxis};
+use sl_calib::sl_codec::Frame;
 use sl_calib::{
     BoardSize, CalibError, CalibrationView, DetectorConfig, PoseAtAngle, TurntableConfig,
     TurntableView, calibrate_turntable, fit_turntable_axis,
@@ -139,7 +140,7 @@ fn too_few_angles_and_too_small_span_are_typed_errors() {
 
 #[test]
 fn a_missing_board_names_the_angle_and_the_image() {
-    let blank = image::GrayImage::from_pixel(320, 240, image::Luma([128]));
+    let blank = Frame::filled(320, 240, 128).unwrap();
     let err = TurntableView::detect(
         &blank,
         "angle_003/white.png",
@@ -165,7 +166,7 @@ fn rendered_board_on_the_turntable_meets_the_targets() {
     let mut views = Vec::new();
     for (k, m) in (-3..=3).map(|k| f64::from(k) * 15.0).enumerate() {
         let cap = capture_board_on_table(&rig, &board, m, None, k as u64).unwrap();
-        let img = crate::support::gray8(cap.white).unwrap();
+        let img = cap.white.into_u8();
         views.push(
             TurntableView::detect(
                 &img,

@@ -3,6 +3,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test helpers: a failure is the test failing
 
 use nalgebra::Point2;
+use sl_calib::sl_codec::Frame;
 use sl_calib::{
     BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera, detect_checkerboard,
 };
@@ -13,7 +14,7 @@ use sl_sim::{CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualR
 const ONE_GREY_LEVEL_E: f64 = 10_000.0 / 255.0;
 
 struct Rendered {
-    images: Vec<image::GrayImage>,
+    images: Vec<Frame<u8>>,
     truth: Vec<Vec<Point2<f64>>>,
     config: RigConfig,
 }
@@ -29,7 +30,7 @@ fn render(count: usize, seed: u64) -> Rendered {
     let mut truth = Vec::new();
     for k in 0..captures.poses().len() {
         let cap = captures.hand_held(k, None).unwrap();
-        images.push(crate::support::gray8(cap.white).unwrap());
+        images.push(cap.white.into_u8());
         truth.push(cap.board.corners_px.iter().map(|c| c.unwrap()).collect());
     }
     Rendered {

@@ -140,7 +140,7 @@ fn each_refusal_writes_nothing_and_says_why() {
     let fresh = s.look(&mut camera, &mut projector).unwrap();
     assert!(fresh.verdict.is_ok(), "{}", fresh.summary());
     let size = fresh.white.size();
-    let g = sl_calib::image::GrayImage::from_raw(
+    let g = image::GrayImage::from_raw(
         size.width,
         size.height,
         match &fresh.white {
@@ -149,7 +149,7 @@ fn each_refusal_writes_nothing_and_says_why() {
         },
     )
     .unwrap();
-    let blurred = sl_calib::image::imageops::blur(&g, 4.0);
+    let blurred = image::imageops::blur(&g, 4.0);
     let blurred = GreyImage::U8(
         Frame::new(g.width() as usize, g.height() as usize, blurred.into_raw()).unwrap(),
     );

@@ -124,7 +124,7 @@ impl RenderSpec {
 /// at index `j · cols + i`), pixel `(0, 0)` being the centre of the top-left pixel.
 pub(crate) struct RenderedBoard {
     /// The image.
-    pub(crate) image: image::GrayImage,
+    pub(crate) image: sl_calib::sl_codec::Frame<u8>,
     /// The true inner corners (px).
     pub(crate) corners: Vec<Point2<f64>>,
 }
@@ -458,9 +458,9 @@ pub(crate) fn render(spec: &RenderSpec) -> RenderedBoard {
             sum.iter().map(|v| (v / 3.0).round()).collect()
         }
     };
-    let image = image::GrayImage::from_raw(
-        spec.width,
-        spec.height,
+    let image = sl_calib::sl_codec::Frame::new(
+        spec.width as usize,
+        spec.height as usize,
         pixels.iter().map(|&v| v as u8).collect(),
     )
     .expect("buffer of width × height");

@@ -7,4 +7,3 @@ pub(crate) mod board_render;
 pub(crate) mod held_out;
 pub(crate) mod procam_render;
 
-pub(crate) use procam_render::gray8;

@@ -74,7 +74,7 @@ pub(crate) fn render_with(
         let map = decode(&set, &DecodeConfig::default()).unwrap();
         views.push(ProcamView {
             name: format!("pose {k}"),
-            lit: gray8(cap.white).unwrap(),
+            lit: cap.white.into_u8(),
             map,
         });
         truth.push(cap.board);
@@ -89,11 +89,4 @@ pub(crate) fn render_with(
         truth,
         config,
     }
-}
-
-/// A simulated frame as the 8-bit image the detector takes (16-bit pixels by `round(v / 257)`,
-/// `GreyImage::into_u8`); `None` only for an image beyond `u32::MAX` pixels a side.
-pub(crate) fn gray8(img: sl_sim::GreyImage) -> Option<sl_calib::image::GrayImage> {
-    let size = img.size();
-    sl_calib::image::GrayImage::from_raw(size.width, size.height, img.into_u8().into_data())
 }
