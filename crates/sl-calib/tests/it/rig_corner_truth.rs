@@ -11,9 +11,12 @@ use sl_calib::sl_codec::Frame;
 use sl_calib::{BoardSize, CornerRefiner, DetectorConfig, detect_checkerboard};
 use sl_sim::{CalibrationCaptures, CalibrationSession, RigConfig, Scene, VirtualRig};
 
+/// A white frame named for messages, with its true corner pixels.
+type Capture = (String, Frame<u8>, Vec<Point2<f64>>);
+
 /// The white frames of `slscan scan`'s calibration stage (seed 0: 12 hand-held poses, then
 /// the board on the turntable at −45° to 45° in 15° steps) with their true corner pixels.
-fn scan_calibration_captures() -> Vec<(String, Frame<u8>, Vec<Point2<f64>>)> {
+fn scan_calibration_captures() -> Vec<Capture> {
     let mut config = RigConfig::default();
     config.render.seed = 0;
     let session = CalibrationSession::with_poses(12, 0);
@@ -41,10 +44,7 @@ fn scan_calibration_captures() -> Vec<(String, Frame<u8>, Vec<Point2<f64>>)> {
 }
 
 /// Mean error vector (px) and RMS error (px) of `config`'s corners over all captures.
-fn errors(
-    captures: &[(String, Frame<u8>, Vec<Point2<f64>>)],
-    config: &DetectorConfig,
-) -> (Vector2<f64>, f64) {
+fn errors(captures: &[Capture], config: &DetectorConfig) -> (Vector2<f64>, f64) {
     let mut sum = Vector2::zeros();
     let mut sq = 0.0;
     let mut n = 0usize;
