@@ -94,6 +94,10 @@ pub enum CalibError {
     /// ([`load_grey`](crate::load_grey)); the message names the file.
     #[error(transparent)]
     Codec(#[from] sl_codec::CodecError),
+    /// An image built from a buffer that does not hold its `width × height` pixels
+    /// (`sl_codec::Frame::new`), or of no pixel.
+    #[error(transparent)]
+    Image(#[from] sl_codec::ImageError),
 }
 
 impl CalibError {
