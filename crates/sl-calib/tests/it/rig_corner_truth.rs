@@ -40,10 +40,7 @@ fn scan_calibration_captures() -> Vec<Capture> {
 }
 
 /// Mean error vector (px) and RMS error (px) of `config`'s corners over all captures.
-fn errors(
-    captures: &[Capture],
-    config: &DetectorConfig,
-) -> (Vector2<f64>, f64) {
+fn errors(captures: &[Capture], config: &DetectorConfig) -> (Vector2<f64>, f64) {
     let mut sum = Vector2::zeros();
     let mut sq = 0.0;
     let mut n = 0usize;

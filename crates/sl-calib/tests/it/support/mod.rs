@@ -6,4 +6,3 @@
 pub(crate) mod board_render;
 pub(crate) mod held_out;
 pub(crate) mod procam_render;
-
