@@ -17,27 +17,15 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use nalgebra::{Point3, Vector3};
 use sl_cloud::{KdIndex, NormalConfig, NormalOrientation, estimate_normals_with_index};
 use sl_icp::{FpfhConfig, GlobalCloud, GlobalConfig, compute_fpfh, register_global_prepared};
 
+#[path = "../tests/it/support/blob.rs"]
+mod blob;
 #[path = "../tests/it/support/bunny.rs"]
 mod bunny;
 
-/// `n` points of a bumpy closed blob about 80 mm across (mm).
-fn blob(n: usize) -> Vec<Point3<f64>> {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let (r, t) = ((1.0 - y * y).sqrt(), golden * i as f64);
-            let d = Vector3::new(r * t.cos(), y, r * t.sin());
-            let bump =
-                6.0 * (3.0 * d.x).sin() * (2.0 * d.y + 0.5).cos() + 5.0 * (4.0 * d.z * d.x).sin();
-            Point3::from(d * (40.0 + bump))
-        })
-        .collect()
-}
+use blob::blob;
 
 fn descriptors(c: &mut Criterion) {
     let mut g = c.benchmark_group("fpfh");

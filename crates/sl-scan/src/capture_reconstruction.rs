@@ -18,6 +18,7 @@ use sl_tri::{
 };
 
 use crate::error::io;
+use crate::progress::timed;
 use crate::{RunReport, ScanError, ScanProgress, StageTime};
 
 /// What [`reconstruct_capture`] does beside the triangulation's own settings.
@@ -75,14 +76,6 @@ pub struct CaptureReconstruction {
     /// Wall time per stage: `read calibration`, `read capture`, `decode`, `precompute rays`,
     /// `triangulate`, `write ply`, `write depth`, `preview`.
     pub stages: Vec<StageTime>,
-}
-
-/// Runs `f` as the stage `name`, recording its wall time in `stages`.
-fn timed<T>(stages: &mut Vec<StageTime>, name: &str, f: impl FnOnce() -> T) -> T {
-    let t = Instant::now();
-    let out = f();
-    stages.push(StageTime::since(name, t));
-    out
 }
 
 /// Writes `path` through `write` into a temporary name beside it, renamed into place: a

@@ -3,8 +3,6 @@
 //! isotropic remeshing, hole filling, removal of small pieces, smoothing and decimation, each
 //! step timed and its figures kept.
 
-use std::time::Instant;
-
 use serde_json::json;
 use sl_cloud::PointCloud;
 use sl_mesh::{
@@ -15,6 +13,7 @@ use sl_mesh::{
     smooth_taubin, trim_by_density,
 };
 
+use crate::progress::timed;
 use crate::{ScanError, StageTime};
 
 /// The orientation check of the normals (`sl_mesh::inconsistent_normal_fraction`): every
@@ -219,13 +218,6 @@ fn step(name: &'static str) -> impl FnOnce(MeshError) -> ScanError {
 /// Milliseconds of the step [`timed`] recorded last.
 fn last_ms(stages: &[StageTime]) -> f64 {
     stages.last().map_or(0.0, |s| s.ms)
-}
-
-fn timed<T>(stages: &mut Vec<StageTime>, name: &str, f: impl FnOnce() -> T) -> T {
-    let t = Instant::now();
-    let out = f();
-    stages.push(StageTime::since(name, t));
-    out
 }
 
 /// Meshes `cloud` (mm, with oriented normals) through the steps of `cfg`: the chain of

@@ -34,3 +34,11 @@ impl StageTime {
         }
     }
 }
+
+/// Runs `f` as the stage `name`, recording its wall time in `stages`.
+pub(crate) fn timed<T>(stages: &mut Vec<StageTime>, name: &str, f: impl FnOnce() -> T) -> T {
+    let t = std::time::Instant::now();
+    let out = f();
+    stages.push(StageTime::since(name, t));
+    out
+}

@@ -3,7 +3,6 @@
 //! the checks of their units) is the caller's.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use nalgebra::Isometry3;
 use serde_json::json;
@@ -13,6 +12,7 @@ use sl_cloud::{
 use sl_icp::{IcpConfig, MergeConfig, Registration, ViewAlignment, align_views, merge_aligned};
 
 use crate::error::io;
+use crate::progress::timed;
 use crate::{
     RunReport, ScanError, ScanProgress, StageTime, alignment_figures, largest_pose_correction_deg,
     write_atomically,
@@ -20,14 +20,6 @@ use crate::{
 
 /// The file `register_and_write` writes the motion into, and the key of its matrix.
 pub const TRANSFORM_FILE: &str = "transform.json";
-
-/// Runs `f` as the stage `name`, recording its wall time in `stages`.
-fn timed<T>(stages: &mut Vec<StageTime>, name: &str, f: impl FnOnce() -> T) -> T {
-    let t = Instant::now();
-    let out = f();
-    stages.push(StageTime::since(name, t));
-    out
-}
 
 /// Writes a shaded picture of `cloud` as `out/preview.png` (through a temporary file renamed
 /// into place) and returns its path.
