@@ -97,7 +97,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("voxel_mm", args.voxel);
     report.figure("normals", aligned.normals().is_some());
     let path = report.write(&out)?;
-    println!(
+    outln!(
         "{}: {} of {} scans placed ({} pairs used of {} tried, {} pruned), {} points",
         ply.display(),
         clouds.len() - a.unplaced.len(),
@@ -107,9 +107,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         a.pruned_edges,
         aligned.len()
     );
-    println!("report: {}", path.display());
+    outln!("report: {}", path.display());
     if aligned.normals().is_none() {
-        println!(
+        outln!(
             "{} has no normals (`slscan mesh` needs them): --normals-towards X,Y,Z estimates \
              them, facing where the scanner stood in each scan's frame",
             ply.display()

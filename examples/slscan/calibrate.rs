@@ -221,7 +221,7 @@ fn run_with(
             );
             let files = result?;
             print_skipped(&files.skipped);
-            println!(
+            outln!(
                 "camera calibrated: RMS {:.4} px over {} views ({} without a board skipped); {}",
                 files.camera.rms,
                 files.camera.view_rms.len(),
@@ -247,7 +247,7 @@ fn run_with(
             )?;
             print_procam_notes(&files);
             let cal = &files.procam;
-            println!(
+            outln!(
                 "camera RMS {:.4} px, projector RMS {:.4} px, stereo RMS {:.4} px over {} views; {}",
                 cal.rms_camera,
                 cal.rms_projector,
@@ -292,7 +292,7 @@ fn run_with(
             let done = calibrate_session(&a.session, layout.as_ref(), &cfg, out, progress)?;
             if let Some(c) = &done.camera {
                 print_skipped(&c.skipped);
-                println!(
+                outln!(
                     "camera: RMS {:.4} px over {} views",
                     c.camera.rms,
                     c.camera.view_rms.len()
@@ -304,7 +304,7 @@ fn run_with(
             }
             match &done.turntable {
                 Some(t) => print_axis(t, out),
-                None => println!(
+                None => outln!(
                     "no turntable folder ({}): {} only; {}. Add the turntable axis with \
                      `slscan calibrate turntable TURNTABLE_FOLDER --calib {} --out DIR`",
                     a.session.join(sl_scan::TURNTABLE_DIR).display(),
@@ -324,7 +324,7 @@ fn run_with(
 
 fn print_skipped(skipped: &[SkippedImage]) {
     for s in skipped {
-        eprintln!("slscan: skipping {}", s.reason);
+        errln!("slscan: skipping {}", s.reason);
     }
 }
 
@@ -332,7 +332,7 @@ fn print_skipped(skipped: &[SkippedImage]) {
 /// poses the calibration skipped.
 fn print_procam_notes(files: &ProcamFiles) {
     if let Some(first) = files.textured.first() {
-        println!(
+        outln!(
             "board images: {} of {} poses have no white frame; their corners are found in the \
              capture's own texture ({first})",
             files.textured.len(),
@@ -342,15 +342,15 @@ fn print_procam_notes(files: &ProcamFiles) {
     for s in &files.procam.skipped_views {
         // The detector's reasons begin with the view's name.
         if s.reason.starts_with(&s.name) {
-            eprintln!("slscan: skipping board pose {}", s.reason);
+            errln!("slscan: skipping board pose {}", s.reason);
         } else {
-            eprintln!("slscan: skipping board pose {}: {}", s.name, s.reason);
+            errln!("slscan: skipping board pose {}: {}", s.name, s.reason);
         }
     }
 }
 
 fn print_procam(cal: &ProcamCalibration) {
-    println!(
+    outln!(
         "camera RMS {:.4} px, projector RMS {:.4} px, stereo RMS {:.4} px over {} views",
         cal.rms_camera,
         cal.rms_projector,
@@ -363,8 +363,8 @@ fn print_procam(cal: &ProcamCalibration) {
 /// The accuracy the calibration predicts for itself, or why there is none.
 fn print_predicted(cal: &ProcamCalibration) {
     match &cal.predicted_error {
-        Some(p) => println!("{}", p.sentence()),
-        None => println!(
+        Some(p) => outln!("{}", p.sentence()),
+        None => outln!(
             "no accuracy prediction: the joint refinement's normal equations are singular (too few or too similar board poses)"
         ),
     }
@@ -375,7 +375,7 @@ fn print_axis(files: &TurntableFiles, out: &Path) {
     print_skipped(&files.skipped);
     let d = fit.axis.direction;
     let p = fit.axis.point_mm;
-    println!(
+    outln!(
         "turntable axis: direction ({:.5}, {:.5}, {:.5}) ± {:.4}°, through ({:.2}, {:.2}, {:.2}) mm ± {:.3} mm, scale {:.5}, RMS {:.4} px; {}",
         d.x,
         d.y,

@@ -182,7 +182,7 @@ where
     let mut session =
         CalibrationCapture::open(&out, config, camera.frame_size(), projector.image_size())?;
     let kept = session.poses().len();
-    println!(
+    outln!(
         "calibration capture into {} with the {devices}: {} poses wanted{}",
         out.display(),
         args.poses,
@@ -201,11 +201,11 @@ where
         let taken = report.stage("poses", || {
             capture_poses_auto(&mut session, camera, projector, mover, &auto, |e| match e {
                 AutoEvent::Taken { index, dir } => {
-                    println!("pose {index} taken: {}", dir.display());
+                    outln!("pose {index} taken: {}", dir.display());
                 }
                 AutoEvent::Refused(r) => {
                     refused += 1;
-                    println!("pose refused: {r}");
+                    outln!("pose refused: {r}");
                 }
                 AutoEvent::Looked(_) => {}
             })
@@ -221,9 +221,9 @@ where
         })?
     };
     let coverage = session.coverage();
-    println!("{}", coverage.draw());
+    outln!("{}", coverage.draw());
     if session.poses().len() < MIN_CALIBRATION_POSES {
-        println!(
+        outln!(
             "warning: {} poses; calibrate all needs at least {MIN_CALIBRATION_POSES} (10-20 give a good calibration): run again to add poses",
             session.poses().len()
         );
@@ -234,7 +234,7 @@ where
     if !angles.is_empty() {
         mover.onto_turntable()?;
         if !mover.moves_itself() {
-            println!(
+            outln!(
                 "lay the board on the platter, upright and facing the camera{}",
                 if args.auto {
                     " (taken once it is still)"
@@ -250,7 +250,7 @@ where
         }
         let views = report.stage("turntable", || {
             session.capture_turntable(camera, projector, turntable, &angles, |v| {
-                println!(
+                outln!(
                     "turntable view at {:.2} degrees: {}{}",
                     v.motor_angle_deg,
                     if v.board_found {
@@ -280,7 +280,7 @@ where
     report.figure("coverage", serde_json::to_value(&coverage)?);
     report.figure("devices", devices);
     let path = report.write(&out)?;
-    println!(
+    outln!(
         "{}: {} poses, {} turntable views (report: {}); next: slscan calibrate all {} --out calib",
         out.display(),
         session.poses().len(),
@@ -578,7 +578,7 @@ mod tests {
         let rms = figure(&out.join("report.json"), "rms_px");
         assert!(rms > 0.0 && rms < 0.2, "turntable RMS {rms}");
         let (angle, offset) = axis_errors(&fit, &truth);
-        println!("axis {angle:.4} degrees and {offset:.4} mm from the truth");
+        outln!("axis {angle:.4} degrees and {offset:.4} mm from the truth");
         assert!(angle < 0.05, "axis direction {angle} degrees off");
         assert!(offset < 0.1, "axis {offset} mm off");
         let fx = fit.camera.intrinsics.fx / truth.camera.intrinsics.fx;
@@ -718,7 +718,7 @@ mod tests {
             out.to_str().unwrap(),
         ])
         .unwrap();
-        println!("CHILD DONE");
+        outln!("CHILD DONE");
     }
 
     /// Environment variable naming the session folder of [`interactive_child`].
@@ -784,7 +784,7 @@ mod tests {
     #[test]
     fn interactive_keys_under_tmux() {
         if Process::new("tmux").arg("-V").output().is_err() {
-            println!("note: tmux not installed: interactive_keys_under_tmux skipped");
+            outln!("note: tmux not installed: interactive_keys_under_tmux skipped");
             return;
         }
         let tmp = tempfile::tempdir().unwrap();

@@ -145,7 +145,7 @@ where
     bar.finish_and_clear();
     let path = capture.write_report()?;
     for line in capture.summary(&path) {
-        println!("{line}");
+        outln!("{line}");
     }
     Ok(())
 }

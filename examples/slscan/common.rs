@@ -2,8 +2,11 @@
 //! per-stage timings, progress bars and the one-line error report.
 
 use std::collections::HashMap;
+use std::fmt;
 use std::fs;
+use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
@@ -22,7 +25,73 @@ pub(crate) fn print_error(err: &anyhow::Error) {
             line.push_str(&part);
         }
     }
-    eprintln!("slscan: error: {line}");
+    print_error_line(format_args!("slscan: error: {line}"));
+}
+
+/// Set once standard output could not be written (a closed pipe, a full disk).
+static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
+/// Set once standard error could not be written.
+static STDERR_CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// Writes one line to standard output, as `println!` does, except that a reader that went away
+/// (`slscan info cloud.ply | head -1`) does not end the program: `println!` panics there ("failed
+/// printing to stdout: Broken pipe", exit 101, outputs half written). The first failed write
+/// closes standard output for the rest of the run; the command carries on, writes its files in
+/// full and exits as it would have.
+pub(crate) fn print_line(args: fmt::Arguments<'_>) {
+    #[cfg(test)]
+    if !pipe_tests::DIRECT.load(Ordering::Relaxed) {
+        // The test harness captures `println!`, not writes to the stream.
+        println!("{args}");
+        return;
+    }
+    write_or_close(&STDOUT_CLOSED, &mut std::io::stdout().lock(), args, true);
+}
+
+/// [`print_line`] without the newline.
+pub(crate) fn print_text(args: fmt::Arguments<'_>) {
+    #[cfg(test)]
+    if !pipe_tests::DIRECT.load(Ordering::Relaxed) {
+        print!("{args}");
+        return;
+    }
+    write_or_close(&STDOUT_CLOSED, &mut std::io::stdout().lock(), args, false);
+}
+
+/// [`print_line`] for standard error (warnings, the error line).
+pub(crate) fn print_error_line(args: fmt::Arguments<'_>) {
+    #[cfg(test)]
+    if !pipe_tests::DIRECT.load(Ordering::Relaxed) {
+        eprintln!("{args}");
+        return;
+    }
+    write_or_close(&STDERR_CLOSED, &mut std::io::stderr().lock(), args, true);
+}
+
+/// Writes `args` (and a newline) to `stream` unless `closed` is set; sets it when the write
+/// fails.
+fn write_or_close(
+    closed: &AtomicBool,
+    stream: &mut dyn Write,
+    args: fmt::Arguments<'_>,
+    newline: bool,
+) {
+    if closed.load(Ordering::Relaxed) {
+        return;
+    }
+    let written = stream
+        .write_fmt(args)
+        .and_then(|()| {
+            if newline {
+                stream.write_all(b"\n")
+            } else {
+                Ok(())
+            }
+        })
+        .and_then(|()| stream.flush());
+    if written.is_err() {
+        closed.store(true, Ordering::Relaxed);
+    }
 }
 
 /// Creates the output folder (and its parents) if needed, naming it on failure.
@@ -175,6 +244,116 @@ mod tests {
                 let got = std::fs::metadata(&f).unwrap().permissions().mode() & 0o777;
                 assert_eq!(got, mode, "{} under umask {umask}: {got:o}", f.display());
             }
+        }
+    }
+}
+
+#[cfg(all(test, unix))]
+mod pipe_tests {
+    //! `slscan … | head -1`: a reader that goes away does not end a command, which finishes
+    //! its files. The commands run in a child process (this test binary, re-run on one test)
+    //! whose standard output and error are pipes nobody reads any more.
+
+    use std::path::Path;
+    use std::process::Command;
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    /// Set in the child: the commands write to the process's streams themselves, as the
+    /// binary does, instead of through the harness's capture.
+    pub(super) static DIRECT: AtomicBool = AtomicBool::new(false);
+
+    /// Tells the child half which folder to work in.
+    const DIR_ENV: &str = "SLSCAN_PIPE_PROBE_DIR";
+
+    /// The child half of [`a_closed_pipe_ends_nothing`]: points standard output and error at
+    /// pipes whose reading ends are closed, runs `patterns`, `decode`, `info`, `devices` and
+    /// `reconstruct`, then writes `finished` naming each command that returned `Ok`.
+    #[test]
+    #[ignore = "run by a_closed_pipe_ends_nothing in a child process"]
+    fn closed_pipe_child() {
+        let Some(dir) = std::env::var_os(DIR_ENV) else {
+            return;
+        };
+        let dir = Path::new(&dir);
+        let s = |p: &Path| p.to_str().unwrap().to_owned();
+        let (patterns, decoded, view) =
+            (dir.join("patterns"), dir.join("decoded"), dir.join("view"));
+        let rebuilt = dir.join("rebuilt");
+        std::fs::create_dir_all(&view).unwrap();
+        let (capture, calib) = crate::reconstruct::tests::column_only_capture(&view);
+        let commands: Vec<Vec<String>> = vec![
+            [
+                "patterns",
+                "--projector",
+                "64x32",
+                "--axes",
+                "columns",
+                "--out",
+            ]
+            .iter()
+            .map(ToString::to_string)
+            .chain([s(&patterns)])
+            .collect(),
+            vec!["decode".into(), s(&patterns), "--out".into(), s(&decoded)],
+            vec!["info".into(), s(&calib)],
+            vec!["devices".into()],
+            vec![
+                "reconstruct".into(),
+                s(&capture),
+                "--calib".into(),
+                s(&calib),
+                "--out".into(),
+                s(&rebuilt),
+            ],
+            vec!["info".into(), s(&rebuilt.join("cloud.ply"))],
+        ];
+        let (out_read, out_write) = rustix::pipe::pipe().unwrap();
+        let (err_read, err_write) = rustix::pipe::pipe().unwrap();
+        drop((out_read, err_read));
+        rustix::stdio::dup2_stdout(&out_write).unwrap();
+        rustix::stdio::dup2_stderr(&err_write).unwrap();
+        DIRECT.store(true, Ordering::Relaxed);
+        let mut finished = Vec::new();
+        for argv in &commands {
+            let argv: Vec<&str> = argv.iter().map(String::as_str).collect();
+            if crate::run_cli(&argv).is_ok() {
+                finished.push(argv[0]);
+            }
+        }
+        std::fs::write(dir.join("finished"), finished.join(" ")).unwrap();
+    }
+
+    /// Every command finishes and writes all its files when nobody reads what it prints:
+    /// before, the first line printed after the reader left panicked ("failed printing to
+    /// stdout: Broken pipe", exit 101), and `decode` left no `report.json`.
+    #[test]
+    fn a_closed_pipe_ends_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let exe = std::env::current_exe().unwrap();
+        let output = Command::new(exe)
+            .args([
+                "--exact",
+                "common::pipe_tests::closed_pipe_child",
+                "--ignored",
+                "--nocapture",
+            ])
+            .env(DIR_ENV, dir.path())
+            .output()
+            .unwrap();
+        let finished = std::fs::read_to_string(dir.path().join("finished")).unwrap_or_else(|_| {
+            panic!(
+                "the child did not finish ({}): {}",
+                output.status,
+                String::from_utf8_lossy(&output.stderr)
+            )
+        });
+        assert_eq!(finished, "patterns decode info devices reconstruct info");
+        for file in [
+            "decoded/report.json",
+            "rebuilt/report.json",
+            "rebuilt/cloud.ply",
+        ] {
+            assert!(dir.path().join(file).is_file(), "{file} missing");
         }
     }
 }

@@ -75,11 +75,11 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     )?;
     bars.clear();
     for line in d.summary(&args.capture) {
-        println!("{line}");
+        outln!("{line}");
     }
     d.record(&mut report);
     let path = report.write(&out)?;
-    println!(
+    outln!(
         "maps and pictures in {}; report: {}",
         out.display(),
         path.display()

@@ -22,12 +22,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     monitors(&mut report, &mut not_built);
 
     let ports = sl_rig::serial_ports(Path::new("/dev"));
-    println!("serial ports ({}):", ports.len());
+    outln!("serial ports ({}):", ports.len());
     for port in &ports {
-        println!("  {}", port.display());
+        outln!("  {}", port.display());
     }
     if ports.is_empty() {
-        println!("  none (/dev/ttyUSB*, /dev/ttyACM*)");
+        outln!("  none (/dev/ttyUSB*, /dev/ttyACM*)");
     }
     report.figure(
         "serial_ports",
@@ -38,7 +38,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     );
 
     if !not_built.is_empty() {
-        println!(
+        outln!(
             "not built: {} (rebuild with --features {})",
             not_built.join(", "),
             not_built
@@ -52,7 +52,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         let out = ensure_out_dir(out)?;
         let path = report.write(&out)?;
-        println!("report: {}", path.display());
+        outln!("report: {}", path.display());
     }
     Ok(())
 }
@@ -61,23 +61,23 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
 fn cameras(report: &mut Report, _not_built: &mut Vec<&str>) {
     match sl_rig::list_v4l_cameras() {
         Ok(list) => {
-            println!("V4L2 cameras ({}):", list.len());
+            outln!("V4L2 cameras ({}):", list.len());
             if list.is_empty() {
-                println!("  none (/dev/video*)");
+                outln!("  none (/dev/video*)");
             }
             for cam in &list {
-                println!("  {cam}");
+                outln!("  {cam}");
             }
             let rows: Vec<_> = list.iter().map(sl_rig::V4lDeviceInfo::to_json).collect();
             report.figure("cameras", rows);
         }
-        Err(e) => println!("V4L2 cameras: {e}"),
+        Err(e) => outln!("V4L2 cameras: {e}"),
     }
 }
 
 #[cfg(not(feature = "v4l"))]
 fn cameras(_report: &mut Report, not_built: &mut Vec<&str>) {
-    println!("V4L2 cameras: not built (feature `v4l`)");
+    outln!("V4L2 cameras: not built (feature `v4l`)");
     not_built.push("v4l (cameras)");
 }
 
@@ -85,19 +85,19 @@ fn cameras(_report: &mut Report, not_built: &mut Vec<&str>) {
 fn monitors(report: &mut Report, _not_built: &mut Vec<&str>) {
     match sl_rig::list_monitors() {
         Ok(list) => {
-            println!("monitors ({}):", list.len());
+            outln!("monitors ({}):", list.len());
             for m in &list {
-                println!("  {m}");
+                outln!("  {m}");
             }
             let rows: Vec<_> = list.iter().map(sl_rig::MonitorInfo::to_json).collect();
             report.figure("monitors", rows);
         }
-        Err(e) => println!("monitors: {e}"),
+        Err(e) => outln!("monitors: {e}"),
     }
 }
 
 #[cfg(not(feature = "window"))]
 fn monitors(_report: &mut Report, not_built: &mut Vec<&str>) {
-    println!("monitors: not built (feature `window`)");
+    outln!("monitors: not built (feature `window`)");
     not_built.push("window (monitors, projector)");
 }

@@ -65,7 +65,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         let out = ensure_out_dir(out)?;
         let path = report.write(&out)?;
-        println!("report: {}", path.display());
+        outln!("report: {}", path.display());
     }
     Ok(())
 }
@@ -73,7 +73,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
 fn ply_info(path: &Path, report: &mut Report) -> anyhow::Result<()> {
     let header = report.stage("read_header", || read_ply_header(path))?;
     let cloud = report.stage("read", || read_ply(path))?;
-    println!(
+    outln!(
         "{}: PLY {} {}",
         path.display(),
         header.encoding.keyword(),
@@ -90,7 +90,7 @@ fn ply_info(path: &Path, report: &mut Report) -> anyhow::Result<()> {
                 }
             })
             .collect();
-        println!(
+        outln!(
             "  element {} {}: {}",
             element.name,
             element.count,
@@ -98,9 +98,9 @@ fn ply_info(path: &Path, report: &mut Report) -> anyhow::Result<()> {
         );
     }
     for c in &header.comments {
-        println!("  comment {c}");
+        outln!("  comment {c}");
     }
-    println!("points: {}", cloud.len());
+    outln!("points: {}", cloud.len());
     let attrs: Vec<&str> = [
         cloud.normals().map(|_| "normals"),
         cloud.colors().map(|_| "colours"),
@@ -114,23 +114,31 @@ fn ply_info(path: &Path, report: &mut Report) -> anyhow::Result<()> {
     } else {
         attrs.join(", ")
     };
-    println!("attributes: {attrs_text}");
+    outln!("attributes: {attrs_text}");
     report.figure("format", header.encoding.keyword());
     report.figure("points", cloud.len());
     report.figure("attributes", attrs.clone());
     match cloud.bounding_box() {
         Some(b) => {
             let e = b.extent();
-            println!(
+            outln!(
                 "bounding box: min ({:.6}, {:.6}, {:.6}) max ({:.6}, {:.6}, {:.6}); extent ({:.6}, {:.6}, {:.6}) (file units)",
-                b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z, e.x, e.y, e.z
+                b.min.x,
+                b.min.y,
+                b.min.z,
+                b.max.x,
+                b.max.y,
+                b.max.z,
+                e.x,
+                e.y,
+                e.z
             );
             report.figure(
                 "bounding_box",
                 json!({ "min": [b.min.x, b.min.y, b.min.z], "max": [b.max.x, b.max.y, b.max.z] }),
             );
         }
-        None => println!("bounding box: none (no finite point)"),
+        None => outln!("bounding box: none (no finite point)"),
     }
     Ok(())
 }
@@ -146,8 +154,8 @@ fn calibration_info(args: &Args, report: &mut Report) -> anyhow::Result<()> {
         .stage("read", || Calibration::load_with(path, &options))
         .with_context(|| format!("cannot read calibration {}", path.display()))?;
     let calib = &loaded.calibration;
-    println!("{}:", path.display());
-    println!(
+    outln!("{}:", path.display());
+    outln!(
         "layout: {} ({})",
         loaded.layout,
         loaded.layout.description()
@@ -157,9 +165,9 @@ fn calibration_info(args: &Args, report: &mut Report) -> anyhow::Result<()> {
             .iter()
             .map(|f| f.display().to_string())
             .collect();
-        println!("read with: {}", others.join(", "));
+        outln!("read with: {}", others.join(", "));
     }
-    print!("{calib}");
+    out!("{calib}");
     report.figure("layout", loaded.layout.name());
     report.figure(
         "files",
@@ -177,7 +185,7 @@ fn calibration_info(args: &Args, report: &mut Report) -> anyhow::Result<()> {
             .save_as(out, layout)
             .with_context(|| format!("cannot write {} as {layout}", out.display()))?;
         for f in &written {
-            println!("written ({layout}): {}", f.display());
+            outln!("written ({layout}): {}", f.display());
         }
         report.figure("written_layout", layout.name());
     }

@@ -8,6 +8,31 @@
 //! - a bad input ends with one line `slscan: error: …` naming the file or parameter, and exit
 //!   code 1 (2 for a malformed command line, as clap does).
 
+/// `println!` that a closed pipe does not end (`slscan info cloud.ply | head -1`): see
+/// [`common::print_line`].
+macro_rules! outln {
+    () => {
+        $crate::common::print_line(format_args!(""))
+    };
+    ($($arg:tt)*) => {
+        $crate::common::print_line(format_args!($($arg)*))
+    };
+}
+
+/// `print!` that a closed pipe does not end: see [`common::print_text`].
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::common::print_text(format_args!($($arg)*))
+    };
+}
+
+/// `eprintln!` that a closed standard error does not end: see [`common::print_error_line`].
+macro_rules! errln {
+    ($($arg:tt)*) => {
+        $crate::common::print_error_line(format_args!($($arg)*))
+    };
+}
+
 mod align;
 /// The synthetic blob of sl-icp's registration tests, for the align, merge and register tests.
 #[cfg(test)]

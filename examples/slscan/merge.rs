@@ -232,9 +232,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     merged.record(&mut report);
     let path = report.write(&dir)?;
     for line in merged.summary() {
-        println!("{line}");
+        outln!("{line}");
     }
-    println!("report: {}", path.display());
+    outln!("report: {}", path.display());
     Ok(())
 }
 

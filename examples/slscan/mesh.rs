@@ -206,7 +206,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(f) = chain.normals_inconsistent
         && f > UNORIENTED_FRACTION
     {
-        eprintln!(
+        errln!(
             "warning: {}: {:.0} % of the points have normals facing the other way from the \
              largest consistently oriented patch of their part of the cloud (an oriented \
              scan: under {:.0} %): the normals look unoriented, and the surface made from \
@@ -217,7 +217,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         );
     }
     if let Some(line) = chain.fairing_summary() {
-        println!("{line}");
+        outln!("{line}");
     }
     let truth = args.truth.as_deref().map(Truth::load).transpose()?;
     let view = PreviewConfig {
@@ -229,9 +229,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let outputs = chain.write_outputs(&out, truth.as_ref(), &view, title)?;
     report.add_stages(&outputs.stages);
     if let Some((by_vertex, by_area)) = &outputs.measured {
-        println!("mesh measured at its vertices:");
+        outln!("mesh measured at its vertices:");
         for line in by_vertex.summary() {
-            println!("  {line}");
+            outln!("  {line}");
         }
         report.figure("rms_to_truth_vertices_mm", by_vertex.rms_to_reference_mm);
         report.figure("rms_to_truth_area_mm", by_area.rms_to_reference_mm);
@@ -240,7 +240,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     }
     report.figure("cloud", args.cloud.display().to_string());
     let path = report.write(&out)?;
-    println!(
+    outln!(
         "{}: {} vertices, {} triangles; watertight {}, manifold {}",
         outputs.ply.display(),
         chain.mesh.vertices.len(),
@@ -248,7 +248,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         chain.topology.is_watertight(),
         chain.topology.is_manifold()
     );
-    println!(
+    outln!(
         "report: {}; 3-D view: {}",
         path.display(),
         outputs.page.display()
@@ -469,10 +469,11 @@ mod tests {
         };
         let (rms, rms_membrane) = (cap_rms("faired"), cap_rms("membrane"));
         let rms_plain = cap_rms("plain");
-        eprintln!(
+        errln!(
             "cap RMS: membrane {rms_membrane:.4} mm, from Poisson's rim {rms_plain:.4} mm, \
              faired {rms:.4} mm; {} / {}",
-            plain["figures"]["fair"], f["fair"]
+            plain["figures"]["fair"],
+            f["fair"]
         );
         assert!(
             rms_plain * 2.0 < rms_membrane && rms_plain < 0.3,
@@ -504,7 +505,7 @@ mod tests {
             fig(&remeshed, "rms_to_truth_vertices_mm"),
             fig(&remeshed, "rms_to_truth_area_mm"),
         );
-        eprintln!(
+        errln!(
             "RMS to the ball, vertices / area: faired {fv:.4} / {fa:.4}, remeshed {gv:.4} / {ga:.4}"
         );
         assert!(fa > 1.5 * fv, "{fv} {fa}");

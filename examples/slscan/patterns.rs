@@ -216,7 +216,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         .with_context(|| format!("cannot write the patterns into {}", out.display()))?;
     bar.finish_and_clear();
     for (b, block) in manifest.blocks.iter().enumerate() {
-        println!(
+        outln!(
             "block {b}: {} {} ({} frames: {} .. {})",
             block.pattern.codec_name(),
             block.pattern.axis().name(),
@@ -233,11 +233,11 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         } else {
             ""
         };
-        println!("{steps} phase steps, finest period {period_px} projector px{note}");
+        outln!("{steps} phase steps, finest period {period_px} projector px{note}");
         report.figure("phase_steps", steps);
         report.figure("period_px", period_px);
     }
-    println!(
+    outln!(
         "{} patterns of {} written to {} with manifest.json",
         manifest.frame_count(),
         args.projector,
@@ -248,7 +248,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("bit_depth", depth.bits());
     report.figure("manifest", manifest.to_json());
     let path = report.write(&out)?;
-    println!("report: {}", path.display());
+    outln!("report: {}", path.display());
     Ok(())
 }
 

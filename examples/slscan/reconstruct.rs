@@ -96,14 +96,14 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     r.record(&mut report);
     let path = report.write(&out)?;
     for line in r.summary() {
-        println!("{line}");
+        outln!("{line}");
     }
-    println!("report: {}", path.display());
+    outln!("report: {}", path.display());
     Ok(())
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     //! `slscan reconstruct` on a column-only capture (what most real systems record) that the
     //! virtual rig renders at a quarter of its resolution (320x180 camera, 480x270 projector),
     //! with the rig's own calibration.
@@ -123,7 +123,7 @@ mod tests {
 
     /// Renders one view of the plane with the recommended hybrid code on the columns only;
     /// returns the capture folder and the calibration file.
-    fn column_only_capture(dir: &Path) -> (PathBuf, PathBuf) {
+    pub(crate) fn column_only_capture(dir: &Path) -> (PathBuf, PathBuf) {
         let rig = VirtualRig::new(scaled_rig_config(DOWNSCALE), Scene::plane()).unwrap();
         let p = rig.config().projector.size;
         let p = ImageSize::new(p.width, p.height);

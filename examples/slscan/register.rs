@@ -185,8 +185,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let r = register_and_write(&source, &target, &initial, &config, voxel, &out)?;
     r.record(&mut report, &format!("{:?}", args.metric));
     let path = report.write(&out)?;
-    println!("{}", r.summary());
-    println!("report: {}", path.display());
+    outln!("{}", r.summary());
+    outln!("report: {}", path.display());
     Ok(())
 }
 

@@ -69,8 +69,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("heat_map_range_mm", f64::from(args.range));
     let path = report.write(&out)?;
     for line in figures.summary() {
-        println!("{line}");
+        outln!("{line}");
     }
-    println!("report: {}; heat map: {}", path.display(), png.display());
+    outln!("report: {}; heat map: {}", path.display(), png.display());
     Ok(())
 }

@@ -140,9 +140,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.write(&out)?;
     let html = write_summary_html(&out, &result)?;
     for line in result.summary(&out, args.views) {
-        println!("{line}");
+        outln!("{line}");
     }
-    println!("summary: {}", html.display());
+    outln!("summary: {}", html.display());
     Ok(())
 }
 
@@ -199,7 +199,7 @@ fn run_placements(args: &Args) -> anyhow::Result<()> {
     r.record(&mut report, args.placements, args.views)?;
     report.write(&out)?;
     for line in r.summary(&out) {
-        println!("{line}");
+        outln!("{line}");
     }
     Ok(())
 }

@@ -104,7 +104,7 @@ pub(crate) fn run_on(
     scan.record(&mut report, &calib, !args.rig.no_refine)?;
     report.write(&args.out)?;
     for line in scan.summary(&args.out, &calib) {
-        println!("{line}");
+        outln!("{line}");
     }
     // A mesh that failed keeps the merged cloud and the report on disk, and the error says so.
     if let Some(Err(e)) = scan.mesh {

@@ -229,7 +229,7 @@ fn scan_on_virtual_devices(extra: &[&str], keys: &mut &[u8]) -> DeviceScan {
         .output_voxel_size
         .unwrap_or(0.0);
     let screen = person.screen.borrow().clone();
-    println!("{screen}");
+    outln!("{screen}");
     let replaced = *person.replaced.borrow();
     DeviceScan {
         _tmp: tmp,
@@ -291,7 +291,7 @@ fn two_placements(extra: &[&str], keys: &mut &[u8]) -> String {
         &scan.truth,
         &scan.coverage,
     );
-    println!("placement 1: {single:?} {single_d:?}\nmerged: {whole:?} {whole_d:?}");
+    outln!("placement 1: {single:?} {single_d:?}\nmerged: {whole:?} {whole_d:?}");
     // One placement misses the flat bottom (15.5 % of the area); the two merged cover 99 %
     // or more, the target of issue 16, and lie as close to the truth: within 1.5 times the
     // single placement's RMS.
@@ -340,7 +340,7 @@ fn one_placement_on_devices() {
         &scan.truth,
         &scan.coverage,
     );
-    println!("{c:?} {d:?}");
+    outln!("{c:?} {d:?}");
     // The flat bottom (15.5 % of the area) is never seen; of the rest, a turntable scan of 8
     // views sees at least nine tenths: 0.9 × 0.845 = 0.76.
     assert!(

@@ -117,7 +117,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     };
     summarise(&mut report, args, &manifest, &captures);
     let path = report.write(&out)?;
-    println!(
+    outln!(
         "{} capture sets of {} frames written to {} (report: {})",
         captures.len(),
         manifest.frame_count(),
