@@ -6,13 +6,13 @@
 //! `preview.png` (one colour per scan). Scans that cannot be placed are named, with why, and
 //! make the command fail after writing what it could.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use sl_cloud::{PlyFormat, PointCloud, PreviewColoring, write_ply};
 use sl_icp::align_unordered;
 use sl_scan::{CombinedScans, combine_aligned, multiway_config_at, multiway_figures};
 
-use crate::common::{Report, ensure_out_dir, progress, write_atomically};
+use crate::common::{Report, open_out, progress, write_atomically};
 use crate::register::{NORMAL_NEIGHBOURS, NormalsTowards, check_units, read_scaled};
 
 /// Default voxel size of the descriptors (mm), [`GlobalConfig::default`]'s.
@@ -27,6 +27,9 @@ pub(crate) struct Args {
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Write into `--out` even where that replaces a scan.
+    #[arg(long)]
+    pub(crate) force: bool,
     /// Multiply coordinates by this when reading (1000 for clouds in metres).
     #[arg(long, default_value_t = 1.0)]
     pub(crate) scale: f64,
@@ -41,7 +44,9 @@ pub(crate) struct Args {
 /// Runs `slscan align`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("align");
-    let out = ensure_out_dir(&args.out)?;
+    let read: Vec<&Path> = args.scans.iter().map(PathBuf::as_path).collect();
+    let folder = open_out(&args.out, "align", &read, &[], args.force)?;
+    let out = folder.path();
     if !(args.voxel.is_finite() && args.voxel > 0.0) {
         anyhow::bail!("--voxel {}: must be finite and > 0 (mm)", args.voxel);
     }
@@ -96,7 +101,24 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     }
     report.figure("voxel_mm", args.voxel);
     report.figure("normals", aligned.normals().is_some());
-    let path = report.write(&out)?;
+    report.write(out)?;
+    if !a.unplaced.is_empty() {
+        let why: Vec<String> = a
+            .unplaced
+            .iter()
+            .map(|u| format!("{} ({})", name(u.view), u.why))
+            .collect();
+        let kept = folder.keep_as_failed()?;
+        anyhow::bail!(
+            "{} scan(s) could not be placed: {}; the placed ones and the report are in {}",
+            a.unplaced.len(),
+            why.join("; "),
+            kept.display()
+        );
+    }
+    let ply = folder.final_path(&ply);
+    let out = folder.dir().to_path_buf();
+    folder.commit()?;
     outln!(
         "{}: {} of {} scans placed ({} pairs used of {} tried, {} pruned), {} points",
         ply.display(),
@@ -107,25 +129,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         a.pruned_edges,
         aligned.len()
     );
-    outln!("report: {}", path.display());
+    outln!("report: {}", out.join("report.json").display());
     if aligned.normals().is_none() {
         outln!(
             "{} has no normals (`slscan mesh` needs them): --normals-towards X,Y,Z estimates \
              them, facing where the scanner stood in each scan's frame",
             ply.display()
-        );
-    }
-    if !a.unplaced.is_empty() {
-        let why: Vec<String> = a
-            .unplaced
-            .iter()
-            .map(|u| format!("{} ({})", name(u.view), u.why))
-            .collect();
-        anyhow::bail!(
-            "{} scan(s) could not be placed: {}; see {}",
-            a.unplaced.len(),
-            why.join("; "),
-            path.display()
         );
     }
     Ok(())

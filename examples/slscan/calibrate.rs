@@ -64,6 +64,10 @@ pub(crate) struct BoardArgs {
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Write into `--out` even where that replaces an input (the calibration a turntable
+    /// axis is added to) or what another command wrote there.
+    #[arg(long)]
+    pub(crate) force: bool,
     /// Also write the calibration as OpenCV FileStorage YAML (`calibration.yml`).
     #[arg(long)]
     pub(crate) yaml: bool,
@@ -75,6 +79,11 @@ pub(crate) struct BoardArgs {
 }
 
 impl BoardArgs {
+    /// `--out`, opened for the run (`crate::common::open_out`).
+    fn open_out(&self, command: &str, read: &[&Path]) -> anyhow::Result<sl_scan::OutputFolder> {
+        crate::common::open_out(&self.out, command, read, &[], self.force)
+    }
+
     /// The board and files these options ask for.
     fn files_config(&self) -> anyhow::Result<CalibrationFilesConfig> {
         Ok(CalibrationFilesConfig {
@@ -211,15 +220,17 @@ fn run_with(
                 }
                 None => camera_images(&a.inputs)?,
             };
-            let result = calibrate_camera_files(
+            let read: Vec<&Path> = images.iter().map(PathBuf::as_path).collect();
+            let folder = a.common.open_out("calibrate camera", &read)?;
+            let files = calibrate_camera_files(
                 &images,
                 &cfg,
                 &zhang,
-                &a.common.out,
+                folder.path(),
                 "calibrate camera",
                 progress,
-            );
-            let files = result?;
+            )?;
+            folder.commit()?;
             print_skipped(&files.skipped);
             outln!(
                 "camera calibrated: RMS {:.4} px over {} views ({} without a board skipped); {}",
@@ -236,15 +247,17 @@ fn run_with(
             let poses = session_poses(&a.session, layout.as_ref())?;
             let given = a.projector;
             let projector_size = sl_scan::projector_size(&poses, given)?;
+            let folder = a.common.open_out("calibrate projector", &[])?;
             let files = calibrate_procam_files(
                 &poses,
                 &cfg,
                 projector_size,
                 layout.as_ref(),
-                &a.common.out,
+                folder.path(),
                 "calibrate projector",
                 progress,
             )?;
+            folder.commit()?;
             print_procam_notes(&files);
             let cal = &files.procam;
             outln!(
@@ -273,15 +286,17 @@ fn run_with(
                     "the motor angles (give them with --angles)"
                 }
             })?;
+            let folder = a.common.open_out("calibrate turntable", &[&a.calib])?;
             let files = calibrate_turntable_files(
                 calib,
                 &views,
                 &cfg,
                 &tcfg,
-                &a.common.out,
+                folder.path(),
                 "calibrate turntable",
                 progress,
             )?;
+            folder.commit()?;
             print_axis(&files, &a.common.out);
             Ok(())
         }
@@ -289,7 +304,10 @@ fn run_with(
             let cfg = a.common.files_config()?;
             let layout = a.layout.load()?;
             let out = &a.common.out;
-            let done = calibrate_session(&a.session, layout.as_ref(), &cfg, out, progress)?;
+            let folder = a.common.open_out("calibrate all", &[])?;
+            let done =
+                calibrate_session(&a.session, layout.as_ref(), &cfg, folder.path(), progress)?;
+            folder.commit()?;
             if let Some(c) = &done.camera {
                 print_skipped(&c.skipped);
                 outln!(

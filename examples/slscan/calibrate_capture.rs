@@ -25,7 +25,7 @@ use sl_sim::{BoardPoseConfig, Checkerboard};
 use structured_light::scan::scaled_rig_config;
 
 use crate::capture::HardwareArgs;
-use crate::common::{Report, ensure_out_dir, write_atomically};
+use crate::common::{Report, ensure_out_dir, open_out_in_place, write_atomically};
 
 /// Super-sampling of the virtual rig: corner accuracy needs well anti-aliased edges (as
 /// `slscan simulate --scene board`).
@@ -92,9 +92,17 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         (false, false) => anyhow::bail!(
             "give --virtual, or the devices: --camera /dev/videoN --projector-monitor N --turntable /dev/ttyUSB0"
         ),
-        (true, false) => run_virtual(args),
-        (false, true) => run_hardware(args),
+        _ => {}
     }
+    // One run at a time in a session folder: two would mix their poses.
+    let folder = open_out_in_place(&args.out, "calibrate capture")?;
+    if args.virtual_rig {
+        run_virtual(args)?;
+    } else {
+        run_hardware(args)?;
+    }
+    folder.commit()?;
+    Ok(())
 }
 
 /// The board of `--board` and `--square`.
@@ -129,17 +137,18 @@ fn run_virtual(args: &Args) -> anyhow::Result<()> {
             ..BoardPoseConfig::default()
         },
     )?;
-    let out = ensure_out_dir(&args.out)?;
+    let out = args.out.clone();
     // The truth beside the session, as `slscan simulate` writes it: `rig.json` (which
-    // `calibrate all` reads the projector size from) and the exact calibration.
-    let truth = rig.rig();
-    let rig_json =
-        serde_json::to_string_pretty(truth.config()).context("cannot serialise rig.json")?;
-    write_atomically(&out.join("rig.json"), rig_json.as_bytes())?;
-    truth
-        .config()
-        .calibration()
-        .save(out.join("calibration_true.json"))?;
+    // `calibrate all` reads the projector size from) and the exact calibration; written once
+    // the session has accepted the capture, so that a refused one leaves them as they were.
+    let truth = rig.rig().config().clone();
+    let write_truth = move || -> anyhow::Result<()> {
+        let rig_json =
+            serde_json::to_string_pretty(&truth).context("cannot serialise rig.json")?;
+        write_atomically(&out.join("rig.json"), rig_json.as_bytes())?;
+        truth.calibration().save(out.join("calibration_true.json"))?;
+        Ok(())
+    };
     let (mut camera, mut projector, mut table, mut mover) = rig.devices();
     run_devices(
         args,
@@ -149,11 +158,14 @@ fn run_virtual(args: &Args) -> anyhow::Result<()> {
         &mut table,
         &mut mover,
         Duration::ZERO,
+        write_truth,
     )
 }
 
 /// The capture on any devices: poses (interactive or `--auto`), then the turntable. The real
-/// devices and the tests' virtual devices behind the same traits run this.
+/// devices and the tests' virtual devices behind the same traits run this. `opened` runs once
+/// the session folder has accepted the capture (files to write beside it).
+#[allow(clippy::too_many_arguments)] // the devices, each its own trait
 pub(crate) fn run_devices<C, P, T, M>(
     args: &Args,
     devices: &str,
@@ -162,6 +174,7 @@ pub(crate) fn run_devices<C, P, T, M>(
     turntable: &mut T,
     mover: &mut M,
     default_latency: Duration,
+    opened: impl FnOnce() -> anyhow::Result<()>,
 ) -> anyhow::Result<()>
 where
     C: Camera + ?Sized,
@@ -181,6 +194,7 @@ where
         .map_or(default_latency, Duration::from_millis);
     let mut session =
         CalibrationCapture::open(&out, config, camera.frame_size(), projector.image_size())?;
+    opened()?;
     let kept = session.poses().len();
     outln!(
         "calibration capture into {} with the {devices}: {} poses wanted{}",
@@ -469,6 +483,7 @@ fn run_hardware(args: &Args) -> anyhow::Result<()> {
             table,
             &mut HandHeld,
             sl_rig::DEFAULT_DISPLAY_LATENCY,
+            || Ok(()),
         )
         .map_err(|e| sl_rig::RigError::Device {
             device: "calibration capture".to_owned(),
@@ -670,6 +685,7 @@ mod tests {
             &mut turntable,
             &mut Person(mover),
             Duration::ZERO,
+            || Ok(()),
         )
         .unwrap();
         assert_eq!(

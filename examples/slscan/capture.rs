@@ -13,7 +13,7 @@ use sl_rig::{Camera, DeviceDescription, LatencyConfig, Projector, SessionDevices
 use sl_sim::{Scene, VirtualRig};
 use structured_light::scan::{DeviceCaptureConfig, capture_device_session, scaled_rig_config};
 
-use crate::common::{ensure_out_dir, progress};
+use crate::common::{open_out_in_place, progress};
 
 /// The hardware options shared by `capture` and `scan`.
 #[derive(Debug, Clone, clap::Args)]
@@ -169,10 +169,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         .context("cannot build the virtual rig")?;
     let devices = rig.session_devices(&format!("virtual turntable, scene {}", args.scene));
     let (mut camera, mut projector, mut table) = rig.devices();
-    // The rig's exact calibration beside the session, for `slscan reconstruct`.
-    rig.config()
-        .calibration()
-        .save(ensure_out_dir(&args.out)?.join("calibration_true.json"))?;
+    // One run at a time in a session folder.
+    let folder = open_out_in_place(&args.out, "capture")?;
     run_session(
         args,
         devices,
@@ -180,13 +178,22 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         &mut projector,
         &mut table,
         Duration::ZERO,
-    )
+    )?;
+    // The rig's exact calibration beside the session, for `slscan reconstruct`: written once
+    // the session has been captured, so that a refused session (another `--downscale`) leaves
+    // the one that fits it.
+    rig.config()
+        .calibration()
+        .save(args.out.join("calibration_true.json"))?;
+    folder.commit()?;
+    Ok(())
 }
 
 /// Real devices: all three must be given.
 pub(crate) fn run_hardware(args: &Args) -> anyhow::Result<()> {
     let description = args.hardware.description("a capture on hardware")?;
     let devices = description.session_devices();
+    let folder = open_out_in_place(&args.out, "capture")?;
     let args = args.clone();
     // The window lives on the main thread's event loop; the session runs in the worker.
     sl_rig::with_devices(&description, move |camera, projector, table| {
@@ -203,6 +210,7 @@ pub(crate) fn run_hardware(args: &Args) -> anyhow::Result<()> {
             reason: format!("{e:#}"),
         })
     })?;
+    folder.commit()?;
     Ok(())
 }
 

@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use sl_scan::{Inputs, OutputError, OutputFolder};
 use structured_light::scan::ScanProgress;
 
 /// Prints an error and its causes on one line: `slscan: error: a: b: c`.
@@ -99,6 +100,53 @@ pub(crate) fn ensure_out_dir(out: &Path) -> anyhow::Result<PathBuf> {
     fs::create_dir_all(out)
         .with_context(|| format!("cannot create output folder {}", out.display()))?;
     Ok(out.to_path_buf())
+}
+
+/// Opens `--out` for a run of `slscan COMMAND` that writes its outputs only when it succeeds
+/// ([`OutputFolder::staged`]): nothing of an earlier run is lost when this one fails, a second
+/// run into the folder is refused naming the first, and a run whose outputs would replace
+/// the files it reads (`read`; `written`: output files named before the run) is refused
+/// unless `force` (`--force`). Write into [`OutputFolder::path`], then
+/// [`OutputFolder::commit`].
+pub(crate) fn open_out(
+    out: &Path,
+    command: &str,
+    read: &[&Path],
+    written: &[&Path],
+    force: bool,
+) -> anyhow::Result<OutputFolder> {
+    let inputs = Inputs {
+        read: read.to_vec(),
+        written: written.to_vec(),
+        force,
+    };
+    OutputFolder::staged(out, &format!("slscan {command}"), &inputs).map_err(out_error)
+}
+
+/// Opens `--out` for a run that writes in place (a capture session, resumed when
+/// interrupted): locked like [`open_out`], nothing staged.
+pub(crate) fn open_out_in_place(out: &Path, command: &str) -> anyhow::Result<OutputFolder> {
+    OutputFolder::in_place(out, &format!("slscan {command}")).map_err(out_error)
+}
+
+/// The manifest of a capture given as its folder or as the manifest itself: the file a
+/// command reads, for [`open_out`]'s check.
+pub(crate) fn manifest_file(capture: &Path) -> PathBuf {
+    if capture.is_dir() {
+        capture.join(sl_codec::MANIFEST_FILE)
+    } else {
+        capture.to_path_buf()
+    }
+}
+
+/// `--out`'s error, with the option that overrides a refusal.
+fn out_error(e: OutputError) -> anyhow::Error {
+    match e {
+        e @ OutputError::InputInOutput { .. } => {
+            anyhow::Error::new(e).context("--out (--force replaces it)")
+        }
+        e => anyhow::Error::new(e).context("--out"),
+    }
 }
 
 /// The `report.json` of a command, and the atomic writes of every output: sl-scan's, shared

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use sl_codec::{DecodeConfig, MapFormat};
 use sl_scan::decode_capture;
 
-use crate::common::{Report, StageBars, ensure_out_dir};
+use crate::common::{Report, StageBars, manifest_file, open_out};
 
 /// File format of the float maps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -25,6 +25,9 @@ pub(crate) struct Args {
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Write into `--out` even where that replaces the capture's manifest.
+    #[arg(long)]
+    pub(crate) force: bool,
     /// Look for the frames here instead of where the manifest says.
     #[arg(long)]
     pub(crate) frames: Option<PathBuf>,
@@ -51,7 +54,8 @@ pub(crate) struct Args {
 /// Runs `slscan decode`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("decode");
-    let out = ensure_out_dir(&args.out)?;
+    let manifest = manifest_file(&args.capture);
+    let folder = open_out(&args.out, "decode", &[&manifest], &[], args.force)?;
     let config = DecodeConfig {
         min_direct: args.min_direct,
         min_contrast: args.min_contrast,
@@ -65,33 +69,38 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         FormatArg::Npy => MapFormat::Npy,
     };
     let mut bars = StageBars::new();
-    let d = decode_capture(
+    let mut d = decode_capture(
         &args.capture,
         args.frames.as_deref(),
         &config,
         format,
-        &out,
+        folder.path(),
         |p| bars.update(p),
     )?;
     bars.clear();
     for line in d.summary(&args.capture) {
         outln!("{line}");
     }
+    d.files = d.files.iter().map(|f| folder.final_path(f)).collect();
     d.record(&mut report);
-    let path = report.write(&out)?;
-    outln!(
-        "maps and pictures in {}; report: {}",
-        out.display(),
-        path.display()
-    );
-    // No empty success: the maps and the report stay for the diagnosis, the exit code says it.
+    report.write(folder.path())?;
+    // No empty success, and no good decode replaced by an empty one: the maps and the report
+    // are kept apart for the diagnosis, the exit code says it.
     if let Some(why) = d.nothing_decoded() {
+        let kept = folder.keep_as_failed()?;
         anyhow::bail!(
             "{}: no pixel decoded ({why}); the invalid-pixel picture in {} shows where",
             args.capture.display(),
-            out.display()
+            kept.display()
         );
     }
+    let out = folder.dir().to_path_buf();
+    folder.commit()?;
+    outln!(
+        "maps and pictures in {}; report: {}",
+        out.display(),
+        out.join("report.json").display()
+    );
     Ok(())
 }
 
@@ -132,6 +141,6 @@ mod tests {
         assert!(text.contains("no pixel decoded"), "{text}");
         assert!(text.contains(c), "{text}");
         assert!(text.contains("2048 pixels shadow"), "{text}");
-        assert!(out.join("report.json").is_file());
+        assert!(out.join("failed-run/report.json").is_file());
     }
 }

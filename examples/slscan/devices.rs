@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::common::{Report, ensure_out_dir};
+use crate::common::{Report, open_out};
 
 /// Arguments of `slscan devices`.
 #[derive(Debug, clap::Args)]
@@ -50,9 +50,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     }
     report.figure("features_not_built", not_built.clone());
     if let Some(out) = &args.out {
-        let out = ensure_out_dir(out)?;
-        let path = report.write(&out)?;
-        outln!("report: {}", path.display());
+        let folder = open_out(out, "devices", &[], &[], false)?;
+        report.write(folder.path())?;
+        folder.commit()?;
+        outln!("report: {}", out.join("report.json").display());
     }
     Ok(())
 }

@@ -7,7 +7,7 @@ use serde_json::json;
 use sl_camera::{Calibration, CalibrationLayout, ImageSize, LoadConfig};
 use sl_cloud::{PlyPropertyKind, read_ply, read_ply_header};
 
-use crate::common::{Report, ensure_out_dir};
+use crate::common::{Report, open_out};
 
 /// Arguments of `slscan info`.
 #[derive(Debug, clap::Args)]
@@ -63,9 +63,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         ),
     }
     if let Some(out) = &args.out {
-        let out = ensure_out_dir(out)?;
-        let path = report.write(&out)?;
-        outln!("report: {}", path.display());
+        let folder = open_out(out, "info", &[&args.file], &[], false)?;
+        report.write(folder.path())?;
+        folder.commit()?;
+        outln!("report: {}", out.join("report.json").display());
     }
     Ok(())
 }

@@ -12,7 +12,7 @@ use sl_cloud::PointCloud;
 use sl_icp::{IcpError, MergeConfig, PoseModel, TurntablePrior, turntable_poses};
 use sl_scan::{ScanError, merge_and_write, pair_figures};
 
-use crate::common::{Report, StageBars, ensure_out_dir};
+use crate::common::{Report, StageBars, open_out};
 use crate::register::{check_units, read_scaled};
 
 /// Arguments of `slscan merge`.
@@ -26,6 +26,9 @@ pub(crate) struct Args {
     /// or an output folder (the cloud is then `merged.ply` in it).
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Write even where that replaces a view or the calibration.
+    #[arg(long)]
+    pub(crate) force: bool,
     /// Calibration file whose turntable axis gives the initial poses.
     #[arg(long)]
     pub(crate) calib: Option<PathBuf>,
@@ -151,18 +154,24 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         .out
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
-    let (dir, ply) = if is_ply {
+    let (dir, ply_name) = if is_ply {
         let dir = args
             .out
             .parent()
             .filter(|p| !p.as_os_str().is_empty())
             .unwrap_or(Path::new("."));
-        (ensure_out_dir(dir)?, args.out.clone())
+        (dir, args.out.file_name().map(PathBuf::from))
     } else {
-        let dir = ensure_out_dir(&args.out)?;
-        let ply = dir.join("merged.ply");
-        (dir, ply)
+        (args.out.as_path(), None)
     };
+    let view_files: Vec<PathBuf> = args.views.iter().map(|v| view_file(v)).collect();
+    let mut read: Vec<&Path> = view_files.iter().map(PathBuf::as_path).collect();
+    read.extend(args.calib.as_deref());
+    let written: Vec<&Path> = ply_name.iter().map(PathBuf::as_path).collect();
+    let folder = open_out(dir, "merge", &read, &written, args.force)?;
+    let ply = folder
+        .path()
+        .join(ply_name.as_deref().unwrap_or(Path::new("merged.ply")));
     let n = args.views.len();
     let (initial, source_of_poses) = initial_poses(args, n)?;
     let config = MergeConfig {
@@ -218,7 +227,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 serde_json::Value::Array(lost.iter().map(|&v| name(v).into()).collect()),
             );
             report.figure("unplaced_because", why.clone());
-            let path = report.write(&dir)?;
+            report.write(folder.path())?;
+            let path = folder.keep_as_failed()?.join("report.json");
             let lost: Vec<String> = lost.iter().map(|&v| name(v)).collect();
             anyhow::bail!(
                 "{} of {n} views could not be placed: {} ({why}); every pair's fitness, RMSE and reason are in {}",
@@ -229,12 +239,16 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         }
         Err(e) => return Err(e.into()),
     };
+    let mut merged = merged;
+    merged.cloud = folder.final_path(&merged.cloud);
     merged.record(&mut report);
-    let path = report.write(&dir)?;
+    report.write(folder.path())?;
+    let out = folder.dir().to_path_buf();
+    folder.commit()?;
     for line in merged.summary() {
         outln!("{line}");
     }
-    outln!("report: {}", path.display());
+    outln!("report: {}", out.join("report.json").display());
     Ok(())
 }
 

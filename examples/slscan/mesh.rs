@@ -15,7 +15,7 @@ use sl_mesh::{
 use sl_metrology::Truth;
 use sl_scan::{MeshChainConfig, MeshSmoothing, ScanError, mesh_chain};
 
-use crate::common::{Report, ensure_out_dir};
+use crate::common::{Report, open_out};
 use crate::register::{NormalsTowards, check_units, read_scaled, with_normals_towards};
 
 /// A cloud spanning less than this (mm, the diagonal of its box, after `--scale`) is taken for
@@ -48,6 +48,9 @@ pub(crate) struct Args {
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Write into `--out` even where that replaces the input cloud or the truth file.
+    #[arg(long)]
+    pub(crate) force: bool,
     /// Multiply the cloud's coordinates by this on reading: 1000 for a cloud in metres (the
     /// mesh's bounds and figures are in mm; a cloud spanning less than 1 unit is refused with
     /// this hint).
@@ -146,7 +149,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     }
     let viewpoint = args.normals.viewpoint()?;
     let mut report = Report::new("mesh");
-    let out = ensure_out_dir(&args.out)?;
+    let mut read = vec![args.cloud.as_path()];
+    read.extend(args.truth.as_deref());
+    let folder = open_out(&args.out, "mesh", &read, &[], args.force)?;
     let mut cloud = report
         .stage("read", || read_scaled(&args.cloud, args.scale))
         .with_context(|| format!("cannot read {}", args.cloud.display()))?;
@@ -226,7 +231,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         ..PreviewConfig::default()
     };
     let title = format!("slscan mesh {}", args.cloud.display());
-    let outputs = chain.write_outputs(&out, truth.as_ref(), &view, title)?;
+    let outputs = chain.write_outputs(folder.path(), truth.as_ref(), &view, title)?;
     report.add_stages(&outputs.stages);
     if let Some((by_vertex, by_area)) = &outputs.measured {
         outln!("mesh measured at its vertices:");
@@ -239,10 +244,13 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         report.figure_of("metrology_area", by_area)?;
     }
     report.figure("cloud", args.cloud.display().to_string());
-    let path = report.write(&out)?;
+    report.write(folder.path())?;
+    let (ply, page) = (folder.final_path(&outputs.ply), folder.final_path(&outputs.page));
+    let out = folder.dir().to_path_buf();
+    folder.commit()?;
     outln!(
         "{}: {} vertices, {} triangles; watertight {}, manifold {}",
-        outputs.ply.display(),
+        ply.display(),
         chain.mesh.vertices.len(),
         chain.mesh.triangles.len(),
         chain.topology.is_watertight(),
@@ -250,8 +258,8 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     );
     outln!(
         "report: {}; 3-D view: {}",
-        path.display(),
-        outputs.page.display()
+        out.join("report.json").display(),
+        page.display()
     );
     Ok(())
 }

@@ -9,7 +9,7 @@ use sl_codec::{
     PatternSequence, PhaseShiftSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, Unwrap,
 };
 
-use crate::common::{Report, ensure_out_dir};
+use crate::common::{Report, open_out};
 
 /// The coding method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -192,7 +192,6 @@ fn block(args: &Args, axis: Axis) -> anyhow::Result<Pattern> {
 /// Runs `slscan patterns`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("patterns");
-    let out = ensure_out_dir(&args.out)?;
     let depth = match args.bit_depth {
         8 => BitDepth::Eight,
         16 => BitDepth::Sixteen,
@@ -210,10 +209,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     sequence
         .validate()
         .context("the pattern parameters are not valid")?;
+    let folder = open_out(&args.out, "patterns", &[], &[], false)?;
+    let out = folder.path();
     let bar = crate::common::progress(1, "patterns");
     let manifest = report
-        .stage("write", || sequence.write(&out, depth))
-        .with_context(|| format!("cannot write the patterns into {}", out.display()))?;
+        .stage("write", || sequence.write(out, depth))
+        .with_context(|| format!("cannot write the patterns into {}", args.out.display()))?;
     bar.finish_and_clear();
     for (b, block) in manifest.blocks.iter().enumerate() {
         outln!(
@@ -237,18 +238,20 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         report.figure("phase_steps", steps);
         report.figure("period_px", period_px);
     }
+    report.figure("projector", args.projector.to_string());
+    report.figure("frames", manifest.frame_count());
+    report.figure("bit_depth", depth.bits());
+    report.figure("manifest", manifest.to_json());
+    report.write(out)?;
+    let out = folder.dir().to_path_buf();
+    folder.commit()?;
     outln!(
         "{} patterns of {} written to {} with manifest.json",
         manifest.frame_count(),
         args.projector,
         out.display()
     );
-    report.figure("projector", args.projector.to_string());
-    report.figure("frames", manifest.frame_count());
-    report.figure("bit_depth", depth.bits());
-    report.figure("manifest", manifest.to_json());
-    let path = report.write(&out)?;
-    outln!("report: {}", path.display());
+    outln!("report: {}", out.join("report.json").display());
     Ok(())
 }
 

@@ -7,7 +7,7 @@ use sl_codec::Axis;
 use sl_scan::{CaptureReconstructionConfig, reconstruct_capture};
 use sl_tri::{DEPTH_PNG_SCALE_MM, Method, TriConfig};
 
-use crate::common::{Report, ensure_out_dir};
+use crate::common::{Report, manifest_file, open_out};
 
 /// Triangulation method on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -47,6 +47,10 @@ pub(crate) struct Args {
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Write into `--out` even where that replaces an input (the capture's manifest, the
+    /// calibration, the texture).
+    #[arg(long)]
+    pub(crate) force: bool,
     /// Triangulation method.
     #[arg(long, value_enum, default_value_t = MethodArg::RayPlane)]
     pub(crate) method: MethodArg,
@@ -91,14 +95,20 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         texture: args.texture.clone(),
         depth_png_scale_mm: args.depth_scale,
     };
-    let out = ensure_out_dir(&args.out)?;
-    let r = reconstruct_capture(&args.capture, &args.calib, &cfg, &out)?;
+    let manifest = manifest_file(&args.capture);
+    let mut read = vec![manifest.as_path(), args.calib.as_path()];
+    read.extend(args.texture.as_deref());
+    let folder = open_out(&args.out, "reconstruct", &read, &[], args.force)?;
+    let mut r = reconstruct_capture(&args.capture, &args.calib, &cfg, folder.path())?;
+    r.cloud = folder.final_path(&r.cloud);
     r.record(&mut report);
-    let path = report.write(&out)?;
+    report.write(folder.path())?;
+    let out = folder.dir().to_path_buf();
+    folder.commit()?;
     for line in r.summary() {
         outln!("{line}");
     }
-    outln!("report: {}", path.display());
+    outln!("report: {}", out.join("report.json").display());
     Ok(())
 }
 

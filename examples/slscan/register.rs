@@ -9,7 +9,7 @@ use sl_cloud::PointCloud;
 use sl_icp::{IcpConfig, Metric, RobustKernel, Trimming};
 use sl_scan::{read_transform, register_and_write};
 
-use crate::common::{Report, ensure_out_dir};
+use crate::common::{Report, open_out};
 
 /// Default voxel size of `register` (mm): a 100 mm object keeps ~10k points.
 const DEFAULT_VOXEL_MM: f64 = 1.0;
@@ -45,6 +45,9 @@ pub(crate) struct Args {
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Write into `--out` even where that replaces an input.
+    #[arg(long)]
+    pub(crate) force: bool,
     /// Error metric.
     #[arg(long, value_enum, default_value_t = MetricArg::PointToPlane)]
     pub(crate) metric: MetricArg,
@@ -156,7 +159,9 @@ fn trimming(arg: &Option<String>) -> anyhow::Result<Trimming> {
 /// Runs `slscan register`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("register");
-    let out = ensure_out_dir(&args.out)?;
+    let mut read = vec![args.source.as_path(), args.target.as_path()];
+    read.extend(args.init.as_deref());
+    let folder = open_out(&args.out, "register", &read, &[], args.force)?;
     let metric = Metric::from(args.metric);
     let config = IcpConfig {
         metric,
@@ -182,11 +187,14 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     check_units(&source, &args.source, DEFAULT_VOXEL_MM)?;
     check_units(&target, &args.target, DEFAULT_VOXEL_MM)?;
     let voxel = (args.voxel > 0.0).then_some(args.voxel);
-    let r = register_and_write(&source, &target, &initial, &config, voxel, &out)?;
+    let mut r = register_and_write(&source, &target, &initial, &config, voxel, folder.path())?;
+    r.cloud = folder.final_path(&r.cloud);
     r.record(&mut report, &format!("{:?}", args.metric));
-    let path = report.write(&out)?;
+    report.write(folder.path())?;
+    let out = folder.dir().to_path_buf();
+    folder.commit()?;
     outln!("{}", r.summary());
-    outln!("report: {}", path.display());
+    outln!("report: {}", out.join("report.json").display());
     Ok(())
 }
 

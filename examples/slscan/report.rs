@@ -10,7 +10,7 @@ use sl_cloud::{PreviewConfig, read_ply};
 use sl_codec::write_png_rgb8;
 use sl_metrology::{EvaluateConfig, Truth, evaluate_with, heat_map};
 
-use crate::common::{Report, ensure_out_dir};
+use crate::common::{Report, open_out};
 
 /// Arguments of `slscan report`.
 #[derive(Debug, clap::Args)]
@@ -23,6 +23,9 @@ pub(crate) struct Args {
     /// Output folder (`report.json`, `error_map.png`).
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Write into `--out` even where it holds another command's outputs or the inputs.
+    #[arg(long)]
+    pub(crate) force: bool,
     /// Heat-map range (mm): blue at −range, red at +range.
     #[arg(long, default_value_t = sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM)]
     pub(crate) range: f32,
@@ -40,7 +43,13 @@ pub(crate) struct Args {
 /// Runs `slscan report`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("report");
-    let out = ensure_out_dir(&args.out)?;
+    let folder = open_out(
+        &args.out,
+        "report",
+        &[&args.cloud, &args.truth],
+        &[],
+        args.force,
+    )?;
     let cloud = report
         .stage("read", || read_ply(&args.cloud))
         .with_context(|| format!("cannot read {}", args.cloud.display()))?;
@@ -55,7 +64,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         elevation_deg: args.elevation,
         ..PreviewConfig::default()
     };
-    let png = out.join("error_map.png");
+    let png = folder.path().join("error_map.png");
     report.stage("heat map", || -> anyhow::Result<()> {
         let mut img = heat_map(&cloud, &figures.signed_distances_mm, args.range, &view)?;
         sl_metrology::draw_legend(&mut img, args.range);
@@ -67,10 +76,16 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     report.figure("metrology", serde_json::to_value(&figures)?);
     report.figure("heat_map", "error_map.png");
     report.figure("heat_map_range_mm", f64::from(args.range));
-    let path = report.write(&out)?;
+    report.write(folder.path())?;
+    let out = folder.dir().to_path_buf();
+    folder.commit()?;
     for line in figures.summary() {
         outln!("{line}");
     }
-    outln!("report: {}; heat map: {}", path.display(), png.display());
+    outln!(
+        "report: {}; heat map: {}",
+        out.join("report.json").display(),
+        out.join("error_map.png").display()
+    );
     Ok(())
 }

@@ -17,7 +17,7 @@ use structured_light::scan::{
 };
 
 use crate::capture::HardwareArgs;
-use crate::common::{Report, StageBars, ensure_out_dir};
+use crate::common::{Report, StageBars, open_out_in_place};
 
 /// Arguments of `slscan scan`.
 #[derive(Debug, clap::Args)]
@@ -112,23 +112,37 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         args.smooth,
         structured_light::codec::MAX_SMOOTH_RADIUS
     );
-    if crate::scan_hardware::wanted(args)? {
-        return crate::scan_hardware::run(args);
-    }
-    anyhow::ensure!(
-        args.placement_wait.is_none(),
-        "--placement-wait is for a scan on hardware: the virtual rig re-places its object itself"
-    );
-    if args.placements > 1 {
+    let hardware = crate::scan_hardware::wanted(args)?;
+    if !hardware {
         anyhow::ensure!(
-            !args.true_poses,
+            args.placement_wait.is_none(),
+            "--placement-wait is for a scan on hardware: the virtual rig re-places its object itself"
+        );
+        anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
+        anyhow::ensure!(
+            args.placements == 1 || !args.true_poses,
             "--true-poses is a diagnostic of the single-placement scan"
         );
-        return run_placements(args);
     }
+    if hardware {
+        // Locks the folder itself, once the options are checked.
+        return crate::scan_hardware::run(args);
+    }
+    // One run at a time in a scan folder; its sessions resume, so it is written in place.
+    let folder = open_out_in_place(&args.out, "scan")?;
+    if args.placements > 1 {
+        run_placements(args)?;
+    } else {
+        run_single(args)?;
+    }
+    folder.commit()?;
+    Ok(())
+}
+
+/// `slscan scan` on the virtual rig, one placement.
+fn run_single(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("scan");
-    let out = ensure_out_dir(&args.out)?;
-    anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
+    let out = args.out.clone();
     let cfg = VirtualScanConfig {
         flatness_plate: !args.no_plate,
         ..virtual_config(args)
@@ -190,8 +204,7 @@ pub(crate) fn mesh_options(args: &Args) -> MeshConfig {
 /// `slscan scan --placements 2` on the virtual rig: the pebble standing, then laid on its side.
 fn run_placements(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("scan");
-    let out = ensure_out_dir(&args.out)?;
-    anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
+    let out = args.out.clone();
     let cfg = virtual_config(args);
     let mut bars = StageBars::new();
     let r = scan_virtual_placements(&cfg, args.placements, &out, |p| bars.update(p))?;

@@ -99,6 +99,8 @@ pub(crate) fn run_on(
 ) -> anyhow::Result<()> {
     let mut report = Report::new("scan");
     let cfg = scan_config(args)?;
+    // One run at a time in a scan folder; its sessions resume, so it is written in place.
+    let folder = crate::common::open_out_in_place(&args.out, "scan")?;
     let scan = on_devices(cfg)?;
     let calib = args.rig.calib.clone().unwrap_or_default();
     scan.record(&mut report, &calib, !args.rig.no_refine)?;
@@ -113,6 +115,7 @@ pub(crate) fn run_on(
             args.out.join(&scan.files.merged).display()
         )));
     }
+    folder.commit()?;
     Ok(())
 }
 

@@ -13,7 +13,7 @@ use sl_sim::{
     SimulatedCapture, VirtualRig, simulate_calibration, simulate_scan,
 };
 
-use crate::common::{Report, ensure_out_dir, progress, write_atomically};
+use crate::common::{Report, open_out, progress, write_atomically};
 
 /// Super-sampling for checkerboards: corner accuracy needs well anti-aliased edges.
 const BOARD_SUPERSAMPLING: u32 = 4;
@@ -33,6 +33,9 @@ pub(crate) struct Args {
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
+    /// Write into `--out` even where that replaces the patterns' manifest.
+    #[arg(long)]
+    pub(crate) force: bool,
     /// Seed of the noise (and of the board poses).
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
@@ -65,9 +68,10 @@ pub(crate) struct Args {
 /// Runs `slscan simulate`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("simulate");
-    let out = ensure_out_dir(&args.out)?;
     anyhow::ensure!(args.views >= 1, "--views must be at least 1");
     let manifest_path = args.patterns.join(MANIFEST_FILE);
+    let folder = open_out(&args.out, "simulate", &[&manifest_path], &[], args.force)?;
+    let out = folder.path().to_path_buf();
     let manifest = report.stage("read patterns", || Manifest::load(&manifest_path))?;
     let board = args.scene == "board";
     let config = config(args, board)?;
@@ -115,14 +119,16 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         bar.finish_and_clear();
         c
     };
-    summarise(&mut report, args, &manifest, &captures);
-    let path = report.write(&out)?;
+    summarise(&mut report, args, &manifest, &captures, &folder);
+    report.write(&out)?;
+    let out = folder.dir().to_path_buf();
+    folder.commit()?;
     outln!(
         "{} capture sets of {} frames written to {} (report: {})",
         captures.len(),
         manifest.frame_count(),
         out.display(),
-        path.display()
+        out.join("report.json").display()
     );
     Ok(())
 }
@@ -201,7 +207,15 @@ fn mesh_scene(path: &Path) -> anyhow::Result<Scene> {
         .with_context(|| format!("cannot build a scene from {}", path.display()))
 }
 
-fn summarise(report: &mut Report, args: &Args, manifest: &Manifest, captures: &[SimulatedCapture]) {
+/// The report's figures; the capture folders named where they will be once `folder` is
+/// committed.
+fn summarise(
+    report: &mut Report,
+    args: &Args,
+    manifest: &Manifest,
+    captures: &[SimulatedCapture],
+    folder: &sl_scan::OutputFolder,
+) {
     report.figure("scene", args.scene.clone());
     report.figure("patterns", args.patterns.display().to_string());
     report.figure("frames_per_view", manifest.frame_count());
@@ -217,7 +231,7 @@ fn summarise(report: &mut Report, args: &Args, manifest: &Manifest, captures: &[
             .iter()
             .map(|c| {
                 json!({
-                    "dir": c.dir.display().to_string(),
+                    "dir": folder.final_path(&c.dir).display().to_string(),
                     "motor_angle_deg": c.motor_angle_deg,
                     "visible_pixels": c.visible_pixels,
                     "lit_pixels": c.lit_pixels,

@@ -210,14 +210,15 @@ pub struct CaptureSession {
 }
 
 impl CaptureSession {
-    /// Opens (or starts) the session in `dir`: creates the folder and writes `session.json`,
-    /// or checks that an existing `session.json` holds the same plan (angles and patterns).
+    /// What [`CaptureSession::open`] checks, without writing anything: a plan that can be
+    /// captured, and one that `dir` can take (no session there, the same plan, or
+    /// `config.overwrite`). A program that writes other files beside the session (a
+    /// calibration, the truth) checks first, so that a refused session leaves them as they
+    /// were.
     ///
     /// # Errors
-    /// [`RigError::SessionMismatch`] when `dir` holds a session with another plan and
-    /// `config.overwrite` is off; [`RigError::InvalidParameter`] for an empty plan or a
-    /// non-finite angle; [`RigError::Io`] / [`RigError::Json`] naming the file.
-    pub fn open(dir: &Path, plan: SessionPlan, config: SessionConfig) -> Result<Self, RigError> {
+    /// As [`CaptureSession::open`].
+    pub fn check(dir: &Path, plan: &SessionPlan, config: &SessionConfig) -> Result<(), RigError> {
         if plan.angles_deg.is_empty() {
             return Err(RigError::param(
                 "angles",
@@ -238,6 +239,25 @@ impl CaptureSession {
         if plan.manifest.frame_count() == 0 {
             return Err(RigError::param("patterns", "the manifest names no frame"));
         }
+        let path = dir.join(SESSION_FILE);
+        if path.exists() && !config.overwrite {
+            let existing = read_session_file(&path)?;
+            if let Some(reason) = plan_difference(&existing, &session_file(plan)) {
+                return Err(RigError::SessionMismatch { path, reason });
+            }
+        }
+        Ok(())
+    }
+
+    /// Opens (or starts) the session in `dir`: creates the folder and writes `session.json`,
+    /// or checks that an existing `session.json` holds the same plan (angles and patterns).
+    ///
+    /// # Errors
+    /// [`RigError::SessionMismatch`] when `dir` holds a session with another plan and
+    /// `config.overwrite` is off; [`RigError::InvalidParameter`] for an empty plan or a
+    /// non-finite angle; [`RigError::Io`] / [`RigError::Json`] naming the file.
+    pub fn open(dir: &Path, plan: SessionPlan, config: SessionConfig) -> Result<Self, RigError> {
+        Self::check(dir, &plan, &config)?;
         std::fs::create_dir_all(dir).map_err(|e| RigError::io(dir, e))?;
         let session = Self {
             dir: dir.to_path_buf(),
@@ -246,12 +266,6 @@ impl CaptureSession {
         };
         let file = session.file();
         let path = dir.join(SESSION_FILE);
-        if path.exists() && !config.overwrite {
-            let existing = read_session_file(&path)?;
-            if let Some(reason) = plan_difference(&existing, &file) {
-                return Err(RigError::SessionMismatch { path, reason });
-            }
-        }
         let text = serde_json::to_string_pretty(&file).map_err(|source| RigError::Json {
             path: path.clone(),
             source,
@@ -447,19 +461,20 @@ impl CaptureSession {
     }
 
     fn file(&self) -> SessionFile {
-        SessionFile {
-            format: SESSION_FORMAT.to_owned(),
-            version: SESSION_VERSION,
-            angles_deg: self.plan.angles_deg.clone(),
-            patterns: self.plan.manifest.to_json(),
-            devices: self.plan.devices.clone(),
-            calibration: self
-                .plan
-                .calibration
-                .as_ref()
-                .map(|p| p.display().to_string()),
-            views: (0..self.plan.angles_deg.len()).map(view_dir_name).collect(),
-        }
+        session_file(&self.plan)
+    }
+}
+
+/// The `session.json` of `plan`.
+fn session_file(plan: &SessionPlan) -> SessionFile {
+    SessionFile {
+        format: SESSION_FORMAT.to_owned(),
+        version: SESSION_VERSION,
+        angles_deg: plan.angles_deg.clone(),
+        patterns: plan.manifest.to_json(),
+        devices: plan.devices.clone(),
+        calibration: plan.calibration.as_ref().map(|p| p.display().to_string()),
+        views: (0..plan.angles_deg.len()).map(view_dir_name).collect(),
     }
 }
 

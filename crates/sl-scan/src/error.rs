@@ -57,6 +57,9 @@ pub enum ScanError {
         /// What went wrong.
         reason: String,
     },
+    /// The output folder: held by another run, or holding this run's inputs.
+    #[error(transparent)]
+    Output(#[from] crate::OutputError),
     /// A calibration session's layout, pose folders or pose files.
     #[error(transparent)]
     Layout(#[from] crate::LayoutError),

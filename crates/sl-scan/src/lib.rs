@@ -15,6 +15,7 @@
 //! | scan on devices (capture, reconstruct, merge, placements, mesh) | `device_scan.rs`, `virtual_object.rs` | [`scan_devices`], [`DeviceScanConfig`], [`ScanOperator`], [`capture_device_session`], [`VirtualObjectRig`] |
 //! | measure (where a truth exists) | `measure.rs` | [`measure_scan`], [`scene_truth`], [`plate_truth`] |
 //! | mesh a cloud (`slscan mesh`) | `mesh_chain.rs` | [`mesh_chain`], [`MeshChainConfig`] |
+//! | output folders (staged, locked, inputs kept) | `output_folder.rs` | [`OutputFolder`], [`Inputs`] |
 //! | report | `report.rs`, `run_report.rs` | [`write_scan_cloud`], [`write_heat_map`], [`write_summary_html`], [`RunReport`] |
 //!
 //! A scan on real devices is [`scan_devices`]: [`capture_device_session`] on the drivers (per
@@ -56,6 +57,7 @@ mod error;
 #[cfg(feature = "sim")]
 mod measure;
 mod merge;
+pub mod output_folder;
 #[cfg(feature = "mesh")]
 mod mesh;
 #[cfg(feature = "mesh")]
@@ -146,6 +148,7 @@ pub use mesh::{
 };
 #[cfg(feature = "mesh")]
 pub use mesh_chain::{MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};
+pub use output_folder::{Inputs, OutputError, OutputFolder};
 pub use placements::{
     MAX_PLACEMENTS, PLACEMENT_SESSION_DIR, PlacementAlignment, PlacementConfig, PlacementRig,
     PlacementsMerge, PlacementsScan, align_placement, capture_placements, check_placements,

@@ -23,7 +23,7 @@ use crate::error::{io, stage_err};
 use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::virtual_calibrate::calibrate_virtual_stage;
-use crate::virtual_scan::capture_virtual;
+use crate::virtual_scan::{capture_virtual, check_virtual_sessions};
 use crate::{
     CalibrationSummary, MergeStageConfig, ScanError, ScanProgress, SessionScanConfig, StageTime,
     VirtualScanConfig, capture_placements, placement_dir_name, scaled_rig_config, scan_placements,
@@ -152,6 +152,15 @@ pub fn scan_virtual_placements(
     config.render.seed = cfg.seed;
     let scene = Scene::pebble()?;
     let rig = VirtualRig::new(config, scene.clone())?;
+    let sessions: Vec<_> = (0..placements)
+        .map(|k| {
+            let dir = out
+                .join(placement_dir_name(k))
+                .join(crate::placements::PLACEMENT_SESSION_DIR);
+            (dir, turntable_angles(cfg.views))
+        })
+        .collect();
+    check_virtual_sessions(&rig, &sessions, cfg, out)?;
 
     // 1. Calibrate.
     let (calibration, calibration_summary, calib_path) =

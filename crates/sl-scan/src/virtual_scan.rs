@@ -211,19 +211,14 @@ pub fn scaled_rig_config(d: u32) -> RigConfig {
     c
 }
 
-/// Captures a session of `rig` at the motor angles `angles_deg` into `dir` with the scan's
-/// patterns, through the device traits ([`capture_session`], as on real devices), with the
-/// virtual rig's session settings: no display latency, nothing to flush. `turntable` names
-/// the turntable in the session's devices.
-pub(crate) fn capture_virtual(
+/// The plan and settings of [`capture_virtual`]'s session.
+fn virtual_session(
     rig: &VirtualRig,
-    dir: &Path,
     angles_deg: Vec<f64>,
     turntable: &str,
     cfg: &VirtualScanConfig,
     calibration: &Path,
-    progress: impl FnMut(ScanProgress<'_>),
-) -> Result<SessionSummary, ScanError> {
+) -> (SessionPlan, SessionConfig) {
     let psize = rig.config().projector.size;
     let plan = SessionPlan {
         angles_deg,
@@ -237,6 +232,41 @@ pub(crate) fn capture_virtual(
         flush_frames: 0,
         overwrite: cfg.overwrite,
     };
+    (plan, config)
+}
+
+/// Refuses, before anything is written, a scan into `out` whose session folders `dirs`
+/// hold sessions of another plan (another `--downscale`, another number of views) — the
+/// calibration the scan writes first would otherwise replace the one those sessions were
+/// captured with, and then the capture be refused.
+pub(crate) fn check_virtual_sessions(
+    rig: &VirtualRig,
+    dirs: &[(std::path::PathBuf, Vec<f64>)],
+    cfg: &VirtualScanConfig,
+    out: &Path,
+) -> Result<(), ScanError> {
+    for (dir, angles) in dirs {
+        let (plan, config) =
+            virtual_session(rig, angles.clone(), "", cfg, &out.join("calibration.json"));
+        sl_rig::CaptureSession::check(dir, &plan, &config)?;
+    }
+    Ok(())
+}
+
+/// Captures a session of `rig` at the motor angles `angles_deg` into `dir` with the scan's
+/// patterns, through the device traits ([`capture_session`], as on real devices), with the
+/// virtual rig's session settings: no display latency, nothing to flush. `turntable` names
+/// the turntable in the session's devices.
+pub(crate) fn capture_virtual(
+    rig: &VirtualRig,
+    dir: &Path,
+    angles_deg: Vec<f64>,
+    turntable: &str,
+    cfg: &VirtualScanConfig,
+    calibration: &Path,
+    progress: impl FnMut(ScanProgress<'_>),
+) -> Result<SessionSummary, ScanError> {
+    let (plan, config) = virtual_session(rig, angles_deg, turntable, cfg, calibration);
     let (mut camera, mut projector, mut table) = rig.devices();
     capture_session(
         dir,
@@ -271,6 +301,14 @@ pub fn scan_virtual(
     let mut config = scaled_rig_config(cfg.resolution_divisor);
     config.render.seed = cfg.seed;
     let rig = VirtualRig::new(config, Scene::dumbbell())?;
+    let angles = turntable_angles(cfg.views);
+    let session_dir = out.join("session");
+    let plate_dir = out.join("plate_session");
+    let mut sessions = vec![(session_dir.clone(), angles.clone())];
+    if cfg.flatness_plate {
+        sessions.push((plate_dir.clone(), vec![0.0]));
+    }
+    check_virtual_sessions(&rig, &sessions, cfg, out)?;
 
     // 1. Calibrate.
     let (calibration, calibration_summary, calib_path) =
@@ -278,8 +316,6 @@ pub fn scan_virtual(
 
     // 2. Capture the turntable session through the device traits.
     let t = Instant::now();
-    let angles = turntable_angles(cfg.views);
-    let session_dir = out.join("session");
     let summary = capture_virtual(
         &rig,
         &session_dir,
@@ -324,7 +360,6 @@ pub fn scan_virtual(
             total: 1,
         });
         let plate_rig = rig.with_scene(plate_scene())?;
-        let plate_dir = out.join("plate_session");
         capture_virtual(
             &plate_rig,
             &plate_dir,
