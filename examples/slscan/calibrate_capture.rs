@@ -143,10 +143,11 @@ fn run_virtual(args: &Args) -> anyhow::Result<()> {
     // the session has accepted the capture, so that a refused one leaves them as they were.
     let truth = rig.rig().config().clone();
     let write_truth = move || -> anyhow::Result<()> {
-        let rig_json =
-            serde_json::to_string_pretty(&truth).context("cannot serialise rig.json")?;
+        let rig_json = serde_json::to_string_pretty(&truth).context("cannot serialise rig.json")?;
         write_atomically(&out.join("rig.json"), rig_json.as_bytes())?;
-        truth.calibration().save(out.join("calibration_true.json"))?;
+        truth
+            .calibration()
+            .save(out.join("calibration_true.json"))?;
         Ok(())
     };
     let (mut camera, mut projector, mut table, mut mover) = rig.devices();

@@ -142,8 +142,8 @@ pub(crate) fn manifest_file(capture: &Path) -> PathBuf {
 /// `--out`'s error, with the option that overrides a refusal.
 fn out_error(e: OutputError) -> anyhow::Error {
     match e {
-        e @ OutputError::InputInOutput { .. } => {
-            anyhow::Error::new(e).context("--out (--force replaces it)")
+        e @ (OutputError::InputInOutput { .. } | OutputError::OtherCommand { .. }) => {
+            anyhow::Error::new(e).context("--out (--force writes all the same)")
         }
         e => anyhow::Error::new(e).context("--out"),
     }

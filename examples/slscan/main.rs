@@ -51,6 +51,8 @@ mod devices;
 mod info;
 mod merge;
 mod mesh;
+#[cfg(test)]
+mod outputs_tests;
 mod patterns;
 mod reconstruct;
 mod register;

@@ -245,7 +245,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     }
     report.figure("cloud", args.cloud.display().to_string());
     report.write(folder.path())?;
-    let (ply, page) = (folder.final_path(&outputs.ply), folder.final_path(&outputs.page));
+    let (ply, page) = (
+        folder.final_path(&outputs.ply),
+        folder.final_path(&outputs.page),
+    );
     let out = folder.dir().to_path_buf();
     folder.commit()?;
     outln!(
@@ -265,7 +268,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     //! `slscan mesh` on a sampled sphere: the files, a closed surface near the sphere, the
     //! figures; and a cloud without normals named in the error.
 
@@ -298,7 +301,7 @@ mod tests {
     /// The points of a ball of 20,000 samples whose outward normal passes `keep`, written to
     /// `dir/ball.ply`, and its truth (the sphere, selecting points within `select_mm`) to
     /// `dir/truth.json`; returns the two paths.
-    fn ball_files(
+    pub(crate) fn ball_files(
         dir: &std::path::Path,
         keep: impl Fn(&Vector3<f64>) -> bool,
         select_mm: f64,

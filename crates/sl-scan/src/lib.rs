@@ -57,11 +57,11 @@ mod error;
 #[cfg(feature = "sim")]
 mod measure;
 mod merge;
-pub mod output_folder;
 #[cfg(feature = "mesh")]
 mod mesh;
 #[cfg(feature = "mesh")]
 mod mesh_chain;
+pub mod output_folder;
 mod placements;
 mod progress;
 mod reconstruct;

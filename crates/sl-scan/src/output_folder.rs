@@ -392,7 +392,11 @@ fn check_inputs(dir: &Path, command: &str, inputs: &Inputs<'_>) -> Result<(), Ou
         read.iter().find(|r| c == **r).cloned()
     };
     for w in &inputs.written {
-        let path = if w.is_absolute() { w.to_path_buf() } else { dir.join(w) };
+        let path = if w.is_absolute() {
+            w.to_path_buf()
+        } else {
+            dir.join(w)
+        };
         if let Some(input) = clash(&path) {
             return Err(OutputError::InputInOutput {
                 dir: dir.to_path_buf(),
@@ -474,7 +478,11 @@ fn remove_empty_parents(root: &Path, rel: &Path) {
 fn remove_stale_staging(dir: &Path) -> Result<(), OutputError> {
     for entry in fs::read_dir(dir).map_err(io(dir))? {
         let entry = entry.map_err(io(dir))?;
-        if entry.file_name().to_string_lossy().starts_with(STAGING_PREFIX) {
+        if entry
+            .file_name()
+            .to_string_lossy()
+            .starts_with(STAGING_PREFIX)
+        {
             let path = entry.path();
             fs::remove_dir_all(&path).map_err(io(&path))?;
         }
@@ -520,7 +528,10 @@ mod tests {
         let moved = second.commit().unwrap();
         assert_eq!(moved, vec![dir.join("a.txt")]);
         assert_eq!(read(&dir.join("a.txt")), "a2");
-        assert!(!dir.join("sub").exists(), "the first run's b.txt and its folder stay");
+        assert!(
+            !dir.join("sub").exists(),
+            "the first run's b.txt and its folder stay"
+        );
         let names: Vec<String> = fs::read_dir(&dir)
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -560,14 +571,21 @@ mod tests {
         };
         let err = OutputFolder::staged(&dir, "mesh", &inputs).unwrap_err();
         assert!(
-            matches!(err, OutputError::InputInOutput { replaced: false, .. }),
+            matches!(
+                err,
+                OutputError::InputInOutput {
+                    replaced: false,
+                    ..
+                }
+            ),
             "{err}"
         );
-        assert!(fs::read_dir(&dir).unwrap().all(|e| !e
-            .unwrap()
-            .file_name()
-            .to_string_lossy()
-            .starts_with(STAGING_PREFIX)));
+        assert!(fs::read_dir(&dir).unwrap().all(|e| {
+            !e.unwrap()
+                .file_name()
+                .to_string_lossy()
+                .starts_with(STAGING_PREFIX)
+        }));
 
         let elsewhere = tmp.path().join("a.ply");
         write(&elsewhere, "a");
