@@ -240,6 +240,16 @@ pub fn reconstruct_capture(
     })
 }
 
+/// `{"name": count, …}` in the given order, for the pixel counts of the reports.
+fn counts_by_name(counts: &[(&'static str, usize)]) -> serde_json::Value {
+    serde_json::Value::Object(
+        counts
+            .iter()
+            .map(|&(name, n)| (name.to_owned(), n.into()))
+            .collect(),
+    )
+}
+
 impl CaptureReconstruction {
     /// Records the figures of `slscan reconstruct`'s `report.json` and the stage times in
     /// `report`.
@@ -261,12 +271,7 @@ impl CaptureReconstruction {
         );
         report.figure("depth_png_scale_mm", self.depth_png_scale_mm);
         report.figure("preview_left_out_points", self.preview_left_out_points);
-        let by_status: serde_json::Map<String, serde_json::Value> = self
-            .pixels_by_status
-            .iter()
-            .map(|(name, n)| ((*name).to_owned(), (*n).into()))
-            .collect();
-        report.figure("pixels_by_status", serde_json::Value::Object(by_status));
+        report.figure("pixels_by_status", counts_by_name(&self.pixels_by_status));
         if let Some((min, max)) = self.bbox_mm {
             report.figure("bbox_min_mm", min.to_vec());
             report.figure("bbox_max_mm", max.to_vec());
@@ -398,12 +403,7 @@ impl CaptureDecoding {
         report.figure("frames", self.frames);
         report.figure("valid_fraction", self.valid_fraction);
         report.figure("decode_ms", self.decode_ms);
-        let reasons: serde_json::Map<String, serde_json::Value> = self
-            .pixels_by_reason
-            .iter()
-            .map(|(name, n)| ((*name).to_owned(), (*n).into()))
-            .collect();
-        report.figure("pixels_by_reason", serde_json::Value::Object(reasons));
+        report.figure("pixels_by_reason", counts_by_name(&self.pixels_by_reason));
         let files: Vec<String> = self.files.iter().map(|p| p.display().to_string()).collect();
         report.figure("files", files);
     }

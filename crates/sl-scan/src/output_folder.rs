@@ -141,6 +141,10 @@ pub struct OutputFolder {
     dir: PathBuf,
     staging: Option<PathBuf>,
     command: String,
+    /// The run created the folder: one that fails removes it again when it is left empty.
+    created: bool,
+    /// The outputs were put in place.
+    committed: bool,
     /// Held for the run; closing it releases the lock.
     _lock: File,
 }
@@ -180,6 +184,7 @@ impl OutputFolder {
                 path: dir.to_path_buf(),
             });
         }
+        let created = !dir.exists();
         fs::create_dir_all(dir).map_err(io(dir))?;
         let path = dir.join(LOCK_FILE);
         let mut file = loop {
@@ -225,6 +230,8 @@ impl OutputFolder {
             dir: dir.to_path_buf(),
             staging: None,
             command: command.to_owned(),
+            created,
+            committed: false,
             _lock: file,
         })
     }
@@ -258,6 +265,7 @@ impl OutputFolder {
     /// [`OutputError::Io`] naming the file that could not be moved (the files moved before it
     /// stay; the rest stay in the staging folder until the next run there).
     pub fn commit(mut self) -> Result<Vec<PathBuf>, OutputError> {
+        self.committed = true;
         let Some(staging) = self.staging.take() else {
             self.write_list(Vec::new(), true)?;
             return Ok(Vec::new());
@@ -347,6 +355,10 @@ impl Drop for OutputFolder {
         // has the lock, that it is no longer the file at the path, and starts over): the
         // folder is left as the run found it, or with its outputs only.
         let _ = fs::remove_file(self.dir.join(LOCK_FILE));
+        // A folder this run made and left empty goes with it.
+        if self.created && !self.committed {
+            let _ = fs::remove_dir(&self.dir);
+        }
     }
 }
 
@@ -628,6 +640,20 @@ mod tests {
         report.commit().unwrap();
         assert_eq!(read(&dir.join("report.json")), "report");
         assert_eq!(read(&dir.join("merged.ply")), "cloud");
+    }
+
+    /// A failed run into a folder it created leaves no folder behind.
+    #[test]
+    fn a_failed_run_leaves_no_new_folder() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("new");
+        let run = OutputFolder::staged(&dir, "decode", &Inputs::default()).unwrap();
+        write(&run.path().join("report.json"), "x");
+        drop(run);
+        assert!(!dir.exists());
+        let run = OutputFolder::in_place(&dir, "capture").unwrap();
+        drop(run);
+        assert!(!dir.exists());
     }
 
     /// A killed run's staging folder is removed by the next run; a failed run kept for the
