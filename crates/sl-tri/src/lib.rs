@@ -89,6 +89,7 @@
 // the form the compiler vectorises.
 #![allow(clippy::needless_range_loop)]
 
+mod binocular;
 mod camera_rays;
 mod depth;
 mod error;
@@ -106,6 +107,7 @@ mod triangulation;
 mod triangulator;
 mod undistort;
 
+pub use binocular::{Binocular, BinocularConfig, BinocularCounts, BinocularResult};
 pub use depth::{DEPTH_PNG_SCALE_MM, depth_to_u16, write_depth_png16, write_depth_tiff};
 pub use error::TriError;
 pub use fit::{PlaneFit, SphereFit, fit_plane, fit_sphere};
