@@ -649,14 +649,14 @@ fn from_document(doc: &Document, options: &LoadConfig) -> Result<Calibration, Ca
     layouts::read_document(doc, layout, options)
 }
 
-fn read_text(path: &Path) -> Result<String, CameraError> {
+pub(crate) fn read_text(path: &Path) -> Result<String, CameraError> {
     std::fs::read_to_string(path).map_err(|source| CameraError::Io {
         path: path.to_owned(),
         source,
     })
 }
 
-fn parse_file(path: &Path, format: CalibrationFormat) -> Result<Document, CameraError> {
+pub(crate) fn parse_file(path: &Path, format: CalibrationFormat) -> Result<Document, CameraError> {
     let text = read_text(path)?;
     let name = path.display().to_string();
     match format {

@@ -62,6 +62,7 @@
 //! ``calib.yml line 7: key `Kc`: expected 9 values (3x3), found 8``.
 #![deny(missing_docs)]
 
+mod binocular;
 mod calibration;
 mod distortion;
 mod error;
@@ -76,6 +77,7 @@ mod pose;
 mod ray_table;
 mod turntable;
 
+pub use binocular::{BINOCULAR_FORMAT_VERSION, BinocularCalibration};
 pub use calibration::{
     CALIBRATION_FORMAT_VERSION, Calibration, CalibrationFormat, Metadata, RmsErrors,
 };

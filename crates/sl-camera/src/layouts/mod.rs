@@ -13,6 +13,7 @@
 //! `camera_height`, `projector_width`, `projector_height`, `cam_error`, `proj_error`,
 //! `stereo_error`. Translations are taken to be millimetres.
 
+pub(crate) mod binocular;
 mod opencv_camera;
 mod opencv_stereo;
 mod scan3d_capture;

@@ -15,7 +15,7 @@ use crate::{Calibration, CameraError, ImageSize, LoadConfig};
 const LAYOUT: CalibrationLayout = CalibrationLayout::SlMaster;
 
 /// The camera size of `S`: a 2-vector `[width, height]` of whole pixels.
-fn size_of_s(doc: &Document) -> Result<Option<(ImageSize, usize)>, CameraError> {
+pub(super) fn size_of_s(doc: &Document) -> Result<Option<(ImageSize, usize)>, CameraError> {
     let Some(s) = doc.matrix("S")? else {
         return Ok(None);
     };
