@@ -21,6 +21,8 @@ fn glyph(c: char) -> Option<[u8; 5]> {
         '-' => [0, 0, 7, 0, 0],
         '+' => [0, 2, 7, 2, 0],
         'm' => [0, 0, 7, 7, 5],
+        'p' => [0, 7, 5, 7, 4],
+        'x' => [0, 5, 2, 5, 0],
         ' ' => [0, 0, 0, 0, 0],
         _ => return None,
     })
@@ -103,6 +105,36 @@ pub fn draw_legend(img: &mut PreviewImage, range_mm: f32) {
         INSET + BAR.0 - text_width(&format!("+{range_mm}")) / 2,
         y_text,
         &hi,
+    );
+}
+
+/// Draws the colour scale of a false-colour picture whose [`colormap`] runs from `lo` to `hi`
+/// (`unit` after the upper value: `px`, `mm`) into the bottom-left corner of `img`: the bar,
+/// and the two ends and the middle under it (rounded to 0.1). A picture too small for it is
+/// left as it is.
+pub fn draw_scale(img: &mut PreviewImage, lo: f32, hi: f32, unit: &str) {
+    let label_h = 5 * FONT_SCALE;
+    let need_h = BAR.1 + 4 + label_h + INSET;
+    if img.width < BAR.0 + 2 * INSET + 40 || img.height < need_h + INSET {
+        return;
+    }
+    let y_bar = img.height - need_h;
+    for x in 0..BAR.0 {
+        let c = colormap(f64::from(x) / f64::from(BAR.0 - 1));
+        for y in 0..BAR.1 {
+            put(img, INSET + x, y_bar + y, c);
+        }
+    }
+    let y_text = y_bar + BAR.1 + 4;
+    let label = |v: f32| format!("{:.1}", v);
+    let (l, m, h) = (label(lo), label(0.5 * (lo + hi)), label(hi));
+    text(img, INSET, y_text, &l);
+    text(img, INSET + BAR.0 / 2 - text_width(&m) / 2, y_text, &m);
+    text(
+        img,
+        INSET + BAR.0 - text_width(&h) / 2,
+        y_text,
+        &format!("{h} {unit}"),
     );
 }
 

@@ -75,7 +75,7 @@ pub use evaluate::{
     SphereReport, VDI_TRIM_FRACTION, evaluate, evaluate_with,
 };
 pub use heat_map::{DEFAULT_HEAT_MAP_RANGE_MM, heat_map};
-pub use legend::draw_legend;
+pub use legend::{draw_legend, draw_scale};
 pub use mesh::{MeshSampling, evaluate_mesh, mesh_samples};
 pub use sl_cloud::TriangleMesh;
 pub use truth::{

@@ -48,6 +48,7 @@
 #![cfg_attr(docsrs, feature(doc_cfg))]
 
 mod align_scans;
+mod binocular_reconstruction;
 mod calibrate;
 mod calibration_layout;
 mod capture;
@@ -119,6 +120,7 @@ pub use virtual_board::{
     BoardCamera, BoardPlacement, BoardProjector, BoardTurntable, VirtualBoardMover, VirtualBoardRig,
 };
 
+pub use binocular_reconstruction::{BinocularReconstruction, reconstruct_binocular_capture};
 pub use calibrate::{load_scan_calibration, require_turntable_axis};
 pub use capture::{
     SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_session, full_turn_motor_angles, scan_patterns,
