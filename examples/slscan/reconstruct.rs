@@ -163,6 +163,7 @@ fn run_binocular(args: &Args, right: &Path) -> anyhow::Result<()> {
         "disparity_range_px",
         vec![r.disparity_range_px.0, r.disparity_range_px.1],
     );
+    report.figure("disparity_roughness_px", r.roughness_px);
     if let Some((min, max)) = r.bbox_mm {
         report.figure("bbox_min_mm", min.to_vec());
         report.figure("bbox_max_mm", max.to_vec());
@@ -184,10 +185,11 @@ fn run_binocular(args: &Args, right: &Path) -> anyhow::Result<()> {
         c.inconsistent
     );
     outln!(
-        "disparity: {} (scale {:.1}..{:.1} px); report: {}",
+        "disparity: {} (scale {:.1}..{:.1} px, roughness {:.3} px); report: {}",
         out.join("disparity.png").display(),
         r.disparity_range_px.0,
         r.disparity_range_px.1,
+        r.roughness_px,
         out.join("report.json").display()
     );
     Ok(())

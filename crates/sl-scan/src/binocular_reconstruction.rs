@@ -30,6 +30,10 @@ pub struct BinocularReconstruction {
     pub counts: BinocularCounts,
     /// The disparity range of the picture (px): its colour scale.
     pub disparity_range_px: (f32, f32),
+    /// Roughness of the disparity map: the median of `|d(x−1) − 2·d(x) + d(x+1)|` along the
+    /// rectified rows where three neighbours matched (px); the matching noise on smooth
+    /// surfaces, for comparing methods on the same captures.
+    pub roughness_px: f64,
     /// Corners of the cloud's bounding box (mm), when it has a point.
     pub bbox_mm: Option<([f64; 3], [f64; 3])>,
     /// The cloud (mm, the left camera's frame).
@@ -141,6 +145,7 @@ pub fn reconstruct_binocular_capture(
         decoded_fraction: (lmap.valid_fraction(), rmap.valid_fraction()),
         counts: result.counts,
         disparity_range_px: range,
+        roughness_px: roughness(&result.disparity, result.width),
         bbox_mm: result
             .cloud
             .bounding_box()
@@ -148,6 +153,24 @@ pub fn reconstruct_binocular_capture(
         cloud: ply,
         stages,
     })
+}
+
+/// See [`BinocularReconstruction::roughness_px`] (NaN without three neighbours in a row).
+fn roughness(disparity: &[f32], width: usize) -> f64 {
+    let mut second: Vec<f32> = disparity
+        .chunks(width.max(1))
+        .flat_map(|row| {
+            row.windows(3)
+                .map(|w| (w[0] - 2.0 * w[1] + w[2]).abs())
+                .filter(|v| v.is_finite())
+        })
+        .collect();
+    if second.is_empty() {
+        return f64::NAN;
+    }
+    let mid = second.len() / 2;
+    let (_, m, _) = second.select_nth_unstable_by(mid, f32::total_cmp);
+    f64::from(*m)
 }
 
 /// The disparity map in false colour over the 1st–99th percentile of its values (black where
