@@ -27,12 +27,12 @@ pub(crate) struct Args {
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
-    /// Multiply coordinates by this when reading (1000 for clouds in metres).
-    #[arg(long, default_value_t = 1.0)]
+    /// Multiply coordinates by this when reading (1000 for clouds in metres; > 0).
+    #[arg(long, default_value_t = 1.0, value_parser = crate::values::positive)]
     pub(crate) scale: f64,
     /// Voxel size of the descriptors and RANSAC (mm); the FPFH radius and the inlier and ICP
-    /// distances follow it (5, 1.5 and 1.5 voxels).
-    #[arg(long, default_value_t = DEFAULT_VOXEL_MM)]
+    /// distances follow it (5, 1.5 and 1.5 voxels); > 0.
+    #[arg(long, default_value_t = DEFAULT_VOXEL_MM, value_parser = crate::values::positive)]
     pub(crate) voxel: f64,
     #[command(flatten)]
     pub(crate) normals: NormalsTowards,
@@ -42,9 +42,6 @@ pub(crate) struct Args {
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("align");
     let out = ensure_out_dir(&args.out)?;
-    if !(args.voxel.is_finite() && args.voxel > 0.0) {
-        anyhow::bail!("--voxel {}: must be finite and > 0 (mm)", args.voxel);
-    }
     let viewpoint = args.normals.viewpoint()?;
     let config = multiway_config_at(args.voxel);
     let bar = progress(3, "align");

@@ -7,6 +7,7 @@ use sl_codec::{DecodeConfig, MapFormat};
 use sl_scan::decode_capture;
 
 use crate::common::{Report, StageBars, ensure_out_dir};
+use crate::values;
 
 /// File format of the float maps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -31,17 +32,18 @@ pub(crate) struct Args {
     /// File format of the float maps.
     #[arg(long, value_enum, default_value_t = FormatArg::Tiff)]
     pub(crate) format: FormatArg,
-    /// Gray code: smallest direct light, 8-bit grey levels.
-    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_DIRECT)]
+    /// Gray code: smallest direct light, 8-bit grey levels (0 to 255).
+    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_DIRECT, value_parser = values::grey_level)]
     pub(crate) min_direct: f32,
-    /// Gray code: smallest pattern/inverse difference for a bit, 8-bit grey levels.
-    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_CONTRAST)]
+    /// Gray code: smallest pattern/inverse difference for a bit, 8-bit grey levels (0 to 255).
+    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_CONTRAST, value_parser = values::grey_level)]
     pub(crate) min_contrast: f32,
-    /// Phase: smallest fringe modulation, 8-bit grey levels.
-    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_MODULATION)]
+    /// Phase: smallest fringe modulation, 8-bit grey levels (0 to 255).
+    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_MODULATION, value_parser = values::grey_level)]
     pub(crate) min_modulation: f32,
-    /// Temporal unwrapping tolerance, in periods.
-    #[arg(long, default_value_t = sl_codec::DEFAULT_UNWRAP_TOLERANCE)]
+    /// Temporal unwrapping tolerance, in periods (> 0, at most 0.5).
+    #[arg(long, default_value_t = sl_codec::DEFAULT_UNWRAP_TOLERANCE,
+          value_parser = values::as_f32(values::positive_up_to(0.5)))]
     pub(crate) unwrap_tolerance: f32,
     /// Gray code: plain pattern-against-inverse comparison instead of Xu & Aliaga's rules.
     #[arg(long)]

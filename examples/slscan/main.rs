@@ -58,6 +58,7 @@ mod report;
 mod scan;
 mod scan_hardware;
 mod simulate;
+mod values;
 
 use clap::{Parser, Subcommand};
 
@@ -117,8 +118,33 @@ fn main() -> std::process::ExitCode {
     }
 }
 
+/// The checks of a subcommand's options that need more than one value (`--period-px` against
+/// `--projector`, `--min-depth` against `--max-depth`, …), made before anything is read or
+/// written; each names the options as given. The checks of single values are clap's
+/// (`values.rs`); those that need the data (a depth scale against the cloud's depths) are made
+/// where the data is.
+fn validate(command: &Command) -> anyhow::Result<()> {
+    match command {
+        Command::Patterns(args) => patterns::check(args),
+        Command::Reconstruct(args) => reconstruct::check(args),
+        Command::Calibrate(args) => calibrate::check(args),
+        Command::Capture(args) => capture::check(args),
+        Command::Scan(args) => scan::check(args),
+        Command::Merge(args) => merge::check(args),
+        Command::Info(_)
+        | Command::Devices(_)
+        | Command::Decode(_)
+        | Command::Simulate(_)
+        | Command::Register(_)
+        | Command::Mesh(_)
+        | Command::Align(_)
+        | Command::Report(_) => Ok(()),
+    }
+}
+
 /// Runs one subcommand.
 fn run(command: Command) -> anyhow::Result<()> {
+    validate(&command)?;
     match command {
         Command::Info(args) => info::run(&args),
         Command::Devices(args) => devices::run(&args),

@@ -14,13 +14,14 @@ use sl_scan::{ScanError, merge_and_write, pair_figures};
 
 use crate::common::{Report, StageBars, ensure_out_dir};
 use crate::register::{check_units, read_scaled};
+use crate::values;
 
 /// Arguments of `slscan merge`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
     /// The views, in turntable order: PLY files, or folders holding `cloud.ply` (as written by
-    /// `slscan reconstruct`).
-    #[arg(required = true)]
+    /// `slscan reconstruct`); two at least.
+    #[arg(required = true, num_args = 2..)]
     pub(crate) views: Vec<PathBuf>,
     /// The merged cloud (`*.ply`; `report.json`, `poses.json` and `preview.png` go beside it),
     /// or an output folder (the cloud is then `merged.ply` in it).
@@ -30,23 +31,26 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) calib: Option<PathBuf>,
     /// Turntable axis direction in the camera frame, "dx,dy,dz" (overrides the calibration's).
-    #[arg(long)]
-    pub(crate) axis: Option<String>,
+    #[arg(long, value_delimiter = ',', num_args = 1, allow_negative_numbers = true,
+          value_parser = values::finite)]
+    pub(crate) axis: Option<Vec<f64>>,
     /// A point of the turntable axis in the camera frame, "x,y,z" in mm (with --axis).
-    #[arg(long)]
-    pub(crate) axis_point: Option<String>,
-    /// Motor angle of each view in degrees, "a0,a1,..." (one per view).
-    #[arg(long)]
-    pub(crate) angles: Option<String>,
+    #[arg(long, value_delimiter = ',', num_args = 1, allow_negative_numbers = true,
+          value_parser = values::finite)]
+    pub(crate) axis_point: Option<Vec<f64>>,
+    /// Motor angle of each view in degrees, "a0,a1,..." (one per view; finite).
+    #[arg(long, value_delimiter = ',', num_args = 1, allow_negative_numbers = true,
+          value_parser = values::finite)]
+    pub(crate) angles: Option<Vec<f64>>,
     /// Motor step between consecutive views in degrees (view i at i * step), instead of
-    /// --angles.
-    #[arg(long)]
+    /// --angles; from -360 to 360.
+    #[arg(long, allow_negative_numbers = true, value_parser = values::in_range(-360.0..=360.0))]
     pub(crate) step: Option<f64>,
-    /// Voxel size the views are downsampled to for registration (mm).
-    #[arg(long, default_value_t = DEFAULT_REGISTRATION_VOXEL_MM)]
+    /// Voxel size the views are downsampled to for registration (mm, > 0).
+    #[arg(long, default_value_t = DEFAULT_REGISTRATION_VOXEL_MM, value_parser = values::positive)]
     pub(crate) registration_voxel: f64,
-    /// Voxel size of the merged cloud (mm; 0 keeps every point).
-    #[arg(long, default_value_t = 0.5)]
+    /// Voxel size of the merged cloud (mm, ≥ 0; 0 keeps every point).
+    #[arg(long, default_value_t = 0.5, value_parser = values::non_negative)]
     pub(crate) voxel: f64,
     /// Average overlapping points along the normals (moving least squares of degree 2).
     #[arg(long)]
@@ -62,24 +66,49 @@ pub(crate) struct Args {
     /// The turntable model: the default since issue 28; accepted for old scripts.
     #[arg(long, hide = true)]
     pub(crate) turntable_model: bool,
-    /// Multiply coordinates by this when reading (1000 for clouds in metres).
-    #[arg(long, default_value_t = 1.0)]
+    /// Multiply coordinates by this when reading (1000 for clouds in metres; > 0).
+    #[arg(long, default_value_t = 1.0, value_parser = values::positive)]
     pub(crate) scale: f64,
 }
 
-fn triple(arg: &str, what: &str) -> anyhow::Result<Vector3<f64>> {
-    let v: Vec<f64> = arg
-        .split(',')
-        .map(|s| s.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("{what} \"{arg}\": expected three comma-separated numbers"))?;
-    match v.as_slice() {
+/// The three numbers of `--axis` or `--axis-point` (`what`).
+fn triple(v: &[f64], what: &str) -> anyhow::Result<Vector3<f64>> {
+    match v {
         [x, y, z] => Ok(Vector3::new(*x, *y, *z)),
-        _ => anyhow::bail!(
-            "{what} \"{arg}\": expected three numbers, found {}",
-            v.len()
-        ),
+        _ => anyhow::bail!("{what}: expected three numbers X,Y,Z, found {}", v.len()),
     }
+}
+
+/// The checks of `slscan merge` that need more than one value.
+pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
+    if let Some(d) = &args.axis {
+        let d = triple(d, "--axis")?;
+        anyhow::ensure!(
+            d.norm() > 0.0 && d.norm().is_finite(),
+            "--axis {},{},{}: a direction needs a length > 0",
+            d.x,
+            d.y,
+            d.z
+        );
+        let point = args
+            .axis_point
+            .as_deref()
+            .context("--axis needs --axis-point")?;
+        triple(point, "--axis-point")?;
+    }
+    anyhow::ensure!(
+        args.angles.is_none() || args.step.is_none(),
+        "give --angles or --step, not both"
+    );
+    if let Some(angles) = &args.angles {
+        anyhow::ensure!(
+            angles.len() == args.views.len(),
+            "--angles gives {} angles for {} views",
+            angles.len(),
+            args.views.len()
+        );
+    }
+    Ok(())
 }
 
 fn view_file(path: &Path) -> PathBuf {
@@ -102,26 +131,14 @@ fn initial_poses(args: &Args, n: usize) -> anyhow::Result<(Vec<Isometry3<f64>>, 
         }
         None => None,
     };
-    if let Some(d) = &args.axis {
-        let point = args
-            .axis_point
-            .as_deref()
-            .context("--axis needs --axis-point")?;
+    if let (Some(d), Some(point)) = (&args.axis, &args.axis_point) {
         axis = Some(TurntableAxis::new(
             triple(d, "--axis")?,
             Point3::from(triple(point, "--axis-point")?),
         )?);
     }
     let angles: Option<Vec<f64>> = match (&args.angles, args.step) {
-        (Some(_), Some(_)) => anyhow::bail!("give --angles or --step, not both"),
-        (Some(list), None) => Some(
-            list.split(',')
-                .map(|s| s.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .with_context(|| {
-                    format!("--angles \"{list}\": expected comma-separated degrees")
-                })?,
-        ),
+        (Some(list), _) => Some(list.clone()),
         (None, Some(step)) => Some((0..n).map(|i| i as f64 * step).collect()),
         (None, None) => None,
     };
@@ -322,5 +339,26 @@ mod tests {
         }
         assert!(out.join("merged.ply").is_file());
         assert!(out.join("preview.png").is_file());
+    }
+
+    /// A merge needs two views at least, and says so naming the argument (before, one view
+    /// ended "0 of 1 views could not be placed:  (no pair …)").
+    #[test]
+    fn one_view_is_refused_naming_the_views() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("one.ply");
+        let cloud = PointCloud::from_positions(crate::blob_support::blob(2_000));
+        write_ply(&path, &cloud, PlyFormat::default()).unwrap();
+        let out = tmp.path().join("merged");
+        let err = slscan(&[
+            "merge",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap_err();
+        let text = format!("{err:#}");
+        assert!(text.contains("<VIEWS>") && text.contains('2'), "{text}");
+        assert!(!out.exists());
     }
 }

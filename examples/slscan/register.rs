@@ -10,6 +10,7 @@ use sl_icp::{IcpConfig, Metric, RobustKernel, Trimming};
 use sl_scan::{read_transform, register_and_write};
 
 use crate::common::{Report, ensure_out_dir};
+use crate::values;
 
 /// Default voxel size of `register` (mm): a 100 mm object keeps ~10k points.
 const DEFAULT_VOXEL_MM: f64 = 1.0;
@@ -48,29 +49,29 @@ pub(crate) struct Args {
     /// Error metric.
     #[arg(long, value_enum, default_value_t = MetricArg::PointToPlane)]
     pub(crate) metric: MetricArg,
-    /// Voxel size for downsampling both clouds first (mm; 0 keeps every point).
-    #[arg(long, default_value_t = DEFAULT_VOXEL_MM)]
+    /// Voxel size for downsampling both clouds first (mm, ≥ 0; 0 keeps every point).
+    #[arg(long, default_value_t = DEFAULT_VOXEL_MM, value_parser = values::non_negative)]
     pub(crate) voxel: f64,
-    /// Correspondences farther apart than this are ignored (mm).
-    #[arg(long, default_value_t = 5.0)]
+    /// Correspondences farther apart than this are ignored (mm, > 0).
+    #[arg(long, default_value_t = 5.0, value_parser = values::positive)]
     pub(crate) max_distance: f64,
-    /// Maximum number of iterations.
-    #[arg(long, default_value_t = 50)]
+    /// Maximum number of iterations (1 to 10000).
+    #[arg(long, default_value_t = 50, value_parser = values::count_in::<usize>(1..=10_000))]
     pub(crate) iterations: usize,
-    /// Huber kernel threshold (mm); off by default.
-    #[arg(long)]
+    /// Huber kernel threshold (mm, > 0); off by default.
+    #[arg(long, value_parser = values::positive)]
     pub(crate) huber: Option<f64>,
     /// Trimmed ICP: expected overlap of the source with the target, in (0, 1]; "auto" for the
     /// trimmed-ICP estimate of the overlap. Off by default.
-    #[arg(long)]
-    pub(crate) trim: Option<String>,
+    #[arg(long, value_parser = parse_trim)]
+    pub(crate) trim: Option<Trimming>,
     /// Initial `T_target_source`: a JSON file with a 4x4 row-major matrix under
     /// `"T_target_source"` (the `transform.json` this command writes). Default: identity.
     #[arg(long)]
     pub(crate) init: Option<PathBuf>,
     /// Multiply the coordinates of both clouds by this when reading (1000 for clouds in
-    /// metres, such as the Stanford scans: the workspace works in mm).
-    #[arg(long, default_value_t = 1.0)]
+    /// metres, such as the Stanford scans: the workspace works in mm; > 0).
+    #[arg(long, default_value_t = 1.0, value_parser = values::positive)]
     pub(crate) scale: f64,
 }
 
@@ -80,7 +81,20 @@ pub(crate) fn read_scaled(path: &Path, scale: f64) -> anyhow::Result<PointCloud>
         scale.is_finite() && scale > 0.0,
         "--scale {scale}: must be finite and > 0"
     );
-    Ok(sl_cloud::read_ply_scaled(path, scale)?)
+    let cloud = sl_cloud::read_ply_scaled(path, scale)?;
+    let bad = cloud
+        .positions()
+        .iter()
+        .filter(|p| !p.iter().all(|c| c.is_finite()))
+        .count();
+    anyhow::ensure!(
+        bad == 0,
+        "{}: {bad} of {} points have coordinates that are not finite numbers once read with \
+         --scale {scale}",
+        path.display(),
+        cloud.len()
+    );
+    Ok(cloud)
 }
 
 /// A cloud whose bounding-box diagonal is below this many default voxels is taken for one in
@@ -110,7 +124,8 @@ pub(crate) struct NormalsTowards {
         long,
         value_delimiter = ',',
         num_args = 1,
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        value_parser = values::finite
     )]
     pub(crate) normals_towards: Option<Vec<f64>>,
 }
@@ -141,16 +156,14 @@ pub(crate) fn with_normals_towards(
         .with_context(|| format!("{name}: cannot estimate normals"))
 }
 
-fn trimming(arg: &Option<String>) -> anyhow::Result<Trimming> {
-    Ok(match arg.as_deref() {
-        None => Trimming::None,
-        Some("auto") => Trimming::Auto { min_overlap: 0.3 },
-        Some(v) => Trimming::Fixed {
-            overlap: v
-                .parse()
-                .with_context(|| format!("--trim {v}: expected a number in (0, 1] or \"auto\""))?,
-        },
-    })
+/// `--trim`: "auto", or an overlap in (0, 1].
+fn parse_trim(s: &str) -> Result<Trimming, String> {
+    if s.trim() == "auto" {
+        return Ok(Trimming::Auto { min_overlap: 0.3 });
+    }
+    let overlap = values::positive_up_to(1.0)(s)
+        .map_err(|_| "must be an overlap > 0 and at most 1, or \"auto\"".to_owned())?;
+    Ok(Trimming::Fixed { overlap })
 }
 
 /// Runs `slscan register`.
@@ -165,7 +178,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         kernel: args
             .huber
             .map_or(RobustKernel::L2, |k| RobustKernel::Huber { k }),
-        trimming: trimming(&args.trim)?,
+        trimming: args.trim.unwrap_or_default(),
         ..IcpConfig::default()
     };
     config.validate()?;

@@ -1,7 +1,7 @@
 //! What every pattern block shares: the coded axis, the projector size, and the [`Pattern`]
 //! enum that ties the codecs together.
 
-use crate::{CodecError, GrayCodeSpec, HybridSpec, PhaseShiftSpec};
+use crate::{CodecError, GrayCodeSpec, GrayReference, HybridSpec, PhaseShiftSpec};
 
 /// Size of the projector image in pixels: the workspace's one image size, [`sl_image::ImageSize`],
 /// re-exported so codec users need one import.
@@ -129,7 +129,18 @@ impl Pattern {
     /// [`CodecError::Parameter`] naming the first parameter out of its domain.
     pub fn validate(&self) -> Result<(), CodecError> {
         match self {
-            Self::Gray(s) => s.validate(),
+            Self::Gray(s) => {
+                s.validate()?;
+                // The decoder refuses it (no fringes to take the mean of): refuse it here too,
+                // so that no pattern set is written, or manifest read, that cannot be decoded.
+                if s.reference == GrayReference::PhaseMean {
+                    return Err(CodecError::parameter(
+                        "reference",
+                        "'phase_mean' needs phase-shift frames: use it in a hybrid block",
+                    ));
+                }
+                Ok(())
+            }
             Self::Phase(s) => s.validate(),
             Self::Hybrid(s) => s.validate(),
         }
