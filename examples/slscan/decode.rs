@@ -41,9 +41,9 @@ pub(crate) struct Args {
     /// Phase: smallest fringe modulation, 8-bit grey levels (0 to 255).
     #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_MODULATION, value_parser = values::grey_level)]
     pub(crate) min_modulation: f32,
-    /// Temporal unwrapping tolerance, in periods (> 0, at most 0.5).
+    /// Temporal unwrapping tolerance, in periods (0.01 to 0.5).
     #[arg(long, default_value_t = sl_codec::DEFAULT_UNWRAP_TOLERANCE,
-          value_parser = values::as_f32(values::positive_up_to(0.5)))]
+          value_parser = values::as_f32(values::in_range(0.01..=0.5)))]
     pub(crate) unwrap_tolerance: f32,
     /// Gray code: plain pattern-against-inverse comparison instead of Xu & Aliaga's rules.
     #[arg(long)]

@@ -58,6 +58,8 @@ mod report;
 mod scan;
 mod scan_hardware;
 mod simulate;
+#[cfg(test)]
+mod sweep_tests;
 mod values;
 
 use clap::{Parser, Subcommand};

@@ -13,7 +13,7 @@ use sl_icp::{IcpError, MergeConfig, PoseModel, TurntablePrior, turntable_poses};
 use sl_scan::{ScanError, merge_and_write, pair_figures};
 
 use crate::common::{Report, StageBars, ensure_out_dir};
-use crate::register::{check_units, read_scaled};
+use crate::register::{check_units, check_voxel, read_scaled, with_options};
 use crate::values;
 
 /// Arguments of `slscan merge`.
@@ -46,11 +46,13 @@ pub(crate) struct Args {
     /// --angles; from -360 to 360.
     #[arg(long, allow_negative_numbers = true, value_parser = values::in_range(-360.0..=360.0))]
     pub(crate) step: Option<f64>,
-    /// Voxel size the views are downsampled to for registration (mm, > 0).
-    #[arg(long, default_value_t = DEFAULT_REGISTRATION_VOXEL_MM, value_parser = values::positive)]
+    /// Voxel size the views are downsampled to for registration (mm; from 0.001 to a tenth of
+    /// each view's extent).
+    #[arg(long, default_value_t = DEFAULT_REGISTRATION_VOXEL_MM, value_parser = values::length_mm)]
     pub(crate) registration_voxel: f64,
-    /// Voxel size of the merged cloud (mm, ≥ 0; 0 keeps every point).
-    #[arg(long, default_value_t = 0.5, value_parser = values::non_negative)]
+    /// Voxel size of the merged cloud (mm; 0 keeps every point, else from 0.001 to a tenth of
+    /// each view's extent).
+    #[arg(long, default_value_t = 0.5, value_parser = values::voxel_or_zero)]
     pub(crate) voxel: f64,
     /// Average overlapping points along the normals (moving least squares of degree 2).
     #[arg(long)]
@@ -66,8 +68,8 @@ pub(crate) struct Args {
     /// The turntable model: the default since issue 28; accepted for old scripts.
     #[arg(long, hide = true)]
     pub(crate) turntable_model: bool,
-    /// Multiply coordinates by this when reading (1000 for clouds in metres; > 0).
-    #[arg(long, default_value_t = 1.0, value_parser = values::positive)]
+    /// Multiply coordinates by this when reading (1000 for clouds in metres; 1e-6 to 1e6).
+    #[arg(long, default_value_t = 1.0, value_parser = values::scale)]
     pub(crate) scale: f64,
 }
 
@@ -100,6 +102,17 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
         args.angles.is_none() || args.step.is_none(),
         "give --angles or --step, not both"
     );
+    let given = match (&args.angles, args.step) {
+        (Some(_), _) => Some("--angles"),
+        (None, Some(_)) => Some("--step"),
+        (None, None) => None,
+    };
+    if let Some(flag) = given {
+        anyhow::ensure!(
+            args.calib.is_some() || args.axis.is_some(),
+            "{flag}: view angles need a turntable axis (--calib or --axis)"
+        );
+    }
     if let Some(angles) = &args.angles {
         anyhow::ensure!(
             angles.len() == args.views.len(),
@@ -201,11 +214,30 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 let path = view_file(v);
                 let c = read_scaled(&path, args.scale)?;
                 check_units(&c, &path, DEFAULT_REGISTRATION_VOXEL_MM)?;
+                for (flag, voxel) in [
+                    ("--registration-voxel", args.registration_voxel),
+                    ("--voxel", args.voxel),
+                ] {
+                    check_voxel(flag, voxel, &[&c], &[&path])?;
+                }
                 Ok(c)
             })
             .collect::<anyhow::Result<_>>()
     })?;
     let names: Vec<String> = args.views.iter().map(|p| p.display().to_string()).collect();
+    let mut options = vec![
+        ("--registration-voxel", args.registration_voxel.to_string()),
+        ("--voxel", args.voxel.to_string()),
+    ];
+    if args.scale != 1.0 {
+        options.push(("--scale", args.scale.to_string()));
+    }
+    if let Some(step) = args.step {
+        options.push(("--step", step.to_string()));
+    }
+    if args.angles.is_some() {
+        options.push(("--angles", "as given".to_owned()));
+    }
     let mut bars = StageBars::new();
     let merged = merge_and_write(
         &views,
@@ -238,13 +270,14 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             let path = report.write(&dir)?;
             let lost: Vec<String> = lost.iter().map(|&v| name(v)).collect();
             anyhow::bail!(
-                "{} of {n} views could not be placed: {} ({why}); every pair's fitness, RMSE and reason are in {}",
+                "{} of {n} views could not be placed {}: {} ({why}); every pair's fitness, RMSE and reason are in {}",
                 lost.len(),
+                with_options(&options),
                 lost.join(", "),
                 path.display()
             );
         }
-        Err(e) => return Err(e.into()),
+        Err(e) => return Err(anyhow::Error::new(e).context(with_options(&options))),
     };
     merged.record(&mut report);
     let path = report.write(&dir)?;

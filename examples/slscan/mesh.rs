@@ -29,6 +29,10 @@ const UNITS_CHECK_MM: f64 = 1.0;
 /// warning is printed.
 const UNORIENTED_FRACTION: f64 = 0.1;
 
+/// The longest `--remesh` edge, as a fraction of the cloud's extent (the diagonal of its box):
+/// a tenth, a surface of some hundreds of triangles at least; a longer edge collapses it.
+const MAX_REMESH_OF_EXTENT: f64 = 0.1;
+
 /// Smoothing applied after the reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum Smooth {
@@ -52,7 +56,7 @@ pub(crate) struct Args {
     /// Multiply the cloud's coordinates by this on reading: 1000 for a cloud in metres (the
     /// mesh's bounds and figures are in mm; a cloud spanning less than 1 unit is refused with
     /// this hint).
-    #[arg(long, default_value_t = 1.0, value_parser = values::positive)]
+    #[arg(long, default_value_t = 1.0, value_parser = values::scale)]
     pub(crate) scale: f64,
     /// `--normals-towards X,Y,Z`: for a cloud without normals seen from one side (merge several
     /// views first: `slscan merge`, `slscan align`).
@@ -62,13 +66,14 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = PoissonConfig::default().depth,
           value_parser = values::count_in::<u32>(2..=10))]
     pub(crate) depth: u32,
-    /// Screening weight, ≥ 0 (0: plain Poisson).
+    /// Screening weight, 0 to 1000 (0: plain Poisson).
     #[arg(long, default_value_t = PoissonConfig::default().screening,
-          value_parser = values::non_negative)]
+          value_parser = values::in_range(0.0..=1000.0))]
     pub(crate) screening: f64,
     /// Remove surface whose sampling density is below this fraction of the median (e.g. 0.1):
-    /// opens the mesh where the data has no support. Off by default (watertight). 0 to 1.
-    #[arg(long, value_parser = values::in_range(0.0..=1.0))]
+    /// opens the mesh where the data has no support. Off by default (watertight). From 0 up
+    /// to, not including, 1.
+    #[arg(long, value_parser = values::fraction_below_one)]
     pub(crate) trim: Option<f64>,
     /// Keep every vertex of the extraction: no error-bounded simplification (it is on by
     /// default: it removes the vertices that change the surface by less than
@@ -142,6 +147,16 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     // The bounds of the simplification and the fairing are in mm: a cloud in metres would be
     // simplified to nothing.
     check_units(&cloud, &args.cloud, UNITS_CHECK_MM)?;
+    if let Some(edge) = args.remesh {
+        let extent = cloud.bounding_box().map_or(0.0, |b| b.extent().norm());
+        anyhow::ensure!(
+            edge <= MAX_REMESH_OF_EXTENT * extent,
+            "--remesh {edge}: an edge must be at most a tenth of the cloud's extent; {} spans \
+             {extent:.3} mm (the diagonal of its box), so at most {:.3} mm",
+            args.cloud.display(),
+            MAX_REMESH_OF_EXTENT * extent
+        );
+    }
     if let Some(v) = viewpoint {
         cloud = report.stage("normals", || {
             with_normals_towards(&cloud, v, &args.cloud.display().to_string())
@@ -177,6 +192,17 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         },
         triangles: args.triangles,
     };
+    // The options that can leave no triangle, as given, for the error that says so.
+    let mut given = vec![
+        format!("--min-piece {}", args.min_piece),
+        format!("--scale {}", args.scale),
+        format!("--depth {}", args.depth),
+        format!("--screening {}", args.screening),
+    ];
+    given.extend(args.trim.map(|t| format!("--trim {t}")));
+    given.extend(args.remesh.map(|r| format!("--remesh {r}")));
+    given.extend(args.triangles.map(|t| format!("--triangles {t}")));
+    let removing = format!(" ({})", given.join(", "));
     let chain = mesh_chain(&cloud, &cfg).map_err(|e| {
         let hint = match &e {
             ScanError::MeshStep {
@@ -184,7 +210,19 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             } => " (--simplify-error, --simplify-unsupported-error)",
             ScanError::MeshStep { step: "fair", .. } => " (--no-fair leaves it)",
             ScanError::MeshStep { step: "remesh", .. } => " (--remesh)",
-            ScanError::Stage { .. } => " (--min-piece, --scale)",
+            ScanError::MeshStep { step: "trim", .. } => " (--trim)",
+            ScanError::MeshStep {
+                step: "decimate", ..
+            } => " (--triangles)",
+            ScanError::MeshStep {
+                step: "fill holes", ..
+            } => " (--fill-holes)",
+            ScanError::MeshStep { step: "smooth", .. } => " (--smooth)",
+            ScanError::MeshStep {
+                step: "reconstruct",
+                ..
+            } => " (--depth, --screening)",
+            ScanError::Stage { .. } => &*removing,
             _ => "",
         };
         anyhow::Error::new(e).context(format!("{}{hint}", args.cloud.display()))
@@ -589,7 +627,7 @@ mod tests {
         );
         assert!(!out.join("report.json").exists() && !out.join("mesh.ply").exists());
         let err = slscan(&[ply.to_str().unwrap(), "--out", o, "--scale", "0"]).unwrap_err();
-        assert!(format!("{err:#}").contains("--scale 0"), "{err:#}");
+        assert!(format!("{err:#}").contains("'0' for '--scale"), "{err:#}");
 
         let scaled = mesh_at_depth_7(
             &ply,

@@ -113,6 +113,36 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             parameter: "scale_mm",
             message,
         }) => anyhow::anyhow!("--depth-scale {message}"),
+        ScanError::Session { path, reason } => {
+            // Name the options behind the statuses that took the pixels.
+            let options: Vec<String> = [
+                ("low_quality", format!("--min-quality {}", args.min_quality)),
+                (
+                    "out_of_depth_range",
+                    format!(
+                        "--min-depth {}, --max-depth {}",
+                        args.min_depth, args.max_depth
+                    ),
+                ),
+                (
+                    "reprojection",
+                    format!("--max-reprojection {}", args.max_reprojection),
+                ),
+                (
+                    "mixed_pixel",
+                    format!("--max-depth-jump {}", args.max_depth_jump),
+                ),
+            ]
+            .into_iter()
+            .filter(|(status, _)| reason.contains(status))
+            .map(|(status, option)| format!("{status}: {option}"))
+            .collect();
+            if options.is_empty() {
+                ScanError::Session { path, reason }.into()
+            } else {
+                anyhow::anyhow!("{}: {reason} ({})", path.display(), options.join("; "))
+            }
+        }
         other => other.into(),
     })?;
     r.record(&mut report);

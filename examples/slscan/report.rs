@@ -24,9 +24,9 @@ pub(crate) struct Args {
     /// Output folder (`report.json`, `error_map.png`).
     #[arg(long)]
     pub(crate) out: PathBuf,
-    /// Heat-map range (mm, > 0): blue at −range, red at +range.
+    /// Heat-map range (mm, 0.001 to 1000): blue at −range, red at +range.
     #[arg(long, default_value_t = sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM,
-          value_parser = values::as_f32(values::positive_up_to(f64::from(f32::MAX))))]
+          value_parser = values::as_f32(values::in_range(0.001..=1000.0)))]
     pub(crate) range: f32,
     /// Fraction of points farthest from a fitted feature left out of the `_trimmed` figures
     /// (0 up to, not including, 0.5).

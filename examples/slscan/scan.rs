@@ -97,7 +97,7 @@ pub(crate) struct Args {
     /// and then laid on its side and merge both into one complete model (on the virtual rig:
     /// the pebble, an object with a flat bottom; on real devices the command waits for you to
     /// lay the object on its side).
-    #[arg(long, default_value_t = 1, value_parser = values::count_in::<usize>(1..=2))]
+    #[arg(long, default_value_t = 1)]
     pub(crate) placements: usize,
     /// Between two placements on real devices, wait this many seconds instead of asking to
     /// press Enter (for scripts; 0 to 86400).

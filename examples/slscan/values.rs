@@ -122,7 +122,62 @@ pub(crate) fn positive_up_to(
 pub(crate) fn as_f32(
     parse: impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync + 'static,
 ) -> impl Fn(&str) -> Result<f32, String> + Clone + Send + Sync + 'static {
-    move |s| parse(s).map(|v| v as f32)
+    move |s| {
+        let v = parse(s)?;
+        let f = v as f32;
+        if f.is_finite() && (f != 0.0 || v == 0.0) {
+            Ok(f)
+        } else {
+            Err(format!("{v} does not fit a 32-bit number"))
+        }
+    }
+}
+
+/// The finest length slscan takes in mm (`--voxel`, `--max-distance`): 1 µm, below the noise
+/// of any structured-light scanner (tens of µm); a finer one only overflows grids.
+pub(crate) const MIN_LENGTH_MM: f64 = 1e-3;
+
+/// A voxel size in mm: 0 (keep every point), or finite and at least [`MIN_LENGTH_MM`].
+pub(crate) fn voxel_or_zero(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v == 0.0 || (v.is_finite() && v >= MIN_LENGTH_MM) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "must be 0 (keep every point) or a size of at least {MIN_LENGTH_MM} mm"
+        ))
+    }
+}
+
+/// A length in mm: finite and at least [`MIN_LENGTH_MM`].
+pub(crate) fn length_mm(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v.is_finite() && v >= MIN_LENGTH_MM {
+        Ok(v)
+    } else {
+        Err(format!("must be a length of at least {MIN_LENGTH_MM} mm"))
+    }
+}
+
+/// The factors `--scale` takes: 1e-6 to 1e6, from µm to km and back to mm (1000 for metres,
+/// 25.4 for inches, 0.001 for µm).
+pub(crate) fn scale(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v.is_finite() && (1e-6..=1e6).contains(&v) {
+        Ok(v)
+    } else {
+        Err("must be a factor from 1e-6 to 1e6 (1000 for metres, 25.4 for inches)".to_owned())
+    }
+}
+
+/// A fraction in [0, 1).
+pub(crate) fn fraction_below_one(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if (0.0..1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err("must be a fraction from 0 up to, not including, 1".to_owned())
+    }
 }
 
 /// A threshold in 8-bit grey levels, 0 to 255 (no pixel passes a higher one).
