@@ -199,6 +199,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         format!("--depth {}", args.depth),
         format!("--screening {}", args.screening),
     ];
+    if !args.no_simplify {
+        given.push(format!(
+            "--simplify-error {}, --simplify-unsupported-error {}",
+            args.simplify_error, args.simplify_unsupported_error
+        ));
+    }
     given.extend(args.trim.map(|t| format!("--trim {t}")));
     given.extend(args.remesh.map(|r| format!("--remesh {r}")));
     given.extend(args.triangles.map(|t| format!("--triangles {t}")));

@@ -50,7 +50,7 @@ use sl_icp::Trimming;
 const SEED: u64 = 30;
 
 /// Most accepted values a command is run on per option (the others are parsed only).
-const MAX_RUNS_PER_OPTION: usize = 6;
+const MAX_RUNS_PER_OPTION: usize = 12;
 
 /// Random values per option.
 const RANDOM_VALUES: usize = 3;
