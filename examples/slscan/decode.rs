@@ -88,9 +88,34 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     );
     // No empty success: the maps and the report stay for the diagnosis, the exit code says it.
     if let Some(why) = d.nothing_decoded() {
+        // What decides each reason: an option, or the manifest's description of the code.
+        let causes: Vec<String> = [
+            ("shadow", format!("--min-direct {}", args.min_direct)),
+            (
+                "low_modulation",
+                format!(
+                    "--min-contrast {}, --min-modulation {}",
+                    args.min_contrast, args.min_modulation
+                ),
+            ),
+            (
+                "inconsistent_code",
+                format!(
+                    "--unwrap-tolerance {}, or the manifest's code (origin, phase_offset, \
+                     shift_sign, periods, steps, bits, stripe_width, reference) is not the one \
+                     the frames show",
+                    args.unwrap_tolerance
+                ),
+            ),
+        ]
+        .into_iter()
+        .filter(|(reason, _)| why.contains(reason))
+        .map(|(reason, cause)| format!("{reason}: {cause}"))
+        .collect();
         anyhow::bail!(
-            "{}: no pixel decoded ({why}); the invalid-pixel picture in {} shows where",
+            "{}: no pixel decoded ({why}; {}); the invalid-pixel picture in {} shows where",
             args.capture.display(),
+            causes.join("; "),
             out.display()
         );
     }

@@ -763,3 +763,193 @@ fn every_numeric_option_is_checked_where_it_is_given() {
         failures.join("\n")
     );
 }
+
+/// Every leaf of `value` with its path as the manifest loader names it (`blocks[0].bits`): the
+/// objects' keys and the first element of each array (the arrays themselves too).
+fn leaves(value: &serde_json::Value, path: &str, out: &mut Vec<String>) {
+    match value {
+        serde_json::Value::Object(map) => {
+            for (k, v) in map {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                out.push(p.clone());
+                leaves(v, &p, out);
+            }
+        }
+        serde_json::Value::Array(items) => {
+            if let Some(first) = items.first() {
+                let p = format!("{path}[0]");
+                if !first.is_object() {
+                    out.push(p.clone());
+                }
+                leaves(first, &p, out);
+            }
+        }
+        _ => {}
+    }
+}
+
+/// The place `path` names in `root` (`blocks[0].gray.bits`), and its parent's key.
+fn pointer(path: &str) -> String {
+    let mut p = String::new();
+    for part in path.split('.') {
+        match part.split_once('[') {
+            Some((key, index)) => {
+                p.push('/');
+                p.push_str(key);
+                p.push('/');
+                p.push_str(index.trim_end_matches(']'));
+            }
+            None => {
+                p.push('/');
+                p.push_str(part);
+            }
+        }
+    }
+    p
+}
+
+/// The hostile JSON values a manifest key is given (`None`: the key removed).
+fn hostile_json() -> Vec<Option<serde_json::Value>> {
+    use serde_json::json;
+    [
+        json!(-1),
+        json!(0),
+        json!(0.5),
+        json!(-0.5),
+        json!(1e308),
+        json!(-1e308),
+        json!(1e-308),
+        json!(4_294_967_296u64),
+        json!(18_446_744_073_709_551_615u64),
+        json!(65),
+        json!(""),
+        json!("x"),
+        json!("../../etc/passwd"),
+        json!(true),
+        json!(null),
+        json!([]),
+        json!({}),
+    ]
+    .into_iter()
+    .map(Some)
+    .chain([None])
+    .collect()
+}
+
+/// Every key of a capture's `manifest.json` (Gray, phase and hybrid codes of `slscan patterns`,
+/// the frames those patterns themselves): `slscan decode` of the manifest with that key given
+/// a hostile value (or removed) succeeds only with a non-empty decode, else names the key.
+#[test]
+fn every_manifest_key_is_checked_where_it_is_read() {
+    let start = Instant::now();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut failures = Vec::new();
+    let mut runs = 0usize;
+    for codec in ["gray", "phase", "hybrid"] {
+        let frames = tmp.path().join(codec);
+        crate::run_cli(&[
+            "patterns",
+            "--projector",
+            "64x32",
+            "--axes",
+            "columns",
+            "--codec",
+            codec,
+            "--out",
+            frames.to_str().unwrap(),
+        ])
+        .unwrap();
+        let text = std::fs::read_to_string(frames.join(sl_codec::MANIFEST_FILE)).unwrap();
+        let manifest: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let mut keys = Vec::new();
+        leaves(&manifest, "", &mut keys);
+        for key in keys {
+            let name = key
+                .rsplit('.')
+                .next()
+                .unwrap_or(&key)
+                .split('[')
+                .next()
+                .unwrap_or(&key)
+                .to_owned();
+            for value in hostile_json() {
+                let mut m = manifest.clone();
+                let ptr = pointer(&key);
+                match &value {
+                    Some(v) => {
+                        if let Some(slot) = m.pointer_mut(&ptr) {
+                            *slot = v.clone();
+                        }
+                    }
+                    None => {
+                        let (parent, last) = ptr.rsplit_once('/').unwrap_or(("", ""));
+                        match m.pointer_mut(parent) {
+                            Some(serde_json::Value::Object(o)) => {
+                                o.remove(last);
+                            }
+                            Some(serde_json::Value::Array(a)) => {
+                                a.remove(0);
+                            }
+                            _ => {}
+                        }
+                    }
+                }
+                if m == manifest {
+                    continue;
+                }
+                runs += 1;
+                let dir = tmp.path().join(format!("m{runs}"));
+                std::fs::create_dir_all(&dir).unwrap();
+                let path = dir.join(sl_codec::MANIFEST_FILE);
+                std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
+                let out = dir.join("out");
+                let args: Vec<String> = [
+                    "decode",
+                    path.to_str().unwrap(),
+                    "--frames",
+                    frames.to_str().unwrap(),
+                    "--out",
+                    out.to_str().unwrap(),
+                ]
+                .map(str::to_owned)
+                .to_vec();
+                let shown = value
+                    .as_ref()
+                    .map_or("(removed)".to_owned(), |v| v.to_string());
+                match run(&args) {
+                    Ok(()) => {
+                        if let Some(why) = bad_outputs(&out, &["col_color.png"]) {
+                            failures.push(format!("{codec} {key} = {shown}: exit 0 but {why}"));
+                        }
+                    }
+                    Err(e) => {
+                        let text = format!("{e:#}");
+                        let named = text.contains(&name)
+                            || (name == "frames"
+                                && value.as_ref().is_some_and(|v| {
+                                    v.as_str()
+                                        .is_some_and(|s| !s.is_empty() && text.contains(s))
+                                }));
+                        if !named {
+                            failures.push(format!("{codec} {key} = {shown}: {text}"));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    eprintln!(
+        "{runs} mutated manifests decoded in {:.1} s",
+        start.elapsed().as_secs_f64()
+    );
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}

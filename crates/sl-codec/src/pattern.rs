@@ -131,6 +131,7 @@ impl Pattern {
         match self {
             Self::Gray(s) => {
                 s.validate()?;
+                s.check_covers()?;
                 // The decoder refuses it (no fringes to take the mean of): refuse it here too,
                 // so that no pattern set is written, or manifest read, that cannot be decoded.
                 if s.reference == GrayReference::PhaseMean {
@@ -183,13 +184,14 @@ pub(crate) fn positive(name: &str, value: f64) -> Result<(), CodecError> {
 }
 
 /// Checks that `value` is finite.
-pub(crate) fn finite(name: &str, value: f64) -> Result<(), CodecError> {
-    if value.is_finite() {
+/// Checks that `value` is finite and within `±bound` (`unit` for the message).
+pub(crate) fn within(name: &str, value: f64, bound: f64, unit: &str) -> Result<(), CodecError> {
+    if value.is_finite() && value.abs() <= bound {
         Ok(())
     } else {
         Err(CodecError::parameter(
             name,
-            format!("must be finite, got {value}"),
+            format!("must be within ±{bound} {unit}, got {value}"),
         ))
     }
 }
