@@ -29,7 +29,7 @@
 //!
 //! **Every key of a capture's `manifest.json`** (from `slscan patterns`, Gray, phase and hybrid
 //! codes) is given hostile JSON values (numbers out of range, wrong types, `null`, a missing
-//! key) and the capture decoded with `slscan decode`: success only with a non-empty decode,
+//! key) and seeded random numbers, and the capture decoded with `slscan decode`: success only with a non-empty decode,
 //! else the message names the key.
 
 use std::any::TypeId;
@@ -812,9 +812,19 @@ fn pointer(path: &str) -> String {
     p
 }
 
-/// The hostile JSON values a manifest key is given (`None`: the key removed).
-fn hostile_json() -> Vec<Option<serde_json::Value>> {
+/// The hostile JSON values a manifest key is given (`None`: the key removed), and
+/// [`RANDOM_VALUES`] seeded random numbers (a random sign times 10^u, u uniform in −12..12,
+/// and 10^u whole, u in 0..20).
+fn hostile_json(rng: &mut Pcg64) -> Vec<Option<serde_json::Value>> {
     use serde_json::json;
+    let random = (0..RANDOM_VALUES).flat_map(|_| {
+        let sign = if rng.random_bool(0.5) { -1.0 } else { 1.0 };
+        [
+            json!(sign * 10f64.powf(rng.random_range(-12.0..12.0))),
+            json!(10f64.powf(rng.random_range(0.0..20.0)) as u64),
+        ]
+    });
+    let random: Vec<serde_json::Value> = random.collect();
     [
         json!(-1),
         json!(0),
@@ -835,6 +845,7 @@ fn hostile_json() -> Vec<Option<serde_json::Value>> {
         json!({}),
     ]
     .into_iter()
+    .chain(random)
     .map(Some)
     .chain([None])
     .collect()
@@ -849,6 +860,7 @@ fn every_manifest_key_is_checked_where_it_is_read() {
     let tmp = tempfile::tempdir().unwrap();
     let mut failures = Vec::new();
     let mut runs = 0usize;
+    let mut rng = Pcg64::seed_from_u64(SEED);
     for codec in ["gray", "phase", "hybrid"] {
         let frames = tmp.path().join(codec);
         crate::run_cli(&[
@@ -876,7 +888,7 @@ fn every_manifest_key_is_checked_where_it_is_read() {
                 .next()
                 .unwrap_or(&key)
                 .to_owned();
-            for value in hostile_json() {
+            for value in hostile_json(&mut rng) {
                 let mut m = manifest.clone();
                 let ptr = pointer(&key);
                 match &value {
