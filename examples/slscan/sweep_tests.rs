@@ -29,8 +29,8 @@
 //!
 //! **Every key of a capture's `manifest.json`** (from `slscan patterns`, Gray, phase and hybrid
 //! codes) is given hostile JSON values (numbers out of range, wrong types, `null`, a missing
-//! key) and seeded random numbers, and the capture decoded with `slscan decode`: success only with a non-empty decode,
-//! else the message names the key.
+//! key) and seeded random numbers, and the capture decoded with `slscan decode`: success only
+//! with a non-empty decode, else the message names the key.
 
 use std::any::TypeId;
 use std::panic::AssertUnwindSafe;
