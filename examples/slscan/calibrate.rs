@@ -179,14 +179,6 @@ pub(crate) struct AllArgs {
     pub(crate) layout: LayoutArgs,
 }
 
-/// The checks of `slscan calibrate` that need more than one value.
-pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
-    match &args.what {
-        What::Capture(a) => crate::calibrate_capture::check(a),
-        What::Camera(_) | What::Projector(_) | What::Turntable(_) | What::All(_) => Ok(()),
-    }
-}
-
 /// Runs `slscan calibrate`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut bars = StageBars::new();

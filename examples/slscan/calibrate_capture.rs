@@ -100,15 +100,11 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
 
 /// Runs `slscan calibrate capture`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
-    match (args.virtual_rig, args.hardware.any()) {
-        (true, true) => anyhow::bail!(
-            "--virtual and the device options (--camera, --projector-monitor, --turntable) exclude each other"
-        ),
-        (false, false) => anyhow::bail!(
-            "give --virtual, or the devices: --camera /dev/videoN --projector-monitor N --turntable /dev/ttyUSB0"
-        ),
-        (true, false) => run_virtual(args),
-        (false, true) => run_hardware(args),
+    check(args)?;
+    if args.virtual_rig {
+        run_virtual(args)
+    } else {
+        run_hardware(args)
     }
 }
 

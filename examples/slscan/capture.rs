@@ -91,12 +91,6 @@ pub(crate) struct Args {
     pub(crate) hardware: HardwareArgs,
 }
 
-/// The checks of `slscan capture` that need more than one value: none yet (the devices are
-/// checked when opened).
-pub(crate) fn check(_args: &Args) -> anyhow::Result<()> {
-    Ok(())
-}
-
 /// The pattern sequence in `dir`'s `manifest.json` (`--patterns`); `None` without a folder (the
 /// library's default: hybrid code on the columns, 15 px periods).
 pub(crate) fn load_patterns(dir: Option<&Path>) -> anyhow::Result<Option<Manifest>> {

@@ -121,19 +121,24 @@ fn main() -> std::process::ExitCode {
 }
 
 /// The checks of a subcommand's options that need more than one value (`--period-px` against
-/// `--projector`, `--min-depth` against `--max-depth`, …), made before anything is read or
-/// written; each names the options as given. The checks of single values are clap's
-/// (`values.rs`); those that need the data (a depth scale against the cloud's depths) are made
-/// where the data is.
+/// `--projector`, `--min-depth` against `--max-depth`, …): each subcommand's `run` makes them
+/// first, before anything is read or written; each names the options as given. The checks of
+/// single values are clap's (`values.rs`); those that need the data (a depth scale against the
+/// cloud's depths) are made where the data is. The sweep of every option (`sweep_tests.rs`)
+/// calls this for the subcommands too slow to run.
+#[cfg(test)]
 fn validate(command: &Command) -> anyhow::Result<()> {
     match command {
         Command::Patterns(args) => patterns::check(args),
         Command::Reconstruct(args) => reconstruct::check(args),
-        Command::Calibrate(args) => calibrate::check(args),
-        Command::Capture(args) => capture::check(args),
+        Command::Calibrate(args) => match &args.what {
+            calibrate::What::Capture(a) => calibrate_capture::check(a),
+            _ => Ok(()),
+        },
         Command::Scan(args) => scan::check(args),
         Command::Merge(args) => merge::check(args),
         Command::Info(_)
+        | Command::Capture(_)
         | Command::Devices(_)
         | Command::Decode(_)
         | Command::Simulate(_)
@@ -146,7 +151,6 @@ fn validate(command: &Command) -> anyhow::Result<()> {
 
 /// Runs one subcommand.
 fn run(command: Command) -> anyhow::Result<()> {
-    validate(&command)?;
     match command {
         Command::Info(args) => info::run(&args),
         Command::Devices(args) => devices::run(&args),

@@ -176,6 +176,7 @@ const DEFAULT_REGISTRATION_VOXEL_MM: f64 = 1.0;
 
 /// Runs `slscan merge`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check(args)?;
     let mut report = Report::new("merge");
     let is_ply = args
         .out

@@ -288,6 +288,7 @@ fn option_of(args: &Args, name: &str) -> String {
 
 /// Runs `slscan patterns`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check(args)?;
     let mut report = Report::new("patterns");
     let depth = match args.bit_depth {
         16 => BitDepth::Sixteen,

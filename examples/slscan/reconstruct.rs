@@ -93,6 +93,7 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
 
 /// Runs `slscan reconstruct`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check(args)?;
     let mut report = Report::new("reconstruct");
     let cfg = CaptureReconstructionConfig {
         tri: TriConfig {

@@ -128,6 +128,7 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
 
 /// Runs `slscan scan`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check(args)?;
     if crate::scan_hardware::wanted(args)? {
         return crate::scan_hardware::run(args);
     }

@@ -477,15 +477,28 @@ impl Parser<'_> {
             frames.push(name.to_string());
         }
         // The parameters first: a bad one also makes the frame count wrong, and is the cause.
+        // The block codes the projector's side: say which, as its size bounds the parameters.
+        let side = match axis {
+            Axis::Column => "width",
+            Axis::Row => "height",
+        };
         pattern.validate().map_err(|e| match e {
-            CodecError::Parameter { name, message } => self.err(join(at, &name), message),
+            CodecError::Parameter { name, message } => self.err(
+                join(at, &name),
+                format!("{message} (the block codes projector.{side}, {extent} px)"),
+            ),
             other => other,
         })?;
         if frames.len() != pattern.frame_count() {
+            let by = match codec {
+                "gray" => "bits, reference",
+                "phase" => "steps, periods",
+                _ => "steps, gray.bits, gray.reference",
+            };
             return Err(self.err(
                 join(at, "frames"),
                 format!(
-                    "the {codec} block's parameters need {} frames, the list has {}",
+                    "the {codec} block's parameters ({by}) need {} frames, the list has {}",
                     pattern.frame_count(),
                     frames.len()
                 ),
