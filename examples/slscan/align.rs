@@ -13,7 +13,9 @@ use sl_icp::align_unordered;
 use sl_scan::{CombinedScans, combine_aligned, multiway_config_at, multiway_figures};
 
 use crate::common::{Report, open_out, progress, write_atomically};
-use crate::register::{NORMAL_NEIGHBOURS, NormalsTowards, check_units, read_scaled};
+use crate::register::{
+    NORMAL_NEIGHBOURS, NormalsTowards, check_units, check_voxel, read_scaled, with_options,
+};
 
 /// Default voxel size of the descriptors (mm), [`GlobalConfig::default`]'s.
 const DEFAULT_VOXEL_MM: f64 = 2.0;
@@ -30,12 +32,13 @@ pub(crate) struct Args {
     /// Write into `--out` even where that replaces a scan.
     #[arg(long)]
     pub(crate) force: bool,
-    /// Multiply coordinates by this when reading (1000 for clouds in metres).
-    #[arg(long, default_value_t = 1.0)]
+    /// Multiply coordinates by this when reading (1000 for clouds in metres; > 0).
+    #[arg(long, default_value_t = 1.0, value_parser = crate::values::scale)]
     pub(crate) scale: f64,
     /// Voxel size of the descriptors and RANSAC (mm); the FPFH radius and the inlier and ICP
-    /// distances follow it (5, 1.5 and 1.5 voxels).
-    #[arg(long, default_value_t = DEFAULT_VOXEL_MM)]
+    /// distances follow it (5, 1.5 and 1.5 voxels); from 0.001 mm to a tenth of each scan's
+    /// extent.
+    #[arg(long, default_value_t = DEFAULT_VOXEL_MM, value_parser = crate::values::length_mm)]
     pub(crate) voxel: f64,
     #[command(flatten)]
     pub(crate) normals: NormalsTowards,
@@ -47,9 +50,6 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let read: Vec<&Path> = args.scans.iter().map(PathBuf::as_path).collect();
     let folder = open_out(&args.out, "align", &read, &[], args.force)?;
     let out = folder.path();
-    if !(args.voxel.is_finite() && args.voxel > 0.0) {
-        anyhow::bail!("--voxel {}: must be finite and > 0 (mm)", args.voxel);
-    }
     let viewpoint = args.normals.viewpoint()?;
     let config = multiway_config_at(args.voxel);
     let bar = progress(3, "align");
@@ -58,16 +58,21 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             .iter()
             .map(|p| {
                 let c = read_scaled(p, args.scale)?;
-                check_units(&c, p, args.voxel)?;
+                check_units(&c, p, DEFAULT_VOXEL_MM)?;
+                check_voxel("--voxel", args.voxel, &[&c], &[p])?;
                 Ok(c)
             })
             .collect::<anyhow::Result<_>>()
     })?;
     bar.inc(1);
     let name = |i: usize| args.scans[i].display().to_string();
+    let mut options = vec![("--voxel", args.voxel.to_string())];
+    if args.scale != 1.0 {
+        options.push(("--scale", args.scale.to_string()));
+    }
     let a = report
         .stage("align", || align_unordered(&clouds, &config))
-        .map_err(|e| anyhow::anyhow!("{}: {e}", name(0)))?;
+        .map_err(|e| anyhow::anyhow!("{}: {e} ({})", name(0), with_options(&options)))?;
     bar.inc(1);
 
     let towards = viewpoint.map(|v| (v, NORMAL_NEIGHBOURS));
@@ -110,8 +115,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             .collect();
         let kept = folder.keep_as_failed()?;
         anyhow::bail!(
-            "{} scan(s) could not be placed: {}; the placed ones and the report are in {}",
+            "{} scan(s) could not be placed {}: {}; the placed ones and the report are in {}",
             a.unplaced.len(),
+            with_options(&options),
             why.join("; "),
             kept.display()
         );

@@ -16,6 +16,7 @@ use sl_scan::{
 };
 
 use crate::common::StageBars;
+use crate::values;
 
 /// Arguments of `slscan calibrate`.
 #[derive(Debug, clap::Args)]
@@ -55,11 +56,11 @@ pub(crate) enum What {
 /// Board and output options shared by the subcommands.
 #[derive(Debug, clap::Args)]
 pub(crate) struct BoardArgs {
-    /// Inner corners of the board, `COLSxROWS`.
-    #[arg(long, default_value = "9x6")]
+    /// Inner corners of the board, `COLSxROWS` (2 to 100 each).
+    #[arg(long, default_value = "9x6", value_parser = values::board_size)]
     pub(crate) board: BoardSize,
-    /// Side of a square (mm).
-    #[arg(long, default_value_t = 20.0)]
+    /// Side of a square (mm, > 0, at most 1000).
+    #[arg(long, default_value_t = 20.0, value_parser = values::positive_up_to(values::MAX_SQUARE_MM))]
     pub(crate) square: f64,
     /// Output folder.
     #[arg(long)]
@@ -145,7 +146,7 @@ pub(crate) struct ProjectorArgs {
     pub(crate) session: PathBuf,
     /// Projector size, `WIDTHxHEIGHT` (default: the capture manifest's; another size is an
     /// error, the decoded coordinates being in the manifest's pixels).
-    #[arg(long)]
+    #[arg(long, value_parser = values::projector_size)]
     pub(crate) projector: Option<ImageSize>,
     #[command(flatten)]
     pub(crate) common: BoardArgs,
@@ -164,11 +165,12 @@ pub(crate) struct TurntableArgs {
     #[arg(long)]
     pub(crate) calib: PathBuf,
     /// Motor angles in degrees, one per view in name order (default: each view folder's
-    /// `board.json` field `motor_angle_deg`).
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    /// `board.json` field `motor_angle_deg`); each finite.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = values::finite)]
     pub(crate) angles: Option<Vec<f64>>,
-    /// Smallest accepted span of the motor angles (degrees).
-    #[arg(long, default_value_t = TurntableConfig::default().min_span_deg)]
+    /// Smallest accepted span of the motor angles (degrees, 0 to 360).
+    #[arg(long, default_value_t = TurntableConfig::default().min_span_deg,
+          value_parser = values::in_range(0.0..=360.0))]
     pub(crate) min_span: f64,
     #[command(flatten)]
     pub(crate) common: BoardArgs,
@@ -754,6 +756,38 @@ mod tests {
         let text = format!("{err:#}");
         assert!(text.contains("blank_0.png"), "{text}");
         assert!(!out.join("calibration.json").exists());
+    }
+
+    /// `--square` is a square's side in mm, finite and > 0, in every subcommand, refused by its
+    /// name before anything is read: before, `calibrate camera --square -20` calibrated (exit
+    /// 0) and 0 or NaN failed later in terms the user never gave.
+    #[test]
+    fn every_subcommand_refuses_a_square_that_is_no_length_by_its_name() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("out");
+        let (out, missing) = (out.to_str().unwrap(), "no-such-session");
+        let subcommands: [&[&str]; 5] = [
+            &["camera", missing],
+            &["projector", missing],
+            &["turntable", missing, "--calib", "no-such.json"],
+            &["all", missing],
+            &["capture", "--virtual", "--auto"],
+        ];
+        for sub in subcommands {
+            for bad in ["-20", "0", "NaN", "inf", "-inf"] {
+                let square = format!("--square={bad}");
+                let mut args = vec!["calibrate"];
+                args.extend_from_slice(sub);
+                args.extend(["--out", out, &square]);
+                let err = slscan(&args).unwrap_err();
+                let text = format!("{err:#}");
+                assert!(
+                    text.contains("--square") && text.contains(bad),
+                    "{sub:?} {bad}: {text}"
+                );
+            }
+        }
+        assert!(!tmp.path().join("out").exists());
     }
 }
 

@@ -26,6 +26,7 @@ use structured_light::scan::scaled_rig_config;
 
 use crate::capture::HardwareArgs;
 use crate::common::{Report, ensure_out_dir, open_out_in_place, write_atomically};
+use crate::values;
 
 /// Super-sampling of the virtual rig: corner accuracy needs well anti-aliased edges (as
 /// `slscan simulate --scene board`).
@@ -46,11 +47,12 @@ pub(crate) struct Args {
     /// numbering goes on).
     #[arg(long)]
     pub(crate) out: PathBuf,
-    /// Board poses wanted in the session.
-    #[arg(long, default_value_t = 15)]
+    /// Board poses wanted in the session (at least 1).
+    #[arg(long, default_value_t = 15, value_parser = values::at_least::<usize>(1))]
     pub(crate) poses: usize,
-    /// Turntable views of the board on the platter, spread over -45..45 motor degrees.
-    #[arg(long, default_value_t = 7)]
+    /// Turntable views of the board on the platter, spread over -45..45 motor degrees (at most
+    /// 360).
+    #[arg(long, default_value_t = 7, value_parser = values::count_in::<usize>(0..=360))]
     pub(crate) turntable_angles: usize,
     /// Take each pose without a key press: the virtual board moves itself; a hand-held board
     /// is taken once it has been still for a second.
@@ -59,32 +61,32 @@ pub(crate) struct Args {
     /// Use the virtual rig (its board moves through seeded random poses).
     #[arg(long = "virtual")]
     pub(crate) virtual_rig: bool,
-    /// Inner corners of the board, `COLSxROWS`.
-    #[arg(long, default_value = "9x6")]
+    /// Inner corners of the board, `COLSxROWS` (2 to 100 each).
+    #[arg(long, default_value = "9x6", value_parser = values::board_size)]
     pub(crate) board: sl_calib::BoardSize,
-    /// Side of a square (mm).
-    #[arg(long, default_value_t = 20.0)]
+    /// Side of a square (mm, > 0, at most 1000).
+    #[arg(long, default_value_t = 20.0, value_parser = values::positive_up_to(values::MAX_SQUARE_MM))]
     pub(crate) square: f64,
     /// Folder with the patterns' `manifest.json` (default: hybrid code on the columns and on
     /// the rows, 4 phase steps, 30 periods across).
     #[arg(long)]
     pub(crate) patterns: Option<PathBuf>,
-    /// Virtual rig: divide its resolution by this.
-    #[arg(long, default_value_t = 1)]
+    /// Virtual rig: divide its resolution by this (1 to 8).
+    #[arg(long, default_value_t = 1, value_parser = values::downscale())]
     pub(crate) downscale: u32,
     /// Virtual rig: seed of the board poses and of the noise.
     #[arg(long, default_value_t = 1)]
     pub(crate) seed: u64,
-    /// Wait after showing a pattern (ms); default 100 on hardware, 0 on the virtual rig.
-    #[arg(long)]
+    /// Wait after showing a pattern (ms, at most 10000); default 100 on hardware, 0 on the
+    /// virtual rig.
+    #[arg(long, value_parser = values::latency_ms())]
     pub(crate) latency_ms: Option<u64>,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
 }
 
-/// Runs `slscan calibrate capture`.
-pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
-    anyhow::ensure!(args.poses >= 1, "--poses must be at least 1");
+/// The checks of `slscan calibrate capture` that need more than one value.
+pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
     match (args.virtual_rig, args.hardware.any()) {
         (true, true) => anyhow::bail!(
             "--virtual and the device options (--camera, --projector-monitor, --turntable) exclude each other"
@@ -92,8 +94,13 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         (false, false) => anyhow::bail!(
             "give --virtual, or the devices: --camera /dev/videoN --projector-monitor N --turntable /dev/ttyUSB0"
         ),
-        _ => {}
+        _ => Ok(()),
     }
+}
+
+/// Runs `slscan calibrate capture`.
+pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check(args)?;
     // One run at a time in a session folder: two would mix their poses.
     let folder = open_out_in_place(&args.out, "calibrate capture")?;
     if args.virtual_rig {
@@ -117,7 +124,6 @@ fn board(args: &Args) -> anyhow::Result<(sl_calib::BoardSize, f64)> {
 }
 
 fn run_virtual(args: &Args) -> anyhow::Result<()> {
-    anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
     let mut config = scaled_rig_config(args.downscale);
     config.render.supersampling = BOARD_SUPERSAMPLING;
     config.render.seed = args.seed;

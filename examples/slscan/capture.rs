@@ -14,6 +14,7 @@ use sl_sim::{Scene, VirtualRig};
 use structured_light::scan::{DeviceCaptureConfig, capture_device_session, scaled_rig_config};
 
 use crate::common::{open_out_in_place, progress};
+use crate::values;
 
 /// The hardware options shared by `capture` and `scan`.
 #[derive(Debug, Clone, clap::Args)]
@@ -27,8 +28,8 @@ pub(crate) struct HardwareArgs {
     /// Serial port of the Dynamixel turntable, e.g. /dev/ttyUSB0.
     #[arg(long)]
     pub(crate) turntable: Option<PathBuf>,
-    /// Dynamixel servo id.
-    #[arg(long, default_value_t = 1)]
+    /// Dynamixel servo id (0 to 252, the protocol's ids).
+    #[arg(long, default_value_t = 1, value_parser = values::count_in::<u8>(0..=252))]
     pub(crate) servo_id: u8,
 }
 
@@ -60,8 +61,8 @@ pub(crate) struct Args {
     /// Session folder (created; an existing session with the same plan is resumed).
     #[arg(long)]
     pub(crate) out: PathBuf,
-    /// Turntable views over a full turn.
-    #[arg(long, default_value_t = 36)]
+    /// Turntable views over a full turn (1 to 3600).
+    #[arg(long, default_value_t = 36, value_parser = values::views())]
     pub(crate) views: usize,
     /// Folder with the patterns' `manifest.json` (default: hybrid code on the columns, 15 px
     /// periods).
@@ -70,11 +71,12 @@ pub(crate) struct Args {
     /// Virtual scene: sphere, dumbbell, plane, box or cylinder.
     #[arg(long, default_value = "dumbbell")]
     pub(crate) scene: String,
-    /// Divide the virtual rig's resolution by this.
-    #[arg(long, default_value_t = 1)]
+    /// Divide the virtual rig's resolution by this (1 to 8).
+    #[arg(long, default_value_t = 1, value_parser = values::downscale())]
     pub(crate) downscale: u32,
-    /// Wait after showing a pattern (ms); default 100 on hardware, 0 on the virtual rig.
-    #[arg(long)]
+    /// Wait after showing a pattern (ms, at most 10000); default 100 on hardware, 0 on the
+    /// virtual rig.
+    #[arg(long, value_parser = values::latency_ms())]
     pub(crate) latency_ms: Option<u64>,
     /// Measure the display-to-camera latency first (flashes) and flush that many frames.
     #[arg(long)]
@@ -164,7 +166,6 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     if args.hardware.any() {
         return run_hardware(args);
     }
-    anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
     let rig = VirtualRig::new(scaled_rig_config(args.downscale), scene(&args.scene)?)
         .context("cannot build the virtual rig")?;
     let devices = rig.session_devices(&format!("virtual turntable, scene {}", args.scene));

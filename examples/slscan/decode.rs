@@ -7,6 +7,7 @@ use sl_codec::{DecodeConfig, MapFormat};
 use sl_scan::decode_capture;
 
 use crate::common::{Report, StageBars, manifest_file, open_out};
+use crate::values;
 
 /// File format of the float maps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -34,17 +35,18 @@ pub(crate) struct Args {
     /// File format of the float maps.
     #[arg(long, value_enum, default_value_t = FormatArg::Tiff)]
     pub(crate) format: FormatArg,
-    /// Gray code: smallest direct light, 8-bit grey levels.
-    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_DIRECT)]
+    /// Gray code: smallest direct light, 8-bit grey levels (0 to 255).
+    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_DIRECT, value_parser = values::grey_level)]
     pub(crate) min_direct: f32,
-    /// Gray code: smallest pattern/inverse difference for a bit, 8-bit grey levels.
-    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_CONTRAST)]
+    /// Gray code: smallest pattern/inverse difference for a bit, 8-bit grey levels (0 to 255).
+    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_CONTRAST, value_parser = values::grey_level)]
     pub(crate) min_contrast: f32,
-    /// Phase: smallest fringe modulation, 8-bit grey levels.
-    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_MODULATION)]
+    /// Phase: smallest fringe modulation, 8-bit grey levels (0 to 255).
+    #[arg(long, default_value_t = sl_codec::DEFAULT_MIN_MODULATION, value_parser = values::grey_level)]
     pub(crate) min_modulation: f32,
-    /// Temporal unwrapping tolerance, in periods.
-    #[arg(long, default_value_t = sl_codec::DEFAULT_UNWRAP_TOLERANCE)]
+    /// Temporal unwrapping tolerance, in periods (0.01 to 0.5).
+    #[arg(long, default_value_t = sl_codec::DEFAULT_UNWRAP_TOLERANCE,
+          value_parser = values::as_f32(values::in_range(0.01..=0.5)))]
     pub(crate) unwrap_tolerance: f32,
     /// Gray code: plain pattern-against-inverse comparison instead of Xu & Aliaga's rules.
     #[arg(long)]
@@ -88,9 +90,34 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     // are kept apart for the diagnosis, the exit code says it.
     if let Some(why) = d.nothing_decoded() {
         let kept = folder.keep_as_failed()?;
+        // What decides each reason: an option, or the manifest's description of the code.
+        let causes: Vec<String> = [
+            ("shadow", format!("--min-direct {}", args.min_direct)),
+            (
+                "low_modulation",
+                format!(
+                    "--min-contrast {}, --min-modulation {}",
+                    args.min_contrast, args.min_modulation
+                ),
+            ),
+            (
+                "inconsistent_code",
+                format!(
+                    "--unwrap-tolerance {}, or the manifest's code (origin, phase_offset, \
+                     shift_sign, periods, steps, bits, stripe_width, reference) is not the one \
+                     the frames show",
+                    args.unwrap_tolerance
+                ),
+            ),
+        ]
+        .into_iter()
+        .filter(|(reason, _)| why.contains(reason))
+        .map(|(reason, cause)| format!("{reason}: {cause}"))
+        .collect();
         anyhow::bail!(
-            "{}: no pixel decoded ({why}); the invalid-pixel picture in {} shows where",
+            "{}: no pixel decoded ({why}; {}); the invalid-pixel picture in {} shows where",
             args.capture.display(),
+            causes.join("; "),
             kept.display()
         );
     }

@@ -24,12 +24,12 @@ pub(crate) struct Args {
     #[arg(long, value_parser = parse_layout)]
     pub(crate) layout: Option<CalibrationLayout>,
     /// The camera's image size (`WxH`), for layouts that do not store it (scan3d-capture,
-    /// OpenCV's stereo sample).
-    #[arg(long)]
+    /// OpenCV's stereo sample); each side at most 65536.
+    #[arg(long, value_parser = crate::values::camera_size)]
     pub(crate) camera_size: Option<ImageSize>,
     /// The projector's size (`WxH`), for layouts that do not store it (scan3d-capture,
-    /// SLMaster, OpenCV's stereo sample).
-    #[arg(long)]
+    /// SLMaster, OpenCV's stereo sample); each side at most 16384.
+    #[arg(long, value_parser = crate::values::projector_size)]
     pub(crate) projector_size: Option<ImageSize>,
     /// Write the calibration back to this file (.json, .yml, .yaml or .xml), in `--format`.
     #[arg(long)]

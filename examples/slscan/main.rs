@@ -60,6 +60,9 @@ mod report;
 mod scan;
 mod scan_hardware;
 mod simulate;
+#[cfg(test)]
+mod sweep_tests;
+mod values;
 
 use clap::{Parser, Subcommand};
 
@@ -116,6 +119,35 @@ fn main() -> std::process::ExitCode {
             common::print_error(&err);
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+/// The checks of a subcommand's options that need more than one value (`--period-px` against
+/// `--projector`, `--min-depth` against `--max-depth`, …): each subcommand's `run` makes them
+/// first, before anything is read or written; each names the options as given. The checks of
+/// single values are clap's (`values.rs`); those that need the data (a depth scale against the
+/// cloud's depths) are made where the data is. The sweep of every option (`sweep_tests.rs`)
+/// calls this for the subcommands too slow to run.
+#[cfg(test)]
+fn validate(command: &Command) -> anyhow::Result<()> {
+    match command {
+        Command::Patterns(args) => patterns::check(args),
+        Command::Reconstruct(args) => reconstruct::check(args),
+        Command::Calibrate(args) => match &args.what {
+            calibrate::What::Capture(a) => calibrate_capture::check(a),
+            _ => Ok(()),
+        },
+        Command::Scan(args) => scan::check(args),
+        Command::Merge(args) => merge::check(args),
+        Command::Info(_)
+        | Command::Capture(_)
+        | Command::Devices(_)
+        | Command::Decode(_)
+        | Command::Simulate(_)
+        | Command::Register(_)
+        | Command::Mesh(_)
+        | Command::Align(_)
+        | Command::Report(_) => Ok(()),
     }
 }
 

@@ -13,14 +13,15 @@ use sl_icp::{IcpError, MergeConfig, PoseModel, TurntablePrior, turntable_poses};
 use sl_scan::{ScanError, merge_and_write, pair_figures};
 
 use crate::common::{Report, StageBars, open_out};
-use crate::register::{check_units, read_scaled};
+use crate::register::{check_units, check_voxel, read_scaled, with_options};
+use crate::values;
 
 /// Arguments of `slscan merge`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
     /// The views, in turntable order: PLY files, or folders holding `cloud.ply` (as written by
-    /// `slscan reconstruct`).
-    #[arg(required = true)]
+    /// `slscan reconstruct`); two at least.
+    #[arg(required = true, num_args = 2..)]
     pub(crate) views: Vec<PathBuf>,
     /// The merged cloud (`*.ply`; `report.json`, `poses.json` and `preview.png` go beside it),
     /// or an output folder (the cloud is then `merged.ply` in it).
@@ -33,23 +34,28 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) calib: Option<PathBuf>,
     /// Turntable axis direction in the camera frame, "dx,dy,dz" (overrides the calibration's).
-    #[arg(long)]
-    pub(crate) axis: Option<String>,
+    #[arg(long, value_delimiter = ',', num_args = 1, allow_negative_numbers = true,
+          value_parser = values::finite)]
+    pub(crate) axis: Option<Vec<f64>>,
     /// A point of the turntable axis in the camera frame, "x,y,z" in mm (with --axis).
-    #[arg(long)]
-    pub(crate) axis_point: Option<String>,
-    /// Motor angle of each view in degrees, "a0,a1,..." (one per view).
-    #[arg(long)]
-    pub(crate) angles: Option<String>,
+    #[arg(long, value_delimiter = ',', num_args = 1, allow_negative_numbers = true,
+          value_parser = values::finite)]
+    pub(crate) axis_point: Option<Vec<f64>>,
+    /// Motor angle of each view in degrees, "a0,a1,..." (one per view; finite).
+    #[arg(long, value_delimiter = ',', num_args = 1, allow_negative_numbers = true,
+          value_parser = values::finite)]
+    pub(crate) angles: Option<Vec<f64>>,
     /// Motor step between consecutive views in degrees (view i at i * step), instead of
-    /// --angles.
-    #[arg(long)]
+    /// --angles; from -360 to 360.
+    #[arg(long, allow_negative_numbers = true, value_parser = values::in_range(-360.0..=360.0))]
     pub(crate) step: Option<f64>,
-    /// Voxel size the views are downsampled to for registration (mm).
-    #[arg(long, default_value_t = DEFAULT_REGISTRATION_VOXEL_MM)]
+    /// Voxel size the views are downsampled to for registration (mm; from 0.001 to a tenth of
+    /// each view's extent).
+    #[arg(long, default_value_t = DEFAULT_REGISTRATION_VOXEL_MM, value_parser = values::length_mm)]
     pub(crate) registration_voxel: f64,
-    /// Voxel size of the merged cloud (mm; 0 keeps every point).
-    #[arg(long, default_value_t = 0.5)]
+    /// Voxel size of the merged cloud (mm; 0 keeps every point, else from 0.001 to a tenth of
+    /// each view's extent).
+    #[arg(long, default_value_t = 0.5, value_parser = values::voxel_or_zero)]
     pub(crate) voxel: f64,
     /// Average overlapping points along the normals (moving least squares of degree 2).
     #[arg(long)]
@@ -65,24 +71,60 @@ pub(crate) struct Args {
     /// The turntable model: the default since issue 28; accepted for old scripts.
     #[arg(long, hide = true)]
     pub(crate) turntable_model: bool,
-    /// Multiply coordinates by this when reading (1000 for clouds in metres).
-    #[arg(long, default_value_t = 1.0)]
+    /// Multiply coordinates by this when reading (1000 for clouds in metres; 1e-6 to 1e6).
+    #[arg(long, default_value_t = 1.0, value_parser = values::scale)]
     pub(crate) scale: f64,
 }
 
-fn triple(arg: &str, what: &str) -> anyhow::Result<Vector3<f64>> {
-    let v: Vec<f64> = arg
-        .split(',')
-        .map(|s| s.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("{what} \"{arg}\": expected three comma-separated numbers"))?;
-    match v.as_slice() {
+/// The three numbers of `--axis` or `--axis-point` (`what`).
+fn triple(v: &[f64], what: &str) -> anyhow::Result<Vector3<f64>> {
+    match v {
         [x, y, z] => Ok(Vector3::new(*x, *y, *z)),
-        _ => anyhow::bail!(
-            "{what} \"{arg}\": expected three numbers, found {}",
-            v.len()
-        ),
+        _ => anyhow::bail!("{what}: expected three numbers X,Y,Z, found {}", v.len()),
     }
+}
+
+/// The checks of `slscan merge` that need more than one value.
+pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
+    if let Some(d) = &args.axis {
+        let d = triple(d, "--axis")?;
+        anyhow::ensure!(
+            d.norm() > 0.0 && d.norm().is_finite(),
+            "--axis {},{},{}: a direction needs a length > 0",
+            d.x,
+            d.y,
+            d.z
+        );
+        let point = args
+            .axis_point
+            .as_deref()
+            .context("--axis needs --axis-point")?;
+        triple(point, "--axis-point")?;
+    }
+    anyhow::ensure!(
+        args.angles.is_none() || args.step.is_none(),
+        "give --angles or --step, not both"
+    );
+    let given = match (&args.angles, args.step) {
+        (Some(_), _) => Some("--angles"),
+        (None, Some(_)) => Some("--step"),
+        (None, None) => None,
+    };
+    if let Some(flag) = given {
+        anyhow::ensure!(
+            args.calib.is_some() || args.axis.is_some(),
+            "{flag}: view angles need a turntable axis (--calib or --axis)"
+        );
+    }
+    if let Some(angles) = &args.angles {
+        anyhow::ensure!(
+            angles.len() == args.views.len(),
+            "--angles gives {} angles for {} views",
+            angles.len(),
+            args.views.len()
+        );
+    }
+    Ok(())
 }
 
 fn view_file(path: &Path) -> PathBuf {
@@ -105,26 +147,14 @@ fn initial_poses(args: &Args, n: usize) -> anyhow::Result<(Vec<Isometry3<f64>>, 
         }
         None => None,
     };
-    if let Some(d) = &args.axis {
-        let point = args
-            .axis_point
-            .as_deref()
-            .context("--axis needs --axis-point")?;
+    if let (Some(d), Some(point)) = (&args.axis, &args.axis_point) {
         axis = Some(TurntableAxis::new(
             triple(d, "--axis")?,
             Point3::from(triple(point, "--axis-point")?),
         )?);
     }
     let angles: Option<Vec<f64>> = match (&args.angles, args.step) {
-        (Some(_), Some(_)) => anyhow::bail!("give --angles or --step, not both"),
-        (Some(list), None) => Some(
-            list.split(',')
-                .map(|s| s.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .with_context(|| {
-                    format!("--angles \"{list}\": expected comma-separated degrees")
-                })?,
-        ),
+        (Some(list), _) => Some(list.clone()),
         (None, Some(step)) => Some((0..n).map(|i| i as f64 * step).collect()),
         (None, None) => None,
     };
@@ -149,6 +179,7 @@ const DEFAULT_REGISTRATION_VOXEL_MM: f64 = 1.0;
 
 /// Runs `slscan merge`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check(args)?;
     let mut report = Report::new("merge");
     let is_ply = args
         .out
@@ -193,11 +224,30 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 let path = view_file(v);
                 let c = read_scaled(&path, args.scale)?;
                 check_units(&c, &path, DEFAULT_REGISTRATION_VOXEL_MM)?;
+                for (flag, voxel) in [
+                    ("--registration-voxel", args.registration_voxel),
+                    ("--voxel", args.voxel),
+                ] {
+                    check_voxel(flag, voxel, &[&c], &[&path])?;
+                }
                 Ok(c)
             })
             .collect::<anyhow::Result<_>>()
     })?;
     let names: Vec<String> = args.views.iter().map(|p| p.display().to_string()).collect();
+    let mut options = vec![
+        ("--registration-voxel", args.registration_voxel.to_string()),
+        ("--voxel", args.voxel.to_string()),
+    ];
+    if args.scale != 1.0 {
+        options.push(("--scale", args.scale.to_string()));
+    }
+    if let Some(step) = args.step {
+        options.push(("--step", step.to_string()));
+    }
+    if args.angles.is_some() {
+        options.push(("--angles", "as given".to_owned()));
+    }
     let mut bars = StageBars::new();
     let merged = merge_and_write(
         &views,
@@ -231,13 +281,14 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             let path = folder.keep_as_failed()?.join("report.json");
             let lost: Vec<String> = lost.iter().map(|&v| name(v)).collect();
             anyhow::bail!(
-                "{} of {n} views could not be placed: {} ({why}); every pair's fitness, RMSE and reason are in {}",
+                "{} of {n} views could not be placed {}: {} ({why}); every pair's fitness, RMSE and reason are in {}",
                 lost.len(),
+                with_options(&options),
                 lost.join(", "),
                 path.display()
             );
         }
-        Err(e) => return Err(e.into()),
+        Err(e) => return Err(anyhow::Error::new(e).context(with_options(&options))),
     };
     let mut merged = merged;
     merged.cloud = folder.final_path(&merged.cloud);
@@ -336,5 +387,26 @@ mod tests {
         }
         assert!(out.join("merged.ply").is_file());
         assert!(out.join("preview.png").is_file());
+    }
+
+    /// A merge needs two views at least, and says so naming the argument (before, one view
+    /// ended "0 of 1 views could not be placed:  (no pair …)").
+    #[test]
+    fn one_view_is_refused_naming_the_views() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("one.ply");
+        let cloud = PointCloud::from_positions(crate::blob_support::blob(2_000));
+        write_ply(&path, &cloud, PlyFormat::default()).unwrap();
+        let out = tmp.path().join("merged");
+        let err = slscan(&[
+            "merge",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap_err();
+        let text = format!("{err:#}");
+        assert!(text.contains("<VIEWS>") && text.contains('2'), "{text}");
+        assert!(!out.exists());
     }
 }

@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use sl_cloud::PreviewConfig;
+use sl_cloud::{FarPointConfig, PreviewConfig};
 use sl_mesh::{
     BilateralConfig, FairConfig, PoissonConfig, RemeshConfig, SimplifyConfig, TaubinConfig,
 };
@@ -17,6 +17,7 @@ use sl_scan::{MeshChainConfig, MeshSmoothing, ScanError, mesh_chain};
 
 use crate::common::{Report, open_out};
 use crate::register::{NormalsTowards, check_units, read_scaled, with_normals_towards};
+use crate::values;
 
 /// A cloud spanning less than this (mm, the diagonal of its box, after `--scale`) is taken for
 /// one in metres and refused with the hint `--scale 1000`: nothing this scanner meshes is
@@ -27,6 +28,10 @@ const UNITS_CHECK_MM: f64 = 1.0;
 /// (`MeshChain::normals_inconsistent`) above which the normals are taken for unoriented and a
 /// warning is printed.
 const UNORIENTED_FRACTION: f64 = 0.1;
+
+/// The longest `--remesh` edge, as a fraction of the cloud's extent (the diagonal of its box):
+/// a tenth, a surface of some hundreds of triangles at least; a longer edge collapses it.
+const MAX_REMESH_OF_EXTENT: f64 = 0.1;
 
 /// Smoothing applied after the reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -54,21 +59,24 @@ pub(crate) struct Args {
     /// Multiply the cloud's coordinates by this on reading: 1000 for a cloud in metres (the
     /// mesh's bounds and figures are in mm; a cloud spanning less than 1 unit is refused with
     /// this hint).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = values::scale)]
     pub(crate) scale: f64,
     /// `--normals-towards X,Y,Z`: for a cloud without normals seen from one side (merge several
     /// views first: `slscan merge`, `slscan align`).
     #[command(flatten)]
     pub(crate) normals: NormalsTowards,
-    /// Octree depth: the finest cells are the cloud's box (×1.1) over 2^depth.
-    #[arg(long, default_value_t = PoissonConfig::default().depth)]
+    /// Octree depth, 2 to 10: the finest cells are the cloud's box (×1.1) over 2^depth.
+    #[arg(long, default_value_t = PoissonConfig::default().depth,
+          value_parser = values::count_in::<u32>(2..=10))]
     pub(crate) depth: u32,
-    /// Screening weight (0: plain Poisson).
-    #[arg(long, default_value_t = PoissonConfig::default().screening)]
+    /// Screening weight, 0 to 1000 (0: plain Poisson).
+    #[arg(long, default_value_t = PoissonConfig::default().screening,
+          value_parser = values::in_range(0.0..=1000.0))]
     pub(crate) screening: f64,
     /// Remove surface whose sampling density is below this fraction of the median (e.g. 0.1):
-    /// opens the mesh where the data has no support. Off by default (watertight).
-    #[arg(long)]
+    /// opens the mesh where the data has no support. Off by default (watertight). From 0 up
+    /// to, not including, 1.
+    #[arg(long, value_parser = values::fraction_below_one)]
     pub(crate) trim: Option<f64>,
     /// Keep every vertex of the extraction: no error-bounded simplification (it is on by
     /// default: it removes the vertices that change the surface by less than
@@ -77,11 +85,13 @@ pub(crate) struct Args {
     pub(crate) no_simplify: bool,
     /// Largest RMS distance (mm) a vertex merged by the simplification may have from the planes
     /// of the triangles it replaces, where the surface is supported by samples.
-    #[arg(long, default_value_t = SimplifyConfig::default().max_error)]
+    #[arg(long, default_value_t = SimplifyConfig::default().max_error,
+          value_parser = values::non_negative)]
     pub(crate) simplify_error: f64,
     /// The same bound (mm) where the surface is not supported by samples (the surface that
     /// closes what the scanner never saw).
-    #[arg(long, default_value_t = SimplifyConfig::default().unsupported_max_error)]
+    #[arg(long, default_value_t = SimplifyConfig::default().unsupported_max_error,
+          value_parser = values::non_negative)]
     pub(crate) simplify_unsupported_error: f64,
     /// Leave the surface that closes what the scanner never saw as the reconstruction made it
     /// (by default, after the simplification, it is faired: moved to the thin-plate surface
@@ -100,16 +110,16 @@ pub(crate) struct Args {
     /// triangles of about this edge length (mm; 0 keeps the number of vertices), every vertex
     /// on the surface and standing for the same area of it (docs/meshing.md, "Isotropic
     /// remeshing").
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = values::non_negative)]
     pub(crate) remesh: Option<f64>,
-    /// Decimate to at most this many triangles (quadric error).
-    #[arg(long)]
+    /// Decimate to at most this many triangles (quadric error; at least 4, a tetrahedron).
+    #[arg(long, value_parser = values::at_least::<usize>(4))]
     pub(crate) triangles: Option<usize>,
     /// Smoothing after the reconstruction.
     #[arg(long, value_enum, default_value_t = Smooth::None)]
     pub(crate) smooth: Smooth,
-    /// Close holes whose rim has at most this many edges (after trimming).
-    #[arg(long)]
+    /// Close holes whose rim has at most this many edges (after trimming; at least 3).
+    #[arg(long, value_parser = values::at_least::<usize>(3))]
     pub(crate) fill_holes: Option<usize>,
     /// Remove pieces of fewer triangles than this.
     #[arg(long, default_value_t = 100)]
@@ -120,33 +130,17 @@ pub(crate) struct Args {
     pub(crate) truth: Option<PathBuf>,
     /// Viewpoint of `preview.png` and `error_map.png`: azimuth about the vertical axis
     /// (degrees; 180 looks at the back), as `slscan report --azimuth`.
-    #[arg(long, default_value_t = PreviewConfig::default().azimuth_deg, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = PreviewConfig::default().azimuth_deg, allow_negative_numbers = true,
+          value_parser = values::in_range(-360.0..=360.0))]
     pub(crate) azimuth: f64,
     /// Viewpoint of the pictures: elevation (degrees; negative looks from below).
-    #[arg(long, default_value_t = PreviewConfig::default().elevation_deg, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = PreviewConfig::default().elevation_deg, allow_negative_numbers = true,
+          value_parser = values::in_range(-90.0..=90.0))]
     pub(crate) elevation: f64,
 }
 
 /// Runs `slscan mesh`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
-    for (flag, v) in [
-        ("--simplify-error", args.simplify_error),
-        (
-            "--simplify-unsupported-error",
-            args.simplify_unsupported_error,
-        ),
-    ] {
-        anyhow::ensure!(
-            args.no_simplify || (v.is_finite() && v >= 0.0),
-            "{flag} {v}: must be a distance ≥ 0 in mm"
-        );
-    }
-    if let Some(edge) = args.remesh {
-        anyhow::ensure!(
-            edge.is_finite() && edge >= 0.0,
-            "--remesh {edge}: must be an edge length ≥ 0 in mm (0 keeps the number of vertices)"
-        );
-    }
     let viewpoint = args.normals.viewpoint()?;
     let mut report = Report::new("mesh");
     let mut read = vec![args.cloud.as_path()];
@@ -158,12 +152,23 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     // The bounds of the simplification and the fairing are in mm: a cloud in metres would be
     // simplified to nothing.
     check_units(&cloud, &args.cloud, UNITS_CHECK_MM)?;
+    if let Some(edge) = args.remesh {
+        let extent = cloud.bounding_box().map_or(0.0, |b| b.extent().norm());
+        anyhow::ensure!(
+            edge <= MAX_REMESH_OF_EXTENT * extent,
+            "--remesh {edge}: an edge must be at most a tenth of the cloud's extent; {} spans \
+             {extent:.3} mm (the diagonal of its box), so at most {:.3} mm",
+            args.cloud.display(),
+            MAX_REMESH_OF_EXTENT * extent
+        );
+    }
     if let Some(v) = viewpoint {
         cloud = report.stage("normals", || {
             with_normals_towards(&cloud, v, &args.cloud.display().to_string())
         })?;
     }
     let cfg = MeshChainConfig {
+        far_points: Some(FarPointConfig::default()),
         poisson: PoissonConfig {
             depth: args.depth,
             screening: args.screening,
@@ -192,6 +197,23 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         },
         triangles: args.triangles,
     };
+    // The options that can leave no triangle, as given, for the error that says so.
+    let mut given = vec![
+        format!("--min-piece {}", args.min_piece),
+        format!("--scale {}", args.scale),
+        format!("--depth {}", args.depth),
+        format!("--screening {}", args.screening),
+    ];
+    if !args.no_simplify {
+        given.push(format!(
+            "--simplify-error {}, --simplify-unsupported-error {}",
+            args.simplify_error, args.simplify_unsupported_error
+        ));
+    }
+    given.extend(args.trim.map(|t| format!("--trim {t}")));
+    given.extend(args.remesh.map(|r| format!("--remesh {r}")));
+    given.extend(args.triangles.map(|t| format!("--triangles {t}")));
+    let removing = format!(" ({})", given.join(", "));
     let chain = mesh_chain(&cloud, &cfg).map_err(|e| {
         let hint = match &e {
             ScanError::MeshStep {
@@ -199,7 +221,19 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             } => " (--simplify-error, --simplify-unsupported-error)",
             ScanError::MeshStep { step: "fair", .. } => " (--no-fair leaves it)",
             ScanError::MeshStep { step: "remesh", .. } => " (--remesh)",
-            ScanError::Stage { .. } => " (--min-piece, --scale)",
+            ScanError::MeshStep { step: "trim", .. } => " (--trim)",
+            ScanError::MeshStep {
+                step: "decimate", ..
+            } => " (--triangles)",
+            ScanError::MeshStep {
+                step: "fill holes", ..
+            } => " (--fill-holes)",
+            ScanError::MeshStep { step: "smooth", .. } => " (--smooth)",
+            ScanError::MeshStep {
+                step: "reconstruct",
+                ..
+            } => " (--depth, --screening)",
+            ScanError::Stage { .. } => &*removing,
             _ => "",
         };
         anyhow::Error::new(e).context(format!("{}{hint}", args.cloud.display()))
@@ -220,6 +254,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             100.0 * f,
             100.0 * UNORIENTED_FRACTION
         );
+    }
+    if let Some(line) = chain.far_points_summary() {
+        outln!("{}: {line}", args.cloud.display());
     }
     if let Some(line) = chain.fairing_summary() {
         outln!("{line}");
@@ -607,7 +644,7 @@ pub(crate) mod tests {
         );
         assert!(!out.join("report.json").exists() && !out.join("mesh.ply").exists());
         let err = slscan(&[ply.to_str().unwrap(), "--out", o, "--scale", "0"]).unwrap_err();
-        assert!(format!("{err:#}").contains("--scale 0"), "{err:#}");
+        assert!(format!("{err:#}").contains("'0' for '--scale"), "{err:#}");
 
         let scaled = mesh_at_depth_7(
             &ply,
@@ -734,6 +771,52 @@ pub(crate) mod tests {
         assert!(out.join("mesh.ply").is_file());
     }
 
+    /// Two points at ±1e30 mm in a ball's cloud (a PLY with a corrupt record): before, the
+    /// octree was sized to them and `slscan mesh` made 1.77 M vertices in a box of ±1.1e30 mm
+    /// with exit 0. They are dropped before the octree is sized, counted in `report.json`, and
+    /// the ball meshes to the same surface as without them.
+    #[test]
+    fn far_points_are_dropped_counted_and_the_rest_meshes_as_without_them() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (p, n) = sphere(3000, 25.0, BALL_CENTRE);
+        let clean = PointCloud::from_positions(p.clone())
+            .with_normals(n.clone())
+            .unwrap();
+        let (mut p_far, mut n_far) = (p, n);
+        for s in [1.0, -1.0] {
+            p_far.insert(1000, Point3::new(s * 1e30, s * 1e30, s * 1e30));
+            n_far.insert(1000, Vector3::z());
+        }
+        let far = PointCloud::from_positions(p_far)
+            .with_normals(n_far)
+            .unwrap();
+        let mut reports = Vec::new();
+        let mut meshes = Vec::new();
+        for (name, cloud) in [("clean", &clean), ("far", &far)] {
+            let ply = tmp.path().join(format!("{name}.ply"));
+            write_ply(&ply, cloud, sl_cloud::PlyFormat::default()).unwrap();
+            let out = tmp.path().join(format!("out_{name}"));
+            slscan(&[
+                ply.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--depth",
+                "6",
+            ])
+            .unwrap();
+            let r: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                    .unwrap();
+            reports.push(r["figures"].clone());
+            meshes.push(sl_mesh::read_mesh(&out.join("mesh.ply")).unwrap());
+        }
+        assert_eq!(reports[0]["far_points_dropped"], 0, "{}", reports[0]);
+        assert_eq!(reports[1]["far_points_dropped"], 2, "{}", reports[1]);
+        assert_eq!(meshes[0].vertices, meshes[1].vertices);
+        assert_eq!(meshes[0].triangles, meshes[1].triangles);
+        assert_eq!(reports[0]["cell_size_mm"], reports[1]["cell_size_mm"]);
+    }
+
     #[test]
     fn cloud_without_normals_is_named() {
         let tmp = tempfile::tempdir().unwrap();
@@ -765,7 +848,7 @@ pub(crate) mod tests {
         let out = tmp.path().join("neg");
         let o = out.to_str().unwrap();
         let err = slscan(&[ply.to_str().unwrap(), "--out", o, "--remesh", "-1"]).unwrap_err();
-        assert!(format!("{err:#}").contains("--remesh -1"), "{err:#}");
+        assert!(format!("{err:#}").contains("'-1' for '--remesh"), "{err:#}");
         assert!(!out.join("report.json").exists());
     }
 }

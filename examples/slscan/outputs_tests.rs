@@ -106,7 +106,7 @@ fn a_failed_decode_keeps_the_good_one() {
     );
 }
 
-/// `capture --downscale 8`, then the same folder with `--downscale 16` (other patterns):
+/// `capture --downscale 8`, then the same folder with `--downscale 4` (other patterns):
 /// refused, and `calibration_true.json` still the one the session was captured with. Before,
 /// it was rewritten for the other size before the refusal.
 #[test]
@@ -129,7 +129,7 @@ fn a_refused_capture_keeps_its_calibration() {
     capture("8").unwrap();
     assert_clean(&out);
     let before = snapshot(&out);
-    let err = capture("16").unwrap_err();
+    let err = capture("4").unwrap_err();
     assert!(format!("{err:#}").contains("other patterns"), "{err:#}");
     assert_eq!(snapshot(&out), before);
 }
@@ -148,7 +148,7 @@ fn a_refused_scan_keeps_its_calibration() {
         "--views",
         "2",
         "--downscale",
-        "16",
+        "8",
         "--out",
         s(&out.join("session")),
     ])
@@ -164,7 +164,7 @@ fn a_refused_scan_keeps_its_calibration() {
         "--views",
         "3",
         "--downscale",
-        "16",
+        "8",
         "--out",
         s(&out),
     ])
@@ -226,7 +226,7 @@ fn a_held_folder_is_refused_naming_its_holder() {
         "--views",
         "2",
         "--downscale",
-        "16",
+        "8",
         "--out",
         s(&out),
     ])

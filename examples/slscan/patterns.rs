@@ -10,6 +10,11 @@ use sl_codec::{
 };
 
 use crate::common::{Report, open_out};
+use crate::values;
+
+/// The projector gammas `--gamma` accepts: real projectors are 1.8 to 2.6; beyond 0.1..10 the
+/// pre-compensated fringes sit within a few grey levels of black or white.
+const GAMMA_RANGE: std::ops::RangeInclusive<f64> = 0.1..=10.0;
 
 /// The coding method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -83,8 +88,9 @@ impl From<UnwrapArg> for Unwrap {
 /// Arguments of `slscan patterns`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
-    /// Projector size, `WIDTHxHEIGHT` (any size, not only powers of two).
-    #[arg(long)]
+    /// Projector size, `WIDTHxHEIGHT` (any size, not only powers of two; each side at most
+    /// 16384).
+    #[arg(long, value_parser = values::projector_size)]
     pub(crate) projector: ImageSize,
     /// Coding method.
     #[arg(long, value_enum, default_value_t = CodecArg::Gray)]
@@ -95,36 +101,39 @@ pub(crate) struct Args {
     /// Output folder for the pattern PNGs and `manifest.json`.
     #[arg(long)]
     pub(crate) out: PathBuf,
-    /// Gray and hybrid: what each bit is compared with.
+    /// Gray and hybrid: what each bit is compared with (`phase-mean`: hybrid only).
     #[arg(long, value_enum, default_value_t = ReferenceArg::Inverse)]
     pub(crate) reference: ReferenceArg,
     /// Gray: do not centre the code on the projector.
     #[arg(long)]
     pub(crate) no_center: bool,
     /// Gray: stripe width in projector pixels (2 or 4 when the camera cannot resolve single
-    /// projector pixels).
-    #[arg(long, default_value_t = 1)]
+    /// projector pixels); at least 1, and at most half the coded side so that two stripes
+    /// fit.
+    #[arg(long, default_value_t = 1, value_parser = values::at_least::<u32>(1))]
     pub(crate) stripe_width: u32,
-    /// Phase and hybrid: phase steps per frequency (>= 3). Default: 8 for hybrid (the capture
-    /// the toolkit recommends and scans with), 4 for phase.
-    #[arg(long)]
+    /// Phase and hybrid: phase steps per frequency (3 to 64). Default: 8 for hybrid (the
+    /// capture the toolkit recommends and scans with), 4 for phase.
+    #[arg(long, value_parser = values::count_in::<u32>(3..=u64::from(sl_codec::MAX_STEPS)))]
     pub(crate) steps: Option<u32>,
     /// Phase: periods across the projector, comma-separated (default: a heterodyne triple
-    /// derived from `--period-px`: P1 = extent / period, P2 = 7/8 P1, P3 = 2 P2 - P1 + 0.9).
-    #[arg(long, value_delimiter = ',')]
+    /// derived from `--period-px`: P1 = extent / period, P2 = 7/8 P1, P3 = 2 P2 - P1 + 0.9);
+    /// each > 0, with periods of at least 2 projector pixels.
+    #[arg(long, value_delimiter = ',', value_parser = values::positive)]
     pub(crate) periods: Vec<f64>,
     /// Phase and hybrid: finest fringe period in projector pixels (when `--periods` is not
-    /// given). Default: 15 for hybrid (the capture the toolkit recommends), 30 for phase.
-    #[arg(long)]
+    /// given). Default: 15 for hybrid (the capture the toolkit recommends), 30 for phase. From
+    /// 2 px to the coded side of the projector (the smaller side with `--axes both`).
+    #[arg(long, value_parser = values::positive)]
     pub(crate) period_px: Option<f64>,
     /// Phase: temporal unwrapping method.
     #[arg(long, value_enum, default_value_t = UnwrapArg::Heterodyne)]
     pub(crate) unwrap: UnwrapArg,
-    /// Phase and hybrid: projector gamma to pre-compensate (1 = none).
-    #[arg(long, default_value_t = 1.0)]
+    /// Phase and hybrid: projector gamma to pre-compensate (1 = none; 0.1 to 10).
+    #[arg(long, default_value_t = 1.0, value_parser = values::in_range(GAMMA_RANGE))]
     pub(crate) gamma: f64,
     /// Bit depth of the pattern images (8 or 16).
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = values::bit_depth::<u8>)]
     pub(crate) bit_depth: u8,
 }
 
@@ -149,6 +158,60 @@ fn steps_and_period(args: &Args) -> (u32, f64) {
         args.steps.unwrap_or(steps),
         args.period_px.unwrap_or(period),
     )
+}
+
+/// The projector axes `--axes` codes.
+fn axes(args: &Args) -> &'static [Axis] {
+    match args.axes {
+        AxesArg::Columns => &[Axis::Column],
+        AxesArg::Rows => &[Axis::Row],
+        AxesArg::Both => &[Axis::Column, Axis::Row],
+    }
+}
+
+/// The checks of `slscan patterns` that need more than one value: each names the options as
+/// the user gave them.
+pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
+    let p = args.projector;
+    // The smallest side coded: the limit of a stripe or a period.
+    let (extent, side) = axes(args)
+        .iter()
+        .map(|&a| (a.extent(p), a.name()))
+        .min()
+        .unwrap_or((p.width, "column"));
+    match args.codec {
+        CodecArg::Gray | CodecArg::Binary => {
+            let codec = if args.codec == CodecArg::Gray {
+                "gray"
+            } else {
+                "binary"
+            };
+            anyhow::ensure!(
+                args.reference != ReferenceArg::PhaseMean,
+                "--reference phase-mean compares the Gray bits with the mean of the phase \
+                 fringes, which --codec {codec} does not project: use --codec hybrid, or \
+                 --reference inverse or white-black"
+            );
+            anyhow::ensure!(
+                args.stripe_width <= extent / 2,
+                "--stripe-width {}: at most {} for the projector's {extent} px {side}s coded \
+                 (two stripes at least must fit, or nothing is coded)",
+                args.stripe_width,
+                extent / 2
+            );
+        }
+        CodecArg::Phase | CodecArg::Hybrid => {
+            if let Some(period) = args.period_px {
+                let min = sl_codec::MIN_PERIOD_PIXELS;
+                anyhow::ensure!(
+                    (min..=f64::from(extent)).contains(&period),
+                    "--period-px {period}: a fringe period must be from {min} px to the \
+                     projector's {extent} px {side}s it codes (a longer one is a flat pattern)"
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The block of one axis.
@@ -189,26 +252,58 @@ fn block(args: &Args, axis: Axis) -> anyhow::Result<Pattern> {
     })
 }
 
+/// How the command line spells `v`.
+fn arg_name(v: impl clap::ValueEnum) -> String {
+    v.to_possible_value()
+        .map_or_else(String::new, |p| p.get_name().to_owned())
+}
+
+/// The option of `slscan patterns` behind a parameter the pattern library names (`periods[1]`,
+/// `bits`), for its errors.
+fn option_of(args: &Args, name: &str) -> String {
+    let field = name.rsplit('.').next().unwrap_or(name);
+    let field = field.split('[').next().unwrap_or(field);
+    match field {
+        "periods" | "unwrap" if !args.periods.is_empty() => format!(
+            "--periods {} (--unwrap {})",
+            args.periods
+                .iter()
+                .map(f64::to_string)
+                .collect::<Vec<_>>()
+                .join(","),
+            arg_name(args.unwrap)
+        ),
+        "periods" | "unwrap" => format!(
+            "--period-px {} (--unwrap {})",
+            steps_and_period(args).1,
+            arg_name(args.unwrap)
+        ),
+        "steps" => format!("--steps {}", steps_and_period(args).0),
+        "gamma" => format!("--gamma {}", args.gamma),
+        "stripe_width" => format!("--stripe-width {}", args.stripe_width),
+        "reference" => format!("--reference {}", arg_name(args.reference)),
+        _ => format!("--projector {}", args.projector),
+    }
+}
+
 /// Runs `slscan patterns`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check(args)?;
     let mut report = Report::new("patterns");
     let depth = match args.bit_depth {
-        8 => BitDepth::Eight,
         16 => BitDepth::Sixteen,
-        d => anyhow::bail!("--bit-depth must be 8 or 16, got {d}"),
-    };
-    let axes: &[Axis] = match args.axes {
-        AxesArg::Columns => &[Axis::Column],
-        AxesArg::Rows => &[Axis::Row],
-        AxesArg::Both => &[Axis::Column, Axis::Row],
+        _ => BitDepth::Eight,
     };
     let mut sequence = PatternSequence::new(args.projector);
-    for &axis in axes {
+    for &axis in axes(args) {
         sequence = sequence.with(block(args, axis)?);
     }
-    sequence
-        .validate()
-        .context("the pattern parameters are not valid")?;
+    sequence.validate().map_err(|e| match e {
+        CodecError::Parameter { name, message } => {
+            anyhow::anyhow!("{}: {message} ({name})", option_of(args, &name))
+        }
+        other => anyhow::Error::new(other).context("the pattern parameters are not valid"),
+    })?;
     let folder = open_out(&args.out, "patterns", &[], &[], false)?;
     let out = folder.path();
     let bar = crate::common::progress(1, "patterns");
@@ -372,10 +467,87 @@ mod tests {
         ])
         .unwrap_err();
         let text = format!("{e:#}");
-        assert!(
-            text.starts_with("--stripe-width 0: must be at least 1"),
-            "{text}"
-        );
+        assert!(text.contains("'0' for '--stripe-width"), "{text}");
         assert!(!out.join("manifest.json").exists());
+        // A stripe wider than half the projector leaves one stripe: nothing is coded.
+        let e = slscan(&[
+            "patterns",
+            "--projector",
+            "64x32",
+            "--stripe-width",
+            "40",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap_err();
+        let text = format!("{e:#}");
+        assert!(text.starts_with("--stripe-width 40: "), "{text}");
+        assert!(text.contains("32"), "{text}");
+        assert!(!out.join("manifest.json").exists());
+    }
+
+    /// `slscan patterns ARGS… --out OUT` that must fail: its error, and no manifest written.
+    fn refused(args: &[&str]) -> String {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("p");
+        let mut all = vec!["patterns"];
+        all.extend_from_slice(args);
+        all.extend(["--out", out.to_str().unwrap()]);
+        let e = slscan(&all).unwrap_err();
+        assert!(
+            !out.join("manifest.json").exists(),
+            "{args:?} wrote a manifest"
+        );
+        format!("{e:#}")
+    }
+
+    /// Sets the decoder would refuse, flat patterns and sizes no projector has are refused
+    /// naming the options as the user gave them: before, `--codec gray --reference
+    /// phase-mean` wrote a set `slscan decode` rejects, `--period-px 1e9` wrote flat fringes,
+    /// and `--projector 100000x100000` was refused as `blocks[0].bits`.
+    #[test]
+    fn nonsense_pattern_options_are_refused_by_their_names() {
+        for codec in ["gray", "binary"] {
+            let text = refused(&[
+                "--projector",
+                "64x32",
+                "--codec",
+                codec,
+                "--reference",
+                "phase-mean",
+            ]);
+            assert!(
+                text.contains("--reference phase-mean")
+                    && text.contains(&format!("--codec {codec}")),
+                "{text}"
+            );
+        }
+        for codec in ["phase", "hybrid"] {
+            let text = refused(&[
+                "--projector",
+                "64x32",
+                "--codec",
+                codec,
+                "--period-px",
+                "1e9",
+            ]);
+            assert!(text.starts_with("--period-px 1000000000: "), "{text}");
+            // The limit: the projector's height when both axes are coded.
+            assert!(text.contains("32"), "{text}");
+            for bad in ["NaN", "inf", "0", "-3"] {
+                let text = refused(&[
+                    "--projector",
+                    "64x32",
+                    "--codec",
+                    codec,
+                    &format!("--period-px={bad}"),
+                ]);
+                assert!(text.contains("--period-px"), "{bad}: {text}");
+            }
+        }
+        let text = refused(&["--projector", "100000x100000"]);
+        assert!(text.contains("'100000x100000' for '--projector"), "{text}");
+        assert!(text.contains("16384"), "{text}");
+        assert!(!text.contains("bits"), "{text}");
     }
 }

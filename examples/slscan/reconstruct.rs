@@ -4,11 +4,13 @@
 use std::path::{Path, PathBuf};
 
 use sl_codec::Axis;
-use sl_scan::{CaptureReconstructionConfig, reconstruct_binocular_capture, reconstruct_capture};
-use sl_tri::BinocularConfig;
-use sl_tri::{DEPTH_PNG_SCALE_MM, Method, TriConfig};
+use sl_scan::{
+    CaptureReconstructionConfig, ScanError, reconstruct_binocular_capture, reconstruct_capture,
+};
+use sl_tri::{BinocularConfig, DEPTH_PNG_SCALE_MM, Method, TriConfig, TriError};
 
 use crate::common::{Report, manifest_file, open_out};
+use crate::values;
 
 /// Triangulation method on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -60,33 +62,49 @@ pub(crate) struct Args {
     /// Triangulation method.
     #[arg(long, value_enum, default_value_t = MethodArg::RayPlane)]
     pub(crate) method: MethodArg,
-    /// Drop pixels whose decode quality (8-bit grey levels) is below this.
-    #[arg(long, default_value_t = 0.0)]
+    /// Drop pixels whose decode quality (8-bit grey levels, 0 to 255) is below this.
+    #[arg(long, default_value_t = 0.0, value_parser = values::grey_level)]
     pub(crate) min_quality: f32,
-    /// Drop points whose reprojection error (px) is above this.
-    #[arg(long, default_value_t = sl_tri::DEFAULT_MAX_REPROJECTION_PX)]
+    /// Drop points whose reprojection error (px) is above this (> 0; `inf` keeps them all).
+    #[arg(long, default_value_t = sl_tri::DEFAULT_MAX_REPROJECTION_PX,
+          value_parser = values::positive_or_inf)]
     pub(crate) max_reprojection: f64,
-    /// Drop points nearer than this depth (mm).
-    #[arg(long, default_value_t = 1.0)]
+    /// Drop points nearer than this depth (mm, ≥ 0, below `--max-depth`).
+    #[arg(long, default_value_t = 1.0, value_parser = values::non_negative)]
     pub(crate) min_depth: f64,
-    /// Drop points farther than this depth (mm).
-    #[arg(long, default_value_t = f64::INFINITY)]
+    /// Drop points farther than this depth (mm, > 0; `inf`: no bound).
+    #[arg(long, default_value_t = f64::INFINITY, value_parser = values::positive_or_inf)]
     pub(crate) max_depth: f64,
     /// Mixed-pixel filter: largest depth jump to a neighbour, as a fraction of the depth
-    /// (`inf` turns the filter off).
-    #[arg(long, default_value_t = sl_tri::DEFAULT_MAX_DEPTH_JUMP)]
+    /// (> 0; `inf` turns the filter off).
+    #[arg(long, default_value_t = sl_tri::DEFAULT_MAX_DEPTH_JUMP,
+          value_parser = values::positive_or_inf)]
     pub(crate) max_depth_jump: f64,
     /// Image of the object under full light for the colours (default: the per-pixel maximum
     /// over the capture's frames, which is the fully lit image for complementary patterns).
     #[arg(long)]
     pub(crate) texture: Option<PathBuf>,
-    /// Millimetres per unit of the 16-bit depth PNG.
-    #[arg(long, default_value_t = DEPTH_PNG_SCALE_MM)]
+    /// Millimetres per unit of the 16-bit depth PNG (> 0). A scale at which a depth of the
+    /// cloud would not fit (beyond 65535 units, or below 1) is refused with the range that
+    /// holds them all: from the farthest depth / 65535 to the nearest depth.
+    #[arg(long, default_value_t = DEPTH_PNG_SCALE_MM, value_parser = values::positive)]
     pub(crate) depth_scale: f64,
+}
+
+/// The checks of `slscan reconstruct` that need two values.
+pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.min_depth < args.max_depth,
+        "--min-depth {} must be below --max-depth {}",
+        args.min_depth,
+        args.max_depth
+    );
+    Ok(())
 }
 
 /// Runs `slscan reconstruct`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check(args)?;
     if let Some(right) = &args.right {
         return run_binocular(args, right);
     }
@@ -108,7 +126,45 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut read = vec![manifest.as_path(), args.calib.as_path()];
     read.extend(args.texture.as_deref());
     let folder = open_out(&args.out, "reconstruct", &read, &[], args.force)?;
-    let mut r = reconstruct_capture(&args.capture, &args.calib, &cfg, folder.path())?;
+    let mut r = reconstruct_capture(&args.capture, &args.calib, &cfg, folder.path()).map_err(
+        |e| match e {
+            ScanError::Tri(TriError::InvalidParameter {
+                parameter: "scale_mm",
+                message,
+            }) => anyhow::anyhow!("--depth-scale {message}"),
+            ScanError::Session { path, reason } => {
+                // Name the options behind the statuses that took the pixels.
+                let options: Vec<String> = [
+                    ("low_quality", format!("--min-quality {}", args.min_quality)),
+                    (
+                        "out_of_depth_range",
+                        format!(
+                            "--min-depth {}, --max-depth {}",
+                            args.min_depth, args.max_depth
+                        ),
+                    ),
+                    (
+                        "reprojection",
+                        format!("--max-reprojection {}", args.max_reprojection),
+                    ),
+                    (
+                        "mixed_pixel",
+                        format!("--max-depth-jump {}", args.max_depth_jump),
+                    ),
+                ]
+                .into_iter()
+                .filter(|(status, _)| reason.contains(status))
+                .map(|(status, option)| format!("{status}: {option}"))
+                .collect();
+                if options.is_empty() {
+                    ScanError::Session { path, reason }.into()
+                } else {
+                    anyhow::anyhow!("{}: {reason} ({})", path.display(), options.join("; "))
+                }
+            }
+            other => other.into(),
+        },
+    )?;
     r.cloud = folder.final_path(&r.cloud);
     r.record(&mut report);
     report.write(folder.path())?;
@@ -316,7 +372,7 @@ pub(crate) mod tests {
     /// the platter, rendering the sphere (radius 50 mm) under the same patterns: the left and
     /// the right capture and their two-camera calibration.
     fn binocular_captures(dir: &Path) -> (PathBuf, PathBuf, PathBuf, nalgebra::Point3<f64>) {
-        use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
+        use nalgebra::{Isometry3, Translation3, UnitQuaternion};
         let left = left_config();
         let centre = sphere_centre();
         // Turned about y so that it looks at the sphere's centre, as the left camera does.
@@ -441,5 +497,51 @@ pub(crate) mod tests {
             fit.centre
         );
         assert!(fit.rms < 0.02, "exact codes: fit RMS {}", fit.rms);
+    }
+
+    /// A depth scale at which the cloud's depths do not fit the 16-bit depth PNG is refused
+    /// naming `--depth-scale`, its value and the range that works for this cloud (before, 1e-6
+    /// wrote an all-zero `depth.png` with exit 0); a scale that is no number is refused when
+    /// parsed.
+    #[test]
+    fn a_depth_scale_the_depths_do_not_fit_is_refused_with_the_working_range() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (capture, calib) = column_only_capture(tmp.path());
+        let (capture, calib) = (capture.to_str().unwrap(), calib.to_str().unwrap());
+        for (scale, at_parse) in [
+            ("0.000001", false),
+            ("1000", false),
+            ("0", true),
+            ("-0.02", true),
+            ("NaN", true),
+            ("inf", true),
+        ] {
+            let out = tmp.path().join("out");
+            let arg = format!("--depth-scale={scale}");
+            let err = slscan(&[
+                "reconstruct",
+                capture,
+                "--calib",
+                calib,
+                "--out",
+                out.to_str().unwrap(),
+                &arg,
+            ])
+            .unwrap_err();
+            let text = format!("{err:#}");
+            assert!(text.contains("--depth-scale"), "{scale}: {text}");
+            if at_parse {
+                assert!(err.downcast_ref::<clap::Error>().is_some(), "{text}");
+            } else {
+                // The plane lies at about 450 mm: the range runs from ~0.007 to ~400 mm.
+                assert!(
+                    text.starts_with(&format!("--depth-scale {scale}")),
+                    "{text}"
+                );
+                assert!(text.contains("mm per unit"), "{text}");
+            }
+            assert!(!out.join("depth.png").exists(), "{scale}");
+            assert!(!out.join("cloud.ply").exists(), "{scale}");
+        }
     }
 }

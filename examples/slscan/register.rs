@@ -10,6 +10,7 @@ use sl_icp::{IcpConfig, Metric, RobustKernel, Trimming};
 use sl_scan::{read_transform, register_and_write};
 
 use crate::common::{Report, open_out};
+use crate::values;
 
 /// Default voxel size of `register` (mm): a 100 mm object keeps ~10k points.
 const DEFAULT_VOXEL_MM: f64 = 1.0;
@@ -51,29 +52,30 @@ pub(crate) struct Args {
     /// Error metric.
     #[arg(long, value_enum, default_value_t = MetricArg::PointToPlane)]
     pub(crate) metric: MetricArg,
-    /// Voxel size for downsampling both clouds first (mm; 0 keeps every point).
-    #[arg(long, default_value_t = DEFAULT_VOXEL_MM)]
+    /// Voxel size for downsampling both clouds first (mm; 0 keeps every point, else from
+    /// 0.001 to a tenth of the clouds' extent).
+    #[arg(long, default_value_t = DEFAULT_VOXEL_MM, value_parser = values::voxel_or_zero)]
     pub(crate) voxel: f64,
-    /// Correspondences farther apart than this are ignored (mm).
-    #[arg(long, default_value_t = 5.0)]
+    /// Correspondences farther apart than this are ignored (mm, at least 0.001).
+    #[arg(long, default_value_t = 5.0, value_parser = values::length_mm)]
     pub(crate) max_distance: f64,
-    /// Maximum number of iterations.
-    #[arg(long, default_value_t = 50)]
+    /// Maximum number of iterations (1 to 10000).
+    #[arg(long, default_value_t = 50, value_parser = values::count_in::<usize>(1..=10_000))]
     pub(crate) iterations: usize,
-    /// Huber kernel threshold (mm); off by default.
-    #[arg(long)]
+    /// Huber kernel threshold (mm, at least 0.001); off by default.
+    #[arg(long, value_parser = values::length_mm)]
     pub(crate) huber: Option<f64>,
-    /// Trimmed ICP: expected overlap of the source with the target, in (0, 1]; "auto" for the
+    /// Trimmed ICP: expected overlap of the source with the target, 0.05 to 1; "auto" for the
     /// trimmed-ICP estimate of the overlap. Off by default.
-    #[arg(long)]
-    pub(crate) trim: Option<String>,
+    #[arg(long, value_parser = parse_trim)]
+    pub(crate) trim: Option<Trimming>,
     /// Initial `T_target_source`: a JSON file with a 4x4 row-major matrix under
     /// `"T_target_source"` (the `transform.json` this command writes). Default: identity.
     #[arg(long)]
     pub(crate) init: Option<PathBuf>,
     /// Multiply the coordinates of both clouds by this when reading (1000 for clouds in
-    /// metres, such as the Stanford scans: the workspace works in mm).
-    #[arg(long, default_value_t = 1.0)]
+    /// metres, such as the Stanford scans: the workspace works in mm; 1e-6 to 1e6).
+    #[arg(long, default_value_t = 1.0, value_parser = values::scale)]
     pub(crate) scale: f64,
 }
 
@@ -83,7 +85,52 @@ pub(crate) fn read_scaled(path: &Path, scale: f64) -> anyhow::Result<PointCloud>
         scale.is_finite() && scale > 0.0,
         "--scale {scale}: must be finite and > 0"
     );
-    Ok(sl_cloud::read_ply_scaled(path, scale)?)
+    let cloud = sl_cloud::read_ply_scaled(path, scale)?;
+    let bad = cloud
+        .positions()
+        .iter()
+        .filter(|p| !p.iter().all(|c| c.is_finite()))
+        .count();
+    anyhow::ensure!(
+        bad == 0,
+        "{}: {bad} of {} points have coordinates that are not finite numbers once read with \
+         --scale {scale}",
+        path.display(),
+        cloud.len()
+    );
+    Ok(cloud)
+}
+
+/// The largest voxel, as a fraction of a cloud's extent (the diagonal of its box): a tenth,
+/// so that a cloud keeps at least some hundreds of points for registration.
+const MAX_VOXEL_OF_EXTENT: f64 = 0.1;
+
+/// Refuses a voxel (`flag`, mm; 0 = none) larger than [`MAX_VOXEL_OF_EXTENT`] of the extent of
+/// any of `clouds` (named by `paths`): it would leave a handful of points.
+pub(crate) fn check_voxel(
+    flag: &str,
+    voxel: f64,
+    clouds: &[&PointCloud],
+    paths: &[&Path],
+) -> anyhow::Result<()> {
+    for (c, p) in clouds.iter().zip(paths) {
+        let extent = c.bounding_box().map_or(0.0, |b| b.extent().norm());
+        anyhow::ensure!(
+            voxel <= MAX_VOXEL_OF_EXTENT * extent,
+            "{flag} {voxel}: a voxel must be at most a tenth of each cloud's extent; {} spans \
+             {extent:.3} mm (the diagonal of its box), so at most {:.3} mm",
+            p.display(),
+            MAX_VOXEL_OF_EXTENT * extent
+        );
+    }
+    Ok(())
+}
+
+/// The options a registration of `slscan register`, `merge` or `align` was made with, for its
+/// failures: `(flag, value)` pairs, those given as they were given.
+pub(crate) fn with_options(options: &[(&str, String)]) -> String {
+    let given: Vec<String> = options.iter().map(|(f, v)| format!("{f} {v}")).collect();
+    format!("with {}", given.join(", "))
 }
 
 /// A cloud whose bounding-box diagonal is below this many default voxels is taken for one in
@@ -113,7 +160,8 @@ pub(crate) struct NormalsTowards {
         long,
         value_delimiter = ',',
         num_args = 1,
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        value_parser = values::finite
     )]
     pub(crate) normals_towards: Option<Vec<f64>>,
 }
@@ -144,16 +192,17 @@ pub(crate) fn with_normals_towards(
         .with_context(|| format!("{name}: cannot estimate normals"))
 }
 
-fn trimming(arg: &Option<String>) -> anyhow::Result<Trimming> {
-    Ok(match arg.as_deref() {
-        None => Trimming::None,
-        Some("auto") => Trimming::Auto { min_overlap: 0.3 },
-        Some(v) => Trimming::Fixed {
-            overlap: v
-                .parse()
-                .with_context(|| format!("--trim {v}: expected a number in (0, 1] or \"auto\""))?,
-        },
-    })
+/// The least overlap `--trim` takes: 5 %; fewer correspondences register noise.
+const MIN_OVERLAP: f64 = 0.05;
+
+/// `--trim`: "auto", or an overlap in [`MIN_OVERLAP`], 1.
+fn parse_trim(s: &str) -> Result<Trimming, String> {
+    if s.trim() == "auto" {
+        return Ok(Trimming::Auto { min_overlap: 0.3 });
+    }
+    let overlap = values::in_range(MIN_OVERLAP..=1.0)(s)
+        .map_err(|_| format!("must be an overlap from {MIN_OVERLAP} to 1, or \"auto\""))?;
+    Ok(Trimming::Fixed { overlap })
 }
 
 /// Runs `slscan register`.
@@ -170,7 +219,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         kernel: args
             .huber
             .map_or(RobustKernel::L2, |k| RobustKernel::Huber { k }),
-        trimming: trimming(&args.trim)?,
+        trimming: args.trim.unwrap_or_default(),
         ..IcpConfig::default()
     };
     config.validate()?;
@@ -186,8 +235,36 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     })?;
     check_units(&source, &args.source, DEFAULT_VOXEL_MM)?;
     check_units(&target, &args.target, DEFAULT_VOXEL_MM)?;
+    check_voxel(
+        "--voxel",
+        args.voxel,
+        &[&source, &target],
+        &[&args.source, &args.target],
+    )?;
     let voxel = (args.voxel > 0.0).then_some(args.voxel);
-    let mut r = register_and_write(&source, &target, &initial, &config, voxel, folder.path())?;
+    let mut options = vec![
+        ("--max-distance", args.max_distance.to_string()),
+        ("--voxel", args.voxel.to_string()),
+        ("--iterations", args.iterations.to_string()),
+    ];
+    if args.scale != 1.0 {
+        options.push(("--scale", args.scale.to_string()));
+    }
+    if let Some(t) = args.trim {
+        let t = match t {
+            Trimming::Fixed { overlap } => overlap.to_string(),
+            _ => "auto".to_owned(),
+        };
+        options.push(("--trim", t));
+    }
+    if let Some(k) = args.huber {
+        options.push(("--huber", k.to_string()));
+    }
+    if let Some(p) = &args.init {
+        options.push(("--init", p.display().to_string()));
+    }
+    let mut r = register_and_write(&source, &target, &initial, &config, voxel, folder.path())
+        .with_context(|| with_options(&options))?;
     r.cloud = folder.final_path(&r.cloud);
     r.record(&mut report, &format!("{:?}", args.metric));
     report.write(folder.path())?;

@@ -11,6 +11,7 @@ use sl_codec::write_png_rgb8;
 use sl_metrology::{EvaluateConfig, Truth, evaluate_with, heat_map};
 
 use crate::common::{Report, open_out};
+use crate::values;
 
 /// Arguments of `slscan report`.
 #[derive(Debug, clap::Args)]
@@ -26,18 +27,30 @@ pub(crate) struct Args {
     /// Write into `--out` even where it holds another command's outputs or the inputs.
     #[arg(long)]
     pub(crate) force: bool,
-    /// Heat-map range (mm): blue at −range, red at +range.
-    #[arg(long, default_value_t = sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM)]
+    /// Heat-map range (mm, 0.001 to 1000): blue at −range, red at +range.
+    #[arg(long, default_value_t = sl_metrology::DEFAULT_HEAT_MAP_RANGE_MM,
+          value_parser = values::as_f32(values::in_range(0.001..=1000.0)))]
     pub(crate) range: f32,
-    /// Fraction of points farthest from a fitted feature left out of the `_trimmed` figures.
-    #[arg(long, default_value_t = sl_metrology::VDI_TRIM_FRACTION)]
+    /// Fraction of points farthest from a fitted feature left out of the `_trimmed` figures
+    /// (0 up to, not including, 0.5).
+    #[arg(long, default_value_t = sl_metrology::VDI_TRIM_FRACTION, value_parser = trim_fraction)]
     pub(crate) trim: f64,
-    /// Heat-map viewpoint: azimuth about the vertical axis (degrees).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    /// Heat-map viewpoint: azimuth about the vertical axis (degrees, -360 to 360).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true,
+          value_parser = values::in_range(-360.0..=360.0))]
     pub(crate) azimuth: f64,
-    /// Heat-map viewpoint: elevation (degrees; negative looks from below).
-    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    /// Heat-map viewpoint: elevation (degrees, -90 to 90; negative looks from below).
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true,
+          value_parser = values::in_range(-90.0..=90.0))]
     pub(crate) elevation: f64,
+}
+
+/// `--trim`: a fraction in [0, 0.5) (half the points or more would leave no feature).
+fn trim_fraction(s: &str) -> Result<f64, String> {
+    values::non_negative(s)
+        .ok()
+        .filter(|v| *v < 0.5)
+        .ok_or_else(|| "must be a fraction from 0 up to, not including, 0.5".to_owned())
 }
 
 /// Runs `slscan report`.

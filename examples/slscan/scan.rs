@@ -18,6 +18,7 @@ use structured_light::scan::{
 
 use crate::capture::HardwareArgs;
 use crate::common::{Report, StageBars, open_out_in_place};
+use crate::values;
 
 /// Arguments of `slscan scan`.
 #[derive(Debug, clap::Args)]
@@ -25,14 +26,15 @@ pub(crate) struct Args {
     /// Output folder.
     #[arg(long)]
     pub(crate) out: PathBuf,
-    /// Turntable views over a full turn.
-    #[arg(long, default_value_t = 36)]
+    /// Turntable views over a full turn (1 to 3600).
+    #[arg(long, default_value_t = 36, value_parser = values::views())]
     pub(crate) views: usize,
-    /// Board poses of the simulated calibration.
-    #[arg(long, default_value_t = 12)]
+    /// Board poses of the simulated calibration (at least 3: Zhang's method needs three views
+    /// of a plane).
+    #[arg(long, default_value_t = 12, value_parser = values::at_least::<usize>(3))]
     pub(crate) calibration_poses: usize,
-    /// Divide the virtual rig's resolution by this (2 or 4 for a quick look).
-    #[arg(long, default_value_t = 1)]
+    /// Divide the virtual rig's resolution by this (2 or 4 for a quick look; 1 to 8).
+    #[arg(long, default_value_t = 1, value_parser = values::downscale())]
     pub(crate) downscale: u32,
     /// Seed of the board poses and the sensor noise.
     #[arg(long, default_value_t = 0)]
@@ -45,8 +47,9 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) no_average: bool,
     /// Drop points whose surface normal is more than this many degrees from the direction to
-    /// the camera or the projector (90 keeps every point).
-    #[arg(long, default_value_t = VirtualScanConfig::default().max_view_angle_deg)]
+    /// the camera or the projector (90 keeps every point; > 0).
+    #[arg(long, default_value_t = VirtualScanConfig::default().max_view_angle_deg,
+          value_parser = values::positive_up_to(90.0))]
     pub(crate) max_view_angle: f64,
     /// Diagnostic: triangulate with the virtual rig's true calibration (nothing estimated).
     #[arg(long)]
@@ -55,12 +58,14 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) true_poses: bool,
     /// Neighbours of each merged point for its normal and the moving-least-squares surface
-    /// the averaging moves it onto (more: smoother).
-    #[arg(long, default_value_t = VirtualScanConfig::default().smoothing_neighbours)]
+    /// the averaging moves it onto (more: smoother; 3 to 1000).
+    #[arg(long, default_value_t = VirtualScanConfig::default().smoothing_neighbours,
+          value_parser = values::count_in::<usize>(3..=1000))]
     pub(crate) smoothing_neighbours: usize,
     /// Drop the points within this many pixels of the edge of the valid region of each view
-    /// (silhouettes, plate edges, hole rims).
-    #[arg(long, default_value_t = VirtualScanConfig::default().edge_erosion_px)]
+    /// (silhouettes, plate edges, hole rims; at most 100).
+    #[arg(long, default_value_t = VirtualScanConfig::default().edge_erosion_px,
+          value_parser = values::count_in::<usize>(0..=100))]
     pub(crate) edge_erosion: usize,
     /// Keep every vertex of the mesh's extraction (no error-bounded simplification, which is
     /// on by default: see `slscan mesh --no-simplify`).
@@ -80,8 +85,9 @@ pub(crate) struct Args {
     pub(crate) no_plate: bool,
     /// Half-width (pixels) of the window that smooths each view's decoded projector
     /// coordinates before triangulation (a local plane fitted to the valid neighbours, 1 =
-    /// 3 × 3); 0 triangulates each pixel's own decode.
-    #[arg(long, default_value_t = 1)]
+    /// 3 × 3; at most 4); 0 triangulates each pixel's own decode.
+    #[arg(long, default_value_t = 1,
+          value_parser = values::count_in::<usize>(0..=structured_light::codec::MAX_SMOOTH_RADIUS as u64))]
     pub(crate) smooth: usize,
     /// How the simulated calibration refines the board's corners: `junction` or `saddle`
     /// (see `slscan calibrate camera --corners`).
@@ -94,8 +100,8 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 1)]
     pub(crate) placements: usize,
     /// Between two placements on real devices, wait this many seconds instead of asking to
-    /// press Enter (for scripts).
-    #[arg(long)]
+    /// press Enter (for scripts; 0 to 86400).
+    #[arg(long, value_parser = values::in_range(0.0..=86_400.0))]
     pub(crate) placement_wait: Option<f64>,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
@@ -103,28 +109,27 @@ pub(crate) struct Args {
     pub(crate) rig: crate::scan_hardware::ScanHardwareArgs,
 }
 
+/// The checks of `slscan scan` that need more than one value.
+pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
+    check_placements(args.placements).map_err(|e| anyhow::anyhow!("--placements: {e}"))?;
+    if crate::scan_hardware::wanted(args)? {
+        return Ok(());
+    }
+    anyhow::ensure!(
+        args.placement_wait.is_none(),
+        "--placement-wait is for a scan on hardware: the virtual rig re-places its object itself"
+    );
+    anyhow::ensure!(
+        args.placements == 1 || !args.true_poses,
+        "--true-poses is a diagnostic of the single-placement scan"
+    );
+    Ok(())
+}
+
 /// Runs `slscan scan`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
-    check_placements(args.placements).map_err(|e| anyhow::anyhow!("--placements: {e}"))?;
-    anyhow::ensure!(
-        args.smooth <= structured_light::codec::MAX_SMOOTH_RADIUS,
-        "--smooth {}: the window's half-width is at most {} px (0 turns the smoothing off)",
-        args.smooth,
-        structured_light::codec::MAX_SMOOTH_RADIUS
-    );
-    let hardware = crate::scan_hardware::wanted(args)?;
-    if !hardware {
-        anyhow::ensure!(
-            args.placement_wait.is_none(),
-            "--placement-wait is for a scan on hardware: the virtual rig re-places its object itself"
-        );
-        anyhow::ensure!(args.downscale >= 1, "--downscale must be at least 1");
-        anyhow::ensure!(
-            args.placements == 1 || !args.true_poses,
-            "--true-poses is a diagnostic of the single-placement scan"
-        );
-    }
-    if hardware {
+    check(args)?;
+    if crate::scan_hardware::wanted(args)? {
         // Locks the folder itself, once the options are checked.
         return crate::scan_hardware::run(args);
     }

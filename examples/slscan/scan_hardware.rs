@@ -42,8 +42,8 @@ pub(crate) struct ScanHardwareArgs {
     /// columns, 15 px periods).
     #[arg(long)]
     pub(crate) patterns: Option<PathBuf>,
-    /// Wait after showing a pattern (ms, hardware only); default 100.
-    #[arg(long)]
+    /// Wait after showing a pattern (ms, hardware only; at most 10000); default 100.
+    #[arg(long, value_parser = crate::values::latency_ms())]
     pub(crate) latency_ms: Option<u64>,
     /// Measure the display-to-camera latency first (hardware only).
     #[arg(long)]

@@ -14,6 +14,7 @@ use sl_sim::{
 };
 
 use crate::common::{Report, open_out, progress, write_atomically};
+use crate::values;
 
 /// Super-sampling for checkerboards: corner accuracy needs well anti-aliased edges.
 const BOARD_SUPERSAMPLING: u32 = 4;
@@ -27,8 +28,9 @@ pub(crate) struct Args {
     /// Folder holding the patterns' `manifest.json` (as `slscan patterns` writes it).
     #[arg(long)]
     pub(crate) patterns: PathBuf,
-    /// Number of views: turntable positions over a full turn, or board poses for `board`.
-    #[arg(long, default_value_t = 1)]
+    /// Number of views: turntable positions over a full turn, or board poses for `board` (1 to
+    /// 3600).
+    #[arg(long, default_value_t = 1, value_parser = values::views())]
     pub(crate) views: usize,
     /// Output folder.
     #[arg(long)]
@@ -39,26 +41,26 @@ pub(crate) struct Args {
     /// Seed of the noise (and of the board poses).
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
-    /// Camera rays per pixel along each axis (default 2, or 4 for `board`).
-    #[arg(long)]
+    /// Camera rays per pixel along each axis (default 2, or 4 for `board`; 1 to 16).
+    #[arg(long, value_parser = values::count_in::<u32>(1..=16))]
     pub(crate) supersampling: Option<u32>,
     /// Bits per camera pixel: 8 or 16.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = values::bit_depth::<u32>)]
     pub(crate) bits: u32,
-    /// Add a global-illumination term of this weight (e.g. 0.2).
-    #[arg(long)]
+    /// Add a global-illumination term of this weight (e.g. 0.2; 0 to 1).
+    #[arg(long, value_parser = values::in_range(0.0..=1.0))]
     pub(crate) global_light: Option<f64>,
     /// Depth-dependent defocus (a 3 mm pupil focused at 450 mm).
     #[arg(long)]
     pub(crate) defocus: bool,
-    /// Projector gamma (default 1: linear).
-    #[arg(long)]
+    /// Projector gamma (default 1: linear; 0.1 to 10).
+    #[arg(long, value_parser = values::in_range(0.1..=10.0))]
     pub(crate) gamma: Option<f64>,
-    /// Inner corners of the `board` scene, `COLSxROWS`.
-    #[arg(long, default_value = "9x6")]
+    /// Inner corners of the `board` scene, `COLSxROWS` (2 to 100 each).
+    #[arg(long, default_value = "9x6", value_parser = values::board_size)]
     pub(crate) board: sl_calib::BoardSize,
-    /// Square size of the `board` scene (mm).
-    #[arg(long, default_value_t = 20.0)]
+    /// Square size of the `board` scene (mm, > 0, at most 1000).
+    #[arg(long, default_value_t = 20.0, value_parser = values::positive_up_to(values::MAX_SQUARE_MM))]
     pub(crate) square_mm: f64,
     /// No photon or read noise.
     #[arg(long)]
@@ -68,7 +70,6 @@ pub(crate) struct Args {
 /// Runs `slscan simulate`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("simulate");
-    anyhow::ensure!(args.views >= 1, "--views must be at least 1");
     let manifest_path = args.patterns.join(MANIFEST_FILE);
     let folder = open_out(&args.out, "simulate", &[&manifest_path], &[], args.force)?;
     let out = folder.path().to_path_buf();

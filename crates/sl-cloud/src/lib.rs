@@ -72,8 +72,8 @@ pub use normals::{
     estimate_normals_with_index, fit_local_plane,
 };
 pub use outliers::{
-    RadiusOutlierConfig, RadiusOutliers, StatisticalOutlierConfig, StatisticalOutliers,
-    remove_radius_outliers, remove_statistical_outliers,
+    FarPointConfig, FarPoints, RadiusOutlierConfig, RadiusOutliers, StatisticalOutlierConfig,
+    StatisticalOutliers, remove_far_points, remove_radius_outliers, remove_statistical_outliers,
 };
 pub use ply::header::read_ply_header;
 pub use ply::mesh::{

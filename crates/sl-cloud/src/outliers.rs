@@ -1,5 +1,6 @@
 //! Outlier removal: statistical (mean distance to the k nearest neighbours) and by radius count.
 
+use nalgebra::Point3;
 use rayon::prelude::*;
 
 use crate::morton::SortedIndex;
@@ -203,6 +204,139 @@ pub fn remove_radius_outliers(
     })
 }
 
+/// Settings of [`remove_far_points`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FarPointConfig {
+    /// Fraction of the points the robust radius holds (see [`remove_far_points`]). Default 0.99:
+    /// a far group of up to 1 % of the points cannot move the radius, and on any compact object
+    /// the 99th percentile of the distances is within a few per cent of the largest.
+    pub quantile: f64,
+    /// A point is far when its distance from the median centre exceeds `factor` times the
+    /// robust radius. Default 10: no point of a scanned object is that far (the corner of a
+    /// cube is 1.1 times the 99th percentile, the end of a rod 1.02 times), while a point 10
+    /// times farther than the rest makes the bounding box, and every octree or voxel grid
+    /// sized to it, at least 10 times coarser for the sake of at most 1 % of the samples.
+    pub factor: f64,
+}
+
+impl Default for FarPointConfig {
+    fn default() -> Self {
+        Self {
+            quantile: 0.99,
+            factor: 10.0,
+        }
+    }
+}
+
+/// Result of [`remove_far_points`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FarPoints {
+    /// The kept points, with their attributes, in input order.
+    pub cloud: PointCloud,
+    /// Input indices of the kept points (ascending).
+    pub inliers: Vec<usize>,
+    /// Input indices of the removed points (ascending), non-finite points included.
+    pub outliers: Vec<usize>,
+    /// The median of the finite points, axis by axis.
+    pub centre: Point3<f64>,
+    /// The robust radius: the `quantile` of the finite points' distances from `centre`.
+    pub radius: f64,
+    /// The distance beyond which a point was removed, `factor * radius` (infinite when the
+    /// radius is 0: a cloud whose points mostly coincide has no scale to judge by).
+    pub threshold: f64,
+    /// The largest distance from `centre` of a removed finite point (0 when none was).
+    pub farthest: f64,
+}
+
+/// Removes the points far from the rest of the cloud, judged by a robust extent that they
+/// cannot inflate: with `c` the axis-wise median of the points and `r` the `quantile` of their
+/// distances from `c`, a point is far when its distance exceeds `factor * r`. Meant to run
+/// before anything is sized to the cloud's bounding box (an octree, a voxel grid, a preview):
+/// two stray points at ±1e30 mm would otherwise size it to them. Non-finite points are
+/// always removed. O(n).
+///
+/// ```
+/// use nalgebra::Point3;
+/// use sl_cloud::{remove_far_points, FarPointConfig, PointCloud};
+/// let mut pts: Vec<_> = (0..400).map(|i| Point3::new((i % 20) as f64, (i / 20) as f64, 0.0)).collect();
+/// pts.push(Point3::new(1e30, 0.0, 0.0));
+/// let r = remove_far_points(&PointCloud::from_positions(pts), &FarPointConfig::default())?;
+/// assert_eq!(r.outliers, vec![400]);
+/// # Ok::<(), sl_cloud::CloudError>(())
+/// ```
+///
+/// # Errors
+/// [`CloudError::InvalidParameter`] for a `quantile` outside (0, 1] or a `factor` that is not
+/// a finite number ≥ 1.
+pub fn remove_far_points(
+    cloud: &PointCloud,
+    config: &FarPointConfig,
+) -> Result<FarPoints, CloudError> {
+    if !(config.quantile > 0.0 && config.quantile <= 1.0) {
+        return Err(CloudError::invalid(
+            "quantile",
+            config.quantile,
+            "must be in (0, 1]",
+        ));
+    }
+    if !(config.factor.is_finite() && config.factor >= 1.0) {
+        return Err(CloudError::invalid(
+            "factor",
+            config.factor,
+            "must be a finite number >= 1",
+        ));
+    }
+    let positions = cloud.positions();
+    let finite: Vec<&Point3<f64>> = positions
+        .iter()
+        .filter(|p| p.iter().all(|c| c.is_finite()))
+        .collect();
+    let median = |mut v: Vec<f64>| -> f64 {
+        if v.is_empty() {
+            return 0.0;
+        }
+        let mid = v.len() / 2;
+        *v.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    let centre = Point3::new(
+        median(finite.iter().map(|p| p.x).collect()),
+        median(finite.iter().map(|p| p.y).collect()),
+        median(finite.iter().map(|p| p.z).collect()),
+    );
+    let mut distances: Vec<f64> = finite.iter().map(|p| (*p - centre).norm()).collect();
+    let radius = if distances.is_empty() {
+        0.0
+    } else {
+        // The smallest distance that at least `quantile` of the points do not exceed.
+        let k = ((config.quantile * distances.len() as f64).ceil() as usize)
+            .clamp(1, distances.len())
+            - 1;
+        *distances.select_nth_unstable_by(k, f64::total_cmp).1
+    };
+    let threshold = if radius > 0.0 {
+        config.factor * radius
+    } else {
+        f64::INFINITY
+    };
+    let mut farthest = 0.0f64;
+    let (inliers, outliers): (Vec<usize>, Vec<usize>) = (0..positions.len()).partition(|&i| {
+        let d = (positions[i] - centre).norm();
+        if d.is_finite() && d > threshold {
+            farthest = farthest.max(d);
+        }
+        d <= threshold
+    });
+    Ok(FarPoints {
+        cloud: cloud.select_unchecked(&inliers),
+        inliers,
+        outliers,
+        centre,
+        radius,
+        threshold,
+        farthest,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -354,5 +488,71 @@ mod tests {
             )
             .is_err()
         );
+    }
+
+    /// The far-point test keeps every point of compact and elongated shapes (a cube's
+    /// corners, a rod's ends, a plane's rim) and removes a few stray points however far, and
+    /// non-finite ones; the removed points cannot move the robust radius.
+    #[test]
+    fn far_points_are_stray_points_only() {
+        let (plane, _) = plane_with_outliers();
+        let rod = PointCloud::from_positions(
+            (0..1000)
+                .map(|i| Point3::new(f64::from(i), 0.0, 0.0))
+                .collect(),
+        );
+        let cube = PointCloud::from_positions(
+            (0..1000)
+                .map(|i| {
+                    Point3::new(
+                        f64::from(i % 10),
+                        f64::from(i / 10 % 10),
+                        f64::from(i / 100),
+                    )
+                })
+                .collect(),
+        );
+        for c in [&plane, &rod, &cube] {
+            let r = remove_far_points(c, &FarPointConfig::default()).unwrap();
+            assert!(r.outliers.is_empty(), "{:?}", r.outliers);
+            assert_eq!(r.cloud.len(), c.len());
+        }
+        let mut pts = plane.positions().to_vec();
+        let radius = remove_far_points(&plane, &FarPointConfig::default())
+            .unwrap()
+            .radius;
+        pts.extend([
+            Point3::new(1e30, 1e30, 1e30),
+            Point3::new(-1e30, -1e30, -1e30),
+            Point3::new(f64::NAN, 0.0, 0.0),
+            Point3::new(30.0, 30.0, 600.0),
+        ]);
+        let r = remove_far_points(&PointCloud::from_positions(pts), &FarPointConfig::default())
+            .unwrap();
+        let n = plane.len();
+        assert_eq!(r.outliers, vec![n, n + 1, n + 2, n + 3]);
+        assert_eq!(r.cloud.positions(), plane.positions());
+        assert!(
+            (r.radius - radius).abs() < 0.05 * radius,
+            "{} vs {radius}",
+            r.radius
+        );
+        assert!(
+            (r.farthest - 3f64.sqrt() * 1e30).abs() < 1e27,
+            "{}",
+            r.farthest
+        );
+        for bad in [
+            FarPointConfig {
+                quantile: 0.0,
+                ..FarPointConfig::default()
+            },
+            FarPointConfig {
+                factor: f64::NAN,
+                ..FarPointConfig::default()
+            },
+        ] {
+            assert!(remove_far_points(&plane, &bad).is_err());
+        }
     }
 }

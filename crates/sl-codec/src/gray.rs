@@ -21,7 +21,7 @@ use crate::bits::{
 use crate::correspondence::{AxisMap, InvalidReason};
 use crate::frame::{check_block, dims};
 use crate::kernel::{self, AxisRows, Kernel, fill_out};
-use crate::pattern::{ceil_log2, finite, positive};
+use crate::pattern::{ceil_log2, positive, within};
 use crate::{Axis, CodecError, DecodeConfig, Frame, ImageSize, Sample};
 
 /// Largest number of bits per Gray block: codes are accumulated in `u16` lanes, and 2^16 stripes
@@ -198,8 +198,44 @@ impl GrayCodeSpec {
             ));
         }
         positive("stripe_width", self.stripe_width)?;
-        finite("origin", self.origin)?;
+        // The code's stripes start at most one code length before the first pixel and after
+        // the last: further, the origin only loses precision (a hybrid code may wrap, by
+        // whole periods, so the origin is not held to the projector itself).
+        let code_px = (1u64 << self.bits.min(MAX_GRAY_BITS)) as f64 * self.stripe_width;
+        within(
+            "origin",
+            self.origin,
+            f64::from(self.extent) + code_px,
+            "projector px",
+        )?;
         Ok(())
+    }
+
+    /// Checks that the `2^bits` stripes cover every pixel centre of the projector once (a
+    /// plain Gray block cannot tell a stripe from its repeat: a code that wraps decodes to
+    /// the wrong stripe, or to nothing).
+    ///
+    /// # Errors
+    /// [`CodecError::Parameter`] naming `origin`, `stripe_width` and `bits`.
+    pub fn check_covers(&self) -> Result<(), CodecError> {
+        let n = (1u64 << self.bits.min(MAX_GRAY_BITS)) as f64;
+        let first = ((0.0 - self.origin) / self.stripe_width).floor();
+        let last = ((f64::from(self.extent) - 1.0 - self.origin) / self.stripe_width).floor();
+        if first >= 0.0 && last < n {
+            return Ok(());
+        }
+        Err(CodecError::parameter(
+            "origin",
+            format!(
+                "with stripe_width {} px and bits {} the code's stripes run from {} to {} px, \
+                 which does not cover the projector's pixel centres 0 to {} once",
+                self.stripe_width,
+                self.bits,
+                self.origin,
+                self.origin + n * self.stripe_width,
+                self.extent.saturating_sub(1)
+            ),
+        ))
     }
 
     /// Index of the stripe (modulo `2^bits`) that contains projector coordinate `t`.

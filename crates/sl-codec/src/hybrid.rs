@@ -25,7 +25,7 @@ use crate::fast_math;
 use crate::frame::{check_block, dims};
 use crate::gray::{GrayCodeSpec, GrayReference, stripe_positions};
 use crate::kernel::{self, AxisRows, Kernel, fill_out};
-use crate::pattern::{ceil_log2, finite, positive};
+use crate::pattern::{ceil_log2, positive, within};
 use crate::phase_shift::{
     Fringe, MAX_STEPS, MIN_PERIOD_PIXELS, PhaseRow, StepTable, fused_pass, validate_steps,
 };
@@ -134,6 +134,16 @@ impl HybridSpec {
             ));
         }
         positive("periods", self.periods)?;
+        if self.periods < 1.0 {
+            return Err(CodecError::parameter(
+                "periods",
+                format!(
+                    "{} periods across {} px: a hybrid code needs one period at least (its \
+                     Gray code counts whole periods; a longer fringe is a phase-shift block's)",
+                    self.periods, self.extent
+                ),
+            ));
+        }
         let lambda = self.period_pixels();
         if lambda < MIN_PERIOD_PIXELS {
             return Err(CodecError::parameter(
@@ -144,8 +154,19 @@ impl HybridSpec {
                 ),
             ));
         }
-        finite("origin", self.origin)?;
-        finite("phase_offset", self.phase_offset)?;
+        // As a phase-shift block's: beyond, the values only lose precision.
+        within(
+            "origin",
+            self.origin,
+            f64::from(self.extent),
+            "projector px",
+        )?;
+        within(
+            "phase_offset",
+            self.phase_offset,
+            std::f64::consts::TAU,
+            "rad",
+        )?;
         positive("gamma", self.gamma)?;
         self.gray.validate().map_err(|e| match e {
             CodecError::Parameter { name, message } => CodecError::Parameter {
@@ -173,9 +194,11 @@ impl HybridSpec {
             let m = self.wrap_periods();
             if (m - m.round()).abs() > 1e-6 || m < 1.0 {
                 return Err(CodecError::parameter(
-                    "gray.bits",
+                    "gray",
                     format!(
-                        "the Gray code wraps around inside the projector but 2^bits stripes span {m} periods, not a whole number"
+                        "the Gray code wraps around inside the projector but its 2^bits stripes \
+                         (bits {}, stripe_width {} px) span {m} periods, not a whole number",
+                        self.gray.bits, self.gray.stripe_width
                     ),
                 ));
             }

@@ -345,8 +345,13 @@ impl Parser<'_> {
             .ok_or_else(|| self.err("projector", "is required"))?;
         let po = self.obj(pv, "projector", &["width", "height"])?;
         let projector = ImageSize::new(self.u32_req(&po, "width")?, self.u32_req(&po, "height")?);
-        if projector.width == 0 || projector.height == 0 {
-            return Err(self.err("projector", format!("must not be empty, got {projector}")));
+        for (key, side) in [("width", projector.width), ("height", projector.height)] {
+            if side == 0 {
+                return Err(self.err(
+                    format!("projector.{key}"),
+                    format!("must be at least 1 pixel, got {projector}"),
+                ));
+            }
         }
         let bit_depth = match self.u64_opt(&root, "bit_depth")? {
             None => BitDepth::Eight,
@@ -463,7 +468,7 @@ impl Parser<'_> {
             .ok_or_else(|| self.err(join(at, "frames"), "must be an array of file names"))?;
         let mut frames = Vec::with_capacity(fa.len());
         for (i, f) in fa.iter().enumerate() {
-            let name = f.as_str().ok_or_else(|| {
+            let name = f.as_str().filter(|s| !s.trim().is_empty()).ok_or_else(|| {
                 self.err(
                     format!("{at}.frames[{i}]"),
                     format!("must be a file name, got {f}"),
@@ -471,20 +476,34 @@ impl Parser<'_> {
             })?;
             frames.push(name.to_string());
         }
+        // The parameters first: a bad one also makes the frame count wrong, and is the cause.
+        // The block codes the projector's side: say which, as its size bounds the parameters.
+        let side = match axis {
+            Axis::Column => "width",
+            Axis::Row => "height",
+        };
+        pattern.validate().map_err(|e| match e {
+            CodecError::Parameter { name, message } => self.err(
+                join(at, &name),
+                format!("{message} (the block codes projector.{side}, {extent} px)"),
+            ),
+            other => other,
+        })?;
         if frames.len() != pattern.frame_count() {
+            let by = match codec {
+                "gray" => "bits, reference",
+                "phase" => "steps, periods",
+                _ => "steps, gray.bits, gray.reference",
+            };
             return Err(self.err(
                 join(at, "frames"),
                 format!(
-                    "the {codec} block's parameters need {} frames, the list has {}",
+                    "the {codec} block's parameters ({by}) need {} frames, the list has {}",
                     pattern.frame_count(),
                     frames.len()
                 ),
             ));
         }
-        pattern.validate().map_err(|e| match e {
-            CodecError::Parameter { name, message } => self.err(join(at, &name), message),
-            other => other,
-        })?;
         Ok(ManifestBlock { pattern, frames })
     }
 

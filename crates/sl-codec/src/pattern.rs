@@ -1,7 +1,7 @@
 //! What every pattern block shares: the coded axis, the projector size, and the [`Pattern`]
 //! enum that ties the codecs together.
 
-use crate::{CodecError, GrayCodeSpec, HybridSpec, PhaseShiftSpec};
+use crate::{CodecError, GrayCodeSpec, GrayReference, HybridSpec, PhaseShiftSpec};
 
 /// Size of the projector image in pixels: the workspace's one image size, [`sl_image::ImageSize`],
 /// re-exported so codec users need one import.
@@ -129,7 +129,19 @@ impl Pattern {
     /// [`CodecError::Parameter`] naming the first parameter out of its domain.
     pub fn validate(&self) -> Result<(), CodecError> {
         match self {
-            Self::Gray(s) => s.validate(),
+            Self::Gray(s) => {
+                s.validate()?;
+                s.check_covers()?;
+                // The decoder refuses it (no fringes to take the mean of): refuse it here too,
+                // so that no pattern set is written, or manifest read, that cannot be decoded.
+                if s.reference == GrayReference::PhaseMean {
+                    return Err(CodecError::parameter(
+                        "reference",
+                        "'phase_mean' needs phase-shift frames: use it in a hybrid block",
+                    ));
+                }
+                Ok(())
+            }
             Self::Phase(s) => s.validate(),
             Self::Hybrid(s) => s.validate(),
         }
@@ -172,13 +184,14 @@ pub(crate) fn positive(name: &str, value: f64) -> Result<(), CodecError> {
 }
 
 /// Checks that `value` is finite.
-pub(crate) fn finite(name: &str, value: f64) -> Result<(), CodecError> {
-    if value.is_finite() {
+/// Checks that `value` is finite and within `±bound` (`unit` for the message).
+pub(crate) fn within(name: &str, value: f64, bound: f64, unit: &str) -> Result<(), CodecError> {
+    if value.is_finite() && value.abs() <= bound {
         Ok(())
     } else {
         Err(CodecError::parameter(
             name,
-            format!("must be finite, got {value}"),
+            format!("must be within ±{bound} {unit}, got {value}"),
         ))
     }
 }

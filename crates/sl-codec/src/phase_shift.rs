@@ -24,7 +24,7 @@ use crate::correspondence::{AxisMap, InvalidReason};
 use crate::fast_math;
 use crate::frame::{check_block, dims};
 use crate::kernel::{self, AxisRows, Kernel, fill_out};
-use crate::pattern::{finite, positive};
+use crate::pattern::{positive, within};
 use crate::unwrap::{Plan, Unwrap, UnwrapScratch, gcd};
 use crate::{Axis, CodecError, DecodeConfig, Frame, ImageSize, Sample};
 
@@ -199,8 +199,20 @@ impl PhaseShiftSpec {
                 ));
             }
         }
-        finite("origin", self.origin)?;
-        finite("phase_offset", self.phase_offset)?;
+        // The fringes repeat: an origin beyond the projector or an offset beyond a turn says
+        // nothing more, and only loses precision.
+        within(
+            "origin",
+            self.origin,
+            f64::from(self.extent),
+            "projector px",
+        )?;
+        within(
+            "phase_offset",
+            self.phase_offset,
+            std::f64::consts::TAU,
+            "rad",
+        )?;
         positive("gamma", self.gamma)?;
         let n = self.periods.len();
         let p = &self.periods;

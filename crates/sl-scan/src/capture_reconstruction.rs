@@ -13,8 +13,8 @@ use sl_codec::{
     write_outputs, write_png_rgb8,
 };
 use sl_tri::{
-    DEPTH_PNG_SCALE_MM, PointStatus, Texture, TriConfig, Triangulator, write_depth_png16,
-    write_depth_tiff,
+    DEPTH_PNG_SCALE_MM, PointStatus, Texture, TriConfig, Triangulator, check_depth_png_scale,
+    write_depth_png16, write_depth_tiff,
 };
 
 use crate::error::io;
@@ -186,11 +186,13 @@ pub fn reconstruct_capture(
             ),
         });
     }
+    // Nothing is written at a depth scale that would lose depths in `depth.png`.
+    let depth = result.depth_map();
+    check_depth_png_scale(&depth, cfg.depth_png_scale_mm)?;
     let ply = out.join("cloud.ply");
     timed(&mut stages, "write ply", || {
         write_ply(&ply, &result.cloud, PlyFormat::default())
     })?;
-    let depth = result.depth_map();
     let (w, h) = (result.width, result.height);
     timed(&mut stages, "write depth", || -> Result<(), ScanError> {
         via_temporary(&out.join("depth.png"), |p| {

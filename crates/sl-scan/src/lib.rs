@@ -149,7 +149,7 @@ pub use mesh::{
     mesh_stage_with, scan_poisson_config, write_mesh_pictures,
 };
 #[cfg(feature = "mesh")]
-pub use mesh_chain::{MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};
+pub use mesh_chain::{FarPointsDropped, MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};
 pub use output_folder::{Inputs, OutputError, OutputFolder};
 pub use placements::{
     MAX_PLACEMENTS, PLACEMENT_SESSION_DIR, PlacementAlignment, PlacementConfig, PlacementRig,

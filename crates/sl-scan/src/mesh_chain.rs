@@ -1,10 +1,12 @@
-//! The mesh chain of `slscan mesh`: a cloud with oriented normals to a closed surface through
-//! screened Poisson, then the optional trim, simplification, fairing of the unseen surface,
+//! The mesh chain of `slscan mesh`: a cloud with oriented normals, rid of its far stray points,
+//! to a closed surface through screened Poisson, then the optional trim, simplification, fairing of the unseen surface,
 //! isotropic remeshing, hole filling, removal of small pieces, smoothing and decimation, each
 //! step timed and its figures kept.
 
+use std::borrow::Cow;
+
 use serde_json::json;
-use sl_cloud::PointCloud;
+use sl_cloud::{FarPointConfig, PointCloud, remove_far_points};
 use sl_mesh::{
     BilateralConfig, Decimation, FairConfig, Fairing, HoleFilling, MeshError, PoissonConfig,
     RemeshConfig, Remeshing, Simplification, SimplifyConfig, TaubinConfig, Topology, TriangleMesh,
@@ -37,6 +39,10 @@ pub enum MeshSmoothing {
 /// The steps of [`mesh_chain`] and their settings; `None` leaves a step out.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeshChainConfig {
+    /// Drop the points far from the rest of the cloud before the octree is sized to its box
+    /// (`sl_cloud::remove_far_points`): two stray points at ±1e30 mm would otherwise make
+    /// the finest cells 1e28 mm wide and the surface nonsense. `None` keeps every point.
+    pub far_points: Option<FarPointConfig>,
     /// The screened Poisson reconstruction.
     pub poisson: PoissonConfig,
     /// Remove surface whose sampling density is below this fraction of the median.
@@ -61,6 +67,7 @@ impl Default for MeshChainConfig {
     /// The defaults of `slscan mesh`: simplified and faired, pieces under 100 triangles removed.
     fn default() -> Self {
         Self {
+            far_points: Some(FarPointConfig::default()),
             poisson: PoissonConfig::default(),
             trim: None,
             simplify: Some(SimplifyConfig::default()),
@@ -84,6 +91,9 @@ pub struct MeshChain {
     /// Fraction of the points whose normal faces away from the largest consistently oriented
     /// patch around them (`None` when the cloud is too small to tell).
     pub normals_inconsistent: Option<f64>,
+    /// The far points dropped before the reconstruction (none when
+    /// [`MeshChainConfig::far_points`] is `None`).
+    pub far_points: FarPointsDropped,
     /// Samples the reconstruction used.
     pub samples: usize,
     /// Size of the finest octree cell (mm).
@@ -114,12 +124,51 @@ pub struct MeshChain {
     pub stages: Vec<StageTime>,
 }
 
+/// The far points [`mesh_chain`] dropped (`sl_cloud::remove_far_points`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FarPointsDropped {
+    /// Points dropped, non-finite ones included.
+    pub count: usize,
+    /// The largest distance (mm) of a dropped finite point from the cloud's median centre.
+    pub farthest_mm: f64,
+    /// The robust radius (mm): the distance from the median centre within which the
+    /// configured quantile of the points lie.
+    pub radius_mm: f64,
+    /// The distance (mm) beyond which points were dropped.
+    pub threshold_mm: f64,
+}
+
 impl MeshChain {
+    /// The line to print when far points were dropped (`None` when none was).
+    #[must_use]
+    pub fn far_points_summary(&self) -> Option<String> {
+        let f = &self.far_points;
+        (f.count > 0).then(|| {
+            format!(
+                "dropped {} far point(s) before meshing (the farthest {:.3e} mm from the \
+                 cloud's median centre; 99 % of the points lie within {:.1} mm, points beyond \
+                 {:.1} mm are dropped)",
+                f.count, f.farthest_mm, f.radius_mm, f.threshold_mm
+            )
+        })
+    }
+
     /// The figures of the steps that ran, by name, as `report.json` holds them (what each step
     /// did, its settings and milliseconds), in the order of the chain.
     #[must_use]
     pub fn figures(&self, cfg: &MeshChainConfig) -> Vec<(&'static str, serde_json::Value)> {
         let mut f: Vec<(&'static str, serde_json::Value)> = Vec::new();
+        f.push(("far_points_dropped", self.far_points.count.into()));
+        if self.far_points.count > 0 {
+            f.push((
+                "far_points",
+                json!({
+                    "farthest_mm": self.far_points.farthest_mm,
+                    "robust_radius_mm": self.far_points.radius_mm,
+                    "threshold_mm": self.far_points.threshold_mm,
+                }),
+            ));
+        }
         if let Some(x) = self.normals_inconsistent {
             f.push(("normals_inconsistent", x.into()));
         }
@@ -229,6 +278,25 @@ fn last_ms(stages: &[StageTime]) -> f64 {
 /// is left after the removal of small pieces.
 pub fn mesh_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain, ScanError> {
     let mut stages = Vec::new();
+    let mut far_points = FarPointsDropped::default();
+    let cloud: Cow<'_, PointCloud> = match &cfg.far_points {
+        Some(c) => {
+            let far = timed(&mut stages, "far points", || remove_far_points(cloud, c))?;
+            far_points = FarPointsDropped {
+                count: far.outliers.len(),
+                farthest_mm: far.farthest,
+                radius_mm: far.radius,
+                threshold_mm: far.threshold,
+            };
+            if far.outliers.is_empty() {
+                Cow::Borrowed(cloud)
+            } else {
+                Cow::Owned(far.cloud)
+            }
+        }
+        None => Cow::Borrowed(cloud),
+    };
+    let cloud = cloud.as_ref();
     let normals_inconsistent = timed(&mut stages, "orientation", || {
         inconsistent_normal_fraction(cloud, ORIENTATION_NEIGHBOURS, ORIENTATION_STRIDE)
     })
@@ -323,6 +391,7 @@ pub fn mesh_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain
         mesh,
         topology,
         normals_inconsistent,
+        far_points,
         samples: surface.samples,
         cell_size: surface.cell_size,
         solve_ms: surface.solve_ms,

@@ -26,6 +26,44 @@ pub fn depth_to_u16(depth_mm: &[f32], scale_mm: f64) -> Vec<u16> {
         .collect()
 }
 
+/// The scales (mm per unit, smallest and largest) at which every depth of `depth_mm` (mm; NaN
+/// and non-positive values are no depth) is stored in a 16-bit depth PNG without loss: the
+/// farthest within 65535 units, the nearest at least 1 unit. `None` when there is no depth.
+pub fn depth_png_scale_range(depth_mm: &[f32]) -> Option<(f64, f64)> {
+    let (near, far) = depth_mm
+        .iter()
+        .map(|&d| f64::from(d))
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .fold(None, |acc: Option<(f64, f64)>, d| {
+            Some(acc.map_or((d, d), |(lo, hi)| (lo.min(d), hi.max(d))))
+        })?;
+    Some((far / f64::from(u16::MAX), near))
+}
+
+/// Checks that every depth of `depth_mm` fits a 16-bit depth PNG at `scale_mm` mm per unit
+/// ([`depth_png_scale_range`]); a map with no depth passes.
+///
+/// # Errors
+/// [`TriError::InvalidParameter`] naming `scale_mm`, its value, the depths and the range of
+/// scales that holds them: at a larger scale the nearest depths round to 0 (no depth), at a
+/// smaller one the farthest do not fit.
+pub fn check_depth_png_scale(depth_mm: &[f32], scale_mm: f64) -> Result<(), TriError> {
+    let Some((lo, hi)) = depth_png_scale_range(depth_mm) else {
+        return Ok(());
+    };
+    if scale_mm.is_finite() && (lo..=hi).contains(&scale_mm) {
+        return Ok(());
+    }
+    Err(TriError::param(
+        "scale_mm",
+        format!(
+            "{scale_mm}: the depths from {hi:.4} to {:.4} mm fit a 16-bit depth PNG (1 to \
+             65535 units) at {lo:.6} to {hi:.4} mm per unit",
+            lo * f64::from(u16::MAX)
+        ),
+    ))
+}
+
 /// Writes a depth map (mm, NaN = none) as a 16-bit grey PNG: value = depth / `scale_mm`,
 /// rounded; 0 = no depth.
 ///
@@ -67,6 +105,23 @@ pub fn write_depth_tiff(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_scale_range_holds_every_depth() {
+        let d = [f32::NAN, 0.0, 400.0, 500.0, -3.0];
+        let (lo, hi) = depth_png_scale_range(&d).unwrap();
+        assert!((lo - 500.0 / 65535.0).abs() < 1e-12 && (hi - 400.0).abs() < 1e-9);
+        for scale in [lo, 0.02, hi] {
+            check_depth_png_scale(&d, scale).unwrap();
+            let u = depth_to_u16(&d, scale);
+            assert!(u[2] >= 1 && u[3] >= 1, "{scale}: {u:?}");
+        }
+        for scale in [1e-6, 0.99 * lo, 1.01 * hi, 1e6, f64::NAN] {
+            let e = check_depth_png_scale(&d, scale).unwrap_err().to_string();
+            assert!(e.contains("scale_mm") && e.contains("mm per unit"), "{e}");
+        }
+        assert!(depth_png_scale_range(&[f32::NAN]).is_none());
+    }
 
     #[test]
     fn units_round_and_refuse_what_does_not_fit() {

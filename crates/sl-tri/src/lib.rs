@@ -108,7 +108,10 @@ mod triangulator;
 mod undistort;
 
 pub use binocular::{Binocular, BinocularConfig, BinocularCounts, BinocularResult};
-pub use depth::{DEPTH_PNG_SCALE_MM, depth_to_u16, write_depth_png16, write_depth_tiff};
+pub use depth::{
+    DEPTH_PNG_SCALE_MM, check_depth_png_scale, depth_png_scale_range, depth_to_u16,
+    write_depth_png16, write_depth_tiff,
+};
 pub use error::TriError;
 pub use fit::{PlaneFit, SphereFit, fit_plane, fit_sphere};
 pub use options::{
