@@ -13,7 +13,7 @@ use sl_icp::align_unordered;
 use sl_scan::{CombinedScans, combine_aligned, multiway_config_at, multiway_figures};
 
 use crate::common::{Report, ensure_out_dir, progress, write_atomically};
-use crate::register::{NORMAL_NEIGHBOURS, NormalsTowards, check_units, read_scaled};
+use crate::register::{NORMAL_NEIGHBOURS, NormalsTowards, check_cloud, read_scaled};
 
 /// Default voxel size of the descriptors (mm), [`GlobalConfig::default`]'s.
 const DEFAULT_VOXEL_MM: f64 = 2.0;
@@ -53,7 +53,13 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             .iter()
             .map(|p| {
                 let c = read_scaled(p, args.scale)?;
-                check_units(&c, p, args.voxel)?;
+                check_cloud(
+                    &c,
+                    p,
+                    args.voxel,
+                    "global registration",
+                    sl_icp::MIN_GLOBAL_POINTS,
+                )?;
                 Ok(c)
             })
             .collect::<anyhow::Result<_>>()
@@ -361,7 +367,11 @@ pub(crate) mod tests {
                 vec![Point3::new(f64::NAN, 0.0, f64::INFINITY); 500],
                 "all_nan.ply: none of its 500 points is finite",
             ),
-            ("one.ply", vec![Point3::new(1.0, 2.0, 3.0)], "one.ply: has 1 point; "),
+            (
+                "one.ply",
+                vec![Point3::new(1.0, 2.0, 3.0)],
+                "one.ply: has 1 point; ",
+            ),
             (
                 "same.ply",
                 vec![Point3::new(5.0, 6.0, 7.0); 500],
@@ -369,7 +379,12 @@ pub(crate) mod tests {
             ),
         ] {
             let path = tmp.path().join(name);
-            write_ply(&path, &PointCloud::from_positions(points), PlyFormat::default()).unwrap();
+            write_ply(
+                &path,
+                &PointCloud::from_positions(points),
+                PlyFormat::default(),
+            )
+            .unwrap();
             let bad = path.display().to_string();
             for argv in [
                 vec!["align", &good, &bad, "--out", o],

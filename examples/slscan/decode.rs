@@ -138,7 +138,14 @@ mod tests {
     /// `slscan patterns` for a 64x32 projector (Gray code, both axes) into `dir/name`.
     fn patterns(dir: &std::path::Path, name: &str) -> std::path::PathBuf {
         let p = dir.join(name);
-        slscan(&["patterns", "--projector", "64x32", "--out", p.to_str().unwrap()]).unwrap();
+        slscan(&[
+            "patterns",
+            "--projector",
+            "64x32",
+            "--out",
+            p.to_str().unwrap(),
+        ])
+        .unwrap();
         p
     }
 
@@ -156,7 +163,10 @@ mod tests {
         std::fs::remove_file(&frame).unwrap();
         std::fs::create_dir(&frame).unwrap();
         let err = format!("{:#}", slscan(&["decode", c, "--out", o]).unwrap_err());
-        assert!(err.contains("003.png") && err.contains("is a directory"), "{err}");
+        assert!(
+            err.contains("003.png") && err.contains("is a directory"),
+            "{err}"
+        );
         assert!(!err.contains("does not exist"), "{err}");
         #[cfg(unix)]
         {
@@ -208,9 +218,7 @@ mod tests {
             let float: Vec<f32> = dim.iter().map(|&v| f32::from(v) / 255.0).collect();
             tiff::encoder::TiffEncoder::new(file)
                 .unwrap()
-                .write_image::<tiff::encoder::colortype::Gray32Float>(
-                    w as u32, h as u32, &float,
-                )
+                .write_image::<tiff::encoder::colortype::Gray32Float>(w as u32, h as u32, &float)
                 .unwrap();
             frames += 1;
         }
@@ -230,13 +238,15 @@ mod tests {
         };
         let (a, b) = (decode(&png, "out_png"), decode(&tif, "out_tif"));
         for map in ["col.npy", "row.npy", "quality.npy"] {
-            let (x, y) = (std::fs::read(a.join(map)).unwrap(), std::fs::read(b.join(map)).unwrap());
+            let (x, y) = (
+                std::fs::read(a.join(map)).unwrap(),
+                std::fs::read(b.join(map)).unwrap(),
+            );
             assert!(x == y, "{map} differs");
         }
         // The maps are not empty: every projector column is seen (the frames are the patterns).
         let report: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(b.join("report.json")).unwrap())
-                .unwrap();
+            serde_json::from_str(&std::fs::read_to_string(b.join("report.json")).unwrap()).unwrap();
         let valid = report["figures"]["valid_fraction"].as_f64();
         assert!(valid.is_some_and(|v| v > 0.99), "{report}");
     }

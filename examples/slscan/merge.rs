@@ -13,7 +13,7 @@ use sl_icp::{IcpError, MergeConfig, PoseModel, TurntablePrior, turntable_poses};
 use sl_scan::{ScanError, merge_and_write, pair_figures};
 
 use crate::common::{Report, StageBars, ensure_out_dir};
-use crate::register::{check_units, read_scaled};
+use crate::register::{check_cloud, read_scaled};
 
 /// Arguments of `slscan merge`.
 #[derive(Debug, clap::Args)]
@@ -183,7 +183,13 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             .map(|v| {
                 let path = view_file(v);
                 let c = read_scaled(&path, args.scale)?;
-                check_units(&c, &path, DEFAULT_REGISTRATION_VOXEL_MM)?;
+                check_cloud(
+                    &c,
+                    &path,
+                    DEFAULT_REGISTRATION_VOXEL_MM,
+                    "a registration",
+                    sl_icp::MIN_CORRESPONDENCES,
+                )?;
                 Ok(c)
             })
             .collect::<anyhow::Result<_>>()

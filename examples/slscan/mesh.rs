@@ -16,7 +16,7 @@ use sl_metrology::Truth;
 use sl_scan::{MeshChainConfig, MeshSmoothing, ScanError, mesh_chain};
 
 use crate::common::{Report, ensure_out_dir};
-use crate::register::{NormalsTowards, check_units, read_scaled, with_normals_towards};
+use crate::register::{NormalsTowards, check_cloud, read_scaled, with_normals_towards};
 
 /// A cloud spanning less than this (mm, the diagonal of its box, after `--scale`) is taken for
 /// one in metres and refused with the hint `--scale 1000`: nothing this scanner meshes is
@@ -124,6 +124,19 @@ pub(crate) struct Args {
     pub(crate) elevation: f64,
 }
 
+/// The options that bear on a failed step of the mesh chain, for the message.
+fn step_hint(e: &ScanError) -> &'static str {
+    match e {
+        ScanError::MeshStep {
+            step: "simplify", ..
+        } => " (--simplify-error, --simplify-unsupported-error)",
+        ScanError::MeshStep { step: "fair", .. } => " (--no-fair leaves it)",
+        ScanError::MeshStep { step: "remesh", .. } => " (--remesh)",
+        ScanError::Stage { .. } => " (--min-piece, --scale)",
+        _ => "",
+    }
+}
+
 /// Runs `slscan mesh`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     for (flag, v) in [
@@ -150,9 +163,15 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut cloud = report
         .stage("read", || read_scaled(&args.cloud, args.scale))
         .with_context(|| format!("cannot read {}", args.cloud.display()))?;
-    // The bounds of the simplification and the fairing are in mm: a cloud in metres would be
-    // simplified to nothing.
-    check_units(&cloud, &args.cloud, UNITS_CHECK_MM)?;
+    // A cloud that spans nothing is said to be that. The bounds of the simplification and the
+    // fairing are in mm: a cloud in metres would be simplified to nothing.
+    check_cloud(
+        &cloud,
+        &args.cloud,
+        UNITS_CHECK_MM,
+        "a mesh",
+        sl_mesh::MIN_POISSON_POINTS,
+    )?;
     if let Some(v) = viewpoint {
         cloud = report.stage("normals", || {
             with_normals_towards(&cloud, v, &args.cloud.display().to_string())
@@ -189,13 +208,15 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     };
     let chain = mesh_chain(&cloud, &cfg).map_err(|e| {
         let hint = match &e {
-            ScanError::MeshStep {
-                step: "simplify", ..
-            } => " (--simplify-error, --simplify-unsupported-error)",
-            ScanError::MeshStep { step: "fair", .. } => " (--no-fair leaves it)",
-            ScanError::MeshStep { step: "remesh", .. } => " (--remesh)",
-            ScanError::Stage { .. } => " (--min-piece, --scale)",
-            _ => "",
+            ScanError::MeshTooCoarse {
+                depth,
+                meshes_at: Some(d),
+                ..
+            } => format!(" (--depth {depth} is too coarse for this cloud: --depth {d} meshes it)"),
+            ScanError::MeshTooCoarse { min_piece, .. } => {
+                format!(" (--min-piece {min_piece})")
+            }
+            _ => step_hint(&e).to_owned(),
         };
         anyhow::Error::new(e).context(format!("{}{hint}", args.cloud.display()))
     })?;
@@ -797,7 +818,10 @@ mod tests {
         let text = format!("{:#}", r.unwrap_err());
         assert!(text.contains("two_balls.ply"), "{text}");
         assert!(text.contains("--depth 2"), "{text}");
-        assert!(!text.contains("in mm") && !text.contains("--scale"), "{text}");
+        assert!(
+            !text.contains("in mm") && !text.contains("--scale"),
+            "{text}"
+        );
         // "… --depth N meshes it": the depth the message proposes.
         let proposed: u32 = text
             .split("--depth ")
@@ -813,7 +837,10 @@ mod tests {
                 .unwrap();
         assert_eq!(report["figures"]["watertight"], true, "{report}");
         assert_eq!(report["figures"]["components"], 2, "{report}");
-        assert!(run(proposed - 1).0.is_err(), "{proposed} is not the smallest");
+        assert!(
+            run(proposed - 1).0.is_err(),
+            "{proposed} is not the smallest"
+        );
     }
 
     #[test]
