@@ -14,7 +14,7 @@ use sl_scan::{CombinedScans, combine_aligned, multiway_config_at, multiway_figur
 
 use crate::common::{Report, open_out, progress, write_atomically};
 use crate::register::{
-    NORMAL_NEIGHBOURS, NormalsTowards, check_units, check_voxel, read_scaled, with_options,
+    NORMAL_NEIGHBOURS, NormalsTowards, check_cloud, check_voxel, read_scaled, with_options,
 };
 
 /// Default voxel size of the descriptors (mm), [`GlobalConfig::default`]'s.
@@ -58,7 +58,13 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             .iter()
             .map(|p| {
                 let c = read_scaled(p, args.scale)?;
-                check_units(&c, p, DEFAULT_VOXEL_MM)?;
+                check_cloud(
+                    &c,
+                    p,
+                    args.voxel,
+                    "global registration",
+                    sl_icp::MIN_GLOBAL_POINTS,
+                )?;
                 check_voxel("--voxel", args.voxel, &[&c], &[p])?;
                 Ok(c)
             })
@@ -357,6 +363,63 @@ pub(crate) mod tests {
         assert_eq!(f["watertight"], true, "{f}");
         assert_eq!(f["manifold"], true, "{f}");
         assert!(f["fair"]["vertices_moved"].as_u64().unwrap() > 100, "{f}");
+    }
+
+    /// Clouds that cannot be registered whatever their units (no finite point, one point,
+    /// every point at one place) are named for what they are by `align`, `register` and
+    /// `merge`, with the file; until issue 30 each was refused as "probably metres" with the
+    /// hint `--scale 1000` (their extent is 0).
+    #[test]
+    fn degenerate_clouds_are_named_not_taken_for_metres() {
+        let tmp = tempfile::tempdir().unwrap();
+        let views = write_views(tmp.path(), 1.0);
+        let good = views[0].0.display().to_string();
+        let out = tmp.path().join("out");
+        let o = out.to_str().unwrap();
+        for (name, points, expected) in [
+            (
+                "all_nan.ply",
+                vec![Point3::new(f64::NAN, 0.0, f64::INFINITY); 500],
+                "all_nan.ply: none of its 500 points is finite",
+            ),
+            (
+                "one.ply",
+                vec![Point3::new(1.0, 2.0, 3.0)],
+                "one.ply: has 1 point; ",
+            ),
+            (
+                "same.ply",
+                vec![Point3::new(5.0, 6.0, 7.0); 500],
+                "same.ply: all 500 points are at the same place (5, 6, 7)",
+            ),
+        ] {
+            let path = tmp.path().join(name);
+            write_ply(
+                &path,
+                &PointCloud::from_positions(points),
+                PlyFormat::default(),
+            )
+            .unwrap();
+            let bad = path.display().to_string();
+            for argv in [
+                vec!["align", &good, &bad, "--out", o],
+                vec!["register", &bad, &good, "--out", o],
+                vec!["register", &good, &bad, "--out", o],
+                vec!["merge", &good, &bad, "--out", o],
+            ] {
+                let err = format!("{:#}", slscan(&argv).unwrap_err());
+                assert!(err.contains(expected), "{argv:?}: {err}");
+                if name == "one.ply" {
+                    // align: global registration's 50 points; register, merge: ICP's 6.
+                    let needed = if argv[0] == "align" { 50 } else { 6 };
+                    assert!(err.contains(&format!("needs at least {needed}")), "{err}");
+                }
+                assert!(
+                    !err.contains("metres") && !err.contains("--scale"),
+                    "{argv:?}: {err}"
+                );
+            }
+        }
     }
 
     /// The same views in metres: `align`, `register` and `merge` refuse them, saying so and

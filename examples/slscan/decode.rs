@@ -170,4 +170,120 @@ mod tests {
         assert!(text.contains("2048 pixels shadow"), "{text}");
         assert!(out.join("failed-run/report.json").is_file());
     }
+
+    /// `slscan patterns` for a 64x32 projector (Gray code, both axes) into `dir/name`.
+    fn patterns(dir: &std::path::Path, name: &str) -> std::path::PathBuf {
+        let p = dir.join(name);
+        slscan(&[
+            "patterns",
+            "--projector",
+            "64x32",
+            "--out",
+            p.to_str().unwrap(),
+        ])
+        .unwrap();
+        p
+    }
+
+    /// A frame the manifest names that is a folder, or a symbolic link to `/dev/zero`, is
+    /// named for what it is (and `/dev/zero` is never read); until issue 30 both were "missing:
+    /// … does not exist".
+    #[test]
+    fn a_frame_that_is_not_a_file_is_named_for_what_it_is() {
+        let tmp = tempfile::tempdir().unwrap();
+        let capture = patterns(tmp.path(), "capture");
+        let c = capture.to_str().unwrap();
+        let frame = capture.join("003.png");
+        let out = tmp.path().join("out");
+        let o = out.to_str().unwrap();
+        std::fs::remove_file(&frame).unwrap();
+        std::fs::create_dir(&frame).unwrap();
+        let err = format!("{:#}", slscan(&["decode", c, "--out", o]).unwrap_err());
+        assert!(
+            err.contains("003.png") && err.contains("is a directory"),
+            "{err}"
+        );
+        assert!(!err.contains("does not exist"), "{err}");
+        #[cfg(unix)]
+        {
+            std::fs::remove_dir(&frame).unwrap();
+            std::os::unix::fs::symlink("/dev/zero", &frame).unwrap();
+            let err = format!("{:#}", slscan(&["decode", c, "--out", o]).unwrap_err());
+            assert!(
+                err.contains("003.png") && err.contains("is not a regular file"),
+                "{err}"
+            );
+            assert!(err.contains("/dev/zero"), "{err}");
+            assert!(!err.contains("does not exist"), "{err}");
+        }
+    }
+
+    /// A capture of grey 32-bit float TIFF frames (written by the `tiff` crate's encoder, as
+    /// a camera program using libtiff would) decodes to the maps of the same capture in 8-bit
+    /// PNG: the frames hold `v / 255` for the PNG's grey level `v` (docs/capture-format.md:
+    /// float frames are clamped to [0, 1] and scaled to 16 bits, so `v / 255` reads as
+    /// `257 v`, the PNG's `v` widened). The frames are the patterns dimmed to 40..218 so that
+    /// the grey levels, not only black and white, must come through. Until issue 30 such a
+    /// frame was refused ("does not support the color type Unknown(32)").
+    #[test]
+    fn a_float_tiff_capture_decodes_as_its_png_twin() {
+        let tmp = tempfile::tempdir().unwrap();
+        let pat = patterns(tmp.path(), "patterns");
+        let (png, tif) = (tmp.path().join("png"), tmp.path().join("tif"));
+        for d in [&png, &tif] {
+            std::fs::create_dir(d).unwrap();
+            std::fs::copy(pat.join("manifest.json"), d.join("manifest.json")).unwrap();
+        }
+        let mut frames = 0;
+        for f in crate::common::files_below(&pat) {
+            if f.extension().is_none_or(|e| e != "png") {
+                continue;
+            }
+            let name = f.file_name().unwrap();
+            let g = sl_codec::read_grey8(&f).unwrap();
+            let dim: Vec<u8> = g
+                .data()
+                .iter()
+                .map(|&v| 40 + (f64::from(v) * 0.7).round() as u8)
+                .collect();
+            let (w, h) = (g.width(), g.height());
+            let frame = sl_codec::Frame::new(w, h, dim.clone()).unwrap();
+            sl_codec::write_png_grey8(&png.join(name), &frame).unwrap();
+            // The manifest names `NNN.png`; the reader finds `NNN.tif` beside it.
+            let file = std::fs::File::create(tif.join(name).with_extension("tif")).unwrap();
+            let float: Vec<f32> = dim.iter().map(|&v| f32::from(v) / 255.0).collect();
+            tiff::encoder::TiffEncoder::new(file)
+                .unwrap()
+                .write_image::<tiff::encoder::colortype::Gray32Float>(w as u32, h as u32, &float)
+                .unwrap();
+            frames += 1;
+        }
+        assert!(frames > 10, "{frames} frames");
+        let decode = |capture: &std::path::Path, name: &str| {
+            let out = tmp.path().join(name);
+            slscan(&[
+                "decode",
+                capture.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--format",
+                "npy",
+            ])
+            .unwrap();
+            out
+        };
+        let (a, b) = (decode(&png, "out_png"), decode(&tif, "out_tif"));
+        for map in ["col.npy", "row.npy", "quality.npy"] {
+            let (x, y) = (
+                std::fs::read(a.join(map)).unwrap(),
+                std::fs::read(b.join(map)).unwrap(),
+            );
+            assert!(x == y, "{map} differs");
+        }
+        // The maps are not empty: every projector column is seen (the frames are the patterns).
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(b.join("report.json")).unwrap()).unwrap();
+        let valid = report["figures"]["valid_fraction"].as_f64();
+        assert!(valid.is_some_and(|v| v > 0.99), "{report}");
+    }
 }

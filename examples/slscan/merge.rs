@@ -13,7 +13,7 @@ use sl_icp::{IcpError, MergeConfig, PoseModel, TurntablePrior, turntable_poses};
 use sl_scan::{ScanError, merge_and_write, pair_figures};
 
 use crate::common::{Report, StageBars, open_out};
-use crate::register::{check_units, check_voxel, read_scaled, with_options};
+use crate::register::{check_cloud, check_voxel, read_scaled, with_options};
 use crate::values;
 
 /// Arguments of `slscan merge`.
@@ -223,7 +223,13 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             .map(|v| {
                 let path = view_file(v);
                 let c = read_scaled(&path, args.scale)?;
-                check_units(&c, &path, DEFAULT_REGISTRATION_VOXEL_MM)?;
+                check_cloud(
+                    &c,
+                    &path,
+                    DEFAULT_REGISTRATION_VOXEL_MM,
+                    "a registration",
+                    sl_icp::MIN_CORRESPONDENCES,
+                )?;
                 for (flag, voxel) in [
                     ("--registration-voxel", args.registration_voxel),
                     ("--voxel", args.voxel),

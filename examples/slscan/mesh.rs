@@ -16,7 +16,7 @@ use sl_metrology::Truth;
 use sl_scan::{MeshChainConfig, MeshSmoothing, ScanError, mesh_chain};
 
 use crate::common::{Report, open_out};
-use crate::register::{NormalsTowards, check_units, read_scaled, with_normals_towards};
+use crate::register::{NormalsTowards, check_cloud, read_scaled, with_normals_towards};
 use crate::values;
 
 /// A cloud spanning less than this (mm, the diagonal of its box, after `--scale`) is taken for
@@ -139,6 +139,31 @@ pub(crate) struct Args {
     pub(crate) elevation: f64,
 }
 
+/// The options that bear on a failed step of the mesh chain, for the message.
+fn step_hint(e: &ScanError) -> &'static str {
+    match e {
+        ScanError::MeshStep {
+            step: "simplify", ..
+        } => " (--simplify-error, --simplify-unsupported-error)",
+        ScanError::MeshStep { step: "fair", .. } => " (--no-fair leaves it)",
+        ScanError::MeshStep { step: "remesh", .. } => " (--remesh)",
+        ScanError::MeshStep { step: "trim", .. } => " (--trim)",
+        ScanError::MeshStep {
+            step: "decimate", ..
+        } => " (--triangles)",
+        ScanError::MeshStep {
+            step: "fill holes", ..
+        } => " (--fill-holes)",
+        ScanError::MeshStep { step: "smooth", .. } => " (--smooth)",
+        ScanError::MeshStep {
+            step: "reconstruct",
+            ..
+        } => " (--depth, --screening)",
+        ScanError::Stage { .. } => " (--min-piece, --scale)",
+        _ => "",
+    }
+}
+
 /// Runs `slscan mesh`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let viewpoint = args.normals.viewpoint()?;
@@ -149,9 +174,15 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut cloud = report
         .stage("read", || read_scaled(&args.cloud, args.scale))
         .with_context(|| format!("cannot read {}", args.cloud.display()))?;
-    // The bounds of the simplification and the fairing are in mm: a cloud in metres would be
-    // simplified to nothing.
-    check_units(&cloud, &args.cloud, UNITS_CHECK_MM)?;
+    // A cloud that spans nothing is said to be that. The bounds of the simplification and the
+    // fairing are in mm: a cloud in metres would be simplified to nothing.
+    check_cloud(
+        &cloud,
+        &args.cloud,
+        UNITS_CHECK_MM,
+        "a mesh",
+        sl_mesh::MIN_POISSON_POINTS,
+    )?;
     if let Some(edge) = args.remesh {
         let extent = cloud.bounding_box().map_or(0.0, |b| b.extent().norm());
         anyhow::ensure!(
@@ -216,25 +247,16 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let removing = format!(" ({})", given.join(", "));
     let chain = mesh_chain(&cloud, &cfg).map_err(|e| {
         let hint = match &e {
-            ScanError::MeshStep {
-                step: "simplify", ..
-            } => " (--simplify-error, --simplify-unsupported-error)",
-            ScanError::MeshStep { step: "fair", .. } => " (--no-fair leaves it)",
-            ScanError::MeshStep { step: "remesh", .. } => " (--remesh)",
-            ScanError::MeshStep { step: "trim", .. } => " (--trim)",
-            ScanError::MeshStep {
-                step: "decimate", ..
-            } => " (--triangles)",
-            ScanError::MeshStep {
-                step: "fill holes", ..
-            } => " (--fill-holes)",
-            ScanError::MeshStep { step: "smooth", .. } => " (--smooth)",
-            ScanError::MeshStep {
-                step: "reconstruct",
+            ScanError::MeshTooCoarse {
+                depth,
+                meshes_at: Some(d),
                 ..
-            } => " (--depth, --screening)",
-            ScanError::Stage { .. } => &*removing,
-            _ => "",
+            } => format!(" (--depth {depth} is too coarse for this cloud: --depth {d} meshes it)"),
+            ScanError::MeshTooCoarse { min_piece, .. } => {
+                format!(" (--min-piece {min_piece})")
+            }
+            ScanError::Stage { .. } => removing.clone(),
+            _ => step_hint(&e).to_owned(),
         };
         anyhow::Error::new(e).context(format!("{}{hint}", args.cloud.display()))
     })?;
@@ -815,6 +837,105 @@ pub(crate) mod tests {
         assert_eq!(meshes[0].vertices, meshes[1].vertices);
         assert_eq!(meshes[0].triangles, meshes[1].triangles);
         assert_eq!(reports[0]["cell_size_mm"], reports[1]["cell_size_mm"]);
+    }
+
+    /// Clouds that cannot make a surface whatever their units are named for what they are,
+    /// not taken for clouds in metres: until issue 30 each of these was refused with "probably
+    /// metres; read it with --scale 1000" (their extent is 0). A mesh needs at least
+    /// `sl_mesh::MIN_POISSON_POINTS` (16) points.
+    #[test]
+    fn degenerate_clouds_are_named_not_taken_for_metres() {
+        let tmp = tempfile::tempdir().unwrap();
+        let n = Vector3::new(0.0, 0.0, -1.0);
+        let cases = [
+            (
+                "all_nan.ply",
+                vec![Point3::new(f64::NAN, f64::NAN, f64::NAN); 500],
+                "all_nan.ply: none of its 500 points is finite",
+            ),
+            (
+                "one.ply",
+                vec![Point3::new(1.0, 2.0, 3.0)],
+                "one.ply: has 1 point; a mesh needs at least 16",
+            ),
+            (
+                "same.ply",
+                vec![Point3::origin(); 500],
+                "same.ply: all 500 points are at the same place (0, 0, 0)",
+            ),
+        ];
+        for (name, points, expected) in cases {
+            let ply = tmp.path().join(name);
+            let normals = vec![n; points.len()];
+            let cloud = PointCloud::from_positions(points)
+                .with_normals(normals)
+                .unwrap();
+            write_ply(&ply, &cloud, sl_cloud::PlyFormat::default()).unwrap();
+            let out = tmp.path().join(format!("out_{name}"));
+            let err = slscan(&[ply.to_str().unwrap(), "--out", out.to_str().unwrap()]).unwrap_err();
+            let text = format!("{err:#}");
+            assert!(text.contains(expected), "{name}: {text}");
+            assert!(
+                !text.contains("metres") && !text.contains("--scale"),
+                "{name}: {text}"
+            );
+            assert!(!out.join("mesh.ply").exists(), "{name}");
+        }
+    }
+
+    /// Two balls of radius 10 mm, 200 mm apart: the box is 220 mm wide, so at `--depth 2`
+    /// the finest cells are 60 mm and the balls fall between the octree's nodes. The error
+    /// names `--depth 2` as the cause and the smallest depth that keeps a piece of
+    /// `--min-piece` triangles; that depth does mesh (both balls, closed), one less does not.
+    /// Until issue 30 it said "is the cloud in mm?", on a cloud in mm.
+    #[test]
+    fn an_octree_too_coarse_for_the_cloud_names_the_depth_that_works() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (mut p, mut n) = sphere(2000, 10.0, Point3::new(-100.0, 0.0, 400.0));
+        let (p2, n2) = sphere(2000, 10.0, Point3::new(100.0, 0.0, 400.0));
+        p.extend(p2);
+        n.extend(n2);
+        let ply = tmp.path().join("two_balls.ply");
+        let cloud = PointCloud::from_positions(p).with_normals(n).unwrap();
+        write_ply(&ply, &cloud, sl_cloud::PlyFormat::default()).unwrap();
+        let run = |depth: u32| {
+            let out = tmp.path().join(format!("d{depth}"));
+            let r = slscan(&[
+                ply.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--depth",
+                &depth.to_string(),
+            ]);
+            (r, out)
+        };
+        let (r, _) = run(2);
+        let text = format!("{:#}", r.unwrap_err());
+        assert!(text.contains("two_balls.ply"), "{text}");
+        assert!(text.contains("--depth 2"), "{text}");
+        assert!(
+            !text.contains("in mm") && !text.contains("--scale"),
+            "{text}"
+        );
+        // "… --depth N meshes it": the depth the message proposes.
+        let proposed: u32 = text
+            .split("--depth ")
+            .filter_map(|t| t.split(|c: char| !c.is_ascii_digit()).next())
+            .filter_map(|d| d.parse().ok())
+            .find(|&d| d != 2)
+            .unwrap_or_else(|| panic!("no depth proposed: {text}"));
+        assert!(proposed > 2, "{text}");
+        let (r, out) = run(proposed);
+        r.unwrap();
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        assert_eq!(report["figures"]["watertight"], true, "{report}");
+        assert_eq!(report["figures"]["components"], 2, "{report}");
+        assert!(
+            run(proposed - 1).0.is_err(),
+            "{proposed} is not the smallest"
+        );
     }
 
     #[test]

@@ -159,16 +159,7 @@ fn a_refused_scan_keeps_its_calibration() {
     )
     .unwrap();
     let before = snapshot(&out);
-    let err = slscan(&[
-        "scan",
-        "--views",
-        "3",
-        "--downscale",
-        "8",
-        "--out",
-        s(&out),
-    ])
-    .unwrap_err();
+    let err = slscan(&["scan", "--views", "3", "--downscale", "8", "--out", s(&out)]).unwrap_err();
     assert!(format!("{err:#}").contains("session of 2 views"), "{err:#}");
     assert_eq!(snapshot(&out), before);
 }

@@ -544,4 +544,67 @@ pub(crate) mod tests {
             assert!(!out.join("cloud.ply").exists(), "{scale}");
         }
     }
+
+    /// A calibration that makes no physical sense is refused where it is read, by `slscan
+    /// info` and `slscan reconstruct`, naming the file, the device and the key as the file
+    /// spells it: in our JSON (`camera.intrinsics.fx`) and in SLStudio's XML (`Kc`, `kp`).
+    /// fx = 1e308 px puts the 320 px wide image into 2e-303° (a lens sees between 0.1° and
+    /// 179°); k1 = 1e6 makes the distortion scale the corner's radius by ~64 (a lens's by at
+    /// most 10). Until issue 30 both were read, `info` printed them and `reconstruct` wrote a
+    /// cloud of a few points with exit 0. The rig's own calibration still reads.
+    #[test]
+    fn calibrations_without_physical_sense_are_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (capture, calib) = column_only_capture(tmp.path());
+        let good = sl_camera::Calibration::load(&calib).unwrap();
+        slscan(&["info", calib.to_str().unwrap()]).unwrap();
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&calib).unwrap()).unwrap();
+        let mut files = Vec::new();
+        for (device, part, key, value) in [
+            ("camera", "intrinsics", "fx", 1e308),
+            ("camera", "distortion", "k1", 1e6),
+            ("projector", "intrinsics", "fy", 1e308),
+            ("projector", "distortion", "k1", 1e6),
+        ] {
+            let mut bad = json.clone();
+            bad[device][part][key] = value.into();
+            let path = tmp.path().join(format!("bad_{device}_{key}.json"));
+            std::fs::write(&path, serde_json::to_string_pretty(&bad).unwrap()).unwrap();
+            files.push((path, device, format!("`{device}.{part}.{key}`"), key));
+        }
+        // SLStudio's layout: the camera's matrix `Kc`, the projector's distortion `kp`.
+        let mut c = good.clone();
+        c.camera.intrinsics.fx = 1e308;
+        let path = tmp.path().join("bad_fx.xml");
+        c.save(&path).unwrap();
+        files.push((path, "camera", "`Kc`".to_owned(), "fx"));
+        let mut c = good.clone();
+        let p = c.projector.as_mut().unwrap();
+        p.distortion = sl_camera::Distortion::from_opencv(&[1e6, 0.0, 0.0, 0.0, 0.0]).unwrap();
+        let path = tmp.path().join("bad_k1.xml");
+        c.save(&path).unwrap();
+        files.push((path, "projector", "`kp`".to_owned(), "k1"));
+        for (path, device, key, parameter) in &files {
+            let name = path.file_name().unwrap().to_str().unwrap();
+            let out = tmp.path().join(format!("out_{name}"));
+            for argv in [
+                vec!["info", path.to_str().unwrap()],
+                vec![
+                    "reconstruct",
+                    capture.to_str().unwrap(),
+                    "--calib",
+                    path.to_str().unwrap(),
+                    "--out",
+                    out.to_str().unwrap(),
+                ],
+            ] {
+                let err = format!("{:#}", slscan(&argv).unwrap_err());
+                for part in [name, device, key.as_str(), parameter] {
+                    assert!(err.contains(part), "{argv:?}: no {part} in {err}");
+                }
+            }
+            assert!(!out.join("cloud.ply").exists(), "{name}");
+        }
+    }
 }

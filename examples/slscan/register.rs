@@ -138,12 +138,29 @@ pub(crate) fn with_options(options: &[(&str, String)]) -> String {
 /// (a 100 mm object, 100 voxels of 1 mm), while the same object in metres spans 0.1 "mm".
 const METRES_EXTENT_VOXELS: f64 = 1.0;
 
-/// Fails with a hint when `cloud` (read from `path`) spans only a fraction of `voxel` mm (the
-/// command's default voxel size, or for `slscan mesh` a millimetre): it is almost surely in
-/// metres and needs `--scale 1000`.
-pub(crate) fn check_units(cloud: &PointCloud, path: &Path, voxel: f64) -> anyhow::Result<()> {
-    sl_cloud::check_millimetres(cloud, path, METRES_EXTENT_VOXELS * voxel)
-        .map_err(|e| anyhow::anyhow!("{e}; read it with --scale 1000"))
+/// Refuses `cloud` (read from `path`) when it cannot serve `purpose`, which needs `min_points`
+/// finite points: for what it is whatever its units (no finite point, too few, all at one
+/// place), else, with the hint `--scale 1000`, when it spans only a fraction of `voxel` mm (the
+/// command's default voxel size, or for `slscan mesh` a millimetre): it is then almost surely
+/// in metres.
+pub(crate) fn check_cloud(
+    cloud: &PointCloud,
+    path: &Path,
+    voxel: f64,
+    purpose: &'static str,
+    min_points: usize,
+) -> anyhow::Result<()> {
+    let needs = sl_cloud::CloudNeeds {
+        purpose,
+        min_points,
+        min_extent_mm: Some(METRES_EXTENT_VOXELS * voxel),
+    };
+    match sl_cloud::check_cloud(cloud, path, &needs) {
+        Err(e @ sl_cloud::CloudError::NotMillimetres { .. }) => {
+            anyhow::bail!("{e}; read it with --scale 1000")
+        }
+        other => Ok(other?),
+    }
 }
 
 /// Neighbours of the normals `--normals-towards` estimates (`slscan align`, `slscan mesh`).
@@ -233,8 +250,15 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             read_scaled(&args.target, args.scale)?,
         ))
     })?;
-    check_units(&source, &args.source, DEFAULT_VOXEL_MM)?;
-    check_units(&target, &args.target, DEFAULT_VOXEL_MM)?;
+    for (cloud, path) in [(&source, &args.source), (&target, &args.target)] {
+        check_cloud(
+            cloud,
+            path,
+            DEFAULT_VOXEL_MM,
+            "a registration",
+            sl_icp::MIN_CORRESPONDENCES,
+        )?;
+    }
     check_voxel(
         "--voxel",
         args.voxel,

@@ -186,7 +186,9 @@ impl BinocularCalibration {
     ///
     /// # Errors
     /// [`CameraError::Json`] (a one-camera calibration file is named as such),
-    /// [`CameraError::UnsupportedVersion`], [`CameraError::BadValue`].
+    /// [`CameraError::UnsupportedVersion`], [`CameraError::BadValue`];
+    /// [`CameraError::Implausible`] naming the device and the key when a camera (or the
+    /// projector) makes no physical sense ([`CameraModel::check_physical`]).
     pub fn from_json(text: &str, file: &str) -> Result<Self, CameraError> {
         let probe: serde_json::Value =
             serde_json::from_str(text).map_err(|source| CameraError::Json {
@@ -246,6 +248,21 @@ impl BinocularCalibration {
             metadata: repr.metadata,
         };
         c.validate().map_err(|e| e.in_file(file, "", None))?;
+        for (device, key, model) in [
+            ("left camera", "left", Some(&c.left)),
+            ("right camera", "right", Some(&c.right)),
+            ("projector", "projector", c.projector.as_ref().map(|(p, _)| p)),
+        ] {
+            if let Some(Err(why)) = model.map(CameraModel::check_physical) {
+                return Err(CameraError::Implausible {
+                    file: file.to_owned(),
+                    line: None,
+                    device,
+                    key: format!("{key}.{}", why.parameter.json_key()),
+                    message: why.message,
+                });
+            }
+        }
         Ok(c)
     }
 

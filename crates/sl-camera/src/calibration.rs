@@ -447,7 +447,9 @@ impl Calibration {
     /// # Errors
     /// [`CameraError::MissingKey`] without a `version`, [`CameraError::UnsupportedVersion`]
     /// for another version, [`CameraError::Json`] (with line and column) for syntax and
-    /// schema errors, [`CameraError::BadValue`] for invalid values.
+    /// schema errors, [`CameraError::BadValue`] for invalid values,
+    /// [`CameraError::Implausible`] naming the device and the key when the camera or the
+    /// projector makes no physical sense ([`CameraModel::check_physical`]).
     pub fn from_json(text: &str, file: &str) -> Result<Self, CameraError> {
         let json_err = |source| CameraError::Json {
             file: file.to_owned(),
@@ -505,6 +507,20 @@ impl Calibration {
         calibration
             .validate()
             .map_err(|e| e.in_file(file, "", None))?;
+        for (device, model) in [
+            ("camera", Some(&calibration.camera)),
+            ("projector", calibration.projector.as_ref()),
+        ] {
+            if let Some(Err(why)) = model.map(CameraModel::check_physical) {
+                return Err(CameraError::Implausible {
+                    file: file.to_owned(),
+                    line: None,
+                    device,
+                    key: format!("{device}.{}", why.parameter.json_key()),
+                    message: why.message,
+                });
+            }
+        }
         Ok(calibration)
     }
 

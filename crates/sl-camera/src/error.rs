@@ -53,6 +53,24 @@ pub enum CameraError {
         message: String,
     },
 
+    /// A calibration file's camera or projector makes no physical sense (see
+    /// [`CameraModel::check_physical`](crate::CameraModel::check_physical)): a field of view
+    /// of 1e-303°, a distortion that folds inside the image or decides alone where rays land.
+    #[error("{file}{}: {device} key `{key}`: {message}", line_suffix(.line))]
+    Implausible {
+        /// The file (or the name given to an in-memory text).
+        file: String,
+        /// 1-based line of the key, when the format keeps it.
+        line: Option<usize>,
+        /// `camera` or `projector`.
+        device: &'static str,
+        /// The key as the file spells it: `camera.intrinsics.fx` in JSON, `Kc` or
+        /// `distortion_coefficients` in OpenCV FileStorage.
+        key: String,
+        /// What is wrong, naming the parameter and its value (`fx = 1e308 px: …`).
+        message: String,
+    },
+
     /// A key that the format requires is absent.
     #[error("{file}: missing key `{key}`{}", hint_suffix(.hint))]
     MissingKey {

@@ -73,6 +73,7 @@ mod jacobians;
 mod layouts;
 mod model;
 mod monotonic;
+mod plausible;
 mod pose;
 mod ray_table;
 mod turntable;
@@ -87,6 +88,10 @@ pub use intrinsics::Intrinsics;
 pub use jacobians::{INTRINSIC_PARAMETERS, PoseProjectionJacobians, ProjectionJacobians};
 pub use layouts::{CalibrationLayout, LoadConfig, LoadedCalibration};
 pub use model::{CameraModel, FieldOfView, PixelJacobian, ProjectorModel};
+pub use plausible::{
+    Implausibility, MAX_FIELD_OF_VIEW_DEG, MAX_RADIAL_SCALE, MIN_FIELD_OF_VIEW_DEG, ModelParameter,
+    ROUND_TRIP_PX,
+};
 pub use pose::{
     RvecTvec, isometry_from_rt, pose_from_matrix, pose_to_matrix, rotation_from_rvec,
     rotation_jacobian, rvec_from_rotation,

@@ -79,6 +79,15 @@ pub enum CloudError {
         /// The smallest diagonal expected (mm).
         limit: f64,
     },
+    /// A cloud cannot serve whatever its units: no finite point, too few, all at one place
+    /// (see [`crate::degeneracy`]).
+    #[error("{file}: {reason}")]
+    Degenerate {
+        /// The file.
+        file: String,
+        /// What is wrong with it.
+        reason: crate::Degeneracy,
+    },
     /// An optional attribute was given with a length different from the number of points.
     #[error("attribute '{attribute}' has {found} values but the cloud has {expected} points")]
     AttributeLength {

@@ -48,6 +48,7 @@
 #![deny(missing_docs)]
 
 mod cloud;
+mod degenerate;
 mod error;
 mod fit;
 mod measure;
@@ -62,6 +63,7 @@ mod units;
 mod voxel;
 
 pub use cloud::{Aabb, MergePolicy, PointCloud};
+pub use degenerate::{CloudNeeds, Degeneracy, check_cloud, degeneracy};
 pub use error::CloudError;
 pub use fit::{PlaneFit, SphereFit, fit_plane, fit_sphere};
 pub use measure::sample_surface;

@@ -38,7 +38,10 @@ pub fn read_ply_scaled(path: &Path, scale: f64) -> Result<PointCloud, CloudError
 
 /// Refuses a cloud whose bounding-box diagonal is under `min_extent_mm`: any object worth
 /// scanning spans tens of millimetres, while the same object in metres spans a fraction of one.
-/// `path` names the cloud in the error.
+/// A cloud that spans nothing whatever its units (no finite point, one point, every point at one
+/// place) is refused for that first, never taken for one in metres. `path` names the cloud in
+/// the error. [`check_cloud`](crate::check_cloud) with [`CloudNeeds`](crate::CloudNeeds) says
+/// what the cloud is for and how many points it needs.
 ///
 /// ```
 /// use std::path::Path;
@@ -51,21 +54,21 @@ pub fn read_ply_scaled(path: &Path, scale: f64) -> Result<PointCloud, CloudError
 /// ```
 ///
 /// # Errors
-/// [`CloudError::NotMillimetres`] naming the file, its extent and the limit.
+/// [`CloudError::Degenerate`]; [`CloudError::NotMillimetres`] naming the file, its extent and
+/// the limit.
 pub fn check_millimetres(
     cloud: &PointCloud,
     path: &Path,
     min_extent_mm: f64,
 ) -> Result<(), CloudError> {
-    let extent = cloud.bounding_box().map_or(0.0, |b| b.extent().norm());
-    if extent < min_extent_mm {
-        return Err(CloudError::NotMillimetres {
-            file: path.display().to_string(),
-            extent,
-            limit: min_extent_mm,
-        });
-    }
-    Ok(())
+    crate::check_cloud(
+        cloud,
+        path,
+        &crate::CloudNeeds {
+            min_extent_mm: Some(min_extent_mm),
+            ..crate::CloudNeeds::default()
+        },
+    )
 }
 
 /// `cloud` with normals estimated from `k` neighbours and turned towards `viewpoint` (where the

@@ -13,7 +13,7 @@ use crate::GreyImage;
 #[cfg(feature = "image-files")]
 use crate::frame::check_sizes;
 #[cfg(feature = "image-files")]
-use crate::image_file::{find_image_file, read_image};
+use crate::image_file::{find_image_file, not_a_regular_file, read_image};
 #[cfg(feature = "image-files")]
 use crate::manifest::MANIFEST_FILE;
 use crate::{CodecError, Frames, Manifest};
@@ -41,6 +41,7 @@ impl CaptureSet {
     ///
     /// # Errors
     /// Manifest errors, [`CodecError::MissingFrame`] naming the block and frame,
+    /// [`CodecError::FrameNotAFile`] when the frame's path is a folder, a device or a FIFO,
     /// [`CodecError::Image`] for an unreadable frame, [`CodecError::FrameSize`] naming the frame
     /// whose size differs from the first.
     pub fn load(manifest_path: &Path) -> Result<Self, CodecError> {
@@ -80,6 +81,17 @@ impl CaptureSet {
                 // The frame as named, or saved under another image extension (a capture
                 // program that writes BMP frames for a manifest naming PNG ones).
                 let Some(found) = find_image_file(&path) else {
+                    // Something is there, but not a file that can be read.
+                    if let Some(what) = not_a_regular_file(&path) {
+                        return Err(CodecError::FrameNotAFile {
+                            manifest: manifest_path.clone(),
+                            block: b,
+                            index: i,
+                            file: file.clone(),
+                            path,
+                            what,
+                        });
+                    }
                     return Err(CodecError::MissingFrame {
                         manifest: manifest_path.clone(),
                         block: b,

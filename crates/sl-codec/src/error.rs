@@ -55,6 +55,32 @@ pub enum CodecError {
         /// The path that was looked for.
         path: PathBuf,
     },
+    /// A frame listed in the manifest names something that is not a regular file (a folder, a
+    /// device, a FIFO: see [`not_a_regular_file`](crate::not_a_regular_file)).
+    #[error("{manifest}: frame {index} of block {block} ('{file}') cannot be read: {path} {what}")]
+    FrameNotAFile {
+        /// The manifest that lists the frame.
+        manifest: PathBuf,
+        /// Index of the block (0-based) in `blocks`.
+        block: usize,
+        /// Index of the frame (0-based) inside the block.
+        index: usize,
+        /// The file name as written in the manifest.
+        file: String,
+        /// The path looked at.
+        path: PathBuf,
+        /// What is there: `is a directory`, `is not a regular file (a character device)`, …
+        what: String,
+    },
+    /// A path given as an image file is not a regular file (a folder, a device, a FIFO: see
+    /// [`not_a_regular_file`](crate::not_a_regular_file)); it is not opened.
+    #[error("{path} {what}")]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+        /// What is there: `is a directory`, `is not a regular file (a character device)`, …
+        what: String,
+    },
     /// The manifest is not valid JSON.
     #[error("{path}: not valid JSON: {source}")]
     ManifestJson {

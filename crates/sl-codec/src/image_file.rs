@@ -16,7 +16,10 @@
 //!   Alpha is ignored (as `COLOR_RGBA2GRAY` does). The `image` crate's
 //!   own `to_luma8` uses Rec. 709 weights (0.2126, 0.7152, 0.0722), which differ by up to
 //!   ~40 grey levels on saturated colours.
-//! - **Float** files (32-bit float TIFF) are clamped to `[0, 1]` and become 16-bit.
+//! - **Float** files (32- or 64-bit float TIFF, grey or colour) are clamped to `[0, 1]` and
+//!   become 16-bit, `round(v · 65535)` (NaN becomes 0): a float frame holds light as a fraction
+//!   of full scale, so `v / 255` of an 8-bit frame reads as that frame widened (`257 v`). Grey
+//!   float TIFF, which the `image` crate's decoder refuses, is read with the `tiff` crate.
 //! - [`read_grey8`] (the calibration board detector's input) scales 16-bit values to 8 bits
 //!   by `round(v / 257)`, the exact inverse of the `v * 257` widening; OpenCV's
 //!   `imread(IMREAD_GRAYSCALE)` keeps the high byte (`v >> 8`) instead, at most one grey level
@@ -24,7 +27,7 @@
 
 use std::path::{Path, PathBuf};
 
-use image::DynamicImage;
+use image::{DynamicImage, ImageFormat};
 
 use crate::{CodecError, Frame, GreyImage};
 
@@ -85,6 +88,66 @@ pub fn find_image_file(path: &Path) -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
+/// What is at `path` when something is there that is not a regular file, following symbolic
+/// links: `"is a directory"`, `"is not a regular file (a character device)"` (a device, a FIFO or
+/// a socket, which are never read: `/dev/zero` would never end, a FIFO blocks), with the link's
+/// target for a symbolic link (`"is a symbolic link to /dev/zero, which is not a regular file
+/// (a character device)"`). `None` when `path` is a regular file or nothing is there (a missing
+/// file, or a link to nothing).
+///
+/// ```
+/// let dir = tempfile::tempdir().unwrap();
+/// assert_eq!(sl_codec::not_a_regular_file(dir.path()).as_deref(), Some("is a directory"));
+/// assert_eq!(sl_codec::not_a_regular_file(&dir.path().join("none.png")), None);
+/// ```
+pub fn not_a_regular_file(path: &Path) -> Option<String> {
+    let meta = std::fs::metadata(path).ok()?;
+    let kind = file_kind(&meta.file_type())?;
+    let what = if kind == "directory" {
+        "a directory".to_owned()
+    } else {
+        format!("not a regular file (a {kind})")
+    };
+    let link = std::fs::symlink_metadata(path)
+        .is_ok_and(|m| m.file_type().is_symlink())
+        .then(|| std::fs::read_link(path).ok())
+        .flatten();
+    Some(match link {
+        Some(target) => format!(
+            "is a symbolic link to {}, which is {what}",
+            target.display()
+        ),
+        None => format!("is {what}"),
+    })
+}
+
+/// What a file type other than a regular file is, in words; `None` for a regular file.
+fn file_kind(t: &std::fs::FileType) -> Option<&'static str> {
+    if t.is_file() {
+        return None;
+    }
+    if t.is_dir() {
+        return Some("directory");
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_char_device() {
+            return Some("character device");
+        }
+        if t.is_block_device() {
+            return Some("block device");
+        }
+        if t.is_fifo() {
+            return Some("FIFO");
+        }
+        if t.is_socket() {
+            return Some("socket");
+        }
+    }
+    Some("special file")
+}
+
 /// Reads an image file as grey at its own depth (see the module docs for the conversion).
 /// The format is found from the file's content (its magic number), falling back to the
 /// extension, so a BMP named `.png` still reads.
@@ -105,7 +168,13 @@ pub fn find_image_file(path: &Path) -> Option<PathBuf> {
 /// # Ok(()) }
 /// ```
 pub fn read_image(path: &Path) -> Result<GreyImage, CodecError> {
-    let img = reader(path)?.decode().map_err(decode_err(path))?;
+    let reader = reader(path)?;
+    if reader.format() == Some(ImageFormat::Tiff)
+        && let Some(grey) = read_float_grey_tiff(path)?
+    {
+        return Ok(grey);
+    }
+    let img = reader.decode().map_err(decode_err(path))?;
     if img.width() == 0 || img.height() == 0 {
         return Err(CodecError::EmptyImage {
             path: path.to_path_buf(),
@@ -120,7 +189,76 @@ pub fn read_image(path: &Path) -> Result<GreyImage, CodecError> {
 /// # Errors
 /// [`CodecError::Image`] naming the file when it cannot be opened or its header read.
 pub fn read_image_size(path: &Path) -> Result<(u32, u32), CodecError> {
-    reader(path)?.into_dimensions().map_err(decode_err(path))
+    let reader = reader(path)?;
+    if reader.format() == Some(ImageFormat::Tiff) {
+        // The `tiff` crate's header reader takes every TIFF, the grey float ones included.
+        return tiff_decoder(path)?.dimensions().map_err(tiff_err(path));
+    }
+    reader.into_dimensions().map_err(decode_err(path))
+}
+
+/// A `tiff` decoder of `path` (a regular file: [`reader`] checked it).
+fn tiff_decoder(
+    path: &Path,
+) -> Result<tiff::decoder::Decoder<std::io::BufReader<std::fs::File>>, CodecError> {
+    let file =
+        std::fs::File::open(path).map_err(|e| decode_err(path)(image::ImageError::IoError(e)))?;
+    tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(tiff_err(path))
+}
+
+/// A `tiff` error as [`CodecError::Image`] naming the file.
+fn tiff_err(path: &Path) -> impl Fn(tiff::TiffError) -> CodecError + '_ {
+    move |e| {
+        decode_err(path)(image::ImageError::Decoding(
+            image::error::DecodingError::new(ImageFormat::Tiff.into(), e),
+        ))
+    }
+}
+
+/// A grey TIFF of 32- or 64-bit floats (`SampleFormat = IEEEFP`, `BlackIsZero`), which the
+/// `image` crate's TIFF decoder refuses, read with the `tiff` crate and turned into 16 bits as
+/// `image` turns its float colour images: clamped to [0, 1] and scaled to [0, 65535], rounded
+/// (NaN, no light measured, is 0). `None` for any other TIFF, left to `image`.
+fn read_float_grey_tiff(path: &Path) -> Result<Option<GreyImage>, CodecError> {
+    use tiff::ColorType;
+    use tiff::decoder::DecodingResult;
+    use tiff::tags::{PhotometricInterpretation, SampleFormat, Tag};
+
+    let mut decoder = tiff_decoder(path)?;
+    let err = tiff_err(path);
+    let grey = matches!(decoder.colortype().map_err(&err)?, ColorType::Gray(32 | 64));
+    let float = decoder
+        .find_tag_unsigned_vec::<u16>(Tag::SampleFormat)
+        .map_err(&err)?
+        .is_some_and(|f| !f.is_empty() && f.iter().all(|&f| f == SampleFormat::IEEEFP.to_u16()));
+    let black_is_zero = decoder
+        .find_tag_unsigned::<u16>(Tag::PhotometricInterpretation)
+        .map_err(&err)?
+        == Some(PhotometricInterpretation::BlackIsZero.to_u16());
+    if !(grey && float && black_is_zero) {
+        return Ok(None);
+    }
+    let (w, h) = decoder.dimensions().map_err(&err)?;
+    let scaled: Vec<u16> = match decoder.read_image().map_err(&err)? {
+        DecodingResult::F32(v) => v.into_iter().map(|x| unit_to_u16(f64::from(x))).collect(),
+        DecodingResult::F64(v) => v.into_iter().map(unit_to_u16).collect(),
+        _ => return Ok(None),
+    };
+    if w == 0 || h == 0 {
+        return Err(CodecError::EmptyImage {
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(Some(Frame::new(w as usize, h as usize, scaled)?.into()))
+}
+
+/// A float sample in [0, 1] (clamped; NaN as 0) as a 16-bit one, `round(v · 65535)`.
+fn unit_to_u16(v: f64) -> u16 {
+    if v.is_nan() {
+        return 0;
+    }
+    // In [0, 65535] after the clamp: the conversion neither truncates nor saturates.
+    (v.clamp(0.0, 1.0) * f64::from(u16::MAX)).round() as u16
 }
 
 fn decode_err(path: &Path) -> impl Fn(image::ImageError) -> CodecError + '_ {
@@ -131,10 +269,17 @@ fn decode_err(path: &Path) -> impl Fn(image::ImageError) -> CodecError + '_ {
     }
 }
 
-/// A reader of `path` with its format guessed from the content.
+/// A reader of `path` with its format guessed from the content; a folder, device, FIFO or
+/// socket is refused before it is opened ([`not_a_regular_file`]).
 fn reader(
     path: &Path,
 ) -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>, CodecError> {
+    if let Some(what) = not_a_regular_file(path) {
+        return Err(CodecError::NotAFile {
+            path: path.to_path_buf(),
+            what,
+        });
+    }
     let err = decode_err(path);
     image::ImageReader::open(path)
         .map_err(|e| err(image::ImageError::IoError(e)))?
@@ -190,8 +335,9 @@ fn grey_of(img: DynamicImage) -> Result<GreyImage, CodecError> {
             b.pixels().map(|p| grey16(p.0[0], p.0[1], p.0[2])).collect(),
         )?
         .into(),
-        // Float images (and any variant a later `image` adds): through 16-bit RGB, which
-        // clamps floats to [0, 1] and scales them to [0, 65535].
+        // Float colour images (and any variant a later `image` adds): through 16-bit RGB,
+        // which clamps floats to [0, 1] and scales them to [0, 65535] (grey float TIFF, which
+        // `image` refuses, is read by `read_float_grey_tiff` the same way).
         other => {
             let b = other.to_rgb16();
             Frame::new(
@@ -237,6 +383,62 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("none.png"), "{err}");
+    }
+
+    /// Grey float TIFF (the `tiff` crate's encoder, 32 and 64 bits, and this crate's own
+    /// `write_tiff_f32`) reads as 16 bits: `round(clamp(v, 0, 1) · 65535)`, NaN as 0; the
+    /// header gives the size.
+    #[test]
+    fn grey_float_tiff_is_read_as_sixteen_bits() {
+        use tiff::encoder::{TiffEncoder, colortype};
+        let dir = tempfile::tempdir().unwrap();
+        let values = [0.0, 0.5, 1.0, 2.0, -1.0, f64::NAN, 100.0 / 255.0, 1e-6];
+        let expected: Vec<u16> = vec![0, 32768, 65535, 65535, 0, 0, 25700, 0];
+        let f32s: Vec<f32> = values.iter().map(|&v| v as f32).collect();
+        let p32 = dir.path().join("a32.tif");
+        TiffEncoder::new(std::fs::File::create(&p32).unwrap())
+            .unwrap()
+            .write_image::<colortype::Gray32Float>(4, 2, &f32s)
+            .unwrap();
+        let p64 = dir.path().join("a64.tif");
+        TiffEncoder::new(std::fs::File::create(&p64).unwrap())
+            .unwrap()
+            .write_image::<colortype::Gray64Float>(4, 2, &values)
+            .unwrap();
+        let ours = dir.path().join("ours.tiff");
+        crate::write_tiff_f32(&ours, 4, 2, &f32s).unwrap();
+        for p in [&p32, &p64, &ours] {
+            let GreyImage::U16(f) = read_image(p).unwrap() else {
+                panic!("{}: not 16-bit", p.display());
+            };
+            assert_eq!((f.width(), f.height()), (4, 2));
+            assert_eq!(f.data(), expected.as_slice(), "{}", p.display());
+            assert_eq!(read_image_size(p).unwrap(), (4, 2));
+        }
+    }
+
+    /// A folder or a device given as an image is named for what it is, and never opened.
+    #[test]
+    fn what_is_not_a_regular_file_is_refused_before_reading() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = read_image(dir.path()).unwrap_err().to_string();
+        assert!(err.ends_with("is a directory"), "{err}");
+        #[cfg(unix)]
+        {
+            let err = read_image(Path::new("/dev/zero")).unwrap_err().to_string();
+            assert_eq!(err, "/dev/zero is not a regular file (a character device)");
+            let link = dir.path().join("zero.png");
+            std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+            let err = read_image_size(&link).unwrap_err().to_string();
+            assert!(
+                err.ends_with(
+                    "zero.png is a symbolic link to /dev/zero, which is not a regular file \
+                     (a character device)"
+                ),
+                "{err}"
+            );
+        }
+        assert_eq!(not_a_regular_file(&dir.path().join("none.png")), None);
     }
 
     #[test]

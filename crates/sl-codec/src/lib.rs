@@ -107,7 +107,8 @@ pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIF
 pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, decode_hybrid};
 #[cfg(feature = "image-files")]
 pub use image_file::{
-    IMAGE_EXTENSIONS, find_image_file, is_image_file, read_grey8, read_image, read_image_size,
+    IMAGE_EXTENSIONS, find_image_file, is_image_file, not_a_regular_file, read_grey8, read_image,
+    read_image_size,
 };
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
 pub use pattern::{Axis, BitDepth, ImageSize, Pattern};

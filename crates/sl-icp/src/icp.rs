@@ -13,8 +13,9 @@ use crate::se3::{skew, update_about};
 use crate::trimming;
 use crate::{Association, IcpConfig, IcpError, Metric, PreparedCloud, Trimming};
 
-/// Fewest correspondences an iteration accepts: six unknowns need at least six equations.
-const MIN_CORRESPONDENCES: usize = 6;
+/// Fewest correspondences an iteration accepts: six unknowns need at least six equations. So a
+/// cloud of fewer points cannot be registered.
+pub const MIN_CORRESPONDENCES: usize = 6;
 
 /// Smallest number of points a rayon task handles: ~50 µs of work, so that splitting and
 /// merging the fixed-size sums costs little next to the queries.

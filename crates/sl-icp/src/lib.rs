@@ -86,11 +86,14 @@ pub use config::{Association, IcpConfig, Metric, RobustKernel, Trimming};
 pub use error::IcpError;
 pub use global::{
     Correspondence, FPFH_BINS, FeatureIndex, Fpfh, FpfhConfig, GlobalCloud, GlobalConfig,
-    GlobalRegistration, MatchConfig, MultiwayAlignment, MultiwayConfig, MultiwayPair, RansacConfig,
-    RansacResult, UnplacedView, align_unordered, compute_fpfh, match_features,
-    orient_normals_outward, place_views, ransac_pose, register_global, register_global_prepared,
+    GlobalRegistration, MIN_GLOBAL_POINTS, MatchConfig, MultiwayAlignment, MultiwayConfig,
+    MultiwayPair, RansacConfig, RansacResult, UnplacedView, align_unordered, compute_fpfh,
+    match_features, orient_normals_outward, place_views, ransac_pose, register_global,
+    register_global_prepared,
 };
-pub use icp::{Evaluation, Icp, IcpStep, Registration, register, register_clouds};
+pub use icp::{
+    Evaluation, Icp, IcpStep, MIN_CORRESPONDENCES, Registration, register, register_clouds,
+};
 pub use merge::{
     MergeConfig, MergedScan, PairRegistration, ViewAlignment, ViewPoseSource, align_views,
     merge_aligned, merge_views,

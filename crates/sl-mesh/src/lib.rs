@@ -101,7 +101,9 @@ pub use simplify::{Simplification, SimplifyConfig, simplify};
 pub use sl_cloud::sample_surface;
 pub use sl_cloud::{TriangleMesh, read_ply_mesh};
 pub use taubin::{TaubinConfig, smooth_taubin};
-pub use topology::{Topology, check_topology, compact_vertices, remove_small_components};
+pub use topology::{
+    Topology, check_topology, compact_vertices, largest_piece, remove_small_components,
+};
 pub use trim::{Trimmed, trim_by_density};
 pub use viewer::{ViewerConfig, ViewerLayer, viewer_html};
 

@@ -233,6 +233,33 @@ fn count_non_manifold_vertices(triangles: &[[u32; 3]], nv: usize) -> usize {
     bad
 }
 
+/// Triangles of the largest connected piece (triangles joined through shared vertices); 0 for a
+/// mesh without triangles. What [`remove_small_components`] keeps something of when it is at
+/// least its `min_triangles`. Triangle indices must be in range.
+///
+/// ```
+/// use nalgebra::Point3;
+/// use sl_cloud::TriangleMesh;
+/// let p = |x: f64| Point3::new(x, 0.0, 0.0);
+/// let mesh = TriangleMesh {
+///     vertices: vec![p(0.0), p(1.0), Point3::new(0.0, 1.0, 0.0), p(5.0), p(6.0), Point3::new(5.0, 1.0, 0.0), Point3::new(6.0, 1.0, 0.0)],
+///     triangles: vec![[0, 1, 2], [3, 4, 5], [4, 6, 5]],
+/// };
+/// assert_eq!(sl_mesh::largest_piece(&mesh), 2);
+/// ```
+pub fn largest_piece(mesh: &TriangleMesh) -> usize {
+    let mut uf = UnionFind::new(mesh.vertices.len());
+    for t in &mesh.triangles {
+        uf.union(t[0], t[1]);
+        uf.union(t[1], t[2]);
+    }
+    let mut size = vec![0usize; mesh.vertices.len()];
+    for t in &mesh.triangles {
+        size[uf.find(t[0]) as usize] += 1;
+    }
+    size.into_iter().max().unwrap_or(0)
+}
+
 /// Removes the connected pieces with fewer than `min_triangles` triangles (the specks a
 /// reconstruction leaves around outliers), and the vertices no triangle uses. Returns the number
 /// of pieces removed.

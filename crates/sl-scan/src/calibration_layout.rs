@@ -122,6 +122,21 @@ pub enum LayoutError {
         /// The path looked for.
         path: PathBuf,
     },
+    /// A file a pose folder should hold names something that is not a regular file (a folder,
+    /// a device, a FIFO: see `sl_codec::not_a_regular_file`).
+    #[error("pose folder {}: {what} '{file}' cannot be read: {} {why}", pose.display(), path.display())]
+    NotAFile {
+        /// The pose folder.
+        pose: PathBuf,
+        /// Which file: `frame 3 of block 0`, `white frame`, `black frame`.
+        what: String,
+        /// The file name as the manifest or the layout writes it.
+        file: String,
+        /// The path looked at.
+        path: PathBuf,
+        /// What is there: `is a directory`, `is not a regular file (a character device)`, …
+        why: String,
+    },
     /// An image of the session has another size than the first one.
     #[error(
         "{}: {width}x{height} pixels, but {} has {first_width}x{first_height}: one camera, one \
@@ -584,7 +599,8 @@ pub fn projector_size(
 /// the size of the first.
 ///
 /// # Errors
-/// [`LayoutError::MissingFile`] naming the pose folder and the file, [`LayoutError::ImageSize`]
+/// [`LayoutError::MissingFile`] naming the pose folder and the file, [`LayoutError::NotAFile`]
+/// when its path is a folder, a device or a FIFO, [`LayoutError::ImageSize`]
 /// naming the image of another size, [`LayoutError::Image`] for an unreadable header,
 /// [`LayoutError::Codec`] for a manifest.
 pub fn check_pose_files(poses: &[PoseCapture]) -> Result<(), LayoutError> {
@@ -627,12 +643,23 @@ pub fn check_pose_files(poses: &[PoseCapture]) -> Result<(), LayoutError> {
             }
         }
         for (what, file, path) in files {
-            let found = find_image_file(&path).ok_or_else(|| LayoutError::MissingFile {
-                pose: pose.folder.clone(),
-                what,
-                file,
-                path: path.clone(),
-            })?;
+            let Some(found) = find_image_file(&path) else {
+                return Err(match sl_codec::not_a_regular_file(&path) {
+                    Some(why) => LayoutError::NotAFile {
+                        pose: pose.folder.clone(),
+                        what,
+                        file,
+                        path,
+                        why,
+                    },
+                    None => LayoutError::MissingFile {
+                        pose: pose.folder.clone(),
+                        what,
+                        file,
+                        path,
+                    },
+                });
+            };
             let (w, h) = image_size(&found)?;
             match &first {
                 None => first = Some((found, w, h)),

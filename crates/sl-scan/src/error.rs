@@ -40,6 +40,34 @@ pub enum ScanError {
         #[source]
         source: sl_mesh::MeshError,
     },
+    /// No piece of the surface the Poisson reconstruction extracted has the triangles a piece
+    /// must keep ([`MeshChainConfig::min_piece`](crate::MeshChainConfig)): the octree is too
+    /// coarse for the cloud (its parts fall between the nodes of the finest cells), or the
+    /// pieces asked for are larger than any depth makes of this cloud.
+    #[cfg(feature = "mesh")]
+    #[error(
+        "no triangle is left of the mesh: at octree depth {depth} (finest cells {cell_mm:.3} mm) \
+         the surface extracted has {extracted} triangles, its largest piece {largest_piece}, \
+         fewer than the {min_piece} a piece must keep; {}",
+        deeper_depth(.meshes_at, .searched_to)
+    )]
+    MeshTooCoarse {
+        /// The octree depth of the reconstruction.
+        depth: u32,
+        /// The edge of its finest cells (mm).
+        cell_mm: f64,
+        /// Triangles extracted.
+        extracted: usize,
+        /// Triangles of their largest connected piece.
+        largest_piece: usize,
+        /// Fewest triangles a piece must have to be kept.
+        min_piece: usize,
+        /// The smallest deeper depth at which the whole chain leaves a mesh, if one up to
+        /// `searched_to` does.
+        meshes_at: Option<u32>,
+        /// The deepest depth considered (the default depth, or the one asked if deeper).
+        searched_to: u32,
+    },
     /// An error of the merge (`sl-icp`).
     #[error("merge: {0}")]
     Icp(#[from] sl_icp::IcpError),
@@ -97,6 +125,15 @@ pub enum ScanError {
         /// The underlying error.
         source: std::io::Error,
     },
+}
+
+/// The end of [`ScanError::MeshTooCoarse`]'s message: the depth that meshes, or none.
+#[cfg(feature = "mesh")]
+fn deeper_depth(meshes_at: &Option<u32>, searched_to: &u32) -> String {
+    meshes_at.map_or_else(
+        || format!("no depth up to {searched_to} would make a piece that large"),
+        |d| format!("depth {d} meshes the cloud"),
+    )
 }
 
 /// Shorthand for [`ScanError::Stage`].

@@ -11,8 +11,8 @@ use sl_mesh::{
     BilateralConfig, Decimation, FairConfig, Fairing, HoleFilling, MeshError, PoissonConfig,
     RemeshConfig, Remeshing, Simplification, SimplifyConfig, TaubinConfig, Topology, TriangleMesh,
     check_topology, decimate, fair_unsupported, fill_holes, inconsistent_normal_fraction,
-    poisson_reconstruct, remesh_isotropic, remove_small_components, simplify, smooth_bilateral,
-    smooth_taubin, trim_by_density,
+    largest_piece, poisson_reconstruct, remesh_isotropic, remove_small_components, simplify,
+    smooth_bilateral, smooth_taubin, trim_by_density,
 };
 
 use crate::progress::timed;
@@ -272,11 +272,88 @@ fn last_ms(stages: &[StageTime]) -> f64 {
 /// Meshes `cloud` (mm, with oriented normals) through the steps of `cfg`: the chain of
 /// `slscan mesh`.
 ///
+/// When no piece of the extracted surface has `cfg.min_piece` triangles, the octree is too
+/// coarse for the cloud: the chain is run again at the next depths, up to the default depth
+/// (or the one asked, if deeper), and the error says the smallest that leaves a mesh. A depth
+/// multiplies a surface's triangles by about 4, so a depth at which even that growth could not
+/// reach `min_piece` is not tried: the search costs at most about one run at the default depth.
+///
 /// # Errors
 /// [`ScanError::MeshStep`] naming the step that failed (`reconstruct`, `trim`, `simplify`,
-/// `fair`, `remesh`, `fill holes`, `smooth`, `decimate`); [`ScanError::Stage`] when no triangle
-/// is left after the removal of small pieces.
+/// `fair`, `remesh`, `fill holes`, `smooth`, `decimate`); [`ScanError::MeshTooCoarse`] when
+/// the surface extracted has no piece of `min_piece` triangles (with the depth that meshes the
+/// cloud, if one does); [`ScanError::Stage`] when the steps after the reconstruction leave no
+/// piece of `min_piece` triangles.
 pub fn mesh_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain, ScanError> {
+    match run_chain(cloud, cfg) {
+        Err(ScanError::MeshTooCoarse {
+            depth,
+            cell_mm,
+            extracted,
+            largest_piece,
+            min_piece,
+            ..
+        }) => {
+            let (meshes_at, searched_to) = depth_that_meshes(cloud, cfg, largest_piece);
+            Err(ScanError::MeshTooCoarse {
+                depth,
+                cell_mm,
+                extracted,
+                largest_piece,
+                min_piece,
+                meshes_at,
+                searched_to,
+            })
+        }
+        other => other,
+    }
+}
+
+/// Growth of a surface's triangle count from one octree depth to the next: the cells halve, so
+/// a surface crosses about four times as many.
+const TRIANGLES_PER_LEVEL: f64 = 4.0;
+
+/// Margin of the search of [`depth_that_meshes`] over [`TRIANGLES_PER_LEVEL`]: one more level's
+/// worth, so that a surface growing faster than a closed one (thin parts that a coarser octree
+/// missed appear) is not given up too early.
+const GROWTH_SLACK: f64 = 4.0;
+
+/// The smallest depth deeper than `cfg`'s at which the chain leaves a mesh of `cloud`, if one
+/// up to the default depth (or `cfg`'s, if deeper) does, and that last depth. `largest` is the
+/// largest piece extracted at `cfg`'s depth.
+fn depth_that_meshes(
+    cloud: &PointCloud,
+    cfg: &MeshChainConfig,
+    largest: usize,
+) -> (Option<u32>, u32) {
+    let last = PoissonConfig::default().depth.max(cfg.poisson.depth);
+    let mut largest = largest;
+    for depth in cfg.poisson.depth + 1..=last {
+        // The largest piece at the depth before this one, grown to the last depth.
+        let levels = f64::from(last + 1 - depth);
+        let reachable = largest as f64 * TRIANGLES_PER_LEVEL.powf(levels) * GROWTH_SLACK;
+        if largest > 0 && reachable < cfg.min_piece as f64 {
+            break;
+        }
+        let deeper = MeshChainConfig {
+            poisson: PoissonConfig {
+                depth,
+                ..cfg.poisson.clone()
+            },
+            ..cfg.clone()
+        };
+        match run_chain(cloud, &deeper) {
+            Ok(_) => return (Some(depth), last),
+            Err(ScanError::MeshTooCoarse { largest_piece, .. }) => largest = largest_piece,
+            // A later step left nothing at this depth; a deeper one may still mesh.
+            Err(_) => {}
+        }
+    }
+    (None, last)
+}
+
+/// [`mesh_chain`] at `cfg`'s depth only ([`ScanError::MeshTooCoarse`] without a search).
+fn run_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain, ScanError> {
     let mut stages = Vec::new();
     let mut far_points = FarPointsDropped::default();
     let cloud: Cow<'_, PointCloud> = match &cfg.far_points {
@@ -307,6 +384,11 @@ pub fn mesh_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain
     .map_err(step("reconstruct"))?;
     let (vertices_extracted, triangles_extracted) =
         (surface.mesh.vertices.len(), surface.mesh.triangles.len());
+    let largest_extracted = if cfg.min_piece > 0 {
+        largest_piece(&surface.mesh)
+    } else {
+        triangles_extracted
+    };
     let mut mesh = std::mem::take(&mut surface.mesh);
     let mut densities = std::mem::take(&mut surface.densities);
     let mut trimmed = None;
@@ -377,11 +459,25 @@ pub fn mesh_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain
         None => None,
     };
     if mesh.triangles.is_empty() {
+        if largest_extracted < cfg.min_piece.max(1) {
+            return Err(ScanError::MeshTooCoarse {
+                depth: cfg.poisson.depth,
+                cell_mm: surface.cell_size,
+                extracted: triangles_extracted,
+                largest_piece: largest_extracted,
+                min_piece: cfg.min_piece,
+                meshes_at: None,
+                searched_to: cfg.poisson.depth,
+            });
+        }
+        // The extraction had a piece large enough: the steps after it (whose bounds are in
+        // mm) left nothing of it.
         return Err(ScanError::Stage {
             stage: "mesh".to_owned(),
             reason: format!(
-                "no triangle is left of the mesh ({triangles_extracted} extracted; pieces of \
-                 fewer than {} triangles are removed): is the cloud in mm?",
+                "no triangle is left of the mesh ({triangles_extracted} extracted, its largest \
+                 piece {largest_extracted}; the steps after the reconstruction left no piece of \
+                 {} triangles): is the cloud in mm?",
                 cfg.min_piece
             ),
         });

@@ -348,9 +348,12 @@ pub fn camera_images(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, ScanError> {
         } else if input.is_file() {
             images.push(input.clone());
         } else {
+            // Something that is neither (a device, a FIFO) is named for what it is.
+            let what =
+                sl_codec::not_a_regular_file(input).map(|w| w.trim_start_matches("is ").to_owned());
             return Err(ScanError::Session {
                 path: input.clone(),
-                reason: "no such file or folder".into(),
+                reason: what.unwrap_or_else(|| "no such file or folder".into()),
             });
         }
     }

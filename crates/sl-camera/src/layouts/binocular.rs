@@ -47,8 +47,8 @@ pub(crate) fn read_pair(
         "this two-camera layout does not store the cameras' image size: give it \
          (LoadConfig::camera_size, or slscan --camera-size WxH)",
     )?;
-    let left = camera_from(intrinsics, "M1", "D1", size)?;
-    let right = camera_from(intrinsics, "M2", "D2", size)?;
+    let left = camera_from(intrinsics, "left camera", "M1", "D1", size)?;
+    let right = camera_from(intrinsics, "right camera", "M2", "D2", size)?;
     // `t_cam_proj_from` inverts a pose stored as `p_second = R · p_first + T`: here the right
     // camera's pose in the left camera's frame.
     let pose = if intrinsics.has("Rlr") {

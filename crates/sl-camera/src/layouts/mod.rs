@@ -30,8 +30,8 @@ pub(crate) use crate::filestorage::Item;
 use crate::filestorage::{Document, MatrixData};
 use crate::pose::{isometry_from_rt, isometry_to_rt};
 use crate::{
-    Calibration, CameraError, CameraModel, Distortion, ImageSize, Intrinsics, Metadata, RmsErrors,
-    TurntableAxis,
+    Calibration, CameraError, CameraModel, Distortion, ImageSize, Intrinsics, Metadata,
+    ModelParameter, RmsErrors, TurntableAxis,
 };
 
 pub(crate) use opencv_stereo::{extrinsics_sibling, intrinsics_sibling};
@@ -316,9 +316,12 @@ fn require_projector(
 
 // ---- reading helpers ----------------------------------------------------------------------
 
-/// A camera model from a 3x3 matrix key, a distortion key and a size.
+/// A camera model (of `device`: `camera` or `projector`) from a 3x3 matrix key, a distortion
+/// key and a size, checked for physical sense ([`CameraModel::check_physical`]): a fault is
+/// [`CameraError::Implausible`] naming the key that holds the parameter at fault.
 fn camera_from(
     doc: &Document,
+    device: &'static str,
     k_key: &str,
     d_key: &str,
     size: ImageSize,
@@ -339,11 +342,25 @@ fn camera_from(
             Distortion::from_opencv(&d.data).map_err(|e| doc.bad(d_key, d.line, message_of(e)))?
         }
     };
-    Ok(CameraModel {
+    let model = CameraModel {
         intrinsics,
         distortion,
         size,
-    })
+    };
+    if let Err(why) = model.check_physical() {
+        let key = match why.parameter {
+            ModelParameter::Intrinsic(_) => k_key,
+            ModelParameter::Distortion(_) => d_key,
+        };
+        return Err(CameraError::Implausible {
+            file: doc.file.clone(),
+            line: doc.get(key).map(|n| n.line),
+            device,
+            key: key.to_owned(),
+            message: why.message,
+        });
+    }
+    Ok(model)
 }
 
 /// An image size stored as two integer keys, if both are there.

@@ -19,7 +19,13 @@ pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, 
         options.camera_size,
         "the image size is required",
     )?;
-    let camera = camera_from(doc, "camera_matrix", "distortion_coefficients", size)?;
+    let camera = camera_from(
+        doc,
+        "camera",
+        "camera_matrix",
+        "distortion_coefficients",
+        size,
+    )?;
     let mut c = Calibration::new(camera);
     c.rms = super::rms_from(doc, "avg_reprojection_error")?;
     (c.turntable, c.metadata) = extras_from(doc, CalibrationLayout::OpenCvCamera)?;

@@ -73,7 +73,7 @@ pub(super) fn read(
         options.camera_size,
         &size_hint(LAYOUT, "camera", "camera_size", "--camera-size"),
     )?;
-    let camera = camera_from(intrinsics, "M1", "D1", size)?;
+    let camera = camera_from(intrinsics, "camera", "M1", "D1", size)?;
     let stored = size_from_keys(intrinsics, PROJECTOR_SIZE_KEYS.0, PROJECTOR_SIZE_KEYS.1)?;
     let size = resolve_size(
         intrinsics,
@@ -82,7 +82,7 @@ pub(super) fn read(
         options.projector_size,
         &size_hint(LAYOUT, "projector", "projector_size", "--projector-size"),
     )?;
-    let projector = camera_from(intrinsics, "M2", "D2", size)?;
+    let projector = camera_from(intrinsics, "projector", "M2", "D2", size)?;
     let mut c = Calibration::new(camera);
     c.projector = Some(projector);
     c.t_cam_proj = match extrinsics {

@@ -23,7 +23,7 @@ pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, 
         options.camera_size,
         &size_hint(LAYOUT, "camera", "camera_size", "--camera-size"),
     )?;
-    let camera = camera_from(doc, "cam_K", "cam_kc", size)?;
+    let camera = camera_from(doc, "camera", "cam_K", "cam_kc", size)?;
     let stored = size_from_keys(doc, PROJECTOR_SIZE_KEYS.0, PROJECTOR_SIZE_KEYS.1)?;
     let size = resolve_size(
         doc,
@@ -32,7 +32,7 @@ pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, 
         options.projector_size,
         &size_hint(LAYOUT, "projector", "projector_size", "--projector-size"),
     )?;
-    let projector = camera_from(doc, "proj_K", "proj_kc", size)?;
+    let projector = camera_from(doc, "projector", "proj_K", "proj_kc", size)?;
     let mut c = Calibration::new(camera);
     c.projector = Some(projector);
     c.t_cam_proj = t_cam_proj_from(doc, "R", "T")?;

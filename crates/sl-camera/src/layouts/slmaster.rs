@@ -49,7 +49,7 @@ pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, 
         options.camera_size,
         "SLMaster writes the camera's image size as `S`",
     )?;
-    let camera = camera_from(doc, "M1", "D1", size)?;
+    let camera = camera_from(doc, "camera", "M1", "D1", size)?;
     let projector = if doc.has("M4") {
         let stored = size_from_keys(doc, PROJECTOR_SIZE_KEYS.0, PROJECTOR_SIZE_KEYS.1)?;
         let size = resolve_size(
@@ -59,7 +59,7 @@ pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, 
             options.projector_size,
             &size_hint(LAYOUT, "projector", "projector_size", "--projector-size"),
         )?;
-        Some(camera_from(doc, "M4", "D4", size)?)
+        Some(camera_from(doc, "projector", "M4", "D4", size)?)
     } else {
         None
     };

@@ -20,7 +20,7 @@ pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, 
         options.camera_size,
         "the image size is required",
     )?;
-    let camera = camera_from(doc, "Kc", "kc", size)?;
+    let camera = camera_from(doc, "camera", "Kc", "kc", size)?;
     let projector = if doc.has("Kp") {
         let stored = size_from_keys(doc, "screenResX", "screenResY")?;
         let size = resolve_size(
@@ -30,7 +30,7 @@ pub(super) fn read(doc: &Document, options: &LoadConfig) -> Result<Calibration, 
             options.projector_size,
             &size_hint(LAYOUT, "projector", "projector_size", "--projector-size"),
         )?;
-        Some(camera_from(doc, "Kp", "kp", size)?)
+        Some(camera_from(doc, "projector", "Kp", "kp", size)?)
     } else {
         None
     };

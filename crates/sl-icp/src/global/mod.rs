@@ -20,6 +20,7 @@ pub use multiway::{
 };
 pub use orientation::orient_normals_outward;
 pub use pairwise::{
-    GlobalCloud, GlobalConfig, GlobalRegistration, register_global, register_global_prepared,
+    GlobalCloud, GlobalConfig, GlobalRegistration, MIN_GLOBAL_POINTS, register_global,
+    register_global_prepared,
 };
 pub use ransac::{RansacConfig, RansacResult, ransac_pose};

@@ -11,9 +11,10 @@ use crate::{
     IcpConfig, IcpError, Metric, NormalSource, PrepareConfig, PreparedCloud, Registration, register,
 };
 
-/// Fewest points a downsampled cloud must keep to be described: a few FPFH neighbourhoods'
-/// worth. Below this the cloud is a speck on the voxel grid (a cloud in metres read as mm).
-const MIN_POINTS: usize = 50;
+/// Fewest points a downsampled cloud must keep to be described by [`GlobalCloud`]: a few FPFH
+/// neighbourhoods' worth. Below this the cloud is a speck on the voxel grid (a cloud in metres
+/// read as mm). A cloud of fewer points, downsampled or not, cannot be aligned globally.
+pub const MIN_GLOBAL_POINTS: usize = 50;
 
 /// A cloud whose bounding box diagonal is below this many voxels is taken for one in metres:
 /// any object worth registering spans tens of voxels (a 2 mm voxel on a 100 mm object), while
@@ -110,11 +111,23 @@ impl GlobalCloud {
     /// names the cloud in errors.
     ///
     /// # Errors
-    /// [`IcpError::InvalidParameter`], [`IcpError::EmptyCloud`], and
+    /// [`IcpError::InvalidParameter`]; [`sl_cloud::CloudError::Degenerate`] (as
+    /// [`IcpError::Cloud`]) for a cloud of no finite point, of fewer than
+    /// [`MIN_GLOBAL_POINTS`], or all at one place; [`IcpError::EmptyCloud`], and
     /// [`IcpError::CloudTooSmall`] when too few points remain (with a hint when the cloud
     /// looks like one in metres).
     pub fn new(cloud: &PointCloud, config: &GlobalConfig, name: &str) -> Result<Self, IcpError> {
         config.validate()?;
+        // A cloud that spans nothing whatever its units is said to be that, not a speck on the
+        // voxel grid in metres.
+        if let Some(reason) = sl_cloud::degeneracy(cloud, MIN_GLOBAL_POINTS, "global registration")
+        {
+            return Err(sl_cloud::CloudError::Degenerate {
+                file: name.to_owned(),
+                reason,
+            }
+            .into());
+        }
         let mut prepared = PreparedCloud::new(
             cloud,
             &PrepareConfig {
@@ -127,7 +140,7 @@ impl GlobalCloud {
                 cloud: name.to_owned(),
             });
         }
-        if prepared.len() < MIN_POINTS {
+        if prepared.len() < MIN_GLOBAL_POINTS {
             let extent = cloud
                 .remove_non_finite()
                 .bounding_box()
@@ -136,7 +149,7 @@ impl GlobalCloud {
                 cloud: name.to_owned(),
                 extent_mm: extent,
                 points: prepared.len(),
-                needed: MIN_POINTS,
+                needed: MIN_GLOBAL_POINTS,
                 voxel_size: config.voxel_size,
                 hint: if extent < METRES_EXTENT_VOXELS * config.voxel_size {
                     ": it is almost surely in metres (scale it by 1000)"
