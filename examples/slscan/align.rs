@@ -61,7 +61,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                 check_cloud(
                     &c,
                     p,
-                    args.voxel,
+                    DEFAULT_VOXEL_MM,
                     "global registration",
                     sl_icp::MIN_GLOBAL_POINTS,
                 )?;
@@ -380,7 +380,7 @@ pub(crate) mod tests {
             (
                 "all_nan.ply",
                 vec![Point3::new(f64::NAN, 0.0, f64::INFINITY); 500],
-                "all_nan.ply: none of its 500 points is finite",
+                "all_nan.ply: 500 of 500 points have coordinates that are not finite",
             ),
             (
                 "one.ply",

@@ -250,8 +250,12 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             ScanError::MeshTooCoarse {
                 depth,
                 meshes_at: Some(d),
+                min_piece,
                 ..
-            } => format!(" (--depth {depth} is too coarse for this cloud: --depth {d} meshes it)"),
+            } => format!(
+                " (--depth {depth} is too coarse for this cloud and --min-piece {min_piece}: \
+                 --depth {d} meshes it)"
+            ),
             ScanError::MeshTooCoarse { min_piece, .. } => {
                 format!(" (--min-piece {min_piece})")
             }
@@ -851,7 +855,7 @@ pub(crate) mod tests {
             (
                 "all_nan.ply",
                 vec![Point3::new(f64::NAN, f64::NAN, f64::NAN); 500],
-                "all_nan.ply: none of its 500 points is finite",
+                "all_nan.ply: 500 of 500 points have coordinates that are not finite",
             ),
             (
                 "one.ply",

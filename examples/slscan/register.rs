@@ -91,12 +91,26 @@ pub(crate) fn read_scaled(path: &Path, scale: f64) -> anyhow::Result<PointCloud>
         .iter()
         .filter(|p| !p.iter().all(|c| c.is_finite()))
         .count();
+    // `--scale` is named only where it took part: a huge scale can overflow finite
+    // coordinates, a cloud stored with NaNs has them at any scale.
+    let stored_so = cloud.len() == 0 || scale == 1.0 || {
+        let raw = sl_cloud::read_ply(path)?;
+        raw.positions()
+            .iter()
+            .filter(|p| !p.iter().all(|c| c.is_finite()))
+            .count()
+            == bad
+    };
     anyhow::ensure!(
         bad == 0,
-        "{}: {bad} of {} points have coordinates that are not finite numbers once read with \
-         --scale {scale}",
+        "{}: {bad} of {} points have coordinates that are not finite numbers{}",
         path.display(),
-        cloud.len()
+        cloud.len(),
+        if stored_so {
+            String::new()
+        } else {
+            format!(" once read with --scale {scale}")
+        }
     );
     Ok(cloud)
 }

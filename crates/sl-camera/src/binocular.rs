@@ -40,7 +40,10 @@ const KIND: &str = "binocular";
 /// let dir = tempfile::tempdir().unwrap();
 /// let path = dir.path().join("pair.json");
 /// pair.save(&path)?;
-/// assert_eq!(BinocularCalibration::load(&path)?, pair);
+/// let read = BinocularCalibration::load(&path)?;
+/// assert_eq!((read.left, read.right), (pair.left, pair.right));
+/// // The rotation is stored as a matrix: back to within rounding.
+/// assert!((read.t_left_right.inverse() * pair.t_left_right).rotation.angle() < 1e-12);
 /// # Ok::<(), sl_camera::CameraError>(())
 /// ```
 #[derive(Clone, Debug, PartialEq)]
@@ -251,7 +254,11 @@ impl BinocularCalibration {
         for (device, key, model) in [
             ("left camera", "left", Some(&c.left)),
             ("right camera", "right", Some(&c.right)),
-            ("projector", "projector", c.projector.as_ref().map(|(p, _)| p)),
+            (
+                "projector",
+                "projector",
+                c.projector.as_ref().map(|(p, _)| p),
+            ),
         ] {
             if let Some(Err(why)) = model.map(CameraModel::check_physical) {
                 return Err(CameraError::Implausible {
