@@ -99,7 +99,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             &out.join("poses.json"),
             serde_json::to_string_pretty(&poses)?.as_bytes(),
         )?;
-        sl_scan::write_preview_png(&out, &painted, PreviewColoring::Colors)?;
+        sl_scan::write_preview_png(out, &painted, PreviewColoring::Colors)?;
         Ok(())
     })?;
     bar.finish_and_clear();

@@ -93,7 +93,7 @@ pub(crate) fn read_scaled(path: &Path, scale: f64) -> anyhow::Result<PointCloud>
         .count();
     // `--scale` is named only where it took part: a huge scale can overflow finite
     // coordinates, a cloud stored with NaNs has them at any scale.
-    let stored_so = cloud.len() == 0 || scale == 1.0 || {
+    let stored_so = cloud.is_empty() || scale == 1.0 || {
         let raw = sl_cloud::read_ply(path)?;
         raw.positions()
             .iter()
