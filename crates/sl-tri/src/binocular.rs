@@ -139,7 +139,9 @@ pub struct BinocularResult {
     pub counts: BinocularCounts,
 }
 
-/// A calibrated pair of cameras, rectified; see the [module documentation](self).
+/// A calibrated pair of cameras, rectified: [`Binocular::new`] rectifies once,
+/// [`Binocular::reconstruct`] matches and triangulates a pair of decoded maps (the method step
+/// by step: `docs/binocular.md`).
 #[derive(Debug, Clone)]
 pub struct Binocular {
     left: CameraModel,
