@@ -40,33 +40,42 @@ static STDERR_CLOSED: AtomicBool = AtomicBool::new(false);
 /// closes standard output for the rest of the run; the command carries on, writes its files in
 /// full and exits as it would have.
 pub(crate) fn print_line(args: fmt::Arguments<'_>) {
-    #[cfg(test)]
-    if !pipe_tests::DIRECT.load(Ordering::Relaxed) {
-        // The test harness captures `println!`, not writes to the stream.
-        println!("{args}");
-        return;
-    }
-    write_or_close(&STDOUT_CLOSED, &mut std::io::stdout().lock(), args, true);
+    emit(Stream::Out, args, true);
 }
 
 /// [`print_line`] without the newline.
 pub(crate) fn print_text(args: fmt::Arguments<'_>) {
-    #[cfg(test)]
-    if !pipe_tests::DIRECT.load(Ordering::Relaxed) {
-        print!("{args}");
-        return;
-    }
-    write_or_close(&STDOUT_CLOSED, &mut std::io::stdout().lock(), args, false);
+    emit(Stream::Out, args, false);
 }
 
 /// [`print_line`] for standard error (warnings, the error line).
 pub(crate) fn print_error_line(args: fmt::Arguments<'_>) {
+    emit(Stream::Err, args, true);
+}
+
+/// Standard output or error.
+#[derive(Clone, Copy)]
+enum Stream {
+    Out,
+    Err,
+}
+
+/// Writes `args` (and a newline) to `stream`, which a failed write closes for the run.
+fn emit(stream: Stream, args: fmt::Arguments<'_>, newline: bool) {
     #[cfg(test)]
     if !pipe_tests::DIRECT.load(Ordering::Relaxed) {
-        eprintln!("{args}");
+        // The test harness captures the print macros, not writes to the streams.
+        let end = if newline { "\n" } else { "" };
+        match stream {
+            Stream::Out => print!("{args}{end}"),
+            Stream::Err => eprint!("{args}{end}"),
+        }
         return;
     }
-    write_or_close(&STDERR_CLOSED, &mut std::io::stderr().lock(), args, true);
+    match stream {
+        Stream::Out => write_or_close(&STDOUT_CLOSED, &mut std::io::stdout().lock(), args, newline),
+        Stream::Err => write_or_close(&STDERR_CLOSED, &mut std::io::stderr().lock(), args, newline),
+    }
 }
 
 /// Writes `args` (and a newline) to `stream` unless `closed` is set; sets it when the write

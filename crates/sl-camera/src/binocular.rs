@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
-use crate::calibration::{parse_file, read_text};
+use crate::calibration::{check_json_models, parse_file, read_text};
 use crate::pose::PoseRepr;
 use crate::{
     CalibrationFormat, CameraError, CameraModel, LoadConfig, Metadata, ProjectorModel, layouts,
@@ -251,25 +251,18 @@ impl BinocularCalibration {
             metadata: repr.metadata,
         };
         c.validate().map_err(|e| e.in_file(file, "", None))?;
-        for (device, key, model) in [
-            ("left camera", "left", Some(&c.left)),
-            ("right camera", "right", Some(&c.right)),
-            (
-                "projector",
-                "projector",
-                c.projector.as_ref().map(|(p, _)| p),
-            ),
-        ] {
-            if let Some(Err(why)) = model.map(CameraModel::check_physical) {
-                return Err(CameraError::Implausible {
-                    file: file.to_owned(),
-                    line: None,
-                    device,
-                    key: format!("{key}.{}", why.parameter.json_key()),
-                    message: why.message,
-                });
-            }
-        }
+        check_json_models(
+            file,
+            &[
+                ("left camera", "left", Some(&c.left)),
+                ("right camera", "right", Some(&c.right)),
+                (
+                    "projector",
+                    "projector",
+                    c.projector.as_ref().map(|(p, _)| p),
+                ),
+            ],
+        )?;
         Ok(c)
     }
 

@@ -507,20 +507,13 @@ impl Calibration {
         calibration
             .validate()
             .map_err(|e| e.in_file(file, "", None))?;
-        for (device, model) in [
-            ("camera", Some(&calibration.camera)),
-            ("projector", calibration.projector.as_ref()),
-        ] {
-            if let Some(Err(why)) = model.map(CameraModel::check_physical) {
-                return Err(CameraError::Implausible {
-                    file: file.to_owned(),
-                    line: None,
-                    device,
-                    key: format!("{device}.{}", why.parameter.json_key()),
-                    message: why.message,
-                });
-            }
-        }
+        check_json_models(
+            file,
+            &[
+                ("camera", "camera", Some(&calibration.camera)),
+                ("projector", "projector", calibration.projector.as_ref()),
+            ],
+        )?;
         Ok(calibration)
     }
 
@@ -653,6 +646,27 @@ impl Calibration {
         }
         Ok(())
     }
+}
+
+/// [`CameraModel::check_physical`] of the models of a JSON file `file`, each given as
+/// `(device, JSON key, model)`: the first fault as [`CameraError::Implausible`] naming the
+/// device and the key (`camera.intrinsics.fx`).
+pub(crate) fn check_json_models(
+    file: &str,
+    models: &[(&'static str, &str, Option<&CameraModel>)],
+) -> Result<(), CameraError> {
+    for &(device, key, model) in models {
+        if let Some(Err(why)) = model.map(CameraModel::check_physical) {
+            return Err(CameraError::Implausible {
+                file: file.to_owned(),
+                line: None,
+                device,
+                key: format!("{key}.{}", why.parameter.json_key()),
+                message: why.message,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Reads a FileStorage document in any layout (one file; OpenCV's stereo sample from its

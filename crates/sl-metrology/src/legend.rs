@@ -83,19 +83,7 @@ fn text_width(s: &str) -> u32 {
 /// assert!(img.rgb.iter().any(|&v| v > 0));
 /// ```
 pub fn draw_legend(img: &mut PreviewImage, range_mm: f32) {
-    let label_h = 5 * FONT_SCALE;
-    let need_h = BAR.1 + 4 + label_h + INSET;
-    if img.width < BAR.0 + 2 * INSET + 40 || img.height < need_h + INSET {
-        return;
-    }
-    let y_bar = img.height - need_h;
-    for x in 0..BAR.0 {
-        let c = colormap(f64::from(x) / f64::from(BAR.0 - 1));
-        for y in 0..BAR.1 {
-            put(img, INSET + x, y_bar + y, c);
-        }
-    }
-    let y_text = y_bar + BAR.1 + 4;
+    let Some(y_text) = draw_bar(img) else { return };
     let lo = format!("-{range_mm}");
     let hi = format!("+{range_mm} mm");
     text(img, INSET, y_text, &lo);
@@ -113,20 +101,8 @@ pub fn draw_legend(img: &mut PreviewImage, range_mm: f32) {
 /// and the two ends and the middle under it (rounded to 0.1). A picture too small for it is
 /// left as it is.
 pub fn draw_scale(img: &mut PreviewImage, lo: f32, hi: f32, unit: &str) {
-    let label_h = 5 * FONT_SCALE;
-    let need_h = BAR.1 + 4 + label_h + INSET;
-    if img.width < BAR.0 + 2 * INSET + 40 || img.height < need_h + INSET {
-        return;
-    }
-    let y_bar = img.height - need_h;
-    for x in 0..BAR.0 {
-        let c = colormap(f64::from(x) / f64::from(BAR.0 - 1));
-        for y in 0..BAR.1 {
-            put(img, INSET + x, y_bar + y, c);
-        }
-    }
-    let y_text = y_bar + BAR.1 + 4;
-    let label = |v: f32| format!("{:.1}", v);
+    let Some(y_text) = draw_bar(img) else { return };
+    let label = |v: f32| format!("{v:.1}");
     let (l, m, h) = (label(lo), label(0.5 * (lo + hi)), label(hi));
     text(img, INSET, y_text, &l);
     text(img, INSET + BAR.0 / 2 - text_width(&m) / 2, y_text, &m);
@@ -136,6 +112,24 @@ pub fn draw_scale(img: &mut PreviewImage, lo: f32, hi: f32, unit: &str) {
         y_text,
         &format!("{h} {unit}"),
     );
+}
+
+/// The colour bar in the bottom-left corner of `img`; the height its labels go at, or `None`
+/// (nothing drawn) when the picture is too small for the bar and its labels.
+fn draw_bar(img: &mut PreviewImage) -> Option<u32> {
+    let label_h = 5 * FONT_SCALE;
+    let need_h = BAR.1 + 4 + label_h + INSET;
+    if img.width < BAR.0 + 2 * INSET + 40 || img.height < need_h + INSET {
+        return None;
+    }
+    let y_bar = img.height - need_h;
+    for x in 0..BAR.0 {
+        let c = colormap(f64::from(x) / f64::from(BAR.0 - 1));
+        for y in 0..BAR.1 {
+            put(img, INSET + x, y_bar + y, c);
+        }
+    }
+    Some(y_bar + BAR.1 + 4)
 }
 
 #[cfg(test)]
@@ -169,5 +163,26 @@ mod tests {
         };
         draw_legend(&mut small, 0.1);
         assert!(small.rgb.iter().all(|&v| v == 30));
+    }
+
+    /// A scale from 12.5 to 80.0 px: the bar's ends are the colour map's, the labels are drawn.
+    #[test]
+    fn a_scale_shows_its_range() {
+        let mut img = PreviewImage {
+            width: 800,
+            height: 600,
+            rgb: vec![0; 800 * 600 * 3],
+            left_out: 0,
+        };
+        draw_scale(&mut img, 12.5, 80.0, "px");
+        let y = 600 - (BAR.1 + 4 + 5 * FONT_SCALE + INSET) + BAR.1 / 2;
+        assert_eq!(img.pixel(INSET, y), Some(colormap(0.0)));
+        assert_eq!(img.pixel(INSET + BAR.0 - 1, y), Some(colormap(1.0)));
+        let ink = (y + BAR.1..600)
+            .flat_map(|yy| (0..400).map(move |x| (x, yy)))
+            .filter(|&(x, yy)| img.pixel(x, yy) == Some(INK))
+            .count();
+        // "12.5", "46.2", "80.0 px": 14 glyphs, far more than 100 ink pixels at 3x scale.
+        assert!(ink > 100, "{ink} label pixels");
     }
 }
