@@ -248,7 +248,7 @@ impl CameraModel {
             };
             let s = p.coords.norm_squared();
             let moved = (self.project_normalised(p.x, p.y) - px).norm();
-            if !(moved <= ROUND_TRIP_PX) {
+            if moved.is_nan() || moved > ROUND_TRIP_PX {
                 return fault(
                     s,
                     format!(
