@@ -59,7 +59,9 @@
 //! `.json` (this project's versioned format), `.yml`/`.yaml` and `.xml` (OpenCV FileStorage,
 //! layouts of OpenCV's calibration sample and of SLStudio). Malformed files give errors
 //! naming the file, the line and the key, e.g.
-//! ``calib.yml line 7: key `Kc`: expected 9 values (3x3), found 8``.
+//! ``calib.yml line 7: key `Kc`: expected 9 values (3x3), found 8``; well-formed files whose
+//! camera or projector makes no physical sense are refused naming the device and the key
+//! ([`CameraModel::check_physical`]).
 #![deny(missing_docs)]
 
 mod binocular;

@@ -87,7 +87,6 @@ impl CaptureSet {
                             manifest: manifest_path.clone(),
                             block: b,
                             index: i,
-                            file: file.clone(),
                             path,
                             what,
                         });

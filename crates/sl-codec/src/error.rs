@@ -57,7 +57,7 @@ pub enum CodecError {
     },
     /// A frame listed in the manifest names something that is not a regular file (a folder, a
     /// device, a FIFO: see [`not_a_regular_file`](crate::not_a_regular_file)).
-    #[error("{manifest}: frame {index} of block {block} ('{file}') cannot be read: {path} {what}")]
+    #[error("{manifest}: frame {index} of block {block} cannot be read: {path} {what}")]
     FrameNotAFile {
         /// The manifest that lists the frame.
         manifest: PathBuf,
@@ -65,9 +65,8 @@ pub enum CodecError {
         block: usize,
         /// Index of the frame (0-based) inside the block.
         index: usize,
-        /// The file name as written in the manifest.
-        file: String,
-        /// The path looked at.
+        /// The path looked at (the frames' folder joined with the file name the manifest
+        /// gives).
         path: PathBuf,
         /// What is there: `is a directory`, `is not a regular file (a character device)`, …
         what: String,

@@ -124,15 +124,14 @@ pub enum LayoutError {
     },
     /// A file a pose folder should hold names something that is not a regular file (a folder,
     /// a device, a FIFO: see `sl_codec::not_a_regular_file`).
-    #[error("pose folder {}: {what} '{file}' cannot be read: {} {why}", pose.display(), path.display())]
+    #[error("pose folder {}: {what} cannot be read: {} {why}", pose.display(), path.display())]
     NotAFile {
         /// The pose folder.
         pose: PathBuf,
         /// Which file: `frame 3 of block 0`, `white frame`, `black frame`.
         what: String,
-        /// The file name as the manifest or the layout writes it.
-        file: String,
-        /// The path looked at.
+        /// The path looked at (the file name as the manifest or the layout writes it, in the
+        /// pose folder).
         path: PathBuf,
         /// What is there: `is a directory`, `is not a regular file (a character device)`, …
         why: String,
@@ -648,7 +647,6 @@ pub fn check_pose_files(poses: &[PoseCapture]) -> Result<(), LayoutError> {
                     Some(why) => LayoutError::NotAFile {
                         pose: pose.folder.clone(),
                         what,
-                        file,
                         path,
                         why,
                     },
