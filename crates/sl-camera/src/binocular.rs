@@ -6,10 +6,11 @@ use std::path::{Path, PathBuf};
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
-use crate::calibration::{check_json_models, parse_file, read_text};
+use crate::calibration::{check_json_models, normalized_axis, parse_file, read_text};
 use crate::pose::PoseRepr;
 use crate::{
-    CalibrationFormat, CameraError, CameraModel, LoadConfig, Metadata, ProjectorModel, layouts,
+    CalibrationFormat, CameraError, CameraModel, LoadConfig, Metadata, ProjectorModel,
+    TurntableAxis, layouts,
 };
 
 /// Version of the binocular JSON files this crate writes.
@@ -59,6 +60,9 @@ pub struct BinocularCalibration {
     pub projector: Option<(ProjectorModel, Isometry3<f64>)>,
     /// Stereo RMS reprojection error of the two cameras (px), when known.
     pub rms: Option<f64>,
+    /// The turntable axis in the left camera's frame, when the rig has one and it was
+    /// calibrated (as [`crate::Calibration::turntable`]).
+    pub turntable: Option<TurntableAxis>,
     /// Who wrote the file, when, and notes.
     pub metadata: Metadata,
 }
@@ -79,6 +83,8 @@ struct BinocularJson {
     t_left_proj: Option<PoseRepr>,
     #[serde(default)]
     rms: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    turntable: Option<TurntableAxis>,
     #[serde(default)]
     metadata: Metadata,
 }
@@ -92,6 +98,7 @@ impl BinocularCalibration {
             t_left_right,
             projector: None,
             rms: None,
+            turntable: None,
             metadata: Metadata::default(),
         }
     }
@@ -121,6 +128,10 @@ impl BinocularCalibration {
                 .coords
                 .iter()
                 .all(|v| v.is_finite());
+        if let Some(axis) = &self.turntable {
+            let mut check = *axis;
+            check.normalize()?;
+        }
         if !finite || t.norm() < 1e-6 {
             return Err(CameraError::invalid(
                 "T_left_right",
@@ -242,12 +253,14 @@ impl BinocularCalibration {
                 });
             }
         };
+        let turntable = normalized_axis(repr.turntable, file)?;
         let c = Self {
             left: repr.left,
             right: repr.right,
             t_left_right,
             projector,
             rms: repr.rms,
+            turntable,
             metadata: repr.metadata,
         };
         c.validate().map_err(|e| e.in_file(file, "", None))?;
@@ -284,6 +297,7 @@ impl BinocularCalibration {
                 .as_ref()
                 .map(|(_, t)| PoseRepr::from_isometry(t)),
             rms: self.rms,
+            turntable: self.turntable,
             metadata: self.metadata.clone(),
         };
         let mut text = serde_json::to_string_pretty(&repr).map_err(|source| CameraError::Json {
@@ -387,6 +401,19 @@ mod tests {
         pair.rms = Some(0.12);
         let text = pair.to_json().unwrap();
         assert_eq!(BinocularCalibration::from_json(&text, "t").unwrap(), pair);
+        // With a turntable axis: read back as written, and a zero direction named by its key.
+        pair.turntable = Some(TurntableAxis {
+            direction: nalgebra::Vector3::new(0.0, -1.0, 0.0),
+            point_mm: nalgebra::Point3::new(0.0, 80.0, 600.0),
+            angle_offset_deg: 0.0,
+            angle_scale: 1.0,
+        });
+        let text = pair.to_json().unwrap();
+        assert!(text.contains("\"turntable\""), "{text}");
+        assert_eq!(BinocularCalibration::from_json(&text, "t").unwrap(), pair);
+        let zero = text.replacen("-1.0", "0.0", 1);
+        let err = BinocularCalibration::from_json(&zero, "z.json").unwrap_err();
+        assert!(err.to_string().contains("turntable.direction"), "{err}");
         let single = crate::Calibration::new(camera).to_json().unwrap();
         let err = BinocularCalibration::from_json(&single, "one.json").unwrap_err();
         assert!(err.to_string().contains("Calibration::load"), "{err}");

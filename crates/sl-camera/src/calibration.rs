@@ -484,18 +484,7 @@ impl Calibration {
             ),
             None => None,
         };
-        let mut turntable = repr.turntable;
-        if let Some(axis) = &mut turntable {
-            axis.normalize().map_err(|e| match e {
-                CameraError::InvalidParameter { parameter, message } => CameraError::BadValue {
-                    file: file.to_owned(),
-                    line: None,
-                    key: parameter.replace("turntable", "turntable.direction"),
-                    message,
-                },
-                other => other,
-            })?;
-        }
+        let turntable = normalized_axis(repr.turntable, file)?;
         let calibration = Self {
             camera: repr.camera,
             projector: repr.projector,
@@ -876,6 +865,27 @@ impl fmt::Display for Calibration {
         }
         Ok(())
     }
+}
+
+/// A JSON file's turntable axis with its direction made unit length; a bad axis is named by
+/// its key in `file`.
+pub(crate) fn normalized_axis(
+    axis: Option<TurntableAxis>,
+    file: &str,
+) -> Result<Option<TurntableAxis>, CameraError> {
+    let Some(mut axis) = axis else {
+        return Ok(None);
+    };
+    axis.normalize().map_err(|e| match e {
+        CameraError::InvalidParameter { parameter, message } => CameraError::BadValue {
+            file: file.to_owned(),
+            line: None,
+            key: parameter.replace("turntable", "turntable.direction"),
+            message,
+        },
+        other => other,
+    })?;
+    Ok(Some(axis))
 }
 
 #[cfg(test)]
