@@ -50,6 +50,18 @@ impl Default for RenderConfig {
     }
 }
 
+/// A second camera of the virtual rig (binocular structured light): its model and its pose in
+/// the first camera's frame, `p_cam = t_cam_second · p_second` (mm). The first camera is the
+/// left one of a [`sl_camera::BinocularCalibration`], this the right: `t_cam_second` is its
+/// `t_left_right`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SecondCamera {
+    /// The camera model.
+    pub camera: CameraModel,
+    /// Its pose in the first camera's frame.
+    pub t_cam_second: Isometry3<f64>,
+}
+
 /// The virtual rig: camera and projector models, their relative pose, and the turntable.
 ///
 /// The camera frame is the reference. The turntable's `table` frame at platter angle 0 is
@@ -202,6 +214,58 @@ impl RigConfig {
     pub fn t_cam_table_at(&self, motor_deg: f64) -> Isometry3<f64> {
         let angle = self.platter_angle_deg(motor_deg).to_radians();
         self.t_cam_table * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle)
+    }
+
+    /// The default second camera of a binocular rig: this camera's twin on the other side of
+    /// the projector (its centre at twice the projector's offset from this camera), turned
+    /// about its centre to look at the point where this camera's and the projector's optical
+    /// axes meet, with a principal point and a distortion of its own (a twin off the same
+    /// production line, not a copy).
+    pub fn default_second_camera(&self) -> SecondCamera {
+        let proj = self.t_cam_proj.translation.vector;
+        let centre = Point3::from(2.0 * proj);
+        // The point of this camera's axis (the z axis) nearest the projector's axis.
+        let d = self.t_cam_proj.rotation * Vector3::z();
+        let (b, e) = (d.z, d.dot(&proj));
+        let denom = 1.0 - b * b;
+        let depth = if denom > 1e-9 {
+            (proj.z - b * e) / denom
+        } else {
+            proj.norm()
+        };
+        let aim = Point3::new(0.0, 0.0, depth);
+        let t_cam_second = Isometry3::from_parts(
+            Translation3::from(centre.coords),
+            look_rotation(&(aim - centre), &Vector3::y()),
+        );
+        let mut camera = self.camera;
+        let k = camera.intrinsics;
+        let size = camera.size;
+        camera.intrinsics = Intrinsics::new(
+            k.fx * 1.004,
+            k.fy * 1.004,
+            k.cx - 0.008 * f64::from(size.width),
+            k.cy + 0.006 * f64::from(size.height),
+        );
+        camera.distortion = Distortion::from_opencv(&[-0.06, 0.09, -0.0003, 0.0005, 0.0])
+            .unwrap_or(camera.distortion);
+        SecondCamera {
+            camera,
+            t_cam_second,
+        }
+    }
+
+    /// The same rig seen from `second`: its camera, and the projector and the platter where
+    /// they are, in the second camera's frame. Its noise seed is the next one, so that the
+    /// two cameras' noise is independent.
+    pub fn seen_from(&self, second: &SecondCamera) -> RigConfig {
+        let t_second_cam = second.t_cam_second.inverse();
+        let mut c = self.clone();
+        c.camera = second.camera;
+        c.t_cam_proj = t_second_cam * self.t_cam_proj;
+        c.t_cam_table = t_second_cam * self.t_cam_table;
+        c.render.seed = self.render.seed.wrapping_add(1);
+        c
     }
 
     /// The turntable axis in the camera frame, as the calibration file holds it.

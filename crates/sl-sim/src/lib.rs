@@ -100,7 +100,7 @@ pub use calibration_captures::{
 };
 pub use config::{
     DEFAULT_AIM_HEIGHT_MM, DEFAULT_BASELINE_MM, DEFAULT_TILT_DEG, DEFAULT_WORKING_DISTANCE_MM,
-    MAX_SUPERSAMPLING, RenderConfig, RigConfig,
+    MAX_SUPERSAMPLING, RenderConfig, RigConfig, SecondCamera,
 };
 pub use error::SimError;
 pub use files::{TRUTH_DIR, VIEW_JSON, pose_matrix, write_view_truth};

@@ -135,10 +135,7 @@ impl VirtualRig {
     pub fn devices(&self) -> (VirtualCamera, VirtualProjector, VirtualTurntable) {
         let state = Arc::new(Mutex::new(DeviceState::default()));
         (
-            VirtualCamera {
-                rig: self.clone(),
-                state: state.clone(),
-            },
+            self.camera_on(&state),
             VirtualProjector {
                 state: state.clone(),
                 size: (
@@ -148,6 +145,39 @@ impl VirtualRig {
             },
             VirtualTurntable { state },
         )
+    }
+
+    /// The rig with a second camera (binocular structured light): `right` is the same scene
+    /// seen from the second camera ([`RigConfig::seen_from`]). The four devices share one
+    /// state: both cameras see what the one projector shows on the one turntable.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] when the two rigs differ in their projector's size.
+    pub fn binocular_devices(
+        &self,
+        right: &VirtualRig,
+    ) -> Result<(VirtualCamera, VirtualCamera, VirtualProjector, VirtualTurntable), SimError> {
+        if right.config.projector.size != self.config.projector.size {
+            return Err(SimError::param(
+                "second camera's rig",
+                format!(
+                    "its projector is {} but the first camera's is {}: one projector lights both",
+                    right.config.projector.size, self.config.projector.size
+                ),
+            ));
+        }
+        let (left, projector, turntable) = self.devices();
+        let right = right.camera_on(&left.state);
+        Ok((left, right, projector, turntable))
+    }
+
+    /// This rig's camera on the shared device `state`.
+    fn camera_on(&self, state: &Arc<Mutex<DeviceState>>) -> VirtualCamera {
+        VirtualCamera {
+            rig: self.clone(),
+            state: state.clone(),
+            cache: Arc::new(Mutex::new(ViewCache::default())),
+        }
     }
 }
 
@@ -225,16 +255,24 @@ impl View {
     }
 }
 
+/// What the devices share: the platter's angle and the projector's image.
 #[derive(Debug, Default)]
 struct DeviceState {
     motor_angle_deg: f64,
+    /// Counts the turntable's moves: a camera whose view is of another move casts again.
+    moves: u64,
     shown: Option<GreyImage>,
-    view: Option<Arc<View>>,
+}
+
+/// A camera's view of the current platter position, cast on first use.
+#[derive(Debug, Default)]
+struct ViewCache {
+    view: Option<(u64, Arc<View>)>,
     views_cast: u64,
     frames_in_view: u64,
 }
 
-fn lock(state: &Mutex<DeviceState>) -> MutexGuard<'_, DeviceState> {
+fn lock<T>(state: &Mutex<T>) -> MutexGuard<'_, T> {
     // A panic in another thread while holding the lock leaves a state that is still
     // consistent (every field is replaced whole), so a poisoned lock is safe to reuse.
     state
@@ -247,6 +285,7 @@ fn lock(state: &Mutex<DeviceState>) -> MutexGuard<'_, DeviceState> {
 pub struct VirtualCamera {
     rig: VirtualRig,
     state: Arc<Mutex<DeviceState>>,
+    cache: Arc<Mutex<ViewCache>>,
 }
 
 /// The virtual rig's projector ([`Projector`]).
@@ -265,14 +304,20 @@ pub struct VirtualTurntable {
 impl VirtualCamera {
     /// The view the camera sees now (cast on first use after the turntable moved).
     pub fn current_view(&mut self) -> Result<Arc<View>, SimError> {
-        let mut st = lock(&self.state);
-        if let Some(v) = &st.view {
+        let (angle, moves) = {
+            let st = lock(&self.state);
+            (st.motor_angle_deg, st.moves)
+        };
+        let mut cache = lock(&self.cache);
+        if let Some((m, v)) = &cache.view
+            && *m == moves
+        {
             return Ok(v.clone());
         }
-        let v = Arc::new(self.rig.view(st.motor_angle_deg, st.views_cast)?);
-        st.views_cast += 1;
-        st.frames_in_view = 0;
-        st.view = Some(v.clone());
+        let v = Arc::new(self.rig.view(angle, cache.views_cast)?);
+        cache.views_cast += 1;
+        cache.frames_in_view = 0;
+        cache.view = Some((moves, v.clone()));
         Ok(v)
     }
 }
@@ -285,12 +330,13 @@ impl Camera for VirtualCamera {
 
     fn capture(&mut self) -> Result<GreyImage, RigError> {
         let view = self.current_view()?;
-        let (shown, frame) = {
-            let mut st = lock(&self.state);
-            let frame = st.frames_in_view;
-            st.frames_in_view += 1;
-            (st.shown.clone(), frame)
+        let frame = {
+            let mut cache = lock(&self.cache);
+            let frame = cache.frames_in_view;
+            cache.frames_in_view += 1;
+            frame
         };
+        let shown = lock(&self.state).shown.clone();
         match shown {
             Some(img) => Ok(view.capture(&img, frame)?),
             // Nothing shown yet: the projector is dark.
@@ -329,9 +375,9 @@ impl Turntable for VirtualTurntable {
             });
         }
         let mut st = lock(&self.state);
-        if st.motor_angle_deg != angle_deg || st.view.is_none() {
+        if st.motor_angle_deg != angle_deg {
             st.motor_angle_deg = angle_deg;
-            st.view = None;
+            st.moves += 1;
         }
         Ok(angle_deg)
     }

@@ -647,3 +647,82 @@ fn moire_diagnostics() {
 fn filled(size: sl_camera::ImageSize, value: u8) -> GreyImage {
     GreyImage::filled_u8(size.width as usize, size.height as usize, value).unwrap()
 }
+
+/// A second camera sees the scene where it is: every point it sees, taken into the first
+/// camera's frame by its pose, is lit by the projector at the coordinate the second camera's
+/// truth gives (the projector and the platter are where they were), and it is not the first
+/// camera's view.
+#[test]
+fn the_second_camera_sees_the_same_scene_from_its_pose() {
+    let left = small_rig();
+    let second = left.default_second_camera();
+    // On the other side of the projector, as far from it as the first camera.
+    let p = left.t_cam_proj.translation.vector;
+    assert_relative_eq!(second.t_cam_second.translation.vector, 2.0 * p, epsilon = 1e-9);
+    let right = left.seen_from(&second);
+    assert_eq!(right.render.seed, left.render.seed + 1);
+    let view = VirtualRig::new(right, Scene::sphere())
+        .unwrap()
+        .view(30.0, 0)
+        .unwrap();
+    let t = &view.truth;
+    assert!(t.lit_count() > 500, "{} lit pixels", t.lit_count());
+    let t_proj_cam = left.t_cam_proj.inverse();
+    let mut worst = 0.0_f64;
+    for i in (0..t.points_cam.len()).filter(|&i| t.lit(i)) {
+        let in_left = second.t_cam_second * t.points_cam[i];
+        let q = left.projector.project(&(t_proj_cam * in_left)).unwrap();
+        worst = worst.max((q - t.projector[i]).norm());
+    }
+    assert!(worst < 1e-6, "projector coordinates differ by {worst} px");
+    // The sphere's centre, on the turntable axis, is seen near the middle of both images.
+    let centre = left.t_cam_table_at(30.0) * Point3::new(0.0, 0.0, 50.0);
+    for (model, p) in [
+        (&left.camera, centre),
+        (&second.camera, second.t_cam_second.inverse() * centre),
+    ] {
+        let px = model.project(&p).unwrap();
+        let mid = Point2::new(
+            f64::from(model.size.width) / 2.0,
+            f64::from(model.size.height) / 2.0,
+        );
+        assert!(
+            (px - mid).norm() < 0.25 * f64::from(model.size.width),
+            "{px} is far from the image centre {mid}"
+        );
+    }
+}
+
+/// Both cameras of a binocular rig see what the one projector shows on the one turntable:
+/// through the devices, each captures exactly the frame its own rig renders for that angle
+/// and that image.
+#[test]
+fn binocular_devices_share_the_projector_and_the_turntable() {
+    let left = small_rig();
+    let right = left.seen_from(&left.default_second_camera());
+    let left_rig = VirtualRig::new(left.clone(), Scene::sphere()).unwrap();
+    let right_rig = VirtualRig::new(right, Scene::sphere()).unwrap();
+    let (mut cl, mut cr, mut projector, mut table) =
+        left_rig.binocular_devices(&right_rig).unwrap();
+    let (w, h) = projector.image_size();
+    let (w, h) = (w as usize, h as usize);
+    let data = (0..w * h)
+        .map(|i| if (i % w / 8) % 2 == 0 { 255 } else { 0 })
+        .collect();
+    let stripes = GreyImage::U8(sl_codec::Frame::new(w, h, data).unwrap());
+    table.rotate_to(40.0).unwrap();
+    projector.show(&stripes).unwrap();
+    let (fl, fr) = (cl.capture().unwrap(), cr.capture().unwrap());
+    for (frame, rig) in [(&fl, &left_rig), (&fr, &right_rig)] {
+        let expected = rig.view(40.0, 0).unwrap().capture(&stripes, 0).unwrap();
+        assert_eq!(frame, &expected);
+    }
+    assert_ne!(fl, fr);
+    // Another projector size is refused, naming what differs.
+    let mut other = left.seen_from(&left.default_second_camera());
+    other.projector.size = ImageSize::new(100, 50);
+    let err = left_rig
+        .binocular_devices(&VirtualRig::new(other, Scene::sphere()).unwrap())
+        .unwrap_err();
+    assert!(err.to_string().contains("one projector"), "{err}");
+}
