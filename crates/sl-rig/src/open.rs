@@ -90,6 +90,7 @@ impl DeviceDescription {
             camera: self.camera.display().to_string(),
             projector: format!("monitor {}", self.projector_monitor),
             turntable: format!("{} id {}", self.turntable_port.display(), self.servo_id),
+            right_camera: None,
         }
     }
 

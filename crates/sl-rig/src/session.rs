@@ -6,6 +6,12 @@
 //! view goes into `SESSION/view_NNN/` as a capture set in `sl-codec`'s format: every file is
 //! written under a temporary name and renamed into place, and the view's `manifest.json` is
 //! written last — its presence marks the view complete. `SESSION/session.json` holds the plan.
+//!
+//! With a second camera ([`CaptureSession::run_binocular`]; the plan names it in
+//! [`SessionDevices::right_camera`]) each view also holds `view_NNN/right/`, the second
+//! camera's capture set of the same patterns, written before the view's own manifest. The two
+//! cameras are kept in step by the projector: each pattern stays on until both have captured
+//! their frame under it (after the display latency and each camera's flush).
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -24,6 +30,9 @@ pub const SESSION_VERSION: u32 = 1;
 /// Prefix of the temporary names files are written under before being renamed into place;
 /// [`CaptureSession::run`] deletes leftovers with this prefix when it redoes a view.
 const PARTIAL_PREFIX: &str = ".partial-";
+
+/// Folder, inside a view's (or a calibration pose's) folder, of the second camera's capture set.
+pub const RIGHT_DIR: &str = "right";
 
 /// Folder name of view `index` inside a session folder (`view_000`, `view_001`, …).
 pub fn view_dir_name(index: usize) -> String {
@@ -46,6 +55,10 @@ pub struct SessionDevices {
     pub projector: String,
     /// The turntable, e.g. `/dev/ttyUSB0 id 1`.
     pub turntable: String,
+    /// The second camera of a binocular rig, e.g. `/dev/video2`; `None` for one camera. A
+    /// plan with one captures each view with both cameras ([`CaptureSession::run_binocular`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub right_camera: Option<String>,
 }
 
 /// The plan of a capture session: where the turntable goes and what the projector shows.
@@ -309,8 +322,20 @@ impl CaptureSession {
         if !dir.is_dir() {
             return ViewState::Missing;
         }
+        let complete = self.capture_set_complete(&dir)
+            && (self.plan.devices.right_camera.is_none()
+                || self.capture_set_complete(&dir.join(RIGHT_DIR)));
+        if complete {
+            ViewState::Complete
+        } else {
+            ViewState::Partial
+        }
+    }
+
+    /// Whether `dir` holds the plan's manifest and every frame it names.
+    fn capture_set_complete(&self, dir: &Path) -> bool {
         let Ok(manifest) = Manifest::load(&dir.join(MANIFEST_FILE)) else {
-            return ViewState::Partial;
+            return false;
         };
         let frames_match = manifest.blocks.len() == self.plan.manifest.blocks.len()
             && manifest
@@ -321,11 +346,7 @@ impl CaptureSession {
         let all_there = frame_names(&self.plan.manifest)
             .iter()
             .all(|name| dir.join(name).is_file());
-        if frames_match && all_there {
-            ViewState::Complete
-        } else {
-            ViewState::Partial
-        }
+        frames_match && all_there
     }
 
     /// State of every view of the plan.
@@ -347,10 +368,63 @@ impl CaptureSession {
         camera: &mut C,
         projector: &mut P,
         turntable: &mut T,
+        on_view: impl FnMut(&ViewOutcome),
+    ) -> Result<SessionSummary, RigError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+        T: Turntable + ?Sized,
+    {
+        if let Some(right) = &self.plan.devices.right_camera {
+            return Err(RigError::param(
+                "right camera",
+                format!("the plan names a second camera ({right}): capture it with run_binocular"),
+            ));
+        }
+        self.run_cameras(camera, None::<&mut C>, projector, turntable, on_view)
+    }
+
+    /// [`CaptureSession::run`] with a second camera: under each pattern both cameras capture
+    /// a frame (`left` first), the second camera's into `view_NNN/right/`. A view is complete
+    /// when both capture sets are.
+    ///
+    /// # Errors
+    /// As [`CaptureSession::run`]; [`RigError::InvalidParameter`] when the plan names no
+    /// second camera ([`SessionDevices::right_camera`]).
+    pub fn run_binocular<C, R, P, T>(
+        &self,
+        left: &mut C,
+        right: &mut R,
+        projector: &mut P,
+        turntable: &mut T,
+        on_view: impl FnMut(&ViewOutcome),
+    ) -> Result<SessionSummary, RigError>
+    where
+        C: Camera + ?Sized,
+        R: Camera + ?Sized,
+        P: Projector + ?Sized,
+        T: Turntable + ?Sized,
+    {
+        if self.plan.devices.right_camera.is_none() {
+            return Err(RigError::param(
+                "right camera",
+                "the plan names no second camera (SessionDevices::right_camera): capture it with run",
+            ));
+        }
+        self.run_cameras(left, Some(right), projector, turntable, on_view)
+    }
+
+    fn run_cameras<C, R, P, T>(
+        &self,
+        camera: &mut C,
+        mut right: Option<&mut R>,
+        projector: &mut P,
+        turntable: &mut T,
         mut on_view: impl FnMut(&ViewOutcome),
     ) -> Result<SessionSummary, RigError>
     where
         C: Camera + ?Sized,
+        R: Camera + ?Sized,
         P: Projector + ?Sized,
         T: Turntable + ?Sized,
     {
@@ -379,15 +453,34 @@ impl CaptureSession {
                         source: Box::new(source),
                     }
                 };
+                let right_dir = dir.join(RIGHT_DIR);
                 prepare_view_dir(&dir).map_err(at(None))?;
+                if right.is_some() {
+                    prepare_view_dir(&right_dir).map_err(at(None))?;
+                }
                 let reached = turntable.rotate_to(angle).map_err(at(None))?;
                 for (k, (pattern, name)) in patterns.iter().zip(&names).enumerate() {
                     let frame = self
                         .capture_one(camera, projector, pattern)
                         .map_err(at(Some(k)))?;
+                    // The pattern is still on: the second camera captures under it too.
+                    let second = match right.as_deref_mut() {
+                        Some(r) => Some(self.grab(r, "second camera").map_err(at(Some(k)))?),
+                        None => None,
+                    };
                     let path = dir.join(name);
                     write_atomically(&path, |tmp| Ok(write_png_grey(tmp, &frame)?))
                         .map_err(at(Some(k)))?;
+                    if let Some(second) = second {
+                        let path = right_dir.join(name);
+                        write_atomically(&path, |tmp| Ok(write_png_grey(tmp, &second)?))
+                            .map_err(at(Some(k)))?;
+                    }
+                }
+                // The second camera's manifest first: the view's own marks it complete.
+                if right.is_some() {
+                    self.write_view_manifest(&right_dir, index, angle, reached)
+                        .map_err(at(None))?;
                 }
                 self.write_view_manifest(&dir, index, angle, reached)
                     .map_err(at(None))?;
@@ -427,6 +520,11 @@ impl CaptureSession {
         if !self.config.display_latency.is_zero() {
             std::thread::sleep(self.config.display_latency);
         }
+        self.grab(camera, "camera")
+    }
+
+    /// Flush → capture, the frame's size checked against the camera's.
+    fn grab<C: Camera + ?Sized>(&self, camera: &mut C, what: &str) -> Result<GreyImage, RigError> {
         for _ in 0..self.config.flush_frames {
             camera.capture()?;
         }
@@ -435,7 +533,7 @@ impl CaptureSession {
         let size = frame.size();
         if (size.width, size.height) != expected {
             return Err(RigError::ImageSize {
-                what: "camera frame".to_owned(),
+                what: format!("{what} frame"),
                 expected_width: expected.0,
                 expected_height: expected.1,
                 width: size.width,
@@ -523,6 +621,20 @@ fn plan_difference(existing: &SessionFile, new: &SessionFile) -> Option<String> 
             existing.angles_deg.len(),
             existing.angles_deg,
             new.angles_deg.len()
+        ));
+    }
+    if existing.devices.right_camera.is_some() != new.devices.right_camera.is_some() {
+        let cameras = |f: &SessionFile| {
+            if f.devices.right_camera.is_some() {
+                2
+            } else {
+                1
+            }
+        };
+        return Some(format!(
+            "holds a session captured with {} camera(s), not {}; choose another folder or allow overwriting",
+            cameras(existing),
+            cameras(new)
         ));
     }
     if existing.patterns != new.patterns {

@@ -127,6 +127,7 @@ impl VirtualRig {
             camera: format!("virtual camera {}x{}", c.width, c.height),
             projector: format!("virtual projector {}x{}", p.width, p.height),
             turntable: turntable.to_owned(),
+            right_camera: None,
         }
     }
 
@@ -156,7 +157,15 @@ impl VirtualRig {
     pub fn binocular_devices(
         &self,
         right: &VirtualRig,
-    ) -> Result<(VirtualCamera, VirtualCamera, VirtualProjector, VirtualTurntable), SimError> {
+    ) -> Result<
+        (
+            VirtualCamera,
+            VirtualCamera,
+            VirtualProjector,
+            VirtualTurntable,
+        ),
+        SimError,
+    > {
         if right.config.projector.size != self.config.projector.size {
             return Err(SimError::param(
                 "second camera's rig",

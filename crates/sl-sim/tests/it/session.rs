@@ -287,3 +287,82 @@ fn a_camera_that_sees_no_flash_is_reported() {
     let err = measure_latency(&mut cam, &mut proj, &LatencyConfig::default()).unwrap_err();
     assert!(err.to_string().contains("point the camera"), "{err}");
 }
+
+/// A session with a second camera: each view holds the second camera's capture set in
+/// `right/`, each frame the one the second camera's own rig renders under the same pattern; a
+/// second camera that dies mid-view leaves the view partial (the first camera's frames of it
+/// included) and the rerun completes it into the same files as an uninterrupted run; a
+/// one-camera run of a two-camera plan, and the other way round, are refused.
+#[test]
+fn a_two_camera_session_captures_both_and_resumes() {
+    let left = small_rig();
+    let right = VirtualRig::new(
+        left.config()
+            .seen_from(&left.config().default_second_camera()),
+        Scene::dumbbell(),
+    )
+    .unwrap();
+    let views = 2;
+    let mut plan = plan(&left, views);
+    plan.devices.right_camera = Some("virtual second camera".to_owned());
+    let frames = plan.manifest.frame_count();
+
+    let reference = tempfile::tempdir().unwrap();
+    let (mut cl, mut cr, mut proj, mut table) = left.binocular_devices(&right).unwrap();
+    let session = CaptureSession::open(reference.path(), plan.clone(), quick(false, 0)).unwrap();
+    let err = session
+        .run(&mut cl, &mut proj, &mut table, |_| {})
+        .unwrap_err();
+    assert!(err.to_string().contains("run_binocular"), "{err}");
+    let summary = session
+        .run_binocular(&mut cl, &mut cr, &mut proj, &mut table, |_| {})
+        .unwrap();
+    assert_eq!((summary.captured, summary.skipped), (views, 0));
+    let a = tree(reference.path());
+    assert_eq!(a.len(), 1 + views * 2 * (frames + 1), "{:?}", a.keys());
+    // Frame 3 of view 1 from the second camera is its rig's render under pattern 3.
+    let images = plan.manifest.sequence();
+    let pattern = images.render_image(3, plan.manifest.bit_depth).unwrap();
+    let expected = right
+        .view(plan.angles_deg[1], 0)
+        .unwrap()
+        .capture(&pattern, 0)
+        .unwrap();
+    let name = &plan.manifest.blocks[0].frames[3];
+    let read = sl_codec::read_grey8(&reference.path().join("view_001/right").join(name)).unwrap();
+    assert_eq!(GreyImage::U8(read), expected);
+
+    // The second camera dies at view 1, frame 5.
+    let resumed = tempfile::tempdir().unwrap();
+    let (mut cl, cr, mut proj, mut table) = left.binocular_devices(&right).unwrap();
+    let mut failing = FailingCamera {
+        inner: cr,
+        captures: 0,
+        fail_at: frames + 5,
+    };
+    let session = CaptureSession::open(resumed.path(), plan.clone(), quick(false, 0)).unwrap();
+    let err = session
+        .run_binocular(&mut cl, &mut failing, &mut proj, &mut table, |_| {})
+        .unwrap_err();
+    assert!(err.to_string().contains("view 1, frame 5"), "{err}");
+    assert_eq!(
+        session.view_states(),
+        vec![ViewState::Complete, ViewState::Partial]
+    );
+    let (mut cl, mut cr, mut proj, mut table) = left.binocular_devices(&right).unwrap();
+    let summary = session
+        .run_binocular(&mut cl, &mut cr, &mut proj, &mut table, |_| {})
+        .unwrap();
+    assert_eq!((summary.captured, summary.skipped), (1, 1));
+    let b = tree(resumed.path());
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (name, bytes) in &a {
+        assert!(&b[name] == bytes, "{name} differs after resuming");
+    }
+
+    // The same folder with one camera is another session.
+    let mut one = plan;
+    one.devices.right_camera = None;
+    let err = CaptureSession::open(resumed.path(), one, quick(false, 0)).unwrap_err();
+    assert!(err.to_string().contains("2 camera(s), not 1"), "{err}");
+}

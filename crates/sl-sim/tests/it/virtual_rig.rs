@@ -658,7 +658,11 @@ fn the_second_camera_sees_the_same_scene_from_its_pose() {
     let second = left.default_second_camera();
     // On the other side of the projector, as far from it as the first camera.
     let p = left.t_cam_proj.translation.vector;
-    assert_relative_eq!(second.t_cam_second.translation.vector, 2.0 * p, epsilon = 1e-9);
+    assert_relative_eq!(
+        second.t_cam_second.translation.vector,
+        2.0 * p,
+        epsilon = 1e-9
+    );
     let right = left.seen_from(&second);
     assert_eq!(right.render.seed, left.render.seed + 1);
     let view = VirtualRig::new(right, Scene::sphere())
