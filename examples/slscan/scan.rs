@@ -103,6 +103,16 @@ pub(crate) struct Args {
     /// press Enter (for scripts; 0 to 86400).
     #[arg(long, value_parser = values::in_range(0.0..=86_400.0))]
     pub(crate) placement_wait: Option<f64>,
+    /// Scan with two cameras (binocular structured light) on the virtual rig: a second camera
+    /// on the other side of the projector, both calibrated from the board captures, each view
+    /// matched between the cameras; the projector only labels the surface. The same scene,
+    /// merge and figures as the one-camera scan, for comparing the two.
+    #[arg(long)]
+    pub(crate) binocular: bool,
+    /// Exponent of the virtual projector's response, which the patterns do not pre-compensate
+    /// (1: a linear projector; 2.2: a display-calibrated one run as it comes; 0.2 to 5).
+    #[arg(long, default_value_t = 1.0, value_parser = values::in_range(0.2..=5.0))]
+    pub(crate) projector_gamma: f64,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
     #[command(flatten)]
@@ -113,6 +123,10 @@ pub(crate) struct Args {
 pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
     check_placements(args.placements).map_err(|e| anyhow::anyhow!("--placements: {e}"))?;
     if crate::scan_hardware::wanted(args)? {
+        anyhow::ensure!(
+            !args.binocular && args.projector_gamma == 1.0,
+            "--binocular and --projector-gamma are options of the virtual rig's scan: on devices, capture both cameras with `slscan capture --right-camera` and reconstruct each view with `slscan reconstruct VIEW --right VIEW/right --calib PAIR`"
+        );
         return Ok(());
     }
     anyhow::ensure!(
@@ -122,6 +136,10 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         args.placements == 1 || !args.true_poses,
         "--true-poses is a diagnostic of the single-placement scan"
+    );
+    anyhow::ensure!(
+        args.placements == 1 || !args.binocular,
+        "--binocular scans one placement: a two-camera scan in several placements is not built yet"
     );
     Ok(())
 }
@@ -183,6 +201,8 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         mesh_options: mesh_options(args),
         corners: args.corners,
         smoothing: smoothing(args),
+        binocular: args.binocular,
+        projector_gamma: args.projector_gamma,
         ..VirtualScanConfig::default()
     }
 }

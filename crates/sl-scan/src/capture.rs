@@ -93,3 +93,38 @@ where
         });
     })?)
 }
+
+/// [`capture_session`] with two cameras (binocular structured light): `cameras` is the left
+/// and the right camera; each view's `right/` folder gets the right camera's frames
+/// ([`CaptureSession::run_binocular`]). The plan names the second camera
+/// ([`sl_rig::SessionDevices::right_camera`]).
+///
+/// # Errors
+/// As [`capture_session`].
+pub fn capture_binocular_session<C, R, P, T>(
+    dir: &Path,
+    plan: SessionPlan,
+    config: SessionConfig,
+    cameras: (&mut C, &mut R),
+    projector: &mut P,
+    turntable: &mut T,
+    mut progress: impl FnMut(ScanProgress<'_>),
+) -> Result<SessionSummary, ScanError>
+where
+    C: Camera + ?Sized,
+    R: Camera + ?Sized,
+    P: Projector + ?Sized,
+    T: Turntable + ?Sized,
+{
+    let total = plan.angles_deg.len();
+    let session = CaptureSession::open(dir, plan, config)?;
+    Ok(
+        session.run_binocular(cameras.0, cameras.1, projector, turntable, |v| {
+            progress(ScanProgress {
+                stage: "capture",
+                done: v.index + 1,
+                total,
+            });
+        })?,
+    )
+}

@@ -9,7 +9,7 @@
 //! | read a calibration session (own or another program's layout) | `calibration_layout.rs` | [`CalibrationLayout`], [`PoseCapture`] |
 //! | calibrate from files (a session folder, board pictures) | `session_calibration.rs` | [`calibrate_session`], [`calibrate_camera_files`], [`calibrate_procam_files`], [`calibrate_turntable_files`] |
 //! | capture a scan session | `capture.rs` | [`capture_session`], [`scan_patterns`], [`full_turn_motor_angles`] |
-//! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`reconstruct_decoded`], [`drop_grazing`] |
+//! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`reconstruct_decoded`], [`drop_grazing`]; two cameras: [`reconstruct_binocular_session`], [`reconstruct_binocular_view`] |
 //! | merge | `merge.rs` | [`merge_scan`] |
 //! | several placements | `placements.rs`, `virtual_placements.rs` | [`capture_placements`], [`scan_placements`], [`merge_placements`], [`scan_virtual_placements`] |
 //! | scan on devices (capture, reconstruct, merge, placements, mesh) | `device_scan.rs`, `virtual_object.rs` | [`scan_devices`], [`DeviceScanConfig`], [`ScanOperator`], [`capture_device_session`], [`VirtualObjectRig`] |
@@ -123,7 +123,8 @@ pub use virtual_board::{
 pub use binocular_reconstruction::{BinocularReconstruction, reconstruct_binocular_capture};
 pub use calibrate::{load_scan_calibration, require_turntable_axis};
 pub use capture::{
-    SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_session, full_turn_motor_angles, scan_patterns,
+    SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_binocular_session, capture_session,
+    full_turn_motor_angles, scan_patterns,
 };
 pub use capture_reconstruction::{
     CaptureDecoding, CaptureReconstruction, CaptureReconstructionConfig, decode_capture,
@@ -158,8 +159,9 @@ pub use placements::{
 };
 pub use progress::{ScanProgress, StageTime};
 pub use reconstruct::{
-    ReconstructConfig, ReconstructedViews, drop_grazing, reconstruct_decoded, reconstruct_session,
-    reconstruct_view, reconstruct_view_eroded,
+    ReconstructConfig, ReconstructedViews, drop_grazing, reconstruct_binocular_session,
+    reconstruct_binocular_view, reconstruct_decoded, reconstruct_session, reconstruct_view,
+    reconstruct_view_eroded,
 };
 #[cfg(feature = "sim")]
 pub use report::write_summary_html;
@@ -172,13 +174,13 @@ pub use session_calibration::{
     calibrate_turntable_files, camera_images, layout_white_frames, session_poses,
     session_projector_size, turntable_views,
 };
-pub use session_scan::{SessionScan, SessionScanConfig, scan_session};
+pub use session_scan::{SessionScan, SessionScanConfig, scan_binocular_session, scan_session};
 pub use view_files::{
     CloudRegistration, TRANSFORM_FILE, ViewsMerge, merge_and_write, read_transform,
     register_and_write, write_preview_png,
 };
 #[cfg(feature = "sim")]
-pub use virtual_calibrate::{CalibrationSummary, calibrate_virtual};
+pub use virtual_calibrate::{CalibrationSummary, calibrate_virtual, calibrate_virtual_binocular};
 #[cfg(feature = "sim")]
 pub use virtual_object::{ObjectCamera, ObjectProjector, ObjectTurntable, VirtualObjectRig};
 #[cfg(feature = "sim")]

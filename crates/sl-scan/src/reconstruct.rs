@@ -5,14 +5,14 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Point3, Vector3};
-use sl_camera::{Calibration, TurntableAxis};
+use sl_camera::{BinocularCalibration, Calibration, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_codec::{
     CaptureSet, CorrespondenceMap, DecodeConfig, MANIFEST_FILE, SmoothConfig, decode,
     smooth_correspondences,
 };
-use sl_rig::{read_session_plan, view_dir_name};
-use sl_tri::{TriConfig, Triangulator};
+use sl_rig::{RIGHT_DIR, read_session_plan, view_dir_name};
+use sl_tri::{Binocular, BinocularConfig, TriConfig, Triangulator};
 
 use crate::calibrate::require_turntable_axis;
 use crate::error::stage_err;
@@ -117,15 +117,27 @@ pub fn reconstruct_decoded(
     if edge_erosion_px == 0 {
         return Ok(tri.cloud);
     }
-    // Erode the valid mask one 4-connected step at a time.
-    let (w, h) = (tri.width, tri.height);
     let mut valid: Vec<bool> = tri
         .status
         .iter()
         .map(|s| *s == sl_tri::PointStatus::Valid)
         .collect();
-    for _ in 0..edge_erosion_px {
-        let prev = valid.clone();
+    erode(&mut valid, tri.width, tri.height, edge_erosion_px);
+    let keep: Vec<usize> = tri
+        .cloud_pixels
+        .iter()
+        .enumerate()
+        .filter(|(_, px)| valid.get(**px as usize).copied().unwrap_or(false))
+        .map(|(i, _)| i)
+        .collect();
+    Ok(tri.cloud.select(&keep)?)
+}
+
+/// Erodes the `w × h` mask `valid` by `steps` 4-connected steps: a pixel stays valid only when
+/// it and its four neighbours were (pixels on the image border never stay).
+fn erode(valid: &mut [bool], w: usize, h: usize, steps: usize) {
+    for _ in 0..steps {
+        let prev = valid.to_vec();
         let at = |x: usize, y: usize| prev.get(y * w + x).copied().unwrap_or(false);
         for y in 0..h {
             for x in 0..w {
@@ -138,14 +150,46 @@ pub fn reconstruct_decoded(
             }
         }
     }
-    let keep: Vec<usize> = tri
-        .cloud_pixels
-        .iter()
-        .enumerate()
-        .filter(|(_, px)| valid.get(**px as usize).copied().unwrap_or(false))
-        .map(|(i, _)| i)
-        .collect();
-    Ok(tri.cloud.select(&keep)?)
+}
+
+/// Decodes the two capture sets of one view of a binocular rig (`dir` the left camera's,
+/// `dir/right` the right camera's) and matches and triangulates them as a scan does: both
+/// maps smoothed ([`ReconstructConfig::smoothing`]), the pixels within
+/// [`ReconstructConfig::edge_erosion_px`] of an undecoded pixel cleared in both (the silhouette
+/// and the rims, whose codes mix two surfaces), then [`Binocular::reconstruct`]. The cloud is
+/// in the left camera's frame.
+///
+/// # Errors
+/// The capture sets' and the decoder's; [`ScanError::Tri`] when a capture's frames are not
+/// its camera's size.
+pub fn reconstruct_binocular_view(
+    dir: &Path,
+    pair: &Binocular,
+    config: &ReconstructConfig,
+    options: &BinocularConfig,
+) -> Result<PointCloud, ScanError> {
+    let mut maps = Vec::with_capacity(2);
+    for d in [dir.to_path_buf(), dir.join(RIGHT_DIR)] {
+        let set = CaptureSet::load(&d.join(MANIFEST_FILE))?;
+        let map = decode(&set, &DecodeConfig::default())?;
+        drop(set);
+        let mut map = match &config.smoothing {
+            Some(smooth) => smooth_correspondences(&map, smooth)?,
+            None => map,
+        };
+        if config.edge_erosion_px > 0 {
+            let mut valid: Vec<bool> = map.col.iter().map(|c| c.is_finite()).collect();
+            erode(&mut valid, map.width, map.height, config.edge_erosion_px);
+            for (i, keep) in valid.into_iter().enumerate() {
+                if !keep {
+                    map.col[i] = f32::NAN;
+                    map.row[i] = f32::NAN;
+                }
+            }
+        }
+        maps.push(map);
+    }
+    Ok(pair.reconstruct(&maps[0], &maps[1], options)?.cloud)
 }
 
 /// Drops the points of one view (camera frame) whose normal is more than `max_angle_deg` from
@@ -201,20 +245,9 @@ pub fn reconstruct_session(
     session_dir: &Path,
     calibration: &Calibration,
     config: &ReconstructConfig,
-    mut progress: impl FnMut(ScanProgress<'_>),
+    progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<ReconstructedViews, ScanError> {
     let plan = read_session_plan(session_dir)?;
-    let angles = plan.angles_deg;
-    if angles.len() < 2 {
-        return Err(stage_err(
-            "reconstruct",
-            format!(
-                "{}: a turntable scan needs at least 2 views, the session has {}",
-                session_dir.display(),
-                angles.len()
-            ),
-        ));
-    }
     let axis = require_turntable_axis(
         calibration,
         plan.calibration
@@ -226,6 +259,71 @@ pub fn reconstruct_session(
         .t_cam_proj
         .map(|t| Point3::from(t.translation.vector))
         .ok_or_else(|| stage_err("reconstruct", "the calibration has no projector pose"))?;
+    let grazing = (projector_centre, config.max_view_angle_deg);
+    reconstruct_views(session_dir, plan.angles_deg, axis, grazing, progress, |dir| {
+        reconstruct_view_eroded(dir, &triangulator, config)
+    })
+}
+
+/// [`reconstruct_session`] for a session captured with two cameras (each view's `right/`
+/// folder holds the right camera's capture, `docs/capture-format.md`): each view matched and
+/// triangulated by [`reconstruct_binocular_view`] with the two-camera calibration `pair`, then
+/// [`drop_grazing`] against the left and the right camera (a point both cameras must see).
+/// The clouds are in the left camera's frame; the views are placed with `pair.turntable`.
+///
+/// # Errors
+/// As [`reconstruct_session`]; [`ScanError::Stage`] when `pair` has no turntable axis.
+pub fn reconstruct_binocular_session(
+    session_dir: &Path,
+    pair: &BinocularCalibration,
+    config: &ReconstructConfig,
+    options: &BinocularConfig,
+    progress: impl FnMut(ScanProgress<'_>),
+) -> Result<ReconstructedViews, ScanError> {
+    let plan = read_session_plan(session_dir)?;
+    let axis = pair.turntable.ok_or_else(|| {
+        stage_err(
+            "calibration",
+            format!(
+                "{}: the two-camera calibration has no turntable axis: a turntable scan needs it to place the views",
+                plan.calibration
+                    .as_deref()
+                    .unwrap_or(Path::new("the calibration"))
+                    .display()
+            ),
+        )
+    })?;
+    options.validate()?;
+    let rectified = Binocular::new(&pair.left, &pair.right, &pair.t_left_right)?;
+    let right_centre = Point3::from(pair.t_left_right.translation.vector);
+    let grazing = (right_centre, config.max_view_angle_deg);
+    reconstruct_views(session_dir, plan.angles_deg, axis, grazing, progress, |dir| {
+        reconstruct_binocular_view(dir, &rectified, config, options)
+    })
+}
+
+/// The loop of [`reconstruct_session`] and [`reconstruct_binocular_session`]: each view's
+/// folder checked, reconstructed by `view` (named in its errors), the points seen at a grazing
+/// angle from the camera or from `grazing.0` dropped ([`drop_grazing`] with the angle
+/// `grazing.1`), and reported as progress.
+fn reconstruct_views(
+    session_dir: &Path,
+    angles: Vec<f64>,
+    axis: TurntableAxis,
+    grazing: (Point3<f64>, f64),
+    mut progress: impl FnMut(ScanProgress<'_>),
+    mut view: impl FnMut(&Path) -> Result<PointCloud, ScanError>,
+) -> Result<ReconstructedViews, ScanError> {
+    if angles.len() < 2 {
+        return Err(stage_err(
+            "reconstruct",
+            format!(
+                "{}: a turntable scan needs at least 2 views, the session has {}",
+                session_dir.display(),
+                angles.len()
+            ),
+        ));
+    }
     let total = angles.len();
     let mut clouds = Vec::with_capacity(total);
     for k in 0..total {
@@ -240,7 +338,7 @@ pub fn reconstruct_session(
                 ),
             ));
         }
-        let cloud = reconstruct_view_eroded(&dir, &triangulator, config).map_err(|e| {
+        let cloud = view(&dir).map_err(|e| {
             stage_err(
                 "reconstruct",
                 format!(
@@ -249,7 +347,7 @@ pub fn reconstruct_session(
                 ),
             )
         })?;
-        let cloud = drop_grazing(cloud, &projector_centre, config.max_view_angle_deg)?;
+        let cloud = drop_grazing(cloud, &grazing.0, grazing.1)?;
         if cloud.is_empty() {
             return Err(stage_err(
                 "reconstruct",

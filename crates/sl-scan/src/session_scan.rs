@@ -23,12 +23,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use nalgebra::Isometry3;
-use sl_camera::Calibration;
+use sl_camera::{BinocularCalibration, Calibration};
 use sl_cloud::PointCloud;
+use sl_tri::BinocularConfig;
 
 use crate::{
-    MergeReport, MergeStageConfig, ReconstructConfig, ScanError, ScanProgress, StageTime,
-    merge_scan, reconstruct_session,
+    MergeReport, MergeStageConfig, ReconstructConfig, ReconstructedViews, ScanError,
+    ScanProgress, StageTime, merge_scan, reconstruct_binocular_session, reconstruct_session,
 };
 
 /// Options of [`scan_session`].
@@ -77,6 +78,41 @@ pub fn scan_session(
 ) -> Result<SessionScan, ScanError> {
     let t = Instant::now();
     let views = reconstruct_session(session_dir, calibration, &config.reconstruct, &mut progress)?;
+    merge_views(views, t, config, progress)
+}
+
+/// [`scan_session`] for a session captured with two cameras: each view matched and
+/// triangulated between the cameras ([`reconstruct_binocular_session`] with the two-camera
+/// calibration `pair`, which holds the turntable axis), then merged as [`scan_session`] does.
+/// The merged cloud is in the left camera's frame of view 0.
+///
+/// # Errors
+/// Those of [`reconstruct_binocular_session`] and [`merge_scan`].
+pub fn scan_binocular_session(
+    session_dir: &Path,
+    pair: &BinocularCalibration,
+    options: &BinocularConfig,
+    config: &SessionScanConfig,
+    mut progress: impl FnMut(ScanProgress<'_>),
+) -> Result<SessionScan, ScanError> {
+    let t = Instant::now();
+    let views = reconstruct_binocular_session(
+        session_dir,
+        pair,
+        &config.reconstruct,
+        options,
+        &mut progress,
+    )?;
+    merge_views(views, t, config, progress)
+}
+
+/// The merge stage of both scans, `t` the start of their reconstruction.
+fn merge_views(
+    views: ReconstructedViews,
+    t: Instant,
+    config: &SessionScanConfig,
+    mut progress: impl FnMut(ScanProgress<'_>),
+) -> Result<SessionScan, ScanError> {
     let mut stages = vec![StageTime::since("reconstruct", t)];
     let t = Instant::now();
     let merged = merge_scan(

@@ -10,7 +10,7 @@ use sl_calib::{
     BoardSize, ProcamConfig, ProcamView, TurntableConfig, TurntableView, calibrate_procam,
     calibrate_turntable,
 };
-use sl_camera::Calibration;
+use sl_camera::{BinocularCalibration, Calibration};
 use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frames, ImageSize, decode};
 use sl_rig::GreyImage;
 use sl_sim::{CalibrationCaptures, CalibrationSession, VirtualRig, calibration_sequence};
@@ -204,4 +204,51 @@ pub(crate) fn true_calibration(rig: &VirtualRig) -> (Calibration, CalibrationSum
         predicted_error: None,
     };
     (rig.config().calibration(), summary)
+}
+
+/// The two-camera calibration of a binocular scan on the virtual rig: both cameras, their
+/// relative pose and the turntable axis estimated from simulated board captures
+/// ([`calibrate_virtual_binocular`]), or the rig's truth with `cfg.true_calibration`; saved
+/// as `calibration.json` (a two-camera file, `"kind": "binocular"`) in `out`.
+pub(crate) fn calibrate_virtual_binocular_stage(
+    left: &VirtualRig,
+    right: &VirtualRig,
+    cfg: &VirtualScanConfig,
+    out: &Path,
+    stages: &mut Vec<StageTime>,
+    progress: impl FnMut(ScanProgress<'_>),
+) -> Result<(BinocularCalibration, CalibrationSummary, PathBuf), ScanError> {
+    let t = Instant::now();
+    let (pair, summary) = if cfg.true_calibration {
+        let (_, summary) = true_calibration(left);
+        (true_pair(left), summary)
+    } else {
+        calibrate_virtual_binocular(left, right, cfg, progress)?
+    };
+    let calib_path = out.join("calibration.json");
+    pair.save(&calib_path)?;
+    stages.push(StageTime::since("calibrate", t));
+    Ok((pair, summary, calib_path))
+}
+
+/// The binocular rig's exact calibration: the camera, its default second camera
+/// (`sl_sim::RigConfig::default_second_camera`) and the turntable axis.
+fn true_pair(left: &VirtualRig) -> BinocularCalibration {
+    let config = left.config();
+    let second = config.default_second_camera();
+    let mut pair = BinocularCalibration::new(config.camera, second.camera, second.t_cam_second);
+    pair.turntable = Some(config.turntable_axis());
+    pair.metadata.notes = "the virtual rig's true two-camera calibration".to_owned();
+    pair
+}
+
+/// Calibrates the two cameras of a binocular virtual rig and its turntable from simulated board
+/// captures.
+pub fn calibrate_virtual_binocular(
+    _left: &VirtualRig,
+    _right: &VirtualRig,
+    _cfg: &VirtualScanConfig,
+    _progress: impl FnMut(ScanProgress<'_>),
+) -> Result<(BinocularCalibration, CalibrationSummary), ScanError> {
+    Err(crate::error::stage_err("calibrate", "two-camera calibration: not yet"))
 }

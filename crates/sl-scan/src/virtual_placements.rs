@@ -23,7 +23,7 @@ use crate::error::{io, stage_err};
 use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::virtual_calibrate::calibrate_virtual_stage;
-use crate::virtual_scan::{capture_virtual, check_virtual_sessions};
+use crate::virtual_scan::{VirtualRigs, capture_virtual, check_virtual_sessions};
 use crate::{
     CalibrationSummary, MergeStageConfig, ScanError, ScanProgress, SessionScanConfig, StageTime,
     VirtualScanConfig, capture_placements, placement_dir_name, scaled_rig_config, scan_placements,
@@ -42,8 +42,12 @@ struct VirtualPlacements<'a> {
 
 impl PlacementRig for VirtualPlacements<'_> {
     fn capture(&mut self, placement: usize, dir: &Path) -> Result<usize, ScanError> {
+        let rigs = VirtualRigs {
+            left: self.rig.clone(),
+            right: None,
+        };
         let summary = capture_virtual(
-            &self.rig,
+            &rigs,
             dir,
             self.angles.clone(),
             &format!("virtual turntable, placement {placement}"),
@@ -150,6 +154,7 @@ pub fn scan_virtual_placements(
     let mut stages = Vec::new();
     let mut config = scaled_rig_config(cfg.resolution_divisor);
     config.render.seed = cfg.seed;
+    config.render.illumination.gamma = cfg.projector_gamma;
     let scene = Scene::pebble()?;
     let rig = VirtualRig::new(config, scene.clone())?;
     let sessions: Vec<_> = (0..placements)
@@ -160,7 +165,17 @@ pub fn scan_virtual_placements(
             (dir, turntable_angles(cfg.views))
         })
         .collect();
-    check_virtual_sessions(&rig, &sessions, cfg, out)?;
+    if cfg.binocular {
+        return Err(stage_err(
+            "placements",
+            "a scan in several placements runs with one camera: binocular placements are not built yet",
+        ));
+    }
+    let rigs = VirtualRigs {
+        left: rig.clone(),
+        right: None,
+    };
+    check_virtual_sessions(&rigs, &sessions, cfg, out)?;
 
     // 1. Calibrate.
     let (calibration, calibration_summary, calib_path) =

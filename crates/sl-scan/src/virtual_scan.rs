@@ -11,21 +11,22 @@ use std::time::{Duration, Instant};
 
 use nalgebra::Isometry3;
 use serde::Serialize;
-use sl_camera::{Calibration, ImageSize, Intrinsics};
+use sl_camera::{BinocularCalibration, Calibration, ImageSize, Intrinsics};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::BitDepth;
 use sl_metrology::{Report, Truth};
 use sl_rig::{SessionConfig, SessionPlan, SessionSummary, turntable_angles, view_dir_name};
 use sl_sim::{RigConfig, Scene, VirtualRig};
-use sl_tri::Triangulator;
+use sl_tri::{Binocular, BinocularConfig, Triangulator};
 
 use crate::error::{io, stage_err};
 use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
-use crate::virtual_calibrate::calibrate_virtual_stage;
+use crate::virtual_calibrate::{calibrate_virtual_binocular_stage, calibrate_virtual_stage};
 use crate::{
     CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX,
     ScanError, ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan,
-    plate_scene, plate_truth, reconstruct_view_eroded, scan_patterns, scan_session, scene_truth,
+    capture_binocular_session, plate_scene, plate_truth, reconstruct_binocular_view,
+    reconstruct_view_eroded, scan_binocular_session, scan_patterns, scan_session, scene_truth,
     write_heat_map, write_scan_cloud,
 };
 
@@ -95,6 +96,20 @@ pub struct VirtualScanConfig {
     /// Smoothing of each view's decoded coordinates before triangulation
     /// ([`ReconstructConfig::smoothing`]; a 3 × 3 window by default, `None` for none).
     pub smoothing: Option<sl_codec::SmoothConfig>,
+    /// Scan with two cameras (binocular structured light): the rig gains its default second
+    /// camera ([`RigConfig::default_second_camera`]: the camera's twin on the other side of
+    /// the projector), the calibration is of the two cameras and the turntable
+    /// ([`calibrate_virtual_binocular`](crate::calibrate_virtual_binocular)), each view is
+    /// captured by both and matched between them ([`scan_binocular_session`]); the projector
+    /// only labels the surface. The same scene, patterns, merge and measures as the
+    /// one-camera scan. Default `false`.
+    pub binocular: bool,
+    /// Exponent of the virtual projector's response (`sl_sim::Illumination::gamma`), which
+    /// the patterns do not pre-compensate: 1 (the default) is a linear projector; 2.2 a
+    /// display-calibrated one run as it comes, whose fringes are no longer sinusoids.
+    pub projector_gamma: f64,
+    /// Options of the matching between the two cameras (with `binocular`).
+    pub binocular_options: BinocularConfig,
 }
 
 impl VirtualScanConfig {
@@ -129,6 +144,9 @@ impl Default for VirtualScanConfig {
             mesh_options: MeshConfig::default(),
             corners: sl_calib::CornerRefiner::default(),
             smoothing: ReconstructConfig::default().smoothing,
+            binocular: false,
+            projector_gamma: 1.0,
+            binocular_options: BinocularConfig::default(),
         }
     }
 }
@@ -163,8 +181,11 @@ pub struct ScanFiles {
 /// Everything [`scan_virtual`] produced.
 #[derive(Debug, Clone)]
 pub struct ScanResult {
-    /// The estimated calibration used for the scan.
+    /// The estimated calibration used for the scan (in a binocular scan: the left camera and
+    /// the turntable axis; the pair is `pair`).
     pub calibration: Calibration,
+    /// The two-camera calibration of a binocular scan ([`VirtualScanConfig::binocular`]).
+    pub pair: Option<BinocularCalibration>,
     /// How good it is.
     pub calibration_summary: CalibrationSummary,
     /// Points triangulated in each view.
@@ -213,18 +234,23 @@ pub fn scaled_rig_config(d: u32) -> RigConfig {
 
 /// The plan and settings of [`capture_virtual`]'s session.
 fn virtual_session(
-    rig: &VirtualRig,
+    rig: &VirtualRigs,
     angles_deg: Vec<f64>,
     turntable: &str,
     cfg: &VirtualScanConfig,
     calibration: &Path,
 ) -> (SessionPlan, SessionConfig) {
-    let psize = rig.config().projector.size;
+    let psize = rig.left.config().projector.size;
+    let mut devices = rig.left.session_devices(turntable);
+    if let Some(right) = &rig.right {
+        let c = right.config().camera.size;
+        devices.right_camera = Some(format!("virtual camera {}x{}", c.width, c.height));
+    }
     let plan = SessionPlan {
         angles_deg,
         manifest: scan_patterns(ImageSize::new(psize.width, psize.height), cfg.period_px)
             .manifest(BitDepth::Eight),
-        devices: rig.session_devices(turntable),
+        devices,
         calibration: Some(calibration.to_path_buf()),
     };
     let config = SessionConfig {
@@ -240,7 +266,7 @@ fn virtual_session(
 /// calibration the scan writes first would otherwise replace the one those sessions were
 /// captured with, and then the capture be refused.
 pub(crate) fn check_virtual_sessions(
-    rig: &VirtualRig,
+    rig: &VirtualRigs,
     dirs: &[(std::path::PathBuf, Vec<f64>)],
     cfg: &VirtualScanConfig,
     out: &Path,
@@ -258,7 +284,7 @@ pub(crate) fn check_virtual_sessions(
 /// virtual rig's session settings: no display latency, nothing to flush. `turntable` names
 /// the turntable in the session's devices.
 pub(crate) fn capture_virtual(
-    rig: &VirtualRig,
+    rig: &VirtualRigs,
     dir: &Path,
     angles_deg: Vec<f64>,
     turntable: &str,
@@ -267,16 +293,81 @@ pub(crate) fn capture_virtual(
     progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<SessionSummary, ScanError> {
     let (plan, config) = virtual_session(rig, angles_deg, turntable, cfg, calibration);
-    let (mut camera, mut projector, mut table) = rig.devices();
-    capture_session(
-        dir,
-        plan,
-        config,
-        &mut camera,
-        &mut projector,
-        &mut table,
-        progress,
-    )
+    match &rig.right {
+        None => {
+            let (mut camera, mut projector, mut table) = rig.left.devices();
+            capture_session(
+                dir,
+                plan,
+                config,
+                &mut camera,
+                &mut projector,
+                &mut table,
+                progress,
+            )
+        }
+        Some(right) => {
+            let (mut left, mut right, mut projector, mut table) =
+                rig.left.binocular_devices(right)?;
+            capture_binocular_session(
+                dir,
+                plan,
+                config,
+                (&mut left, &mut right),
+                &mut projector,
+                &mut table,
+                progress,
+            )
+        }
+    }
+}
+
+/// The virtual rig of a scan: its camera, and the second camera of a binocular scan (the same
+/// scene seen from [`RigConfig::default_second_camera`]).
+#[derive(Debug, Clone)]
+pub(crate) struct VirtualRigs {
+    pub(crate) left: VirtualRig,
+    pub(crate) right: Option<VirtualRig>,
+}
+
+impl VirtualRigs {
+    /// The rig of `config` looking at `scene`, with the second camera when `binocular`.
+    pub(crate) fn new(config: RigConfig, scene: Scene, binocular: bool) -> Result<Self, ScanError> {
+        let right = if binocular {
+            let second = config.default_second_camera();
+            Some(VirtualRig::new(
+                config.seen_from(&second),
+                scene.seen_from(&second),
+            )?)
+        } else {
+            None
+        };
+        Ok(Self {
+            left: VirtualRig::new(config, scene)?,
+            right,
+        })
+    }
+
+    /// The same cameras looking at `scene`.
+    fn with_scene(&self, scene: Scene) -> Result<Self, ScanError> {
+        let right = match &self.right {
+            Some(r) => {
+                let second = self.left.config().default_second_camera();
+                Some(r.with_scene(scene.seen_from(&second))?)
+            }
+            None => None,
+        };
+        Ok(Self {
+            left: self.left.with_scene(scene)?,
+            right,
+        })
+    }
+}
+
+/// The calibration a scan reconstructs with: the camera and the projector, or two cameras.
+enum ScanCalibration {
+    Monocular(Calibration),
+    Binocular(BinocularCalibration),
 }
 
 /// Runs the whole scan on the virtual rig into `out`: the estimated calibration
@@ -300,7 +391,8 @@ pub fn scan_virtual(
     let mut stages = Vec::new();
     let mut config = scaled_rig_config(cfg.resolution_divisor);
     config.render.seed = cfg.seed;
-    let rig = VirtualRig::new(config, Scene::dumbbell())?;
+    config.render.illumination.gamma = cfg.projector_gamma;
+    let rig = VirtualRigs::new(config, Scene::dumbbell(), cfg.binocular)?;
     let angles = turntable_angles(cfg.views);
     let session_dir = out.join("session");
     let plate_dir = out.join("plate_session");
@@ -311,8 +403,24 @@ pub fn scan_virtual(
     check_virtual_sessions(&rig, &sessions, cfg, out)?;
 
     // 1. Calibrate.
-    let (calibration, calibration_summary, calib_path) =
-        calibrate_virtual_stage(&rig, cfg, out, &mut stages, &mut progress)?;
+    let (calibration, calibration_summary, calib_path) = match &rig.right {
+        None => {
+            let (c, summary, path) =
+                calibrate_virtual_stage(&rig.left, cfg, out, &mut stages, &mut progress)?;
+            (ScanCalibration::Monocular(c), summary, path)
+        }
+        Some(right) => {
+            let (c, summary, path) = calibrate_virtual_binocular_stage(
+                &rig.left,
+                right,
+                cfg,
+                out,
+                &mut stages,
+                &mut progress,
+            )?;
+            (ScanCalibration::Binocular(c), summary, path)
+        }
+    };
 
     // 2. Capture the turntable session through the device traits.
     let t = Instant::now();
@@ -331,11 +439,12 @@ pub fn scan_virtual(
     // from the calibrated turntable axis, or the rig's true poses (diagnostic).
     let poses = cfg.true_poses.then(|| {
         let t_cam_table0 = rig
+            .left
             .config()
             .t_cam_table_at(angles.first().copied().unwrap_or(0.0));
         angles
             .iter()
-            .map(|&a| t_cam_table0 * rig.config().t_cam_table_at(a).inverse())
+            .map(|&a| t_cam_table0 * rig.left.config().t_cam_table_at(a).inverse())
             .collect::<Vec<Isometry3<f64>>>()
     });
     let scan_config = SessionScanConfig {
@@ -347,7 +456,18 @@ pub fn scan_virtual(
         ),
         poses,
     };
-    let scan = scan_session(&session_dir, &calibration, &scan_config, &mut progress)?;
+    let scan = match &calibration {
+        ScanCalibration::Monocular(c) => {
+            scan_session(&session_dir, c, &scan_config, &mut progress)?
+        }
+        ScanCalibration::Binocular(pair) => scan_binocular_session(
+            &session_dir,
+            pair,
+            &cfg.binocular_options,
+            &scan_config,
+            &mut progress,
+        )?,
+    };
     stages.extend(scan.stages.iter().cloned());
 
     // 4. The flatness plate: one more capture, through the same calibration, decoding and
@@ -369,12 +489,18 @@ pub fn scan_virtual(
             &calib_path,
             |_| {},
         )?;
-        let triangulator = Triangulator::new(&calibration)?;
-        let cloud = reconstruct_view_eroded(
-            &plate_dir.join(view_dir_name(0)),
-            &triangulator,
-            &cfg.reconstruct(),
-        )?;
+        let view = plate_dir.join(view_dir_name(0));
+        let cloud = match &calibration {
+            ScanCalibration::Monocular(c) => {
+                reconstruct_view_eroded(&view, &Triangulator::new(c)?, &cfg.reconstruct())?
+            }
+            ScanCalibration::Binocular(pair) => reconstruct_binocular_view(
+                &view,
+                &Binocular::new(&pair.left, &pair.right, &pair.t_left_right)?,
+                &cfg.reconstruct(),
+                &cfg.binocular_options,
+            )?,
+        };
         write_ply(&out.join("plate.ply"), &cloud, PlyFormat::default())?;
         plate_truth().save(&out.join("plate_truth.json"))?;
         progress(ScanProgress {
@@ -391,7 +517,7 @@ pub fn scan_virtual(
     // 5. Measure against the truth (sl-metrology, from the truth files a user can re-run
     // `slscan report` on).
     let t = Instant::now();
-    let truth = scene_truth(&rig, angles.first().copied().unwrap_or(0.0));
+    let truth = scene_truth(&rig.left, angles.first().copied().unwrap_or(0.0));
     truth.save(&out.join("truth.json"))?;
     let measured = measure_scan(&scan.merged, &scan.first_view, &truth, plate.as_ref())?;
     stages.push(StageTime::since("measure", t));
@@ -434,8 +560,17 @@ pub fn scan_virtual(
         None => (None, None),
     };
 
+    let (calibration, pair) = match calibration {
+        ScanCalibration::Monocular(c) => (c, None),
+        ScanCalibration::Binocular(pair) => {
+            let mut c = Calibration::new(pair.left);
+            c.turntable = pair.turntable;
+            (c, Some(pair))
+        }
+    };
     Ok(ScanResult {
         calibration,
+        pair,
         calibration_summary,
         view_points: scan.view_points,
         views_captured: summary.captured,

@@ -329,6 +329,23 @@ pub fn upright_facing_camera() -> UnitQuaternion<f64> {
 }
 
 impl Scene {
+    /// The same scene for the second camera `second` (with [`RigConfig::seen_from`]): objects
+    /// fixed to the camera (a plate held in front of the rig) stay where they are in the first
+    /// camera's frame; objects on the turntable move with the rig's `t_cam_table` already.
+    ///
+    /// [`RigConfig::seen_from`]: crate::RigConfig::seen_from
+    #[must_use]
+    pub fn seen_from(&self, second: &crate::SecondCamera) -> Scene {
+        let t_second_cam = second.t_cam_second.inverse();
+        let mut scene = self.clone();
+        for o in &mut scene.objects {
+            if o.mount == Mount::Camera {
+                o.pose = t_second_cam * o.pose;
+            }
+        }
+        scene
+    }
+
     /// An empty scene.
     pub fn new() -> Self {
         Self::default()
