@@ -22,6 +22,7 @@ use sl_camera::CameraModel;
 use sl_cloud::PointCloud;
 use sl_codec::CorrespondenceMap;
 
+use crate::grid_normals::cloud_normals;
 use crate::mixed_pixels::filter_mixed_pixels;
 use crate::{PointStatus, TriError};
 
@@ -470,33 +471,16 @@ impl Binocular {
             }
         }
         counts.valid -= counts.mixed_pixels + counts.isolated;
-        let grid: Vec<Option<Point3<f64>>> = xyz
-            .into_iter()
-            .map(|p| p.z.is_finite().then_some(p))
+        // Normals from the rectified grid, as the one-camera triangulation's (central
+        // differences; zero where a point has no neighbour pair).
+        const BAND_ROWS: usize = 16;
+        let counts: Vec<usize> = xyz
+            .chunks(w * BAND_ROWS)
+            .map(|band| band.iter().filter(|p| p.z.is_finite()).count())
             .collect();
-        let at = |x: usize, y: usize| grid.get(y * w + x).copied().flatten();
-        let mut positions = Vec::new();
-        let mut normals = Vec::new();
-        for (i, p) in grid.iter().enumerate() {
-            let Some(p) = p else { continue };
-            let (x, y) = (i % w, i / w);
-            let dx = at(x + 1, y)
-                .or_else(|| x.checked_sub(1).and_then(|x| at(x, y)).map(|q| p + (p - q)));
-            let dy = at(x, y + 1)
-                .or_else(|| y.checked_sub(1).and_then(|y| at(x, y)).map(|q| p + (p - q)));
-            let n = match (dx, dy) {
-                (Some(a), Some(b)) => {
-                    let n = (a - p).cross(&(b - p));
-                    // Facing the camera (at the origin of the left frame).
-                    let n = if n.dot(&p.coords) > 0.0 { -n } else { n };
-                    n.try_normalize(1e-12)
-                        .unwrap_or_else(|| -p.coords.normalize())
-                }
-                _ => -p.coords.normalize(),
-            };
-            positions.push(*p);
-            normals.push(n);
-        }
+        let positions: Vec<Point3<f64>> = xyz.iter().filter(|p| p.z.is_finite()).copied().collect();
+        let mut normals = vec![Vector3::zeros(); positions.len()];
+        cloud_normals(&xyz, w, BAND_ROWS, &counts, &mut normals);
         Ok(PointCloud::from_positions(positions).with_normals(normals)?)
     }
 }
