@@ -113,6 +113,15 @@ pub(crate) struct Args {
     /// (1: a linear projector; 2.2: a display-calibrated one run as it comes; 0.2 to 5).
     #[arg(long, default_value_t = 1.0, value_parser = values::in_range(0.2..=5.0))]
     pub(crate) projector_gamma: f64,
+    /// The virtual projector's lens distortion instead of the rig's: OpenCV's coefficients
+    /// `k1,k2,p1,p2,k3` or, for the rational model, `k1,k2,p1,p2,k3,k4,k5,k6` (the
+    /// calibration estimates 5 coefficients; `docs/binocular.md` compares the two scans).
+    #[arg(long, value_parser = values::distortion)]
+    pub(crate) projector_distortion: Option<structured_light::camera::Distortion>,
+    /// Turn the virtual projector by this many degrees (about its vertical axis) between the
+    /// calibration and the scan, as a projector warming up or knocked does (-5 to 5).
+    #[arg(long, default_value_t = 0.0, value_parser = values::in_range(-5.0..=5.0))]
+    pub(crate) projector_drift: f64,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
     #[command(flatten)]
@@ -124,8 +133,11 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
     check_placements(args.placements).map_err(|e| anyhow::anyhow!("--placements: {e}"))?;
     if crate::scan_hardware::wanted(args)? {
         anyhow::ensure!(
-            !args.binocular && args.projector_gamma == 1.0,
-            "--binocular and --projector-gamma are options of the virtual rig's scan: on devices, capture both cameras with `slscan capture --right-camera` and reconstruct each view with `slscan reconstruct VIEW --right VIEW/right --calib PAIR`"
+            !args.binocular
+                && args.projector_gamma == 1.0
+                && args.projector_distortion.is_none()
+                && args.projector_drift == 0.0,
+            "--binocular, --projector-gamma, --projector-distortion and --projector-drift are options of the virtual rig's scan: on devices, capture both cameras with `slscan capture --right-camera` and reconstruct each view with `slscan reconstruct VIEW --right VIEW/right --calib PAIR`"
         );
         return Ok(());
     }
@@ -203,6 +215,8 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         smoothing: smoothing(args),
         binocular: args.binocular,
         projector_gamma: args.projector_gamma,
+        projector_distortion: args.projector_distortion,
+        projector_drift_deg: args.projector_drift,
         ..VirtualScanConfig::default()
     }
 }

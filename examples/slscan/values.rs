@@ -86,6 +86,16 @@ pub(crate) fn positive_or_inf(s: &str) -> Result<f64, String> {
     }
 }
 
+/// OpenCV's distortion coefficients, comma-separated: 4, 5, 8, 12 or 14 finite numbers (thin
+/// prism and tilt terms must be zero: `sl_camera::Distortion::from_opencv`).
+pub(crate) fn distortion(s: &str) -> Result<structured_light::camera::Distortion, String> {
+    let k = s
+        .split(',')
+        .map(|v| number(v.trim()))
+        .collect::<Result<Vec<f64>, String>>()?;
+    structured_light::camera::Distortion::from_opencv(&k).map_err(|e| e.to_string())
+}
+
 /// Finite and within `range` (both ends included).
 pub(crate) fn in_range(
     range: RangeInclusive<f64>,

@@ -45,6 +45,7 @@ impl PlacementRig for VirtualPlacements<'_> {
         let rigs = VirtualRigs {
             left: self.rig.clone(),
             right: None,
+            second: None,
         };
         let summary = capture_virtual(
             &rigs,
@@ -174,6 +175,7 @@ pub fn scan_virtual_placements(
     let rigs = VirtualRigs {
         left: rig.clone(),
         right: None,
+        second: None,
     };
     check_virtual_sessions(&rigs, &sessions, cfg, out)?;
 

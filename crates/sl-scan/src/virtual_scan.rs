@@ -16,7 +16,7 @@ use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::BitDepth;
 use sl_metrology::{Report, Truth};
 use sl_rig::{SessionConfig, SessionPlan, SessionSummary, turntable_angles, view_dir_name};
-use sl_sim::{RigConfig, Scene, VirtualRig};
+use sl_sim::{RigConfig, Scene, SecondCamera, VirtualRig};
 use sl_tri::{Binocular, BinocularConfig, Triangulator};
 
 use crate::error::{io, stage_err};
@@ -110,6 +110,16 @@ pub struct VirtualScanConfig {
     pub projector_gamma: f64,
     /// Options of the matching between the two cameras (with `binocular`).
     pub binocular_options: BinocularConfig,
+    /// The virtual projector's lens distortion instead of the rig's (OpenCV's coefficients:
+    /// 5, or 8 for the rational model). The calibration still estimates the 5-coefficient
+    /// model (OpenCV's default): a rational projector lens is one it cannot represent, which
+    /// a one-camera scan triangulates with and a two-camera scan never uses. Default `None`.
+    pub projector_distortion: Option<sl_camera::Distortion>,
+    /// The projector turns by this angle (degrees, about its own vertical axis) between the
+    /// calibration and the scan: the drift of a projector warming up, or knocked. A one-camera
+    /// scan triangulates with the calibrated pose; a two-camera scan does not use it.
+    /// Default 0.
+    pub projector_drift_deg: f64,
 }
 
 impl VirtualScanConfig {
@@ -147,6 +157,8 @@ impl Default for VirtualScanConfig {
             binocular: false,
             projector_gamma: 1.0,
             binocular_options: BinocularConfig::default(),
+            projector_distortion: None,
+            projector_drift_deg: 0.0,
         }
     }
 }
@@ -328,38 +340,41 @@ pub(crate) fn capture_virtual(
 pub(crate) struct VirtualRigs {
     pub(crate) left: VirtualRig,
     pub(crate) right: Option<VirtualRig>,
+    /// Where the second camera is in the first's frame.
+    pub(crate) second: Option<SecondCamera>,
 }
 
 impl VirtualRigs {
-    /// The rig of `config` looking at `scene`, with the second camera when `binocular`.
-    pub(crate) fn new(config: RigConfig, scene: Scene, binocular: bool) -> Result<Self, ScanError> {
-        let right = if binocular {
-            let second = config.default_second_camera();
-            Some(VirtualRig::new(
-                config.seen_from(&second),
-                scene.seen_from(&second),
-            )?)
-        } else {
-            None
+    /// The rig of `config` looking at `scene`, with the camera `second` when there is one.
+    pub(crate) fn new(
+        config: RigConfig,
+        scene: Scene,
+        second: Option<&SecondCamera>,
+    ) -> Result<Self, ScanError> {
+        let right = match second {
+            Some(second) => Some(VirtualRig::new(
+                config.seen_from(second),
+                scene.seen_from(second),
+            )?),
+            None => None,
         };
         Ok(Self {
             left: VirtualRig::new(config, scene)?,
             right,
+            second: second.copied(),
         })
     }
 
     /// The same cameras looking at `scene`.
     fn with_scene(&self, scene: Scene) -> Result<Self, ScanError> {
-        let right = match &self.right {
-            Some(r) => {
-                let second = self.left.config().default_second_camera();
-                Some(r.with_scene(scene.seen_from(&second))?)
-            }
-            None => None,
+        let right = match (&self.right, &self.second) {
+            (Some(r), Some(second)) => Some(r.with_scene(scene.seen_from(second))?),
+            _ => None,
         };
         Ok(Self {
             left: self.left.with_scene(scene)?,
             right,
+            second: self.second,
         })
     }
 }
@@ -392,7 +407,33 @@ pub fn scan_virtual(
     let mut config = scaled_rig_config(cfg.resolution_divisor);
     config.render.seed = cfg.seed;
     config.render.illumination.gamma = cfg.projector_gamma;
-    let rig = VirtualRigs::new(config, Scene::dumbbell(), cfg.binocular)?;
+    if let Some(d) = cfg.projector_distortion {
+        config.projector.distortion = d;
+    }
+    if !(cfg.projector_drift_deg.is_finite() && cfg.projector_drift_deg.abs() <= 90.0) {
+        return Err(stage_err(
+            "capture",
+            format!(
+                "projector_drift_deg {} must be a finite angle of at most 90 degrees",
+                cfg.projector_drift_deg
+            ),
+        ));
+    }
+    // The second camera stands where the rig puts it, whatever the projector does later.
+    let second = cfg.binocular.then(|| config.default_second_camera());
+    let calibration_rig = VirtualRigs::new(config.clone(), Scene::dumbbell(), second.as_ref())?;
+    // The rig the scan captures with: the projector drifted after the calibration.
+    let rig = if cfg.projector_drift_deg == 0.0 {
+        calibration_rig.clone()
+    } else {
+        let turn = nalgebra::UnitQuaternion::from_axis_angle(
+            &nalgebra::Vector3::y_axis(),
+            cfg.projector_drift_deg.to_radians(),
+        );
+        let mut drifted = config;
+        drifted.t_cam_proj.rotation *= turn;
+        VirtualRigs::new(drifted, Scene::dumbbell(), second.as_ref())?
+    };
     let angles = turntable_angles(cfg.views);
     let session_dir = out.join("session");
     let plate_dir = out.join("plate_session");
@@ -403,15 +444,20 @@ pub fn scan_virtual(
     check_virtual_sessions(&rig, &sessions, cfg, out)?;
 
     // 1. Calibrate.
-    let (calibration, calibration_summary, calib_path) = match &rig.right {
+    let (calibration, calibration_summary, calib_path) = match &calibration_rig.right {
         None => {
-            let (c, summary, path) =
-                calibrate_virtual_stage(&rig.left, cfg, out, &mut stages, &mut progress)?;
+            let (c, summary, path) = calibrate_virtual_stage(
+                &calibration_rig.left,
+                cfg,
+                out,
+                &mut stages,
+                &mut progress,
+            )?;
             (ScanCalibration::Monocular(c), summary, path)
         }
         Some(right) => {
             let (c, summary, path) = calibrate_virtual_binocular_stage(
-                &rig.left,
+                &calibration_rig.left,
                 right,
                 cfg,
                 out,
