@@ -189,12 +189,14 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Sc
 <p>Probing form: range of the radial residuals of the least-squares sphere over all its points, and with the 0.3 % farthest left out as VDI/VDE 2634 part 2 allows.</p>
 <p><a href="{heat}"><img src="{heat}" width="480"></a><br>Signed distance to the true surface, blue −{range} mm to red +{range} mm.</p>
 {mesh}{flatness}<h2>Calibration (estimated from simulated board captures)</h2>
-<p>RMS camera {rc:.3} px, projector {rp:.3} px, stereo {rs:.3} px, turntable {rt:.3} px; camera fx error {fxc:+.4} %, projector fx error {fxp:+.4} %, baseline error {base:.3} mm; axis direction error {ad:.4}°, position error {ap:.3} mm.</p>
+<p>RMS {first} {rc:.3} px, {second} {rp:.3} px, stereo {rs:.3} px, turntable {rt:.3} px; {first} fx error {fxc:+.4} %, {second} fx error {fxp:+.4} %, baseline error {base:.3} mm; axis direction error {ad:.4}°, position error {ap:.3} mm.</p>
 <h2>Stages</h2>
 <table>{stages}</table>
 </body></html>
 "#,
         views = result.view_points.len(),
+        first = if result.pair.is_some() { "left camera" } else { "camera" },
+        second = if result.pair.is_some() { "right camera" } else { "projector" },
         points = result.merged.len(),
         merged = result.files.merged,
         calib = result.files.calibration,

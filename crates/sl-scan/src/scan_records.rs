@@ -96,8 +96,13 @@ impl ScanResult {
     #[must_use]
     pub fn summary(&self, out: &Path, views: usize) -> Vec<String> {
         let c = &self.calibration_summary;
+        // In a binocular scan the second device of the calibration is the right camera.
+        let (first, second) = match self.pair {
+            Some(_) => ("left camera", "right camera"),
+            None => ("camera", "projector"),
+        };
         let mut lines = vec![format!(
-            "calibration: RMS camera {:.3} px, projector {:.3} px, stereo {:.3} px; axis {:.4} deg / {:.3} mm off the truth",
+            "calibration: RMS {first} {:.3} px, {second} {:.3} px, stereo {:.3} px; axis {:.4} deg / {:.3} mm off the truth",
             c.rms_camera_px,
             c.rms_projector_px,
             c.rms_stereo_px,

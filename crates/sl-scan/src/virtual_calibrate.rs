@@ -24,7 +24,9 @@ pub struct CalibrationSummary {
     pub sources: Vec<String>,
     /// Board poses used / rendered.
     pub poses_used: usize,
-    /// RMS reprojection errors (px): camera alone, projector alone, joint.
+    /// RMS reprojection errors (px): camera alone, projector alone, joint. In a binocular
+    /// scan the fields named `projector` are the right camera's, `camera` the left one's,
+    /// and the baseline is the cameras'.
     pub rms_camera_px: f64,
     /// See `rms_camera_px`.
     pub rms_projector_px: f64,
