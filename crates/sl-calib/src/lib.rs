@@ -51,6 +51,7 @@ mod predicted;
 mod procam;
 mod saddle;
 mod stereo;
+mod stereo_cameras;
 mod turntable;
 mod zhang;
 
@@ -68,6 +69,10 @@ pub use pictures::{
 pub use predicted::{PREDICTED_BOUND_SIGMAS, PredictedError};
 pub use procam::{
     ProcamCalibration, ProcamConfig, ProcamView, ProcamViewReport, SkippedView, calibrate_procam,
+};
+pub use stereo_cameras::{
+    StereoCameraCalibration, StereoCameraConfig, StereoCameraView, StereoCameraViewReport,
+    calibrate_stereo_cameras,
 };
 pub use turntable::{
     MIN_TURNTABLE_VIEWS, PoseAtAngle, TurntableCalibration, TurntableConfig, TurntableStdDev,

@@ -2,14 +2,14 @@
 //! mapped into the projector by local homographies of the decoded patterns, each device
 //! calibrated by Zhang's method, then everything refined jointly.
 
-use nalgebra::{Isometry3, Matrix3, Point2, Point3, Vector2, Vector3};
+use nalgebra::{Isometry3, Point2, Point3, Vector2};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use sl_camera::{Calibration, ImageSize, RmsErrors, RvecTvec, isometry_from_rt};
+use sl_camera::{Calibration, ImageSize, RmsErrors, RvecTvec};
 use sl_codec::{CorrespondenceMap, Frame};
 
 use crate::predicted::PredictedError;
-use crate::stereo::{StereoOptions, StereoStart, StereoView, refine_stereo};
+use crate::stereo::{StereoOptions, StereoStart, StereoView, mean_relative_pose, refine_stereo};
 use crate::zhang::calibrate_camera_subsets;
 use crate::{
     BoardCorners, BoardSize, CalibError, CalibrationView, CameraCalibration, DetectorConfig,
@@ -370,30 +370,17 @@ fn calibrate_from_corners(
     let projector_alone =
         calibrate_camera_subsets(&projector_views, cfg.projector_size, &cfg.projector)?;
     // T_proj_cam from every view seen by both: the chordal mean of the rotations.
-    let mut r_sum = Matrix3::zeros();
-    let mut t_sum = Vector3::zeros();
-    for (pose_p, &k) in projector_alone.poses.iter().zip(&projector_index) {
-        let Some(pose_c) = camera_alone.poses.get(k) else {
-            continue;
-        };
-        let t = pose_p.to_isometry() * pose_c.to_isometry().inverse();
-        r_sum += t.rotation.to_rotation_matrix().into_inner();
-        t_sum += t.translation.vector;
-    }
-    let n = projector_index.len() as f64;
-    let svd = r_sum.svd(true, true);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
-        return Err(CalibError::Degenerate(
-            "the per-view camera-to-projector rotations have no mean".to_owned(),
-        ));
-    };
-    let mut rot = u * vt;
-    if rot.determinant() < 0.0 {
-        let mut u = u;
-        u.column_mut(2).neg_mut();
-        rot = u * vt;
-    }
-    let start_extrinsics = RvecTvec::from_isometry(&isometry_from_rt(&rot, &(t_sum / n))?);
+    let start_extrinsics = mean_relative_pose(
+        projector_alone
+            .poses
+            .iter()
+            .zip(&projector_index)
+            .filter_map(|(pose_p, &k)| {
+                let pose_c = camera_alone.poses.get(k)?;
+                Some(pose_p.to_isometry() * pose_c.to_isometry().inverse())
+            }),
+        "camera-to-projector",
+    )?;
     // Joint refinement.
     let projector_points: Vec<Vec<Option<Point2<f64>>>> =
         found.iter().map(|f| f.projector.points()).collect();

@@ -4,7 +4,7 @@
 //! complement over the per-view poses (`lm.rs`, as Zhang's calibration).
 
 use nalgebra::{DMatrix, DVector, Matrix6, Point2, Point3, SMatrix, Vector2, Vector3, Vector6};
-use sl_camera::{CameraModel, ImageSize, RvecTvec, rotation_jacobian};
+use sl_camera::{CameraModel, ImageSize, RvecTvec, isometry_from_rt, rotation_jacobian};
 
 use crate::CalibError;
 use crate::lm::{
@@ -14,6 +14,48 @@ use crate::zhang::{FULL, Layout, camera_from_full};
 use crate::{ParameterStdDev, ZhangConfig};
 
 use crate::predicted::SHARED;
+
+/// The mean of per-view relative poses (`T_b_a` from each view's `T_b_board · T_a_board⁻¹`):
+/// the chordal mean of the rotations (the rotation nearest the sum of their matrices) and the
+/// mean of the translations; the start of a joint refinement. `what` names the pose in the
+/// error.
+///
+/// # Errors
+/// [`CalibError::Degenerate`] without a pose or when the rotations have no mean.
+pub(crate) fn mean_relative_pose(
+    poses: impl Iterator<Item = nalgebra::Isometry3<f64>>,
+    what: &str,
+) -> Result<RvecTvec, CalibError> {
+    let mut r_sum = nalgebra::Matrix3::zeros();
+    let mut t_sum = Vector3::zeros();
+    let mut n = 0usize;
+    for t in poses {
+        r_sum += t.rotation.to_rotation_matrix().into_inner();
+        t_sum += t.translation.vector;
+        n += 1;
+    }
+    let svd = r_sum.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return Err(CalibError::Degenerate(format!(
+            "the per-view {what} rotations have no mean"
+        )));
+    };
+    if n == 0 {
+        return Err(CalibError::Degenerate(format!(
+            "no view gives a {what} pose"
+        )));
+    }
+    let mut rot = u * vt;
+    if rot.determinant() < 0.0 {
+        let mut u = u;
+        u.column_mut(2).neg_mut();
+        rot = u * vt;
+    }
+    Ok(RvecTvec::from_isometry(&isometry_from_rt(
+        &rot,
+        &(t_sum / n as f64),
+    )?))
+}
 
 /// One board view: the board points, their camera pixels and (where mapped) projector pixels.
 pub(crate) struct StereoView<'a> {

@@ -260,9 +260,14 @@ pub fn reconstruct_session(
         .map(|t| Point3::from(t.translation.vector))
         .ok_or_else(|| stage_err("reconstruct", "the calibration has no projector pose"))?;
     let grazing = (projector_centre, config.max_view_angle_deg);
-    reconstruct_views(session_dir, plan.angles_deg, axis, grazing, progress, |dir| {
-        reconstruct_view_eroded(dir, &triangulator, config)
-    })
+    reconstruct_views(
+        session_dir,
+        plan.angles_deg,
+        axis,
+        grazing,
+        progress,
+        |dir| reconstruct_view_eroded(dir, &triangulator, config),
+    )
 }
 
 /// [`reconstruct_session`] for a session captured with two cameras (each view's `right/`
@@ -297,9 +302,14 @@ pub fn reconstruct_binocular_session(
     let rectified = Binocular::new(&pair.left, &pair.right, &pair.t_left_right)?;
     let right_centre = Point3::from(pair.t_left_right.translation.vector);
     let grazing = (right_centre, config.max_view_angle_deg);
-    reconstruct_views(session_dir, plan.angles_deg, axis, grazing, progress, |dir| {
-        reconstruct_binocular_view(dir, &rectified, config, options)
-    })
+    reconstruct_views(
+        session_dir,
+        plan.angles_deg,
+        axis,
+        grazing,
+        progress,
+        |dir| reconstruct_binocular_view(dir, &rectified, config, options),
+    )
 }
 
 /// The loop of [`reconstruct_session`] and [`reconstruct_binocular_session`]: each view's

@@ -195,8 +195,16 @@ pub fn write_summary_html(out: &Path, result: &ScanResult) -> Result<PathBuf, Sc
 </body></html>
 "#,
         views = result.view_points.len(),
-        first = if result.pair.is_some() { "left camera" } else { "camera" },
-        second = if result.pair.is_some() { "right camera" } else { "projector" },
+        first = if result.pair.is_some() {
+            "left camera"
+        } else {
+            "camera"
+        },
+        second = if result.pair.is_some() {
+            "right camera"
+        } else {
+            "projector"
+        },
         points = result.merged.len(),
         merged = result.files.merged,
         calib = result.files.calibration,

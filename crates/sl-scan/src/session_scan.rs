@@ -28,8 +28,8 @@ use sl_cloud::PointCloud;
 use sl_tri::BinocularConfig;
 
 use crate::{
-    MergeReport, MergeStageConfig, ReconstructConfig, ReconstructedViews, ScanError,
-    ScanProgress, StageTime, merge_scan, reconstruct_binocular_session, reconstruct_session,
+    MergeReport, MergeStageConfig, ReconstructConfig, ReconstructedViews, ScanError, ScanProgress,
+    StageTime, merge_scan, reconstruct_binocular_session, reconstruct_session,
 };
 
 /// Options of [`scan_session`].

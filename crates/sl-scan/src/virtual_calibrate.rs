@@ -7,13 +7,16 @@ use std::time::Instant;
 
 use serde::Serialize;
 use sl_calib::{
-    BoardSize, ProcamConfig, ProcamView, TurntableConfig, TurntableView, calibrate_procam,
-    calibrate_turntable,
+    BoardSize, ProcamConfig, ProcamView, StereoCameraConfig, StereoCameraView, TurntableConfig,
+    TurntableView, calibrate_procam, calibrate_stereo_cameras, calibrate_turntable,
 };
-use sl_camera::{BinocularCalibration, Calibration};
+use sl_camera::{BinocularCalibration, Calibration, TurntableAxis};
 use sl_codec::{BitDepth, CaptureSet, DecodeConfig, Frames, ImageSize, decode};
 use sl_rig::GreyImage;
-use sl_sim::{CalibrationCaptures, CalibrationSession, VirtualRig, calibration_sequence};
+use sl_sim::{
+    CalibrationCaptures, CalibrationSession, SecondCamera, VirtualRig, calibration_sequence,
+    capture_board,
+};
 
 use crate::{ScanError, ScanProgress, StageTime, VirtualScanConfig};
 
@@ -125,18 +128,7 @@ pub fn calibrate_virtual(
     calibration.turntable = Some(table.axis);
     calibration.metadata.notes = "estimated by slscan scan from simulated board captures of the virtual rig (sl_calib::calibrate_procam, sl_calib::calibrate_turntable)".to_owned();
 
-    let truth_axis = config.turntable_axis();
-    let d_est = table.axis.direction.normalize();
-    let d_true = truth_axis.direction.normalize();
-    let direction_error = d_est
-        .dot(&d_true)
-        .abs()
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees();
-    // Distance from the true axis point (on the table, under the object) to the fitted line.
-    let off = truth_axis.point_mm - table.axis.point_mm;
-    let position_error = (off - d_est * off.dot(&d_est)).norm();
+    let (direction_error, position_error) = axis_errors(&config.turntable_axis(), &table.axis);
     let rel = |a: f64, b: f64| 100.0 * (a - b) / b;
     let summary = CalibrationSummary {
         sources: vec![
@@ -215,6 +207,7 @@ pub(crate) fn true_calibration(rig: &VirtualRig) -> (Calibration, CalibrationSum
 pub(crate) fn calibrate_virtual_binocular_stage(
     left: &VirtualRig,
     right: &VirtualRig,
+    second: &SecondCamera,
     cfg: &VirtualScanConfig,
     out: &Path,
     stages: &mut Vec<StageTime>,
@@ -225,7 +218,7 @@ pub(crate) fn calibrate_virtual_binocular_stage(
         let (_, summary) = true_calibration(left);
         (true_pair(left), summary)
     } else {
-        calibrate_virtual_binocular(left, right, cfg, progress)?
+        calibrate_virtual_binocular(left, right, second, cfg, progress)?
     };
     let calib_path = out.join("calibration.json");
     pair.save(&calib_path)?;
@@ -245,12 +238,120 @@ fn true_pair(left: &VirtualRig) -> BinocularCalibration {
 }
 
 /// Calibrates the two cameras of a binocular virtual rig and its turntable from simulated board
-/// captures.
+/// captures: the hand-held board of [`calibrate_virtual`]'s session seen by both cameras
+/// (`second` is where the right camera stands), each camera's model and the cameras' relative
+/// pose from the views whose board both cameras found, then the turntable axis from the board
+/// on the turntable seen by the left camera. The projector is not calibrated: a binocular scan
+/// does not use it.
+///
+/// # Errors
+/// Those of the renderer and of the calibrations (too few views with the board in both
+/// cameras, named with the views left out).
 pub fn calibrate_virtual_binocular(
-    _left: &VirtualRig,
-    _right: &VirtualRig,
-    _cfg: &VirtualScanConfig,
-    _progress: impl FnMut(ScanProgress<'_>),
+    left: &VirtualRig,
+    right: &VirtualRig,
+    second: &SecondCamera,
+    cfg: &VirtualScanConfig,
+    mut progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<(BinocularCalibration, CalibrationSummary), ScanError> {
-    Err(crate::error::stage_err("calibrate", "two-camera calibration: not yet"))
+    let config = left.config();
+    let session = CalibrationSession {
+        turntable_angles_deg: cfg.table_angles_deg.clone(),
+        ..CalibrationSession::with_poses(cfg.calibration_poses, cfg.seed)
+    };
+    let board = session.board;
+    let captures = CalibrationCaptures::new(left, &session)?;
+    let poses = captures.poses().len();
+    let total = poses + cfg.table_angles_deg.len();
+    let t_second_cam = second.t_cam_second.inverse();
+    let mut views = Vec::with_capacity(poses);
+    for (k, pose) in captures.poses().iter().enumerate() {
+        let lit = captures.hand_held(k, None)?.white.into_u8();
+        let seen = capture_board(right, &board, &(t_second_cam * pose), None, k as u64)?;
+        views.push(StereoCameraView {
+            name: format!("board pose {k}"),
+            left: lit,
+            right: seen.white.into_u8(),
+        });
+        progress(ScanProgress {
+            stage: "calibrate",
+            done: k + 1,
+            total,
+        });
+    }
+    let size = BoardSize::new(board.inner_cols, board.inner_rows);
+    let detector = sl_calib::DetectorConfig::with_refiner(cfg.corners);
+    let stereo = calibrate_stereo_cameras(
+        &views,
+        &StereoCameraConfig {
+            detector,
+            ..StereoCameraConfig::new(size, board.square_mm)
+        },
+    )?;
+    drop(views);
+    let left_model = stereo.left.camera;
+    let mut table_views = Vec::new();
+    for (k, &angle) in cfg.table_angles_deg.iter().enumerate() {
+        let cap = captures.on_table(k, None)?;
+        let label = format!("board on the turntable at {angle} degrees");
+        table_views.push(TurntableView::detect(
+            &cap.white.into_u8(),
+            &label,
+            angle,
+            size,
+            board.square_mm,
+            &detector,
+        )?);
+        progress(ScanProgress {
+            stage: "calibrate",
+            done: poses + k + 1,
+            total,
+        });
+    }
+    let table = calibrate_turntable(&left_model, &table_views, &TurntableConfig::default())?;
+    let mut pair = stereo.to_binocular();
+    pair.turntable = Some(table.axis);
+    pair.metadata.notes = "estimated by slscan scan --binocular from simulated board captures of the virtual rig's two cameras (sl_calib::calibrate_stereo_cameras, sl_calib::calibrate_turntable)".to_owned();
+
+    let (direction_error, position_error) = axis_errors(&config.turntable_axis(), &table.axis);
+    let rel = |a: f64, b: f64| 100.0 * (a - b) / b;
+    let summary = CalibrationSummary {
+        sources: vec![
+            "left and right cameras, T_left_right: sl_calib::calibrate_stereo_cameras on simulated board captures"
+                .to_owned(),
+            "turntable axis: sl_calib::calibrate_turntable on the board standing on the simulated turntable, seen by the left camera".to_owned(),
+        ],
+        poses_used: stereo.views.len(),
+        rms_camera_px: stereo.rms_left,
+        rms_projector_px: stereo.rms_right,
+        rms_stereo_px: stereo.rms_stereo,
+        rms_turntable_px: table.rms,
+        camera_fx_error_percent: rel(left_model.intrinsics.fx, config.camera.intrinsics.fx),
+        projector_fx_error_percent: rel(
+            stereo.right.camera.intrinsics.fx,
+            second.camera.intrinsics.fx,
+        ),
+        baseline_error_mm: (pair.t_left_right.translation.vector
+            - second.t_cam_second.translation.vector)
+            .norm(),
+        axis_direction_error_deg: direction_error,
+        axis_position_error_mm: position_error,
+        predicted_error: None,
+    };
+    Ok((pair, summary))
+}
+
+/// The angle (degrees) between the fitted and the true axis directions, and the distance (mm)
+/// from the true axis point (on the table, under the object) to the fitted line.
+fn axis_errors(truth: &TurntableAxis, fitted: &TurntableAxis) -> (f64, f64) {
+    let d_est = fitted.direction.normalize();
+    let d_true = truth.direction.normalize();
+    let direction = d_est
+        .dot(&d_true)
+        .abs()
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    let off = truth.point_mm - fitted.point_mm;
+    (direction, (off - d_est * off.dot(&d_est)).norm())
 }

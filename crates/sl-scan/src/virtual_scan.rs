@@ -24,8 +24,8 @@ use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_pois
 use crate::virtual_calibrate::{calibrate_virtual_binocular_stage, calibrate_virtual_stage};
 use crate::{
     CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX,
-    ScanError, ScanProgress, SessionScanConfig, StageTime, capture_session, measure_scan,
-    capture_binocular_session, plate_scene, plate_truth, reconstruct_binocular_view,
+    ScanError, ScanProgress, SessionScanConfig, StageTime, capture_binocular_session,
+    capture_session, measure_scan, plate_scene, plate_truth, reconstruct_binocular_view,
     reconstruct_view_eroded, scan_binocular_session, scan_patterns, scan_session, scene_truth,
     write_heat_map, write_scan_cloud,
 };
@@ -456,9 +456,14 @@ pub fn scan_virtual(
             (ScanCalibration::Monocular(c), summary, path)
         }
         Some(right) => {
+            let second = calibration_rig
+                .second
+                .as_ref()
+                .ok_or_else(|| stage_err("calibrate", "a second camera's rig without its pose"))?;
             let (c, summary, path) = calibrate_virtual_binocular_stage(
                 &calibration_rig.left,
                 right,
+                second,
                 cfg,
                 out,
                 &mut stages,
