@@ -491,6 +491,7 @@ fn calibrate_from_corners(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Vector3;
     use crate::CornerFit;
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};

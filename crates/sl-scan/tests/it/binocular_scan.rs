@@ -3,6 +3,9 @@
 //! up turns by a tenth of a degree), the one-camera scan triangulates with a stale projector
 //! pose and the two-camera scan, which never uses it, does not notice.
 
+// Test helpers (not `#[test]` functions) unwrap too: a failure there is a test failure.
+#![allow(clippy::unwrap_used)]
+
 use sl_scan::{ScanResult, VirtualScanConfig, scan_virtual};
 
 /// A small scan (8 views, half resolution) with or without the second camera, the projector
