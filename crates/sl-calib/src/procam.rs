@@ -491,8 +491,8 @@ fn calibrate_from_corners(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Vector3;
     use crate::CornerFit;
+    use nalgebra::Vector3;
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
     use sl_camera::{CameraModel, Distortion, Intrinsics};

@@ -12,5 +12,6 @@ mod real_kamino;
 mod realistic_corners;
 mod rig_calibration_truth;
 mod rig_corner_truth;
+mod stereo_cameras;
 mod turntable;
 mod virtual_rig;
