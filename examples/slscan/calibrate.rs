@@ -51,6 +51,26 @@ pub(crate) enum What {
     /// program's session described by `--layout`; without a turntable folder, camera and
     /// projector only.
     All(AllArgs),
+    /// The two cameras of a binocular rig from board poses both saw: each pose folder holds
+    /// the left camera's `white.png` and, in `right/`, the right camera's (as `calibrate
+    /// capture --right-camera` writes them). Writes `stereo.json` (a two-camera calibration:
+    /// both models and `T_left_right`, with the projector when `--projector` asks for it and
+    /// the turntable axis when the session has `turntable/`) and `report.json`.
+    Stereo(StereoArgs),
+}
+
+/// Arguments of `slscan calibrate stereo`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct StereoArgs {
+    /// Session folder: its `board/` subfolder, or the folder itself, holds one folder per
+    /// board pose, each with `white.png` and `right/white.png`.
+    pub(crate) session: PathBuf,
+    /// Also calibrate the projector from the left camera's pattern captures of the poses
+    /// (`manifest.json` and frames in each pose folder): three devices in one file.
+    #[arg(long)]
+    pub(crate) projector: bool,
+    #[command(flatten)]
+    pub(crate) common: BoardArgs,
 }
 
 /// Board and output options shared by the subcommands.
@@ -300,6 +320,45 @@ fn run_with(
             )?;
             folder.commit()?;
             print_axis(&files, &a.common.out);
+            Ok(())
+        }
+        What::Stereo(a) => {
+            let cfg = a.common.files_config()?;
+            let folder = a.common.open_out("calibrate stereo", &[])?;
+            let files = sl_scan::calibrate_stereo_files(
+                &a.session,
+                &cfg,
+                a.projector,
+                folder.path(),
+                "calibrate stereo",
+                progress,
+            )?;
+            folder.commit()?;
+            let s = &files.stereo;
+            for v in &s.skipped_views {
+                outln!("left out: {}: {}", v.name, v.reason);
+            }
+            let t = s.t_left_right.translation.vector;
+            outln!(
+                "left camera RMS {:.4} px, right camera RMS {:.4} px, stereo RMS {:.4} px over {} of {} poses; baseline {:.2} mm ({:+.2}, {:+.2}, {:+.2}), turned {:.3}°",
+                s.rms_left,
+                s.rms_right,
+                s.rms_stereo,
+                s.views.len(),
+                files.poses,
+                t.norm(),
+                t.x,
+                t.y,
+                t.z,
+                s.t_left_right.rotation.angle().to_degrees()
+            );
+            if let Some(p) = &files.projector {
+                print_procam(&p.procam);
+            }
+            if let Some(t) = &files.turntable {
+                print_axis(t, &a.common.out.join("turntable"));
+            }
+            outln!("{}", a.common.out.join(sl_scan::STEREO_FILE).display());
             Ok(())
         }
         What::All(a) => {

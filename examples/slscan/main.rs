@@ -44,6 +44,8 @@ mod blob_support;
 mod bunny_support;
 mod calibrate;
 mod calibrate_capture;
+#[cfg(test)]
+mod calibrate_stereo_tests;
 mod capture;
 mod common;
 mod decode;

@@ -7,7 +7,7 @@
 //! | capture a calibration session | `calibration_capture.rs`, `calibration_auto.rs`, `pose_gates.rs`, `calibration_files.rs` (the session's folders and `board.json`) | [`CalibrationCapture`], [`capture_poses_auto`] |
 //! | calibrate | `calibrate.rs` | [`calibrate_virtual`], [`load_scan_calibration`] |
 //! | read a calibration session (own or another program's layout) | `calibration_layout.rs` | [`CalibrationLayout`], [`PoseCapture`] |
-//! | calibrate from files (a session folder, board pictures) | `session_calibration.rs` | [`calibrate_session`], [`calibrate_camera_files`], [`calibrate_procam_files`], [`calibrate_turntable_files`] |
+//! | calibrate from files (a session folder, board pictures) | `session_calibration.rs`, `stereo_calibration.rs` | [`calibrate_session`], [`calibrate_camera_files`], [`calibrate_procam_files`], [`calibrate_turntable_files`], two cameras: [`calibrate_stereo_files`] |
 //! | capture a scan session | `capture.rs` | [`capture_session`], [`scan_patterns`], [`full_turn_motor_angles`] |
 //! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`reconstruct_decoded`], [`drop_grazing`]; two cameras: [`reconstruct_binocular_session`], [`reconstruct_binocular_view`] |
 //! | merge | `merge.rs` | [`merge_scan`] |
@@ -71,6 +71,7 @@ mod run_report;
 mod scan_records;
 mod session_calibration;
 mod session_scan;
+mod stereo_calibration;
 mod view_files;
 #[cfg(feature = "sim")]
 mod virtual_calibrate;
@@ -175,6 +176,7 @@ pub use session_calibration::{
     session_projector_size, turntable_views,
 };
 pub use session_scan::{SessionScan, SessionScanConfig, scan_binocular_session, scan_session};
+pub use stereo_calibration::{STEREO_FILE, StereoFiles, calibrate_stereo_files};
 pub use view_files::{
     CloudRegistration, TRANSFORM_FILE, ViewsMerge, merge_and_write, read_transform,
     register_and_write, write_preview_png,

@@ -775,7 +775,7 @@ fn procam_pictures(
 }
 
 /// The white-light picture of a capture folder, saved in any format sl-codec reads.
-fn white_image(folder: &Path) -> Option<PathBuf> {
+pub(crate) fn white_image(folder: &Path) -> Option<PathBuf> {
     find_image_file(&folder.join(WHITE_IMAGE))
 }
 
@@ -808,7 +808,7 @@ fn subfolder_or_itself(session: &Path, name: &str) -> Result<PathBuf, ScanError>
 }
 
 /// The capture folders (one per board pose) of a session.
-fn pose_folders(session: &Path) -> Result<Vec<PathBuf>, ScanError> {
+pub(crate) fn pose_folders(session: &Path) -> Result<Vec<PathBuf>, ScanError> {
     let dir = subfolder_or_itself(session, BOARD_DIR)?;
     // A pose folder holds a white picture, a pattern capture, or both (captures without a
     // white frame use their own texture).

@@ -46,7 +46,10 @@ fn two_cameras_measure_the_dumbbell_and_ignore_a_drifting_projector() {
     let file = sl_camera::BinocularCalibration::load(dir.path().join("calibration.json")).unwrap();
     // The rotation is stored as a matrix: the same pose to within rounding.
     let d = file.t_left_right.inverse() * pair.t_left_right;
-    assert!(d.rotation.angle() < 1e-9 && d.translation.vector.norm() < 1e-9, "{d}");
+    assert!(
+        d.rotation.angle() < 1e-9 && d.translation.vector.norm() < 1e-9,
+        "{d}"
+    );
     // The estimated pair near the rig's truth (the second camera 400 mm to the right).
     let c = &bino.calibration_summary;
     assert!(c.baseline_error_mm < 0.5, "{c:?}");
