@@ -1,6 +1,7 @@
 //! Criterion bench `binocular`: one 1280×1024 pair of a binocular rig (the virtual rig's camera
-//! at 1280×1024 and its default second camera, the dumbbell on the platter, the recommended
-//! hybrid code on the projector's columns), from frames to points:
+//! at 1280×1024 and its default second camera, the dumbbell on the platter in front of a wall
+//! 600 mm from the camera that fills the view, the recommended hybrid code on the projector's
+//! columns), from frames to points:
 //!
 //! - `decode pair`: both cameras' frames decoded (`sl_codec::decode`, one after the other);
 //! - `match and triangulate`: `Binocular::reconstruct` on the two decoded maps, the
@@ -13,11 +14,12 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use sl_camera::{BinocularCalibration, ImageSize, Intrinsics};
 use sl_codec::{
     Axis, BitDepth, CaptureSet, DecodeConfig, Frames, HybridSpec, Pattern, PatternSequence, decode,
 };
-use sl_sim::{RigConfig, Scene, VirtualRig};
+use sl_sim::{RigConfig, Scene, SceneObject, Shape, Texture, VirtualRig};
 use sl_tri::{Binocular, BinocularConfig};
 
 type Setup = Result<(BinocularCalibration, CaptureSet, CaptureSet), Box<dyn std::error::Error>>;
@@ -39,9 +41,22 @@ fn captures() -> Setup {
     let images = (0..sequence.frame_count())
         .map(|k| sequence.render_image(k, BitDepth::Eight))
         .collect::<Result<Vec<_>, _>>()?;
+    let mut scene = Scene::dumbbell();
+    scene.objects.push(SceneObject::in_camera(
+        "wall",
+        Shape::rectangle(3000.0, 3000.0),
+        Texture::Uniform(0.6),
+        Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, 600.0),
+            UnitQuaternion::identity(),
+        ),
+    ));
     let mut sets = Vec::new();
-    for c in [config.clone(), config.seen_from(&second)] {
-        let rig = VirtualRig::new(c, Scene::dumbbell())?;
+    for (c, scene) in [
+        (config.clone(), scene.clone()),
+        (config.seen_from(&second), scene.seen_from(&second)),
+    ] {
+        let rig = VirtualRig::new(c, scene)?;
         let frames = rig.view(30.0, 0)?.capture_all(&images)?;
         let frames = Frames::U8(frames.into_iter().map(|f| f.into_u8()).collect());
         sets.push(CaptureSet::from_frames(manifest.clone(), frames)?);
