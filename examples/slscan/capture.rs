@@ -7,11 +7,14 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Context;
-use sl_camera::Calibration;
+use sl_camera::{BinocularCalibration, Calibration};
 use sl_codec::{MANIFEST_FILE, Manifest};
 use sl_rig::{Camera, DeviceDescription, LatencyConfig, Projector, SessionDevices, Turntable};
 use sl_sim::{Scene, VirtualRig};
-use structured_light::scan::{DeviceCaptureConfig, capture_device_session, scaled_rig_config};
+use structured_light::scan::{
+    DeviceCaptureConfig, capture_binocular_device_session, capture_device_session,
+    scaled_rig_config,
+};
 
 use crate::common::{open_out_in_place, progress};
 use crate::values;
@@ -31,12 +34,19 @@ pub(crate) struct HardwareArgs {
     /// Dynamixel servo id (0 to 252, the protocol's ids).
     #[arg(long, default_value_t = 1, value_parser = values::count_in::<u8>(0..=252))]
     pub(crate) servo_id: u8,
+    /// The second camera of a binocular rig, e.g. /dev/video2 (needs `--features v4l`): each
+    /// view is captured by both cameras, the second into `view_NNN/right/`.
+    #[arg(long)]
+    pub(crate) right_camera: Option<PathBuf>,
 }
 
 impl HardwareArgs {
     /// Whether any device is given.
     pub(crate) fn any(&self) -> bool {
-        self.camera.is_some() || self.projector_monitor.is_some() || self.turntable.is_some()
+        self.camera.is_some()
+            || self.projector_monitor.is_some()
+            || self.turntable.is_some()
+            || self.right_camera.is_some()
     }
 
     /// The devices, all three required (`what` names the command in the error).
@@ -51,6 +61,7 @@ impl HardwareArgs {
             projector_monitor: monitor,
             turntable_port: port.clone(),
             servo_id: self.servo_id,
+            right_camera: self.right_camera.clone(),
         })
     }
 }
@@ -87,6 +98,11 @@ pub(crate) struct Args {
     /// Recapture views that are already complete.
     #[arg(long)]
     pub(crate) overwrite: bool,
+    /// On the virtual rig: capture with its second camera too (binocular structured light),
+    /// into `view_NNN/right/`, and write the pair's true calibration
+    /// (`calibration_true_pair.json`) beside the session. On devices, `--right-camera`.
+    #[arg(long)]
+    pub(crate) binocular: bool,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
 }
@@ -106,6 +122,7 @@ pub(crate) fn run_session<C, P, T>(
     args: &Args,
     devices: SessionDevices,
     camera: &mut C,
+    right: Option<&mut dyn Camera>,
     projector: &mut P,
     turntable: &mut T,
     default_latency: Duration,
@@ -135,15 +152,26 @@ where
         calibration_file: args.calib.clone(),
     };
     let bar = progress(args.views as u64, "capture");
-    let capture = capture_device_session(
-        &config,
-        axis.as_ref(),
-        &args.out,
-        camera,
-        projector,
-        turntable,
-        |_| bar.inc(1),
-    )?;
+    let capture = match right {
+        None => capture_device_session(
+            &config,
+            axis.as_ref(),
+            &args.out,
+            camera,
+            projector,
+            turntable,
+            |_| bar.inc(1),
+        )?,
+        Some(right) => capture_binocular_device_session(
+            &config,
+            axis.as_ref(),
+            &args.out,
+            (camera, right),
+            projector,
+            turntable,
+            |_| bar.inc(1),
+        )?,
+    };
     bar.finish_and_clear();
     let path = capture.write_report()?;
     for line in capture.summary(&path) {
@@ -161,31 +189,69 @@ fn scene(name: &str) -> anyhow::Result<Scene> {
     })
 }
 
+/// The checks of `slscan capture` that need more than one value.
+pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !(args.binocular && args.hardware.any()),
+        "--binocular is the virtual rig's second camera: on devices, name the second camera with --right-camera"
+    );
+    Ok(())
+}
+
 /// Runs `slscan capture`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+    check(args)?;
     if args.hardware.any() {
         return run_hardware(args);
     }
-    let rig = VirtualRig::new(scaled_rig_config(args.downscale), scene(&args.scene)?)
-        .context("cannot build the virtual rig")?;
-    let devices = rig.session_devices(&format!("virtual turntable, scene {}", args.scene));
-    let (mut camera, mut projector, mut table) = rig.devices();
+    let config = scaled_rig_config(args.downscale);
+    let scene = scene(&args.scene)?;
+    let second = config.default_second_camera();
+    let rig =
+        VirtualRig::new(config.clone(), scene.clone()).context("cannot build the virtual rig")?;
+    let mut devices = rig.session_devices(&format!("virtual turntable, scene {}", args.scene));
     // One run at a time in a session folder.
     let folder = open_out_in_place(&args.out, "capture")?;
-    run_session(
-        args,
-        devices,
-        &mut camera,
-        &mut projector,
-        &mut table,
-        Duration::ZERO,
-    )?;
+    if args.binocular {
+        let right = VirtualRig::new(config.seen_from(&second), scene.seen_from(&second))
+            .context("cannot build the virtual rig's second camera")?;
+        let c = right.config().camera.size;
+        devices.right_camera = Some(format!("virtual second camera {}x{}", c.width, c.height));
+        let (mut camera, mut right_camera, mut projector, mut table) =
+            rig.binocular_devices(&right)?;
+        run_session(
+            args,
+            devices,
+            &mut camera,
+            Some(&mut right_camera),
+            &mut projector,
+            &mut table,
+            Duration::ZERO,
+        )?;
+    } else {
+        let (mut camera, mut projector, mut table) = rig.devices();
+        run_session(
+            args,
+            devices,
+            &mut camera,
+            None,
+            &mut projector,
+            &mut table,
+            Duration::ZERO,
+        )?;
+    }
     // The rig's exact calibration beside the session, for `slscan reconstruct`: written once
     // the session has been captured, so that a refused session (another `--downscale`) leaves
     // the one that fits it.
-    rig.config()
+    config
         .calibration()
         .save(args.out.join("calibration_true.json"))?;
+    if args.binocular {
+        let mut pair = BinocularCalibration::new(config.camera, second.camera, second.t_cam_second);
+        pair.turntable = Some(config.turntable_axis());
+        pair.metadata.notes = "the virtual rig's true two-camera calibration".to_owned();
+        pair.save(args.out.join("calibration_true_pair.json"))?;
+    }
     folder.commit()?;
     Ok(())
 }
@@ -197,23 +263,122 @@ pub(crate) fn run_hardware(args: &Args) -> anyhow::Result<()> {
     let folder = open_out_in_place(&args.out, "capture")?;
     let args = args.clone();
     // The window lives on the main thread's event loop; the session runs in the worker.
-    sl_rig::with_devices(&description, move |camera, projector, table| {
-        run_session(
-            &args,
-            devices,
-            camera,
-            projector,
-            table,
-            DEFAULT_HARDWARE_LATENCY,
-        )
-        .map_err(|e| sl_rig::RigError::Device {
-            device: "capture session".to_owned(),
-            reason: format!("{e:#}"),
-        })
-    })?;
+    let failed = |e: anyhow::Error| sl_rig::RigError::Device {
+        device: "capture session".to_owned(),
+        reason: format!("{e:#}"),
+    };
+    if description.right_camera.is_some() {
+        sl_rig::with_binocular_devices(&description, move |camera, right, projector, table| {
+            run_session(
+                &args,
+                devices,
+                camera,
+                Some(right),
+                projector,
+                table,
+                DEFAULT_HARDWARE_LATENCY,
+            )
+            .map_err(failed)
+        })?;
+    } else {
+        sl_rig::with_devices(&description, move |camera, projector, table| {
+            run_session(
+                &args,
+                devices,
+                camera,
+                None,
+                projector,
+                table,
+                DEFAULT_HARDWARE_LATENCY,
+            )
+            .map_err(failed)
+        })?;
+    }
     folder.commit()?;
     Ok(())
 }
 
 /// Display latency on hardware when not given: `sl_rig::DEFAULT_DISPLAY_LATENCY`.
 const DEFAULT_HARDWARE_LATENCY: Duration = sl_rig::DEFAULT_DISPLAY_LATENCY;
+
+#[cfg(test)]
+mod tests {
+    //! `slscan capture --binocular` on the virtual rig: both cameras' capture sets, each
+    //! decoding to the projector coordinates its own camera's truth gives; the pair they
+    //! reconstruct with; and the option refused on devices.
+
+    use sl_codec::{CaptureSet, DecodeConfig, MANIFEST_FILE, decode};
+    use sl_sim::{Scene, VirtualRig};
+    use structured_light::scan::scaled_rig_config;
+
+    #[test]
+    fn a_binocular_capture_holds_both_cameras_and_their_pair() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("session");
+        let s = out.to_str().unwrap();
+        crate::run_cli(&[
+            "capture",
+            "--binocular",
+            "--views",
+            "2",
+            "--downscale",
+            "4",
+            "--out",
+            s,
+        ])
+        .unwrap();
+        let plan = sl_rig::read_session_plan(&out).unwrap();
+        assert!(plan.devices.right_camera.is_some());
+        // The right camera's view 1 decodes to the projector columns its rig's truth gives.
+        let config = scaled_rig_config(4);
+        let second = config.default_second_camera();
+        let right = VirtualRig::new(
+            config.seen_from(&second),
+            Scene::dumbbell().seen_from(&second),
+        )
+        .unwrap();
+        let truth = right.view(plan.angles_deg[1], 0).unwrap().truth;
+        let set = CaptureSet::load(&out.join("view_001/right").join(MANIFEST_FILE)).unwrap();
+        let map = decode(&set, &DecodeConfig::default()).unwrap();
+        let mut errors: Vec<f64> = (0..map.col.len())
+            .filter(|&i| truth.lit(i) && map.col[i].is_finite())
+            .map(|i| (f64::from(map.col[i]) - truth.projector[i].x).abs())
+            .collect();
+        assert!(errors.len() > 200, "{} decoded lit pixels", errors.len());
+        errors.sort_by(f64::total_cmp);
+        let median = errors[errors.len() / 2];
+        assert!(median < 0.5, "median column error {median} projector px");
+        // The pair's truth beside the session reconstructs the view.
+        let pair = out.join("calibration_true_pair.json");
+        assert!(
+            structured_light::camera::BinocularCalibration::load(&pair)
+                .unwrap()
+                .turntable
+                .is_some()
+        );
+        let rec = tmp.path().join("rec");
+        crate::run_cli(&[
+            "reconstruct",
+            out.join("view_000").to_str().unwrap(),
+            "--right",
+            out.join("view_000/right").to_str().unwrap(),
+            "--calib",
+            pair.to_str().unwrap(),
+            "--out",
+            rec.to_str().unwrap(),
+        ])
+        .unwrap();
+        assert!(rec.join("cloud.ply").is_file());
+        // On devices the second camera is named, not `--binocular`.
+        let err = crate::run_cli(&[
+            "capture",
+            "--binocular",
+            "--camera",
+            "/dev/video0",
+            "--out",
+            s,
+        ])
+        .unwrap_err();
+        assert!(format!("{err:#}").contains("--right-camera"), "{err:#}");
+    }
+}

@@ -141,8 +141,8 @@ fn validate(command: &Command) -> anyhow::Result<()> {
         },
         Command::Scan(args) => scan::check(args),
         Command::Merge(args) => merge::check(args),
+        Command::Capture(args) => capture::check(args),
         Command::Info(_)
-        | Command::Capture(_)
         | Command::Devices(_)
         | Command::Decode(_)
         | Command::Simulate(_)

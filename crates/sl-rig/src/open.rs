@@ -47,6 +47,10 @@ pub struct DeviceDescription {
     pub turntable_port: PathBuf,
     /// Dynamixel servo id of the turntable.
     pub servo_id: u8,
+    /// The second camera of a binocular rig, e.g. `/dev/video2` (feature `v4l`); opened with
+    /// the first by [`with_binocular_devices`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub right_camera: Option<PathBuf>,
 }
 
 impl DeviceDescription {
@@ -90,7 +94,7 @@ impl DeviceDescription {
             camera: self.camera.display().to_string(),
             projector: format!("monitor {}", self.projector_monitor),
             turntable: format!("{} id {}", self.turntable_port.display(), self.servo_id),
-            right_camera: None,
+            right_camera: self.right_camera.as_ref().map(|c| c.display().to_string()),
         }
     }
 
@@ -168,6 +172,64 @@ pub fn open_turntable(port: &std::path::Path, servo_id: u8) -> Result<BoxedTurnt
     }
 }
 
+/// What [`with_devices`] and [`with_binocular_devices`] check before anything opens: the
+/// turntable's port exists and this build has every device's feature.
+fn check_buildable(description: &DeviceDescription) -> Result<(), RigError> {
+    description.check()?;
+    if let Some(feature) = description.missing_features().first() {
+        let device = match *feature {
+            "v4l" => format!("camera {}", description.camera.display()),
+            "window" => format!("projector on monitor {}", description.projector_monitor),
+            _ => turntable_name(&description.turntable_port, description.servo_id),
+        };
+        return Err(RigError::FeatureNotBuilt { device, feature });
+    }
+    Ok(())
+}
+
+/// [`with_devices`] for a binocular rig: both cameras (the description's `camera` and
+/// `right_camera`), the projector window and the turntable, handed to `work` on a worker
+/// thread.
+///
+/// # Errors
+/// [`RigError::InvalidParameter`] naming `right_camera` when the description has none; as
+/// [`with_devices`] otherwise, the second camera's errors naming it as the right camera.
+pub fn with_binocular_devices<T, F>(description: &DeviceDescription, work: F) -> Result<T, RigError>
+where
+    T: Send + 'static,
+    F: FnOnce(
+            &mut dyn Camera,
+            &mut dyn Camera,
+            &mut dyn Projector,
+            &mut dyn Turntable,
+        ) -> Result<T, RigError>
+        + Send
+        + 'static,
+{
+    let Some(right_path) = description.right_camera.clone() else {
+        return Err(RigError::InvalidParameter {
+            name: "right_camera".to_owned(),
+            reason: "a binocular rig needs its second camera (e.g. /dev/video2)".to_owned(),
+        });
+    };
+    check_buildable(description)?;
+    let mut camera = open_camera(&description.camera)?;
+    let mut right = open_camera(&right_path).map_err(|e| match e {
+        RigError::FeatureNotBuilt { feature, .. } => RigError::FeatureNotBuilt {
+            device: format!("right camera {}", right_path.display()),
+            feature,
+        },
+        other => RigError::Device {
+            device: format!("right camera {}", right_path.display()),
+            reason: other.to_string(),
+        },
+    })?;
+    let mut table = open_turntable(&description.turntable_port, description.servo_id)?;
+    run_window(description.projector_monitor, move |projector| {
+        work(camera.as_mut(), right.as_mut(), projector, table.as_mut())
+    })
+}
+
 /// Opens the three devices of `description` and runs `work` on them.
 ///
 /// The projector window lives on the calling (main) thread's event loop, so `work` runs on a
@@ -184,15 +246,7 @@ where
         + Send
         + 'static,
 {
-    description.check()?;
-    if let Some(feature) = description.missing_features().first() {
-        let device = match *feature {
-            "v4l" => format!("camera {}", description.camera.display()),
-            "window" => format!("projector on monitor {}", description.projector_monitor),
-            _ => turntable_name(&description.turntable_port, description.servo_id),
-        };
-        return Err(RigError::FeatureNotBuilt { device, feature });
-    }
+    check_buildable(description)?;
     let mut camera = open_camera(&description.camera)?;
     let mut table = open_turntable(&description.turntable_port, description.servo_id)?;
     run_window(description.projector_monitor, move |projector| {
@@ -251,6 +305,7 @@ mod tests {
             projector_monitor: 1,
             turntable_port: port,
             servo_id: 3,
+            right_camera: None,
         }
     }
 
@@ -286,5 +341,42 @@ mod tests {
             serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"));
         assert_eq!(back, desc);
         assert_eq!(desc.session_devices().turntable, "/dev/ttyUSB0 id 3");
+        assert_eq!(desc.session_devices().right_camera, None);
+        // With a second camera: recorded, and read back.
+        let two = DeviceDescription {
+            right_camera: Some(PathBuf::from("/dev/video2")),
+            ..desc
+        };
+        let text = serde_json::to_string(&two).unwrap_or_default();
+        let back: DeviceDescription =
+            serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"));
+        assert_eq!(back, two);
+        assert_eq!(
+            two.session_devices().right_camera.as_deref(),
+            Some("/dev/video2")
+        );
+    }
+
+    #[test]
+    fn a_binocular_rig_without_its_second_camera_is_named() {
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+        let desc = description(dir.path().to_path_buf());
+        match with_binocular_devices(&desc, |_, _, _, _| Ok(())) {
+            Err(RigError::InvalidParameter { name, .. }) => assert_eq!(name, "right_camera"),
+            other => panic!("expected the missing right camera, got {other:?}"),
+        }
+        // Without the v4l feature the second camera is named as the right one.
+        if !cfg!(feature = "v4l") {
+            let desc = DeviceDescription {
+                right_camera: Some(PathBuf::from("/dev/video-right")),
+                ..description(dir.path().to_path_buf())
+            };
+            match with_binocular_devices(&desc, |_, _, _, _| Ok(())) {
+                Err(RigError::FeatureNotBuilt { device, .. }) => {
+                    assert!(device.contains("camera"), "{device}");
+                }
+                other => panic!("expected FeatureNotBuilt, got {other:?}"),
+            }
+        }
     }
 }

@@ -19,6 +19,7 @@
 //!     projector_monitor: 1,
 //!     turntable_port: PathBuf::from("/dev/ttyUSB0"),
 //!     servo_id: 1,
+//!     right_camera: None,
 //! };
 //! let mut cfg = DeviceScanConfig::load(Path::new("calibration.json"))?;
 //! cfg.capture.devices = description.session_devices();
@@ -52,9 +53,9 @@ use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_pois
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::{
     PLACEMENT_SESSION_DIR, SCAN_PERIOD_PX, ScanError, ScanProgress, SessionScan, SessionScanConfig,
-    SessionScanFiles, StageTime, capture_placements, capture_session, check_placements,
-    full_turn_motor_angles, load_scan_calibration, placement_dir_name, require_turntable_axis,
-    scan_patterns, scan_placements, scan_session, write_scan_cloud,
+    SessionScanFiles, StageTime, capture_binocular_session, capture_placements, capture_session,
+    check_placements, full_turn_motor_angles, load_scan_calibration, placement_dir_name,
+    require_turntable_axis, scan_patterns, scan_placements, scan_session, write_scan_cloud,
 };
 
 /// How one turntable session is captured on devices ([`capture_device_session`]).
@@ -129,6 +130,76 @@ where
     P: Projector + ?Sized,
     T: Turntable + ?Sized,
 {
+    capture_cameras(
+        cfg,
+        axis,
+        dir,
+        camera,
+        None::<&mut C>,
+        projector,
+        turntable,
+        progress,
+    )
+}
+
+/// [`capture_device_session`] with the two cameras of a binocular rig: each view captured by
+/// both under each pattern ([`capture_binocular_session`]), the second camera's frames in
+/// `view_NNN/right/`. The latency is measured on the first camera and the same number of
+/// frames flushed from both (cameras of one model buffer alike; measure the second with
+/// `slscan devices` if they differ). `cfg.devices.right_camera` names the second camera in
+/// `session.json`; without it the second camera is recorded as `second camera`.
+///
+/// # Errors
+/// As [`capture_device_session`].
+pub fn capture_binocular_device_session<C, R, P, T>(
+    cfg: &DeviceCaptureConfig,
+    axis: Option<&TurntableAxis>,
+    dir: &Path,
+    cameras: (&mut C, &mut R),
+    projector: &mut P,
+    turntable: &mut T,
+    progress: impl FnMut(ScanProgress<'_>),
+) -> Result<SessionCapture, ScanError>
+where
+    C: Camera + ?Sized,
+    R: Camera + ?Sized,
+    P: Projector + ?Sized,
+    T: Turntable + ?Sized,
+{
+    let mut cfg = cfg.clone();
+    cfg.devices
+        .right_camera
+        .get_or_insert_with(|| "second camera".to_owned());
+    capture_cameras(
+        &cfg,
+        axis,
+        dir,
+        cameras.0,
+        Some(cameras.1),
+        projector,
+        turntable,
+        progress,
+    )
+}
+
+/// The capture of both: one camera, or two with `right`.
+#[allow(clippy::too_many_arguments)]
+fn capture_cameras<C, R, P, T>(
+    cfg: &DeviceCaptureConfig,
+    axis: Option<&TurntableAxis>,
+    dir: &Path,
+    camera: &mut C,
+    right: Option<&mut R>,
+    projector: &mut P,
+    turntable: &mut T,
+    progress: impl FnMut(ScanProgress<'_>),
+) -> Result<SessionCapture, ScanError>
+where
+    C: Camera + ?Sized,
+    R: Camera + ?Sized,
+    P: Projector + ?Sized,
+    T: Turntable + ?Sized,
+{
     if cfg.views == 0 {
         return Err(ScanError::InvalidParameter {
             name: "views".to_owned(),
@@ -166,7 +237,18 @@ where
         calibration: cfg.calibration_file.clone(),
     };
     let t = Instant::now();
-    let summary = capture_session(dir, plan, session, camera, projector, turntable, progress)?;
+    let summary = match right {
+        None => capture_session(dir, plan, session, camera, projector, turntable, progress)?,
+        Some(right) => capture_binocular_session(
+            dir,
+            plan,
+            session,
+            (camera, right),
+            projector,
+            turntable,
+            progress,
+        )?,
+    };
     stages.push(StageTime::since("capture", t));
     Ok(SessionCapture {
         session: dir.to_path_buf(),
