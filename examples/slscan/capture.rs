@@ -133,11 +133,15 @@ where
     T: Turntable + ?Sized,
 {
     let axis = match &args.calib {
-        Some(path) => {
-            Calibration::load(path)
-                .with_context(|| format!("cannot read the calibration {}", path.display()))?
-                .turntable
-        }
+        // A two-camera calibration (`calibrate stereo`) holds the axis too.
+        Some(path) => match BinocularCalibration::load(path) {
+            Ok(pair) => pair.turntable,
+            Err(_) => {
+                Calibration::load(path)
+                    .with_context(|| format!("cannot read the calibration {}", path.display()))?
+                    .turntable
+            }
+        },
         None => None,
     };
     let config = DeviceCaptureConfig {
