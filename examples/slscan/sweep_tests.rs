@@ -334,7 +334,7 @@ impl Fixtures {
                 "--out",
                 "{out}",
             ]))],
-            ["calibrate", "camera" | "projector" | "all"] => vec![Base::Validate(v(&[
+            ["calibrate", "camera" | "projector" | "all" | "stereo"] => vec![Base::Validate(v(&[
                 "calibrate",
                 cmd[1],
                 &missing,
