@@ -95,6 +95,29 @@ pub fn capture_poses_auto<C, P, M>(
     projector: &mut P,
     mover: &mut M,
     cfg: &AutoConfig,
+    on_event: impl FnMut(AutoEvent<'_>),
+) -> Result<usize, CaptureError>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+    M: BoardMover + ?Sized,
+{
+    capture_poses_auto_with(session, camera, None, projector, mover, cfg, on_event)
+}
+
+/// [`capture_poses_auto`] with the second camera of a binocular rig, which takes its own
+/// picture of every pose ([`CalibrationCapture::take_with`]; a pose it does not see whole is
+/// refused and the board moved on).
+///
+/// # Errors
+/// As [`capture_poses_auto`].
+pub fn capture_poses_auto_with<C, P, M>(
+    session: &mut CalibrationCapture,
+    camera: &mut C,
+    mut right: Option<&mut dyn Camera>,
+    projector: &mut P,
+    mover: &mut M,
+    cfg: &AutoConfig,
     mut on_event: impl FnMut(AutoEvent<'_>),
 ) -> Result<usize, CaptureError>
 where
@@ -134,7 +157,9 @@ where
                 continue;
             }
         }
-        match session.take(&check, camera, projector)? {
+        // A shorter reborrow of the second camera for this pose.
+        let second = right.as_mut().map(|r| &mut **r as &mut dyn Camera);
+        match session.take_with(&check, camera, second, projector)? {
             TakeOutcome::Taken { index, dir } => {
                 taken += 1;
                 on_event(AutoEvent::Taken { index, dir: &dir });

@@ -32,7 +32,7 @@ use sl_calib::{
     BoardCorners, BoardSize, CalibrationView, DetectorConfig, ZhangConfig, calibrate_camera,
     detect_checkerboard,
 };
-use sl_rig::{Camera, GreyImage, Projector, RigError, Turntable, write_capture_set};
+use sl_rig::{Camera, GreyImage, Projector, RIGHT_DIR, RigError, Turntable, write_capture_set};
 
 use crate::calibration_coverage::Coverage;
 use crate::calibration_files::{
@@ -478,6 +478,24 @@ impl CalibrationCapture {
         C: Camera + ?Sized,
         P: Projector + ?Sized,
     {
+        self.take_with(check, camera, None, projector)
+    }
+
+    /// [`CalibrationCapture::take`] with the second camera of a binocular rig: under the same
+    /// white light it takes its picture of the board too (`right/white.png` in the pose
+    /// folder, for `slscan calibrate stereo`), and the pose is refused, nothing written, when
+    /// that camera does not find the whole board.
+    pub fn take_with<C, P>(
+        &mut self,
+        check: &PoseCheck,
+        camera: &mut C,
+        right: Option<&mut dyn Camera>,
+        projector: &mut P,
+    ) -> Result<TakeOutcome, CaptureError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+    {
         if let Err(r) = &check.verdict {
             return Ok(TakeOutcome::Refused(r.clone()));
         }
@@ -486,12 +504,33 @@ impl CalibrationCapture {
                 reason: "no pose fits the corners".to_owned(),
             }));
         };
+        let right_white = match right {
+            Some(right) => {
+                let white = self.white_image(projector.image_size())?;
+                let frame = self.show_and_capture(right, projector, &white)?;
+                let grey = frame.clone().into_u8();
+                if let Err(e) =
+                    detect_checkerboard(&grey, self.board_size(), &self.config.detector, "right")
+                {
+                    let reason = match e {
+                        sl_calib::CalibError::BoardNotFound { reason, .. } => reason,
+                        other => other.to_string(),
+                    };
+                    return Ok(TakeOutcome::Refused(Refusal::BoardNotFound {
+                        reason: format!("the right camera does not see the whole board: {reason}"),
+                    }));
+                }
+                Some(frame)
+            }
+            None => None,
+        };
         let index = self.poses.last().map_or(0, |p| p.index + 1);
         let dir = self.dir.join(BOARD_DIR).join(pose_dir_name(index));
         let frames = self.capture_patterns(camera, projector)?;
         self.write_folder(
             &dir,
             &check.white,
+            right_white.as_ref(),
             &frames,
             &BoardFile {
                 board: BoardJson::of(&self.config),
@@ -533,6 +572,7 @@ impl CalibrationCapture {
         &self,
         dir: &Path,
         white: &GreyImage,
+        right_white: Option<&GreyImage>,
         frames: &[GreyImage],
         board: &BoardFile,
         description: &str,
@@ -554,6 +594,11 @@ impl CalibrationCapture {
         })?;
         let file = partial.join(BOARD_FILE);
         std::fs::write(&file, json).map_err(|e| CaptureError::io(&file, e))?;
+        if let Some(right) = right_white {
+            let folder = partial.join(RIGHT_DIR);
+            std::fs::create_dir_all(&folder).map_err(|e| CaptureError::io(&folder, e))?;
+            write_png_grey(&folder.join(WHITE_IMAGE), right).map_err(RigError::from)?;
+        }
         write_png_grey(&partial.join(WHITE_IMAGE), white).map_err(RigError::from)?;
         if dir.exists() {
             std::fs::remove_dir_all(dir).map_err(|e| CaptureError::io(dir, e))?;
@@ -616,6 +661,7 @@ impl CalibrationCapture {
             self.write_folder(
                 &dir,
                 &check.white,
+                None,
                 &frames,
                 &BoardFile {
                     board: BoardJson::of(&self.config),

@@ -95,7 +95,8 @@ pub use align_scans::{
     CombinedScans, SCAN_PALETTE, combine_aligned, multiway_config_at, multiway_figures,
 };
 pub use calibration_auto::{
-    AutoConfig, AutoEvent, BoardMover, HandHeld, capture_poses_auto, wait_for_still_board,
+    AutoConfig, AutoEvent, BoardMover, HandHeld, capture_poses_auto, capture_poses_auto_with,
+    wait_for_still_board,
 };
 pub use calibration_capture::{
     CalibrationCapture, CalibrationCaptureConfig, CaptureError, PoseRecord, TableView, TakeOutcome,
@@ -118,7 +119,8 @@ pub use pose_quality::{
 };
 #[cfg(feature = "sim")]
 pub use virtual_board::{
-    BoardCamera, BoardPlacement, BoardProjector, BoardTurntable, VirtualBoardMover, VirtualBoardRig,
+    BoardCamera, BoardPlacement, BoardProjector, BoardRightCamera, BoardTurntable,
+    VirtualBoardMover, VirtualBoardRig,
 };
 
 pub use binocular_reconstruction::{BinocularReconstruction, reconstruct_binocular_capture};

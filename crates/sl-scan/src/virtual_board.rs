@@ -11,8 +11,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use nalgebra::Isometry3;
 use sl_rig::{Camera, GreyImage, Projector, RigError, Turntable};
 use sl_sim::{
-    BoardPoseConfig, Checkerboard, RigConfig, Scene, SceneObject, VirtualCamera, VirtualProjector,
-    VirtualRig, VirtualTurntable, random_board_poses,
+    BoardPoseConfig, Checkerboard, RigConfig, Scene, SceneObject, SecondCamera, VirtualCamera,
+    VirtualProjector, VirtualRig, VirtualTurntable, random_board_poses,
 };
 
 use crate::calibration_auto::BoardMover;
@@ -42,6 +42,9 @@ struct Shared {
     turntable: VirtualTurntable,
     shown: Option<GreyImage>,
     angle_deg: f64,
+    /// The second camera of a binocular rig: where it stands, its rig (the same scene seen
+    /// from it) and its device.
+    second: Option<(SecondCamera, VirtualRig, VirtualCamera)>,
 }
 
 impl Shared {
@@ -62,8 +65,22 @@ impl Shared {
                 ))
             }
         };
-        let rig = self.rig.with_scene(scene).map_err(CaptureError::sim)?;
-        let (camera, mut projector, mut turntable) = rig.devices();
+        let rig = self
+            .rig
+            .with_scene(scene.clone())
+            .map_err(CaptureError::sim)?;
+        let (camera, mut projector, mut turntable) = match &mut self.second {
+            None => rig.devices(),
+            Some((second, right_rig, right_camera)) => {
+                let right = right_rig
+                    .with_scene(scene.seen_from(second))
+                    .map_err(CaptureError::sim)?;
+                let (camera, right, projector, turntable) =
+                    rig.binocular_devices(&right).map_err(CaptureError::sim)?;
+                *right_camera = right;
+                (camera, projector, turntable)
+            }
+        };
         if let Some(img) = &self.shown {
             projector.show(img)?;
         }
@@ -119,11 +136,41 @@ impl VirtualBoardRig {
             turntable,
             shown: None,
             angle_deg: 0.0,
+            second: None,
         };
         shared.place(BoardPlacement::Held(first))?;
         Ok(Self {
             shared: Arc::new(Mutex::new(shared)),
         })
+    }
+
+    /// The same rig with the second camera `second` (binocular structured light): its
+    /// [`VirtualBoardRig::right_camera`] sees the board wherever it is moved.
+    ///
+    /// # Errors
+    /// The simulator's, when the second camera's rig cannot be built.
+    pub fn with_second_camera(self, second: SecondCamera) -> Result<Self, CaptureError> {
+        {
+            let mut s = lock(&self.shared);
+            let config = s.rig.config().seen_from(&second);
+            let right_rig = VirtualRig::new(config, Scene::board_on_table(s.board))
+                .map_err(CaptureError::sim)?;
+            let (camera, _, _) = right_rig.devices();
+            s.second = Some((second, right_rig, camera));
+            let placement = s.placement;
+            s.place(placement)?;
+        }
+        Ok(self)
+    }
+
+    /// The second camera's device, when the rig has one ([`VirtualBoardRig::with_second_camera`]).
+    pub fn right_camera(&self) -> Option<BoardRightCamera> {
+        lock(&self.shared)
+            .second
+            .as_ref()
+            .map(|_| BoardRightCamera {
+                shared: self.shared.clone(),
+            })
     }
 
     /// The rig (its configuration is the truth a calibration is compared with).
@@ -159,6 +206,31 @@ impl VirtualBoardRig {
 #[derive(Debug, Clone)]
 pub struct BoardCamera {
     shared: Arc<Mutex<Shared>>,
+}
+
+/// The second camera of a binocular [`VirtualBoardRig`].
+#[derive(Debug, Clone)]
+pub struct BoardRightCamera {
+    shared: Arc<Mutex<Shared>>,
+}
+
+impl Camera for BoardRightCamera {
+    fn frame_size(&self) -> (u32, u32) {
+        lock(&self.shared)
+            .second
+            .as_ref()
+            .map_or((0, 0), |(_, _, c)| c.frame_size())
+    }
+
+    fn capture(&mut self) -> Result<GreyImage, RigError> {
+        match &mut lock(&self.shared).second {
+            Some((_, _, camera)) => camera.capture(),
+            None => Err(RigError::Device {
+                device: "right camera".to_owned(),
+                reason: "the virtual board rig has no second camera".to_owned(),
+            }),
+        }
+    }
 }
 
 /// The projector of a [`VirtualBoardRig`].
