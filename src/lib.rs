@@ -9,8 +9,8 @@
 //! | [`camera`] | `sl-camera` | pinhole intrinsics, OpenCV distortion, projection, poses, calibration files |
 //! | [`cloud`] | `sl-cloud` | point clouds, PLY, voxel grid, neighbours, normals, outliers |
 //! | [`codec`] | `sl-codec` | pattern sequences and decoders |
-//! | [`calib`] | `sl-calib` | checkerboards, Zhang's camera calibration, projector calibration by local homographies, stereo, turntable axis |
-//! | [`tri`] | `sl-tri` | triangulation into metric clouds |
+//! | [`calib`] | `sl-calib` | checkerboards, Zhang's camera calibration, projector calibration by local homographies, stereo, two cameras, turntable axis |
+//! | [`tri`] | `sl-tri` | triangulation into metric clouds, with one camera and a projector or with two cameras |
 //! | [`icp`] | `sl-icp` | ICP, turntable merging, global registration with no initial pose |
 //! | [`rig`] | `sl-rig` | device traits, drivers (V4L2 camera, projector window, Dynamixel turntable), capture sessions |
 //! | [`sim`] | `sl-sim` | the virtual rig: scenes, rendering, ground truth, virtual devices behind `sl-rig`'s traits |
