@@ -2,14 +2,16 @@
 //! mapped into the projector by local homographies of the decoded patterns, each device
 //! calibrated by Zhang's method, then everything refined jointly.
 
-use nalgebra::{Isometry3, Point2, Point3, Vector2};
+use nalgebra::{Isometry3, Point2, Point3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use sl_camera::{Calibration, ImageSize, RmsErrors, RvecTvec};
+use sl_camera::{Calibration, ImageSize, RmsErrors};
 use sl_codec::{CorrespondenceMap, Frame};
 
 use crate::predicted::PredictedError;
-use crate::stereo::{StereoOptions, StereoStart, StereoView, mean_relative_pose, refine_stereo};
+use crate::stereo::{
+    StereoOptions, StereoStart, StereoView, joint_calibrations, mean_relative_pose, refine_stereo,
+};
 use crate::zhang::calibrate_camera_subsets;
 use crate::{
     BoardCorners, BoardSize, CalibError, CalibrationView, CameraCalibration, DetectorConfig,
@@ -409,58 +411,20 @@ fn calibrate_from_corners(
             tolerance: cfg.tolerance,
         },
     )?;
-    // Statistics.
-    let rms = |r: &[Vector2<f64>]| {
-        if r.is_empty() {
-            0.0
-        } else {
-            (r.iter().map(Vector2::norm_squared).sum::<f64>() / r.len() as f64).sqrt()
-        }
-    };
-    let projector_residuals: Vec<Vec<Vector2<f64>>> = sol
-        .projector_residuals
-        .iter()
-        .map(|r| r.iter().flatten().copied().collect())
-        .collect();
-    let all_camera: Vec<Vector2<f64>> = sol.camera_residuals.iter().flatten().copied().collect();
-    let all_projector: Vec<Vector2<f64>> = projector_residuals.iter().flatten().copied().collect();
-    let both: Vec<Vector2<f64>> = all_camera.iter().chain(&all_projector).copied().collect();
+    let (camera, projector, rms_stereo) = joint_calibrations(&sol);
     let t_proj_cam = sol.extrinsics.to_isometry();
     let views_report = found
         .into_iter()
-        .zip(sol.camera_residuals.iter().zip(&projector_residuals))
         .enumerate()
-        .map(|(k, (f, (rc, rp)))| ProcamViewReport {
+        .map(|(k, f)| ProcamViewReport {
             name: f.name,
             camera_corners: f.camera.corners,
             projector_corners: f.projector,
             in_projector_calibration: projector_index.contains(&k),
-            camera_rms: rms(rc),
-            projector_rms: rms(rp),
+            camera_rms: camera.view_rms.get(k).copied().unwrap_or(0.0),
+            projector_rms: projector.view_rms.get(k).copied().unwrap_or(0.0),
         })
         .collect();
-    let camera = CameraCalibration {
-        camera: sol.camera,
-        poses: sol.poses.clone(),
-        rms: rms(&all_camera),
-        view_rms: sol.camera_residuals.iter().map(|r| rms(r)).collect(),
-        residuals: sol.camera_residuals,
-        std_dev: sol.camera_std,
-        iterations: sol.iterations,
-    };
-    let projector = CameraCalibration {
-        camera: sol.projector,
-        poses: sol
-            .poses
-            .iter()
-            .map(|p| RvecTvec::from_isometry(&(t_proj_cam * p.to_isometry())))
-            .collect(),
-        rms: rms(&all_projector),
-        view_rms: projector_residuals.iter().map(|r| rms(r)).collect(),
-        residuals: projector_residuals,
-        std_dev: sol.projector_std,
-        iterations: sol.iterations,
-    };
     // The calibrated volume: every used view's board corners, where the poses put them.
     let volume: Vec<Point3<f64>> = sol
         .poses
@@ -481,7 +445,7 @@ fn calibrate_from_corners(
         t_proj_cam_std_dev: sol.extrinsics_std,
         rms_camera: camera_alone.rms,
         rms_projector: projector_alone.rms,
-        rms_stereo: rms(&both),
+        rms_stereo,
         views: views_report,
         skipped_views,
         iterations: sol.iterations,

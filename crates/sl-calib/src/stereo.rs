@@ -57,6 +57,56 @@ pub(crate) fn mean_relative_pose(
     )?))
 }
 
+/// RMS of a set of residuals (0 for none).
+pub(crate) fn rms(r: &[Vector2<f64>]) -> f64 {
+    if r.is_empty() {
+        0.0
+    } else {
+        (r.iter().map(Vector2::norm_squared).sum::<f64>() / r.len() as f64).sqrt()
+    }
+}
+
+/// The two devices of a joint solution as calibrations — the first with its per-view poses,
+/// the second with `T_second_board = extrinsics · T_first_board` (its unmapped corners left
+/// out of its residuals) — and the RMS over both devices' residuals together (OpenCV's
+/// `stereoCalibrate` definition).
+pub(crate) fn joint_calibrations(
+    sol: &StereoSolution,
+) -> (crate::CameraCalibration, crate::CameraCalibration, f64) {
+    let second_residuals: Vec<Vec<Vector2<f64>>> = sol
+        .projector_residuals
+        .iter()
+        .map(|r| r.iter().flatten().copied().collect())
+        .collect();
+    let all_first: Vec<Vector2<f64>> = sol.camera_residuals.iter().flatten().copied().collect();
+    let all_second: Vec<Vector2<f64>> = second_residuals.iter().flatten().copied().collect();
+    let both: Vec<Vector2<f64>> = all_first.iter().chain(&all_second).copied().collect();
+    let t_second_first = sol.extrinsics.to_isometry();
+    let first = crate::CameraCalibration {
+        camera: sol.camera,
+        poses: sol.poses.clone(),
+        rms: rms(&all_first),
+        view_rms: sol.camera_residuals.iter().map(|r| rms(r)).collect(),
+        residuals: sol.camera_residuals.clone(),
+        std_dev: sol.camera_std.clone(),
+        iterations: sol.iterations,
+    };
+    let second = crate::CameraCalibration {
+        camera: sol.projector,
+        poses: sol
+            .poses
+            .iter()
+            .map(|p| RvecTvec::from_isometry(&(t_second_first * p.to_isometry())))
+            .collect(),
+        rms: rms(&all_second),
+        view_rms: second_residuals.iter().map(|r| rms(r)).collect(),
+        residuals: second_residuals,
+        std_dev: sol.projector_std.clone(),
+        iterations: sol.iterations,
+    };
+    (first, second, rms(&both))
+}
+
 /// One board view: the board points, their camera pixels and (where mapped) projector pixels.
 pub(crate) struct StereoView<'a> {
     pub(crate) object: &'a [Point3<f64>],

@@ -3,13 +3,15 @@
 //! models, every board pose and `T_right_left` refined jointly — the refinement of the
 //! camera–projector pair (`stereo.rs`), with the right camera as the second device.
 
-use nalgebra::{Isometry3, Point2, Vector2};
+use nalgebra::{Isometry3, Point2};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use sl_camera::{BinocularCalibration, ImageSize, RvecTvec};
+use sl_camera::{BinocularCalibration, ImageSize};
 use sl_codec::Frame;
 
-use crate::stereo::{StereoOptions, StereoStart, StereoView, mean_relative_pose, refine_stereo};
+use crate::stereo::{
+    StereoOptions, StereoStart, StereoView, joint_calibrations, mean_relative_pose, refine_stereo,
+};
 use crate::{
     BoardCorners, BoardSize, CalibError, CalibrationView, CameraCalibration, DetectorConfig,
     SkippedView, ZhangConfig, calibrate_camera, detect_checkerboard,
@@ -295,53 +297,17 @@ pub fn calibrate_stereo_cameras(
             tolerance: cfg.tolerance,
         },
     )?;
-    let rms = |r: &[Vector2<f64>]| {
-        if r.is_empty() {
-            0.0
-        } else {
-            (r.iter().map(Vector2::norm_squared).sum::<f64>() / r.len() as f64).sqrt()
-        }
-    };
-    let right_residuals: Vec<Vec<Vector2<f64>>> = sol
-        .projector_residuals
-        .iter()
-        .map(|r| r.iter().flatten().copied().collect())
-        .collect();
-    let all_left: Vec<Vector2<f64>> = sol.camera_residuals.iter().flatten().copied().collect();
-    let all_right: Vec<Vector2<f64>> = right_residuals.iter().flatten().copied().collect();
-    let all: Vec<Vector2<f64>> = all_left.iter().chain(&all_right).copied().collect();
-    let t_right_left = sol.extrinsics.to_isometry();
+    let (left, right, rms_stereo) = joint_calibrations(&sol);
     let views_report = both
         .iter()
-        .zip(sol.camera_residuals.iter().zip(&right_residuals))
-        .map(|(b, (rl, rr))| StereoCameraViewReport {
+        .enumerate()
+        .map(|(k, b)| StereoCameraViewReport {
             name: b.0.to_owned(),
-            left_rms: rms(rl),
-            right_rms: rms(rr),
+            left_rms: left.view_rms.get(k).copied().unwrap_or(0.0),
+            right_rms: right.view_rms.get(k).copied().unwrap_or(0.0),
         })
         .collect();
-    let left = CameraCalibration {
-        camera: sol.camera,
-        poses: sol.poses.clone(),
-        rms: rms(&all_left),
-        view_rms: sol.camera_residuals.iter().map(|r| rms(r)).collect(),
-        residuals: sol.camera_residuals,
-        std_dev: sol.camera_std,
-        iterations: sol.iterations,
-    };
-    let right = CameraCalibration {
-        camera: sol.projector,
-        poses: sol
-            .poses
-            .iter()
-            .map(|p| RvecTvec::from_isometry(&(t_right_left * p.to_isometry())))
-            .collect(),
-        rms: rms(&all_right),
-        view_rms: right_residuals.iter().map(|r| rms(r)).collect(),
-        residuals: right_residuals,
-        std_dev: sol.projector_std,
-        iterations: sol.iterations,
-    };
+    let t_right_left = sol.extrinsics.to_isometry();
     Ok(StereoCameraCalibration {
         left,
         right,
@@ -349,7 +315,7 @@ pub fn calibrate_stereo_cameras(
         t_right_left_std_dev: sol.extrinsics_std,
         rms_left: left_alone.rms,
         rms_right: right_alone.rms,
-        rms_stereo: rms(&all),
+        rms_stereo,
         views: views_report,
         skipped_views,
         iterations: sol.iterations,

@@ -663,12 +663,6 @@ pub fn calibrate_procam_files(
         cfg.square_mm
     );
     report.stage("write", || write_calibration(&calib, cfg.yaml, out))?;
-    let intr = |c: &CameraCalibration| {
-        let i = &c.camera.intrinsics;
-        json!({ "fx": i.fx, "fy": i.fy, "cx": i.cx, "cy": i.cy, "skew": i.skew,
-                "distortion": c.camera.distortion.to_opencv_vec(),
-                "std_dev": { "intrinsics": c.std_dev.intrinsics, "distortion": c.std_dev.distortion } })
-    };
     report.figure("rms_camera_px", cal.rms_camera);
     report.figure("rms_projector_px", cal.rms_projector);
     report.figure("rms_stereo_px", cal.rms_stereo);
@@ -676,8 +670,8 @@ pub fn calibrate_procam_files(
         "predicted_error",
         serde_json::to_value(cal.predicted_error).unwrap_or_default(),
     );
-    report.figure("camera", intr(&cal.camera));
-    report.figure("projector", intr(&cal.projector));
+    report.figure("camera", intrinsics_figure(&cal.camera));
+    report.figure("projector", intrinsics_figure(&cal.projector));
     let t = cal.t_cam_proj.translation.vector;
     report.figure(
         "T_cam_proj",
@@ -772,6 +766,15 @@ fn procam_pictures(
     );
     save_png(&pplot.image, pics.join("residuals_projector.png"))?;
     Ok(json!({ "camera": plot_scale(&plot), "projector": plot_scale(&pplot) }))
+}
+
+/// A calibrated device's intrinsics, distortion and their standard deviations, as the
+/// calibration reports hold them.
+pub(crate) fn intrinsics_figure(c: &CameraCalibration) -> serde_json::Value {
+    let i = &c.camera.intrinsics;
+    json!({ "fx": i.fx, "fy": i.fy, "cx": i.cx, "cy": i.cy, "skew": i.skew,
+            "distortion": c.camera.distortion.to_opencv_vec(),
+            "std_dev": { "intrinsics": c.std_dev.intrinsics, "distortion": c.std_dev.distortion } })
 }
 
 /// The white-light picture of a capture folder, saved in any format sl-codec reads.

@@ -17,7 +17,7 @@ use sl_rig::RIGHT_DIR;
 
 use crate::error::ScanError;
 use crate::run_report::RunReport;
-use crate::session_calibration::{pose_folders, white_image};
+use crate::session_calibration::{intrinsics_figure, pose_folders, white_image};
 use crate::{
     CalibrationFilesConfig, ProcamFiles, ScanProgress, TurntableFiles, calibrate_procam_files,
     calibrate_turntable_files, default_turntable_dir, session_poses, session_projector_size,
@@ -151,17 +151,11 @@ pub fn calibrate_stereo_files(
         }
         None => None,
     };
-    let intrinsics = |c: &sl_calib::CameraCalibration| {
-        let i = &c.camera.intrinsics;
-        json!({ "fx": i.fx, "fy": i.fy, "cx": i.cx, "cy": i.cy,
-                "distortion": c.camera.distortion.to_opencv_vec(),
-                "std_dev": { "intrinsics": c.std_dev.intrinsics, "distortion": c.std_dev.distortion } })
-    };
     report.figure("rms_left_px", stereo.rms_left);
     report.figure("rms_right_px", stereo.rms_right);
     report.figure("rms_stereo_px", stereo.rms_stereo);
-    report.figure("left", intrinsics(&stereo.left));
-    report.figure("right", intrinsics(&stereo.right));
+    report.figure("left", intrinsics_figure(&stereo.left));
+    report.figure("right", intrinsics_figure(&stereo.right));
     let t = stereo.t_left_right.translation.vector;
     report.figure(
         "T_left_right",

@@ -101,28 +101,13 @@ pub fn calibrate_virtual(
         },
     )?;
     drop(views);
-    let mut table_views = Vec::new();
-    for (k, &angle) in cfg.table_angles_deg.iter().enumerate() {
-        let cap = captures.on_table(k, None)?;
-        let label = format!("board on the turntable at {angle} degrees");
-        table_views.push(TurntableView::detect(
-            &cap.white.into_u8(),
-            &label,
-            angle,
-            size,
-            board.square_mm,
-            &detector,
-        )?);
-        progress(ScanProgress {
-            stage: "calibrate",
-            done: poses + k + 1,
-            total,
-        });
-    }
-    let table = calibrate_turntable(
+    let table = calibrate_table(
+        &captures,
         &procam.camera.camera,
-        &table_views,
-        &TurntableConfig::default(),
+        &cfg.table_angles_deg,
+        &detector,
+        (poses, total),
+        &mut progress,
     )?;
     let mut calibration = procam.to_calibration();
     calibration.turntable = Some(table.axis);
@@ -290,25 +275,14 @@ pub fn calibrate_virtual_binocular(
     )?;
     drop(views);
     let left_model = stereo.left.camera;
-    let mut table_views = Vec::new();
-    for (k, &angle) in cfg.table_angles_deg.iter().enumerate() {
-        let cap = captures.on_table(k, None)?;
-        let label = format!("board on the turntable at {angle} degrees");
-        table_views.push(TurntableView::detect(
-            &cap.white.into_u8(),
-            &label,
-            angle,
-            size,
-            board.square_mm,
-            &detector,
-        )?);
-        progress(ScanProgress {
-            stage: "calibrate",
-            done: poses + k + 1,
-            total,
-        });
-    }
-    let table = calibrate_turntable(&left_model, &table_views, &TurntableConfig::default())?;
+    let table = calibrate_table(
+        &captures,
+        &left_model,
+        &cfg.table_angles_deg,
+        &detector,
+        (poses, total),
+        &mut progress,
+    )?;
     let mut pair = stereo.to_binocular();
     pair.turntable = Some(table.axis);
     pair.metadata.notes = "estimated by slscan scan --binocular from simulated board captures of the virtual rig's two cameras (sl_calib::calibrate_stereo_cameras, sl_calib::calibrate_turntable)".to_owned();
@@ -339,6 +313,44 @@ pub fn calibrate_virtual_binocular(
         predicted_error: None,
     };
     Ok((pair, summary))
+}
+
+/// The turntable axis from the board standing on the platter at `angles` (the session's
+/// captures, seen by `camera`), reporting progress after the `done_total.0` hand-held poses of
+/// `done_total.1` captures.
+fn calibrate_table(
+    captures: &CalibrationCaptures<'_>,
+    camera: &sl_camera::CameraModel,
+    angles: &[f64],
+    detector: &sl_calib::DetectorConfig,
+    (done, total): (usize, usize),
+    progress: &mut impl FnMut(ScanProgress<'_>),
+) -> Result<sl_calib::TurntableCalibration, ScanError> {
+    let board = captures.session().board;
+    let size = BoardSize::new(board.inner_cols, board.inner_rows);
+    let mut views = Vec::with_capacity(angles.len());
+    for (k, &angle) in angles.iter().enumerate() {
+        let cap = captures.on_table(k, None)?;
+        let label = format!("board on the turntable at {angle} degrees");
+        views.push(TurntableView::detect(
+            &cap.white.into_u8(),
+            &label,
+            angle,
+            size,
+            board.square_mm,
+            detector,
+        )?);
+        progress(ScanProgress {
+            stage: "calibrate",
+            done: done + k + 1,
+            total,
+        });
+    }
+    Ok(calibrate_turntable(
+        camera,
+        &views,
+        &TurntableConfig::default(),
+    )?)
 }
 
 /// The angle (degrees) between the fitted and the true axis directions, and the distance (mm)
