@@ -71,9 +71,9 @@ fn the_binocular_sdk_pair_reconstructs() {
     // Measured 0.430 px: each camera's decoded columns carry ~0.1 projector px of noise, 0.14
     // camera px at this code gradient (0.73 projector px per camera px); the second difference
     // of a difference of two such maps has √12 times that spread, a median magnitude of ~0.33
-    // px if the pixels' noise were independent. A regression guard, not
-    // a figure to be proud of: the plain rectify-and-match of the peer is still to be
-    // measured on the same decode.
+    // px if the pixels' noise were independent. A regression guard: the plain OpenCV
+    // rectify-and-match on the same decode (`benches/peers/binocular_rectify_match.py`) gives
+    // 0.426 px over 0.80 M points.
     assert!(r.roughness_px < 0.6, "roughness {}", r.roughness_px);
     assert!(out.join("cloud.ply").is_file() && out.join("disparity.png").is_file());
 }
