@@ -83,6 +83,7 @@ mod manifest;
 mod pattern;
 mod phase_shift;
 mod pictures;
+mod ramps;
 mod sequence;
 mod smooth;
 mod synthetic;
@@ -119,6 +120,7 @@ pub use phase_shift::{
 #[cfg(feature = "image-files")]
 pub use pictures::write_outputs;
 pub use pictures::{INVALID_PALETTE, MapFormat, OutputFiles, false_color, invalid_colors, turbo};
+pub use ramps::ramp_stair_codes;
 pub use sequence::{PatternSequence, render_pattern};
 /// A grey image at either depth, as [`read_image`] returns it: the workspace's one grey image,
 /// defined in `sl-image` and re-exported here.

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 use sl_camera::{BinocularCalibration, ImageSize, LoadConfig};
 use sl_cloud::{PlyFormat, PreviewImage, colormap, write_ply};
-use sl_codec::{CaptureSet, DecodeConfig, MANIFEST_FILE, decode, write_png_rgb8};
+use sl_codec::{CaptureSet, DecodeConfig, MANIFEST_FILE, decode, ramp_stair_codes, write_png_rgb8};
 use sl_tri::{Binocular, BinocularConfig, BinocularCounts};
 
 use crate::error::io;
@@ -95,10 +95,15 @@ pub fn reconstruct_binocular_capture(
         }
     }
     let (lmap, rmap) = timed(&mut stages, "decode", || {
-        Ok::<_, ScanError>((
+        let mut maps = (
             decode(&left_set, &DecodeConfig::default())?,
             decode(&right_set, &DecodeConfig::default())?,
-        ))
+        );
+        // A Gray code's whole-number stripes as ramps: the matching needs codes that vary
+        // within a stripe (phase codes are left as they are).
+        ramp_stair_codes(&mut maps.0);
+        ramp_stair_codes(&mut maps.1);
+        Ok::<_, ScanError>(maps)
     })?;
     drop((left_set, right_set));
     let pair = timed(&mut stages, "rectify", || {

@@ -9,7 +9,7 @@ use sl_camera::{BinocularCalibration, Calibration, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_codec::{
     CaptureSet, CorrespondenceMap, DecodeConfig, MANIFEST_FILE, SmoothConfig, decode,
-    smooth_correspondences,
+    ramp_stair_codes, smooth_correspondences,
 };
 use sl_rig::{RIGHT_DIR, read_session_plan, view_dir_name};
 use sl_tri::{Binocular, BinocularConfig, TriConfig, Triangulator};
@@ -153,8 +153,8 @@ fn erode(valid: &mut [bool], w: usize, h: usize, steps: usize) {
 }
 
 /// Decodes the two capture sets of one view of a binocular rig (`dir` the left camera's,
-/// `dir/right` the right camera's) and matches and triangulates them as a scan does: both
-/// maps smoothed ([`ReconstructConfig::smoothing`]), the pixels within
+/// `dir/right` the right camera's) and matches and triangulates them as a scan does: a Gray
+/// code's stripes made ramps ([`sl_codec::ramp_stair_codes`]), both maps smoothed ([`ReconstructConfig::smoothing`]), the pixels within
 /// [`ReconstructConfig::edge_erosion_px`] of an undecoded pixel cleared in both (the silhouette
 /// and the rims, whose codes mix two surfaces), then [`Binocular::reconstruct`]. The cloud is
 /// in the left camera's frame.
@@ -171,8 +171,11 @@ pub fn reconstruct_binocular_view(
     let mut maps = Vec::with_capacity(2);
     for d in [dir.to_path_buf(), dir.join(RIGHT_DIR)] {
         let set = CaptureSet::load(&d.join(MANIFEST_FILE))?;
-        let map = decode(&set, &DecodeConfig::default())?;
+        let mut map = decode(&set, &DecodeConfig::default())?;
         drop(set);
+        // A Gray code's whole-number stripes as ramps: the matching needs codes that vary
+        // within a stripe (phase codes are left as they are).
+        ramp_stair_codes(&mut map);
         let mut map = match &config.smoothing {
             Some(smooth) => smooth_correspondences(&map, smooth)?,
             None => map,
