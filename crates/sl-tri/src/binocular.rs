@@ -568,7 +568,6 @@ struct Run {
     increasing: bool,
 }
 
-/// The runs of `row`.
 /// The runs of a row by code: bucket `b` lists, in row order, the runs whose code range meets
 /// `[lo + b·BUCKET, lo + (b+1)·BUCKET)`. A noisy real row breaks into hundreds of short runs;
 /// looking a code up among the runs of its bucket instead of all of them takes the whole
@@ -632,6 +631,7 @@ impl RunIndex {
     }
 }
 
+/// The runs of `row`.
 fn runs(row: &[f32], max_step: f32) -> Vec<Run> {
     let mut out = Vec::new();
     let mut x = 0;
@@ -669,10 +669,15 @@ fn runs(row: &[f32], max_step: f32) -> Vec<Run> {
     out
 }
 
-/// The sub-pixel position of `code` in `run` of `row` (binary search on the monotonic codes,
-/// linear between the two pixels that bracket it).
-fn position(row: &[f32], run: &Run, code: f32) -> f64 {
-    let (mut a, mut b) = (run.start, run.end);
+/// The sub-pixel position of `code` in `run` of `row` (linear between the two pixels that
+/// bracket it), and the first of those pixels: the last pixel of the run whose code has not
+/// passed `code` (the run's codes are strictly monotonic, so it is unique). The search starts
+/// at `hint` (the answer for the previous pixel of the other row, which is a pixel or two away
+/// along a surface: `HINT_STEPS` steps from it find most answers) and bisects what is left, so
+/// the answer does not depend on the hint.
+fn position(row: &[f32], run: &Run, code: f32, hint: usize) -> (f64, usize) {
+    /// Steps walked from the hint before bisecting.
+    const HINT_STEPS: usize = 4;
     let before = |i: usize| {
         if run.increasing {
             row[i] <= code
@@ -680,6 +685,25 @@ fn position(row: &[f32], run: &Run, code: f32) -> f64 {
             row[i] >= code
         }
     };
+    // Invariant: `before(a)` (true at the run's start, whose code is the range's end on the
+    // near side of `code`) and `b == run.end || !before(b)`.
+    let (mut a, mut b) = (run.start, run.end);
+    let h = hint.clamp(run.start, run.end - 1);
+    if before(h) {
+        a = h;
+    } else {
+        b = h;
+    }
+    for _ in 0..HINT_STEPS {
+        if b - a <= 1 {
+            break;
+        }
+        if before(a + 1) {
+            a += 1;
+        } else {
+            b = a + 1;
+        }
+    }
     while b - a > 1 {
         let m = (a + b) / 2;
         if before(m) {
@@ -689,7 +713,10 @@ fn position(row: &[f32], run: &Run, code: f32) -> f64 {
         }
     }
     let (ca, cb) = (row[a], row[b]);
-    a as f64 + f64::from((code - ca) / (cb - ca)).clamp(0.0, 1.0)
+    (
+        a as f64 + f64::from((code - ca) / (cb - ca)).clamp(0.0, 1.0),
+        a,
+    )
 }
 
 /// Matches every pixel of `from` to the sub-pixel position of its code in `to`, with the
@@ -708,19 +735,21 @@ fn match_row(
     let mut out = vec![Match::None; from.len()];
     let mut previous: Option<f64> = None;
     let mut candidates = Vec::with_capacity(4);
+    // Where each run last found a code: the next code is found a step or two from it.
+    let mut hints: Vec<usize> = runs.iter().map(|r| r.start).collect();
     for (x, &code) in from.iter().enumerate() {
         if !code.is_finite() {
             previous = None;
             continue;
         }
         candidates.clear();
-        for run in index
-            .near(code)
-            .iter()
-            .map(|&k| &runs[k as usize])
-            .filter(|r| r.lo <= code && code <= r.hi)
-        {
-            let xt = position(to, run, code);
+        for &k in index.near(code) {
+            let run = &runs[k as usize];
+            if !(run.lo <= code && code <= run.hi) {
+                continue;
+            }
+            let (xt, at) = position(to, run, code, hints[k as usize]);
+            hints[k as usize] = at;
             let d = sign * (x as f64 - xt);
             if d >= d_min && d <= d_max {
                 candidates.push((xt, d));
