@@ -326,27 +326,25 @@ impl Binocular {
             shift
         };
         let w = self.width;
-        let rows_out: Vec<(Vec<f32>, BinocularCounts)> = (0..self.height)
-            .into_par_iter()
-            .map(|y| {
+        let mut disparity = vec![f32::NAN; w * self.height];
+        let rows_counts: Vec<BinocularCounts> = disparity
+            .par_chunks_mut(w.max(1))
+            .enumerate()
+            // One set of row buffers per task, reused from row to row.
+            .map_init(RowSamples::default, |s, (y, disparity)| {
                 // Both maps sampled on this rectified row only: the row's samples stay in the
                 // cache for the matching, and no full-image buffer is written and read back.
                 let span = y * w..(y + 1) * w;
                 let (lm, rm) = (&self.left_map[span.clone()], &self.right_map[span]);
-                let l = sample(&left.col, left.width, lm, step);
-                let r = sample(&right.col, right.width, rm, step);
-                let (lr, rr) = if rows {
-                    (
-                        sample(&left.row, left.width, lm, f32::INFINITY),
-                        sample(&right.row, right.width, rm, f32::INFINITY),
-                    )
-                } else {
-                    (Vec::new(), Vec::new())
-                };
-                let (l, r) = (l.as_slice(), r.as_slice());
+                sample(&left.col, left.width, lm, step, &mut s.l);
+                sample(&right.col, right.width, rm, step, &mut s.r);
+                if rows {
+                    sample(&left.row, left.width, lm, f32::INFINITY, &mut s.lr);
+                    sample(&right.row, right.width, rm, f32::INFINITY, &mut s.rr);
+                }
+                let (l, r, lr, rr) = (&s.l[..], &s.r[..], &s.lr[..], &s.rr[..]);
                 let forward = match_row(l, r, step, d_min, d_max, 1.0);
                 let backward = match_row(r, l, step, -d_max, -d_min, -1.0);
-                let mut disparity = vec![f32::NAN; w];
                 let mut counts = BinocularCounts::default();
                 for (x, m) in forward.iter().enumerate() {
                     if !l[x].is_finite() {
@@ -366,7 +364,7 @@ impl Binocular {
                     };
                     let consistent = back_at(&backward, xr)
                         .is_some_and(|xl| (xl - x as f64).abs() <= cfg.max_lr_error_px)
-                        && (!rows || rows_agree(&lr[x], &rr, xr, cfg));
+                        && (!rows || rows_agree(&lr[x], rr, xr, cfg));
                     if !consistent {
                         counts.inconsistent += 1;
                         continue;
@@ -379,13 +377,11 @@ impl Binocular {
                     disparity[x] = d as f32;
                     counts.valid += 1;
                 }
-                (disparity, counts)
+                counts
             })
             .collect();
-        let mut disparity: Vec<f32> = Vec::with_capacity(w * self.height);
         let mut counts = BinocularCounts::default();
-        for (d, c) in rows_out {
-            disparity.extend(d);
+        for c in rows_counts {
             counts.decoded += c.decoded;
             counts.unmatched += c.unmatched;
             counts.ambiguous += c.ambiguous;
@@ -496,23 +492,44 @@ impl Binocular {
             .par_chunks(w * BAND_ROWS)
             .map(|band| band.iter().filter(|p| p.z.is_finite()).count())
             .collect();
-        let positions: Vec<Point3<f64>> = xyz
-            .par_iter()
-            .filter(|p| p.z.is_finite())
-            .copied()
-            .collect();
+        // Each band copies its points into its own slice of the cloud (a filtered parallel
+        // collect gathers per-task vectors and copies them again).
+        let mut positions = vec![Point3::origin(); counts.iter().sum()];
+        let mut slices = Vec::with_capacity(counts.len());
+        let mut rest = positions.as_mut_slice();
+        for &c in &counts {
+            let (head, tail) = rest.split_at_mut(c);
+            slices.push(head);
+            rest = tail;
+        }
+        xyz.par_chunks(w * BAND_ROWS)
+            .zip(slices)
+            .for_each(|(band, out)| {
+                for (o, p) in out.iter_mut().zip(band.iter().filter(|p| p.z.is_finite())) {
+                    *o = *p;
+                }
+            });
         let mut normals = vec![Vector3::zeros(); positions.len()];
         cloud_normals(&xyz, w, BAND_ROWS, &counts, &mut normals);
         Ok(PointCloud::from_positions(positions).with_normals(normals)?)
     }
 }
 
-/// The codes of a decoded map at the rectified pixels `map` (one row): bilinear where the four
-/// neighbours are decoded and within `max_step` of each other, NaN elsewhere.
-fn sample(values: &[f32], width: usize, map: &[[f32; 2]], max_step: f32) -> Vec<f32> {
+/// The rows of both maps sampled on one rectified row: columns, and rows when both code them.
+#[derive(Default)]
+struct RowSamples {
+    l: Vec<f32>,
+    r: Vec<f32>,
+    lr: Vec<f32>,
+    rr: Vec<f32>,
+}
+
+/// The codes of a decoded map at the rectified pixels `map` (one row), into `out`: bilinear
+/// where the four neighbours are decoded and within `max_step` of each other, NaN elsewhere.
+fn sample(values: &[f32], width: usize, map: &[[f32; 2]], max_step: f32, out: &mut Vec<f32>) {
     let height = values.len() / width.max(1);
-    map.iter()
-        .map(|&[u, v]| {
+    out.clear();
+    out.extend(map.iter().map(|&[u, v]| {
             if !(u.is_finite() && v.is_finite()) {
                 return f32::NAN;
             }
@@ -543,8 +560,7 @@ fn sample(values: &[f32], width: usize, map: &[[f32; 2]], max_step: f32) -> Vec<
             let top = q[0] + (q[1] - q[0]) * fx;
             let bottom = q[2] + (q[3] - q[2]) * fx;
             top + (bottom - top) * fy
-        })
-        .collect()
+        }));
 }
 
 /// What the search for a code along the other row found.
