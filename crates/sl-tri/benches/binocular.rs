@@ -117,10 +117,7 @@ fn binocular_sdk() -> Option<BenchResult<Pair>> {
         let mut sets = Vec::new();
         for side in ["L", "R"] {
             let manifest = tmp.path().join(format!("{side}.json"));
-            std::fs::write(
-                &manifest,
-                sdk_manifest(&data.join("phaseGray").join(side)),
-            )?;
+            std::fs::write(&manifest, sdk_manifest(&data.join("phaseGray").join(side)))?;
             sets.push(CaptureSet::load(&manifest)?);
         }
         let right = sets.pop().ok_or("no right capture")?;
@@ -172,6 +169,15 @@ fn run(c: &mut Criterion, pairs: &[Pair]) -> BenchResult<()> {
             100.0 * lmap.valid_fraction(),
             100.0 * rmap.valid_fraction(),
             result.cloud.len()
+        );
+        // The disparity's bits, to tell that a change of the matching kept its results.
+        let bits = result
+            .disparity
+            .iter()
+            .fold(0u64, |h, d| h.rotate_left(5) ^ u64::from(d.to_bits()));
+        eprintln!(
+            "{}: {:?}, disparity bits {bits:016x}",
+            p.name, result.counts
         );
         ready.push((p, rectified, lmap, rmap));
     }

@@ -530,37 +530,37 @@ fn sample(values: &[f32], width: usize, map: &[[f32; 2]], max_step: f32, out: &m
     let height = values.len() / width.max(1);
     out.clear();
     out.extend(map.iter().map(|&[u, v]| {
-            if !(u.is_finite() && v.is_finite()) {
-                return f32::NAN;
-            }
-            // Truncation of a non-negative value is its floor, without a libm call.
-            let (x0, y0) = (u.max(0.0) as usize, v.max(0.0) as usize);
-            let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
-            let (fx, fy) = (
-                (u - x0 as f32).clamp(0.0, 1.0),
-                (v - y0 as f32).clamp(0.0, 1.0),
-            );
-            let q = [
-                values[y0 * width + x0],
-                values[y0 * width + x1],
-                values[y1 * width + x0],
-                values[y1 * width + x1],
-            ];
-            if q.iter().any(|c| !c.is_finite()) {
-                return f32::NAN;
-            }
-            let (lo, hi) = q
-                .iter()
-                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &c| {
-                    (a.min(c), b.max(c))
-                });
-            if hi - lo > max_step {
-                return f32::NAN;
-            }
-            let top = q[0] + (q[1] - q[0]) * fx;
-            let bottom = q[2] + (q[3] - q[2]) * fx;
-            top + (bottom - top) * fy
-        }));
+        if !(u.is_finite() && v.is_finite()) {
+            return f32::NAN;
+        }
+        // Truncation of a non-negative value is its floor, without a libm call.
+        let (x0, y0) = (u.max(0.0) as usize, v.max(0.0) as usize);
+        let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
+        let (fx, fy) = (
+            (u - x0 as f32).clamp(0.0, 1.0),
+            (v - y0 as f32).clamp(0.0, 1.0),
+        );
+        let q = [
+            values[y0 * width + x0],
+            values[y0 * width + x1],
+            values[y1 * width + x0],
+            values[y1 * width + x1],
+        ];
+        if q.iter().any(|c| !c.is_finite()) {
+            return f32::NAN;
+        }
+        let (lo, hi) = q
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &c| {
+                (a.min(c), b.max(c))
+            });
+        if hi - lo > max_step {
+            return f32::NAN;
+        }
+        let top = q[0] + (q[1] - q[0]) * fx;
+        let bottom = q[2] + (q[3] - q[2]) * fx;
+        top + (bottom - top) * fy
+    }));
 }
 
 /// What the search for a code along the other row found.
