@@ -326,27 +326,25 @@ impl Binocular {
             shift
         };
         let w = self.width;
-        let rows_out: Vec<(Vec<f32>, BinocularCounts)> = (0..self.height)
-            .into_par_iter()
-            .map(|y| {
+        let mut disparity = vec![f32::NAN; w * self.height];
+        let rows_counts: Vec<BinocularCounts> = disparity
+            .par_chunks_mut(w.max(1))
+            .enumerate()
+            // One set of row buffers per task, reused from row to row.
+            .map_init(RowSamples::default, |s, (y, disparity)| {
                 // Both maps sampled on this rectified row only: the row's samples stay in the
                 // cache for the matching, and no full-image buffer is written and read back.
                 let span = y * w..(y + 1) * w;
                 let (lm, rm) = (&self.left_map[span.clone()], &self.right_map[span]);
-                let l = sample(&left.col, left.width, lm, step);
-                let r = sample(&right.col, right.width, rm, step);
-                let (lr, rr) = if rows {
-                    (
-                        sample(&left.row, left.width, lm, f32::INFINITY),
-                        sample(&right.row, right.width, rm, f32::INFINITY),
-                    )
-                } else {
-                    (Vec::new(), Vec::new())
-                };
-                let (l, r) = (l.as_slice(), r.as_slice());
+                sample(&left.col, left.width, lm, step, &mut s.l);
+                sample(&right.col, right.width, rm, step, &mut s.r);
+                if rows {
+                    sample(&left.row, left.width, lm, f32::INFINITY, &mut s.lr);
+                    sample(&right.row, right.width, rm, f32::INFINITY, &mut s.rr);
+                }
+                let (l, r, lr, rr) = (&s.l[..], &s.r[..], &s.lr[..], &s.rr[..]);
                 let forward = match_row(l, r, step, d_min, d_max, 1.0);
                 let backward = match_row(r, l, step, -d_max, -d_min, -1.0);
-                let mut disparity = vec![f32::NAN; w];
                 let mut counts = BinocularCounts::default();
                 for (x, m) in forward.iter().enumerate() {
                     if !l[x].is_finite() {
@@ -366,7 +364,7 @@ impl Binocular {
                     };
                     let consistent = back_at(&backward, xr)
                         .is_some_and(|xl| (xl - x as f64).abs() <= cfg.max_lr_error_px)
-                        && (!rows || rows_agree(&lr[x], &rr, xr, cfg));
+                        && (!rows || rows_agree(&lr[x], rr, xr, cfg));
                     if !consistent {
                         counts.inconsistent += 1;
                         continue;
@@ -379,13 +377,11 @@ impl Binocular {
                     disparity[x] = d as f32;
                     counts.valid += 1;
                 }
-                (disparity, counts)
+                counts
             })
             .collect();
-        let mut disparity: Vec<f32> = Vec::with_capacity(w * self.height);
         let mut counts = BinocularCounts::default();
-        for (d, c) in rows_out {
-            disparity.extend(d);
+        for c in rows_counts {
             counts.decoded += c.decoded;
             counts.unmatched += c.unmatched;
             counts.ambiguous += c.ambiguous;
@@ -496,55 +492,75 @@ impl Binocular {
             .par_chunks(w * BAND_ROWS)
             .map(|band| band.iter().filter(|p| p.z.is_finite()).count())
             .collect();
-        let positions: Vec<Point3<f64>> = xyz
-            .par_iter()
-            .filter(|p| p.z.is_finite())
-            .copied()
-            .collect();
+        // Each band copies its points into its own slice of the cloud (a filtered parallel
+        // collect gathers per-task vectors and copies them again).
+        let mut positions = vec![Point3::origin(); counts.iter().sum()];
+        let mut slices = Vec::with_capacity(counts.len());
+        let mut rest = positions.as_mut_slice();
+        for &c in &counts {
+            let (head, tail) = rest.split_at_mut(c);
+            slices.push(head);
+            rest = tail;
+        }
+        xyz.par_chunks(w * BAND_ROWS)
+            .zip(slices)
+            .for_each(|(band, out)| {
+                for (o, p) in out.iter_mut().zip(band.iter().filter(|p| p.z.is_finite())) {
+                    *o = *p;
+                }
+            });
         let mut normals = vec![Vector3::zeros(); positions.len()];
         cloud_normals(&xyz, w, BAND_ROWS, &counts, &mut normals);
         Ok(PointCloud::from_positions(positions).with_normals(normals)?)
     }
 }
 
-/// The codes of a decoded map at the rectified pixels `map` (one row): bilinear where the four
-/// neighbours are decoded and within `max_step` of each other, NaN elsewhere.
-fn sample(values: &[f32], width: usize, map: &[[f32; 2]], max_step: f32) -> Vec<f32> {
+/// The rows of both maps sampled on one rectified row: columns, and rows when both code them.
+#[derive(Default)]
+struct RowSamples {
+    l: Vec<f32>,
+    r: Vec<f32>,
+    lr: Vec<f32>,
+    rr: Vec<f32>,
+}
+
+/// The codes of a decoded map at the rectified pixels `map` (one row), into `out`: bilinear
+/// where the four neighbours are decoded and within `max_step` of each other, NaN elsewhere.
+fn sample(values: &[f32], width: usize, map: &[[f32; 2]], max_step: f32, out: &mut Vec<f32>) {
     let height = values.len() / width.max(1);
-    map.iter()
-        .map(|&[u, v]| {
-            if !(u.is_finite() && v.is_finite()) {
-                return f32::NAN;
-            }
-            // Truncation of a non-negative value is its floor, without a libm call.
-            let (x0, y0) = (u.max(0.0) as usize, v.max(0.0) as usize);
-            let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
-            let (fx, fy) = (
-                (u - x0 as f32).clamp(0.0, 1.0),
-                (v - y0 as f32).clamp(0.0, 1.0),
-            );
-            let q = [
-                values[y0 * width + x0],
-                values[y0 * width + x1],
-                values[y1 * width + x0],
-                values[y1 * width + x1],
-            ];
-            if q.iter().any(|c| !c.is_finite()) {
-                return f32::NAN;
-            }
-            let (lo, hi) = q
-                .iter()
-                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &c| {
-                    (a.min(c), b.max(c))
-                });
-            if hi - lo > max_step {
-                return f32::NAN;
-            }
-            let top = q[0] + (q[1] - q[0]) * fx;
-            let bottom = q[2] + (q[3] - q[2]) * fx;
-            top + (bottom - top) * fy
-        })
-        .collect()
+    out.clear();
+    out.extend(map.iter().map(|&[u, v]| {
+        if !(u.is_finite() && v.is_finite()) {
+            return f32::NAN;
+        }
+        // Truncation of a non-negative value is its floor, without a libm call.
+        let (x0, y0) = (u.max(0.0) as usize, v.max(0.0) as usize);
+        let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
+        let (fx, fy) = (
+            (u - x0 as f32).clamp(0.0, 1.0),
+            (v - y0 as f32).clamp(0.0, 1.0),
+        );
+        let q = [
+            values[y0 * width + x0],
+            values[y0 * width + x1],
+            values[y1 * width + x0],
+            values[y1 * width + x1],
+        ];
+        if q.iter().any(|c| !c.is_finite()) {
+            return f32::NAN;
+        }
+        let (lo, hi) = q
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &c| {
+                (a.min(c), b.max(c))
+            });
+        if hi - lo > max_step {
+            return f32::NAN;
+        }
+        let top = q[0] + (q[1] - q[0]) * fx;
+        let bottom = q[2] + (q[3] - q[2]) * fx;
+        top + (bottom - top) * fy
+    }));
 }
 
 /// What the search for a code along the other row found.
@@ -568,7 +584,6 @@ struct Run {
     increasing: bool,
 }
 
-/// The runs of `row`.
 /// The runs of a row by code: bucket `b` lists, in row order, the runs whose code range meets
 /// `[lo + b·BUCKET, lo + (b+1)·BUCKET)`. A noisy real row breaks into hundreds of short runs;
 /// looking a code up among the runs of its bucket instead of all of them takes the whole
@@ -632,6 +647,7 @@ impl RunIndex {
     }
 }
 
+/// The runs of `row`.
 fn runs(row: &[f32], max_step: f32) -> Vec<Run> {
     let mut out = Vec::new();
     let mut x = 0;
@@ -669,10 +685,15 @@ fn runs(row: &[f32], max_step: f32) -> Vec<Run> {
     out
 }
 
-/// The sub-pixel position of `code` in `run` of `row` (binary search on the monotonic codes,
-/// linear between the two pixels that bracket it).
-fn position(row: &[f32], run: &Run, code: f32) -> f64 {
-    let (mut a, mut b) = (run.start, run.end);
+/// The sub-pixel position of `code` in `run` of `row` (linear between the two pixels that
+/// bracket it), and the first of those pixels: the last pixel of the run whose code has not
+/// passed `code` (the run's codes are strictly monotonic, so it is unique). The search starts
+/// at `hint` (the answer for the previous pixel of the other row, which is a pixel or two away
+/// along a surface: `HINT_STEPS` steps from it find most answers) and bisects what is left, so
+/// the answer does not depend on the hint.
+fn position(row: &[f32], run: &Run, code: f32, hint: usize) -> (f64, usize) {
+    /// Steps walked from the hint before bisecting.
+    const HINT_STEPS: usize = 4;
     let before = |i: usize| {
         if run.increasing {
             row[i] <= code
@@ -680,6 +701,25 @@ fn position(row: &[f32], run: &Run, code: f32) -> f64 {
             row[i] >= code
         }
     };
+    // Invariant: `before(a)` (true at the run's start, whose code is the range's end on the
+    // near side of `code`) and `b == run.end || !before(b)`.
+    let (mut a, mut b) = (run.start, run.end);
+    let h = hint.clamp(run.start, run.end - 1);
+    if before(h) {
+        a = h;
+    } else {
+        b = h;
+    }
+    for _ in 0..HINT_STEPS {
+        if b - a <= 1 {
+            break;
+        }
+        if before(a + 1) {
+            a += 1;
+        } else {
+            b = a + 1;
+        }
+    }
     while b - a > 1 {
         let m = (a + b) / 2;
         if before(m) {
@@ -689,7 +729,10 @@ fn position(row: &[f32], run: &Run, code: f32) -> f64 {
         }
     }
     let (ca, cb) = (row[a], row[b]);
-    a as f64 + f64::from((code - ca) / (cb - ca)).clamp(0.0, 1.0)
+    (
+        a as f64 + f64::from((code - ca) / (cb - ca)).clamp(0.0, 1.0),
+        a,
+    )
 }
 
 /// Matches every pixel of `from` to the sub-pixel position of its code in `to`, with the
@@ -708,19 +751,21 @@ fn match_row(
     let mut out = vec![Match::None; from.len()];
     let mut previous: Option<f64> = None;
     let mut candidates = Vec::with_capacity(4);
+    // Where each run last found a code: the next code is found a step or two from it.
+    let mut hints: Vec<usize> = runs.iter().map(|r| r.start).collect();
     for (x, &code) in from.iter().enumerate() {
         if !code.is_finite() {
             previous = None;
             continue;
         }
         candidates.clear();
-        for run in index
-            .near(code)
-            .iter()
-            .map(|&k| &runs[k as usize])
-            .filter(|r| r.lo <= code && code <= r.hi)
-        {
-            let xt = position(to, run, code);
+        for &k in index.near(code) {
+            let run = &runs[k as usize];
+            if !(run.lo <= code && code <= run.hi) {
+                continue;
+            }
+            let (xt, at) = position(to, run, code, hints[k as usize]);
+            hints[k as usize] = at;
             let d = sign * (x as f64 - xt);
             if d >= d_min && d <= d_max {
                 candidates.push((xt, d));
