@@ -522,7 +522,8 @@ pub(crate) mod tests {
     #[test]
     fn two_cameras_reconstruct_with_other_codecs() {
         use structured_light::codec::{GrayCodeSpec, PhaseShiftSpec, Unwrap};
-        let codecs: [(&str, fn(ImageSize) -> Vec<Pattern>); 2] = [
+        type Patterns = fn(ImageSize) -> Vec<Pattern>;
+        let codecs: [(&str, Patterns); 2] = [
             ("gray", |p| {
                 [Axis::Column, Axis::Row]
                     .into_iter()
