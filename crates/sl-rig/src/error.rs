@@ -131,6 +131,21 @@ impl RigError {
         }
     }
 
+    /// This error, raised by the second camera of a binocular rig, named as it: `device` is
+    /// the right camera's record (its path). A feature it lacks stays
+    /// [`RigError::FeatureNotBuilt`]; anything else becomes [`RigError::Device`] whose device
+    /// begins with `right camera`, so the message says which of the two cameras failed.
+    pub(crate) fn of_right_camera(self, device: &str) -> Self {
+        let device = format!("right camera {device}");
+        match self {
+            Self::FeatureNotBuilt { feature, .. } => Self::FeatureNotBuilt { device, feature },
+            other => Self::Device {
+                device,
+                reason: other.to_string(),
+            },
+        }
+    }
+
     /// Shorthand for [`RigError::Io`].
     pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Self::Io {

@@ -214,16 +214,8 @@ where
     };
     check_buildable(description)?;
     let mut camera = open_camera(&description.camera)?;
-    let mut right = open_camera(&right_path).map_err(|e| match e {
-        RigError::FeatureNotBuilt { feature, .. } => RigError::FeatureNotBuilt {
-            device: format!("right camera {}", right_path.display()),
-            feature,
-        },
-        other => RigError::Device {
-            device: format!("right camera {}", right_path.display()),
-            reason: other.to_string(),
-        },
-    })?;
+    let mut right = open_camera(&right_path)
+        .map_err(|e| e.of_right_camera(&right_path.display().to_string()))?;
     let mut table = open_turntable(&description.turntable_port, description.servo_id)?;
     run_window(description.projector_monitor, move |projector| {
         work(camera.as_mut(), right.as_mut(), projector, table.as_mut())
@@ -365,7 +357,8 @@ mod tests {
             Err(RigError::InvalidParameter { name, .. }) => assert_eq!(name, "right_camera"),
             other => panic!("expected the missing right camera, got {other:?}"),
         }
-        // Without the v4l feature the second camera is named as the right one.
+        // Without the v4l feature the first camera is the first device that cannot open, and
+        // is named by its own path, not taken for the right one.
         if !cfg!(feature = "v4l") {
             let desc = DeviceDescription {
                 right_camera: Some(PathBuf::from("/dev/video-right")),
@@ -373,10 +366,34 @@ mod tests {
             };
             match with_binocular_devices(&desc, |_, _, _, _| Ok(())) {
                 Err(RigError::FeatureNotBuilt { device, .. }) => {
-                    assert!(device.contains("camera"), "{device}");
+                    assert_eq!(device, "camera /dev/video-none");
                 }
                 other => panic!("expected FeatureNotBuilt, got {other:?}"),
             }
         }
+        // The second camera's failures to open are named as the right camera's.
+        let missing = RigError::FeatureNotBuilt {
+            device: "camera /dev/video-right".to_owned(),
+            feature: "v4l",
+        };
+        match missing.of_right_camera("/dev/video-right") {
+            RigError::FeatureNotBuilt { device, feature } => {
+                assert_eq!(
+                    (device.as_str(), feature),
+                    ("right camera /dev/video-right", "v4l")
+                );
+            }
+            other => panic!("expected FeatureNotBuilt, got {other:?}"),
+        }
+        let busy = RigError::Device {
+            device: "camera /dev/video-right".to_owned(),
+            reason: "VIDIOC_S_FMT: Device or resource busy".to_owned(),
+        };
+        let text = busy.of_right_camera("/dev/video-right").to_string();
+        assert!(
+            text.starts_with("right camera /dev/video-right: "),
+            "{text}"
+        );
+        assert!(text.contains("busy"), "{text}");
     }
 }

@@ -430,6 +430,12 @@ impl CaptureSession {
     {
         let patterns = pattern_images(&self.plan.manifest, projector.image_size())?;
         let names = frame_names(&self.plan.manifest);
+        let right_name = self
+            .plan
+            .devices
+            .right_camera
+            .as_deref()
+            .unwrap_or_default();
         let mut views = Vec::with_capacity(self.plan.angles_deg.len());
         for (index, &angle) in self.plan.angles_deg.iter().enumerate() {
             let t = Instant::now();
@@ -465,7 +471,11 @@ impl CaptureSession {
                         .map_err(at(Some(k)))?;
                     // The pattern is still on: the second camera captures under it too.
                     let second = match right.as_deref_mut() {
-                        Some(r) => Some(self.grab(r, "second camera").map_err(at(Some(k)))?),
+                        Some(r) => Some(
+                            self.grab(r, "second camera")
+                                .map_err(|e| e.of_right_camera(right_name))
+                                .map_err(at(Some(k)))?,
+                        ),
                         None => None,
                     };
                     let path = dir.join(name);
@@ -713,4 +723,142 @@ fn write_atomically(
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
+}
+
+#[cfg(test)]
+mod tests {
+    //! A binocular session on devices behind the traits: a right camera that fails is named.
+
+    use std::{cell::RefCell, rc::Rc};
+
+    use sl_codec::{Axis, BitDepth, GrayCodeSpec, ImageSize, Pattern, PatternSequence};
+
+    use super::*;
+
+    /// A camera that sees exactly what the projector shows (and the projector).
+    struct Mirror(Rc<RefCell<GreyImage>>);
+
+    impl Camera for Mirror {
+        fn frame_size(&self) -> (u32, u32) {
+            (64, 36)
+        }
+        fn capture(&mut self) -> Result<GreyImage, RigError> {
+            Ok(self.0.borrow().clone())
+        }
+    }
+
+    impl Projector for Mirror {
+        fn image_size(&self) -> (u32, u32) {
+            (64, 36)
+        }
+        fn show(&mut self, image: &GreyImage) -> Result<(), RigError> {
+            *self.0.borrow_mut() = image.clone();
+            Ok(())
+        }
+    }
+
+    /// A camera whose driver fails after `good` frames, as an unplugged USB camera does.
+    struct Failing {
+        good: usize,
+    }
+
+    impl Camera for Failing {
+        fn frame_size(&self) -> (u32, u32) {
+            (64, 36)
+        }
+        fn capture(&mut self) -> Result<GreyImage, RigError> {
+            if self.good == 0 {
+                return Err(RigError::Device {
+                    device: "camera".to_owned(),
+                    reason: "VIDIOC_DQBUF: No such device".to_owned(),
+                });
+            }
+            self.good -= 1;
+            Ok(GreyImage::filled_u8(64, 36, 0)?)
+        }
+    }
+
+    struct Table(f64);
+
+    impl Turntable for Table {
+        fn rotate_to(&mut self, a: f64) -> Result<f64, RigError> {
+            self.0 = a;
+            Ok(a)
+        }
+        fn angle_deg(&mut self) -> Result<f64, RigError> {
+            Ok(self.0)
+        }
+    }
+
+    fn plan(right: Option<&str>) -> SessionPlan {
+        let p = ImageSize::new(64, 36);
+        let sequence = PatternSequence::new(p).with(Pattern::Gray(GrayCodeSpec::per_pixel(
+            Axis::Column,
+            p,
+            true,
+        )));
+        SessionPlan {
+            angles_deg: vec![0.0, 90.0],
+            manifest: sequence.manifest(BitDepth::Eight),
+            devices: SessionDevices {
+                right_camera: right.map(str::to_owned),
+                ..Default::default()
+            },
+            calibration: None,
+        }
+    }
+
+    #[test]
+    fn a_failing_right_camera_is_named_and_its_view_left_incomplete() -> Result<(), RigError> {
+        let dir = tempfile::tempdir().map_err(|e| RigError::io("tempdir", e))?;
+        let config = SessionConfig {
+            display_latency: Duration::ZERO,
+            ..Default::default()
+        };
+        let session = CaptureSession::open(dir.path(), plan(Some("/dev/video2")), config)?;
+        let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)?));
+        let (mut left, mut projector) = (Mirror(screen.clone()), Mirror(screen));
+        let frames = frame_names(&session.plan().manifest).len();
+        // The right camera fails on view 1's third frame.
+        let mut right = Failing { good: frames + 2 };
+        let err = match session.run_binocular(
+            &mut left,
+            &mut right,
+            &mut projector,
+            &mut Table(0.0),
+            |_| {},
+        ) {
+            Err(e) => e,
+            Ok(s) => panic!("the failing right camera went unnoticed: {s:?}"),
+        };
+        let message = err.to_string();
+        assert!(message.contains("view 1, frame 2"), "{message}");
+        assert!(message.contains("right camera /dev/video2"), "{message}");
+        assert!(message.contains("No such device"), "{message}");
+        assert_eq!(session.view_state(0), ViewState::Complete);
+        assert_ne!(session.view_state(1), ViewState::Complete);
+        // The left camera's own failure is not blamed on the right one.
+        let mut left = Failing { good: 0 };
+        let mut right = Failing { good: 1000 };
+        let config = SessionConfig {
+            overwrite: true,
+            ..config
+        };
+        let session = CaptureSession::open(dir.path(), plan(Some("/dev/video2")), config)?;
+        let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)?));
+        let err = session
+            .run_binocular(
+                &mut left,
+                &mut right,
+                &mut Mirror(screen),
+                &mut Table(0.0),
+                |_| {},
+            )
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(!err.contains("right camera"), "{err}");
+        assert!(err.contains("No such device"), "{err}");
+        Ok(())
+    }
 }

@@ -484,7 +484,9 @@ impl CalibrationCapture {
     /// [`CalibrationCapture::take`] with the second camera of a binocular rig: under the same
     /// white light it takes its picture of the board too (`right/white.png` in the pose
     /// folder, for `slscan calibrate stereo`), and the pose is refused, nothing written, when
-    /// that camera does not find the whole board.
+    /// that camera does not find the whole board. When the session captures patterns, each
+    /// pattern stays on until both cameras have their frame; the second camera's are written
+    /// with their `manifest.json` in `right/` beside its `white.png`.
     pub fn take_with<C, P>(
         &mut self,
         check: &PoseCheck,
@@ -504,7 +506,8 @@ impl CalibrationCapture {
                 reason: "no pose fits the corners".to_owned(),
             }));
         };
-        let right_white = match right {
+        let mut right = right;
+        let right_white = match right.as_deref_mut() {
             Some(right) => {
                 let white = self.white_image(projector.image_size())?;
                 let frame = self.show_and_capture(right, projector, &white)?;
@@ -526,11 +529,12 @@ impl CalibrationCapture {
         };
         let index = self.poses.last().map_or(0, |p| p.index + 1);
         let dir = self.dir.join(BOARD_DIR).join(pose_dir_name(index));
-        let frames = self.capture_patterns(camera, projector)?;
+        let (frames, right_frames) = self.capture_patterns_with(camera, right, projector)?;
+        let right_set = right_white.as_ref().map(|w| (w, right_frames.as_slice()));
         self.write_folder(
             &dir,
             &check.white,
-            right_white.as_ref(),
+            right_set,
             &frames,
             &BoardFile {
                 board: BoardJson::of(&self.config),
@@ -566,13 +570,40 @@ impl CalibrationCapture {
             .collect()
     }
 
+    /// [`CalibrationCapture::capture_patterns`] with an optional second camera: the pattern
+    /// stays on until it too has captured (after flushing as the first does). Its frames are
+    /// empty without one.
+    fn capture_patterns_with<C, P>(
+        &self,
+        camera: &mut C,
+        mut right: Option<&mut dyn Camera>,
+        projector: &mut P,
+    ) -> Result<(Vec<GreyImage>, Vec<GreyImage>), CaptureError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+    {
+        let mut left_frames = Vec::with_capacity(self.patterns.len());
+        let mut right_frames = Vec::new();
+        for pattern in &self.patterns {
+            left_frames.push(self.show_and_capture(camera, projector, pattern)?);
+            if let Some(r) = right.as_deref_mut() {
+                for _ in 0..self.config.flush_frames {
+                    r.capture()?;
+                }
+                right_frames.push(r.capture()?);
+            }
+        }
+        Ok((left_frames, right_frames))
+    }
+
     /// Writes a capture folder atomically: everything into a hidden sibling, `white.png`
     /// last, then one rename.
     fn write_folder(
         &self,
         dir: &Path,
         white: &GreyImage,
-        right_white: Option<&GreyImage>,
+        right: Option<(&GreyImage, &[GreyImage])>,
         frames: &[GreyImage],
         board: &BoardFile,
         description: &str,
@@ -594,10 +625,18 @@ impl CalibrationCapture {
         })?;
         let file = partial.join(BOARD_FILE);
         std::fs::write(&file, json).map_err(|e| CaptureError::io(&file, e))?;
-        if let Some(right) = right_white {
+        if let Some((white, right_frames)) = right {
             let folder = partial.join(RIGHT_DIR);
             std::fs::create_dir_all(&folder).map_err(|e| CaptureError::io(&folder, e))?;
-            write_png_grey(&folder.join(WHITE_IMAGE), right).map_err(RigError::from)?;
+            if !right_frames.is_empty() {
+                write_capture_set(
+                    &folder,
+                    &self.config.manifest,
+                    right_frames,
+                    &format!("{description}, right camera"),
+                )?;
+            }
+            write_png_grey(&folder.join(WHITE_IMAGE), white).map_err(RigError::from)?;
         }
         write_png_grey(&partial.join(WHITE_IMAGE), white).map_err(RigError::from)?;
         if dir.exists() {

@@ -290,3 +290,43 @@ fn auto_poses_then_turntable_resume_and_drop() {
         .unwrap();
     assert!(again.iter().all(|v| v.kept), "{again:?}");
 }
+
+/// With a second camera a taken pose holds `right/`: its picture of the board under white
+/// light, where the board is found whole, and its captures of the same patterns (held until
+/// both cameras captured) with their manifest, which decode over the board.
+#[test]
+fn a_binocular_pose_holds_the_right_cameras_white_and_patterns() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = half_rig();
+    let second = config.default_second_camera();
+    let rig = rig(config, 3).with_second_camera(second).unwrap();
+    let (mut camera, mut projector, _, _) = rig.devices();
+    let mut right = rig.right_camera().unwrap();
+    let mut s = session(tmp.path(), &rig);
+    let check = s.look(&mut camera, &mut projector).unwrap();
+    assert!(check.verdict.is_ok(), "{}", check.summary());
+    let TakeOutcome::Taken { dir, .. } = s
+        .take_with(&check, &mut camera, Some(&mut right), &mut projector)
+        .unwrap()
+    else {
+        panic!("the pose seen by both cameras was refused");
+    };
+    let white = sl_codec::read_grey8(&dir.join("right/white.png")).unwrap();
+    let board = Checkerboard::default();
+    let size = sl_calib::BoardSize::new(board.inner_cols, board.inner_rows);
+    let corners =
+        sl_calib::detect_checkerboard(&white, size, &sl_calib::DetectorConfig::default(), "right")
+            .unwrap();
+    assert_eq!(corners.corners.len(), (size.cols * size.rows) as usize);
+    let left = sl_codec::CaptureSet::load(&dir.join(sl_codec::MANIFEST_FILE)).unwrap();
+    let set = sl_codec::CaptureSet::load(&dir.join("right").join(sl_codec::MANIFEST_FILE)).unwrap();
+    assert_eq!(set.frame_names.len(), left.frame_names.len());
+    let map = sl_codec::decode(&set, &sl_codec::DecodeConfig::default()).unwrap();
+    let decoded = map.col.iter().filter(|c| c.is_finite()).count();
+    // The board covers a good part of the right image: a tenth of it decodes at least.
+    assert!(
+        decoded * 10 > map.col.len(),
+        "{decoded} of {} pixels",
+        map.col.len()
+    );
+}
