@@ -564,10 +564,7 @@ impl CalibrationCapture {
         C: Camera + ?Sized,
         P: Projector + ?Sized,
     {
-        self.patterns
-            .iter()
-            .map(|p| self.show_and_capture(camera, projector, p))
-            .collect()
+        Ok(self.capture_patterns_with(camera, None, projector)?.0)
     }
 
     /// [`CalibrationCapture::capture_patterns`] with an optional second camera: the pattern
