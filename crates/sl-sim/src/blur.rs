@@ -179,9 +179,9 @@ fn transpose(src: &[f32], width: usize, height: usize) -> Vec<f32> {
                 let y1 = (y0 + TILE).min(height);
                 for dx in 0..nx {
                     let x = x0 + dx;
-                    let col = &mut cols[dx * height..(dx + 1) * height];
-                    for y in y0..y1 {
-                        col[y] = src.get(y * width + x).copied().unwrap_or(0.0);
+                    let col = &mut cols[dx * height + y0..dx * height + y1];
+                    for (y, v) in (y0..y1).zip(col) {
+                        *v = src.get(y * width + x).copied().unwrap_or(0.0);
                     }
                 }
             }
