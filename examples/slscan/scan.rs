@@ -137,7 +137,7 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
                 && args.projector_gamma == 1.0
                 && args.projector_distortion.is_none()
                 && args.projector_drift == 0.0,
-            "--binocular, --projector-gamma, --projector-distortion and --projector-drift are options of the virtual rig's scan: on devices, capture both cameras with `slscan capture --right-camera` and reconstruct each view with `slscan reconstruct VIEW --right VIEW/right --calib PAIR`"
+            "--binocular, --projector-gamma, --projector-distortion and --projector-drift are options of the virtual rig's scan: on devices, a scan with two cameras names the second with --right-camera and takes the two-camera calibration (stereo.json) as --calib"
         );
         return Ok(());
     }

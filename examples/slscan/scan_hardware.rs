@@ -24,8 +24,8 @@ use std::time::Duration;
 
 use sl_rig::{Camera, DEFAULT_DISPLAY_LATENCY, LatencyConfig, Projector, Turntable};
 use structured_light::scan::{
-    DeviceScan, DeviceScanConfig, MergeStageConfig, ReconstructConfig, ScanError,
-    SessionScanConfig, TerminalOperator, scan_devices,
+    DeviceScan, DeviceScanConfig, MergeStageConfig, ReconstructConfig, ScanError, ScanProgress,
+    SessionScanConfig, TerminalOperator, scan_binocular_devices, scan_devices,
 };
 
 use crate::common::{Report, StageBars};
@@ -76,17 +76,42 @@ pub(crate) fn wanted(args: &Args) -> anyhow::Result<bool> {
 }
 
 /// Runs `slscan scan` on the devices of the options, talking to the user on the terminal.
+/// With `--right-camera` both cameras capture every pattern and the views are matched between
+/// them (`--calib` the two-camera calibration).
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
-    run_on(args, |mut cfg| {
+    run_on(args, |cfg| {
         let description = args.hardware.description("a scan on hardware")?;
-        cfg.capture.devices = description.session_devices();
         let out = args.out.clone();
         let wait = args.placement_wait;
+        let terminal =
+            move || TerminalOperator::new(std::io::stdin().lock(), std::io::stdout(), wait);
         // The window lives on the main thread's event loop; the scan runs in the worker.
-        let scan = sl_rig::with_devices(&description, move |camera, projector, table| {
-            let terminal = TerminalOperator::new(std::io::stdin().lock(), std::io::stdout(), wait);
-            Ok(scan_on(&cfg, &out, camera, projector, table, terminal))
-        })??;
+        let scan = if description.right_camera.is_some() {
+            sl_rig::with_binocular_devices(
+                &description,
+                move |camera, right, projector, table| {
+                    Ok(scan_on(
+                        &cfg,
+                        &out,
+                        (camera, Some(right)),
+                        projector,
+                        table,
+                        terminal(),
+                    ))
+                },
+            )??
+        } else {
+            sl_rig::with_devices(&description, move |camera, projector, table| {
+                Ok(scan_on(
+                    &cfg,
+                    &out,
+                    (camera, None),
+                    projector,
+                    table,
+                    terminal(),
+                ))
+            })??
+        };
         Ok(scan)
     })
 }
@@ -119,27 +144,43 @@ pub(crate) fn run_on(
     Ok(())
 }
 
-/// The library's scan on `camera`, `projector` and `table`, with progress bars and `terminal`
-/// as the operator.
+/// The library's scan on `cameras` (the second one for a scan with two cameras), `projector`
+/// and `table`, with progress bars and `terminal` as the operator.
 pub(crate) fn scan_on<I: BufRead, O: Write>(
     cfg: &DeviceScanConfig,
     out: &Path,
-    camera: &mut dyn Camera,
+    cameras: (&mut dyn Camera, Option<&mut dyn Camera>),
     projector: &mut dyn Projector,
     table: &mut dyn Turntable,
     mut terminal: TerminalOperator<I, O>,
 ) -> Result<DeviceScan, ScanError> {
     let mut bars = StageBars::new();
-    let scan = scan_devices(cfg, out, camera, projector, table, &mut terminal, |p| {
-        bars.update(p)
-    });
+    let progress = |p: ScanProgress<'_>| bars.update(p);
+    let scan = match cameras {
+        (camera, None) => scan_devices(cfg, out, camera, projector, table, &mut terminal, progress),
+        (left, Some(right)) => scan_binocular_devices(
+            cfg,
+            out,
+            (left, right),
+            projector,
+            table,
+            &mut terminal,
+            progress,
+        ),
+    };
     bars.clear();
     scan
 }
 
 /// The scan the options ask for; everything the scan needs is checked before a device opens.
 fn scan_config(args: &Args) -> anyhow::Result<DeviceScanConfig> {
+    let two_cameras = args.hardware.right_camera.is_some();
     let Some(calib_path) = &args.rig.calib else {
+        if two_cameras {
+            anyhow::bail!(
+                "a scan with two cameras needs --calib FILE: the two-camera calibration with the turntable axis, as `slscan calibrate stereo SESSION` writes it (stereo.json)"
+            );
+        }
         anyhow::bail!(
             "a scan on hardware needs --calib FILE: a calibration.json with camera, projector and turntable axis, as `slscan calibrate all` (or `slscan calibrate projector` then `slscan calibrate turntable`) writes it"
         );
@@ -152,13 +193,22 @@ fn scan_config(args: &Args) -> anyhow::Result<DeviceScanConfig> {
         !args.true_calibration && !args.true_poses,
         "--true-calibration and --true-poses are diagnostics of the virtual rig: a real rig has no truth"
     );
-    let mut cfg = DeviceScanConfig::load(calib_path)?;
+    let mut cfg = if two_cameras {
+        DeviceScanConfig::load_binocular(calib_path)?
+    } else {
+        DeviceScanConfig::load(calib_path)?
+    };
     anyhow::ensure!(
         args.placements > 1 || args.placement_wait.is_none(),
         "--placement-wait is for a scan of several placements (--placements 2)"
     );
     cfg.placements = args.placements;
     let capture = &mut cfg.capture;
+    // As `session.json` records them (the second camera's too).
+    capture.devices = args
+        .hardware
+        .description("a scan on hardware")?
+        .session_devices();
     capture.views = args.views;
     capture.patterns = crate::capture::load_patterns(args.rig.patterns.as_deref())?;
     capture.display_latency = args
@@ -179,6 +229,7 @@ fn scan_config(args: &Args) -> anyhow::Result<DeviceScanConfig> {
             !args.rig.no_refine,
         ),
         poses: None,
+        ..SessionScanConfig::default()
     };
     cfg.placement.merge.average_overlaps = !args.no_average;
     cfg.placement.merge.output_normal_neighbours = args.smoothing_neighbours;

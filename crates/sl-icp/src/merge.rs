@@ -437,9 +437,12 @@ pub fn align_views(
             })
         })
         .collect();
+    // A pair placed by the global fallback contradicts the initial poses beyond ICP's reach:
+    // they are no turntable prior to hold views to, so the free pose graph places the views.
+    let fallback_used = pairs.iter().any(|p| p.used && p.global);
     let free_or_unanchored = match &config.pose_model {
         PoseModel::Free => true,
-        PoseModel::Turntable(prior) => prior.angle_sigma_deg.is_none(),
+        PoseModel::Turntable(prior) => prior.angle_sigma_deg.is_none() || fallback_used,
     };
     if free_or_unanchored {
         let lost = unreachable_all(views.len(), &edges);
@@ -464,9 +467,6 @@ pub fn align_views(
         initial.to_vec()
     };
     let graph = PoseGraph { nodes, edges };
-    // A pair placed by the global fallback contradicts the initial poses beyond ICP's reach:
-    // they are no turntable prior to hold views to, so the free pose graph places the views.
-    let fallback_used = pairs.iter().any(|p| p.used && p.global);
     let calibrated = match &config.pose_model {
         PoseModel::Turntable(prior) if !fallback_used => {
             let centre = prepared

@@ -39,7 +39,7 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use sl_camera::{Calibration, TurntableAxis};
+use sl_camera::{BinocularCalibration, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_codec::{BitDepth, ImageSize, Manifest};
 use sl_rig::{
@@ -52,10 +52,10 @@ use crate::error::{io, stage_err};
 use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::{
-    PLACEMENT_SESSION_DIR, SCAN_PERIOD_PX, ScanError, ScanProgress, SessionScan, SessionScanConfig,
-    SessionScanFiles, StageTime, capture_binocular_session, capture_placements, capture_session,
-    check_placements, full_turn_motor_angles, load_scan_calibration, placement_dir_name,
-    require_turntable_axis, scan_patterns, scan_placements, scan_session, write_scan_cloud,
+    PLACEMENT_SESSION_DIR, SCAN_PERIOD_PX, ScanCalibration, ScanError, ScanProgress, SessionScan,
+    SessionScanConfig, SessionScanFiles, StageTime, capture_binocular_session, capture_placements,
+    capture_session, check_placements, full_turn_motor_angles, load_scan_calibration,
+    placement_dir_name, require_turntable_axis, scan_patterns, scan_placements, write_scan_cloud,
 };
 
 /// How one turntable session is captured on devices ([`capture_device_session`]).
@@ -166,12 +166,8 @@ where
     P: Projector + ?Sized,
     T: Turntable + ?Sized,
 {
-    let mut cfg = cfg.clone();
-    cfg.devices
-        .right_camera
-        .get_or_insert_with(|| "second camera".to_owned());
     capture_cameras(
-        &cfg,
+        cfg,
         axis,
         dir,
         cameras.0,
@@ -230,10 +226,16 @@ where
             scan_patterns(ImageSize::new(width, height), SCAN_PERIOD_PX).manifest(BitDepth::Eight)
         }
     };
+    let mut devices = cfg.devices.clone();
+    if right.is_some() {
+        devices
+            .right_camera
+            .get_or_insert_with(|| "second camera".to_owned());
+    }
     let plan = SessionPlan {
         angles_deg,
         manifest,
-        devices: cfg.devices.clone(),
+        devices,
         calibration: cfg.calibration_file.clone(),
     };
     let t = Instant::now();
@@ -261,9 +263,10 @@ where
 /// Everything a scan on devices needs besides the devices ([`scan_devices`]).
 #[derive(Debug, Clone)]
 pub struct DeviceScanConfig {
-    /// The calibration: camera, projector with its pose, and the turntable axis (the views'
-    /// initial poses and the motor angles of a full platter turn).
-    pub calibration: Calibration,
+    /// The calibration, with the turntable axis (the views' initial poses and the motor angles
+    /// of a full platter turn): the camera and the projector with its pose
+    /// ([`scan_devices`]), or two cameras ([`scan_binocular_devices`]).
+    pub calibration: ScanCalibration,
     /// How each placement's session is captured (views, patterns, latency, devices; its
     /// `calibration_file` names the calibration in errors and in `session.json`).
     pub capture: DeviceCaptureConfig,
@@ -287,10 +290,11 @@ pub struct DeviceScanConfig {
 
 impl DeviceScanConfig {
     /// The default scan with `calibration` (not read from a file: errors name it "the
-    /// calibration").
-    pub fn new(calibration: Calibration) -> Self {
+    /// calibration"): a [`Calibration`](sl_camera::Calibration) for one camera and the projector, a
+    /// [`BinocularCalibration`] for two cameras.
+    pub fn new(calibration: impl Into<ScanCalibration>) -> Self {
         Self {
-            calibration,
+            calibration: calibration.into(),
             capture: DeviceCaptureConfig::default(),
             placements: 1,
             session: SessionScanConfig::default(),
@@ -309,6 +313,24 @@ impl DeviceScanConfig {
     /// Those of [`load_scan_calibration`], naming the file.
     pub fn load(path: &Path) -> Result<Self, ScanError> {
         let mut cfg = Self::new(load_scan_calibration(path)?);
+        cfg.capture.calibration_file = Some(path.to_path_buf());
+        Ok(cfg)
+    }
+
+    /// The default scan with two cameras, from the two-camera calibration file `path`
+    /// (`stereo.json` as `slscan calibrate stereo` writes it, or any layout
+    /// [`BinocularCalibration::load`] reads), which each session records. The file must hold
+    /// the turntable axis (calibrate with the session's `turntable/` folder).
+    ///
+    /// # Errors
+    /// [`ScanError::Camera`] when the file cannot be read; [`ScanError::Stage`] naming the file
+    /// when it has no turntable axis.
+    pub fn load_binocular(path: &Path) -> Result<Self, ScanError> {
+        let pair = BinocularCalibration::load(path)?;
+        if pair.turntable.is_none() {
+            return Err(no_axis_in_pair(path));
+        }
+        let mut cfg = Self::new(pair);
         cfg.capture.calibration_file = Some(path.to_path_buf());
         Ok(cfg)
     }
@@ -335,19 +357,38 @@ impl DeviceScanConfig {
             .calibration_file
             .clone()
             .unwrap_or_else(|| PathBuf::from("the calibration"));
-        let c = &self.calibration;
-        if c.projector.is_none() || c.t_cam_proj.is_none() {
-            return Err(stage_err(
-                "calibration",
-                format!(
-                    "{}: no projector calibration: a scan needs the projector and its pose",
-                    file.display()
-                ),
-            ));
+        match &self.calibration {
+            ScanCalibration::Monocular(c) => {
+                if c.projector.is_none() || c.t_cam_proj.is_none() {
+                    return Err(stage_err(
+                        "calibration",
+                        format!(
+                            "{}: no projector calibration: a scan needs the projector and its pose",
+                            file.display()
+                        ),
+                    ));
+                }
+                require_turntable_axis(c, &file)?;
+            }
+            ScanCalibration::Binocular(pair) => {
+                if pair.turntable.is_none() {
+                    return Err(no_axis_in_pair(&file));
+                }
+            }
         }
-        require_turntable_axis(c, &file)?;
         Ok(())
     }
+}
+
+/// A two-camera calibration without the turntable axis, named by its file.
+fn no_axis_in_pair(file: &Path) -> ScanError {
+    stage_err(
+        "calibration",
+        format!(
+            "{}: no turntable axis: a turntable scan places its views by it; calibrate it with the session's turntable/ folder (`slscan calibrate stereo SESSION` with the board on the turntable captured)",
+            file.display()
+        ),
+    )
 }
 
 /// What happens around the sessions of a scan on devices: between two placements the object
@@ -427,6 +468,8 @@ pub struct DeviceScan {
     /// the same. Feature `mesh`.
     #[cfg(feature = "mesh")]
     pub mesh: Option<Result<(MeshSummary, MeshFiles), ScanError>>,
+    /// Whether the scan matched two cameras ([`scan_binocular_devices`]).
+    pub binocular: bool,
     /// Wall time per stage, in order: `capture` (every session, the re-placing included),
     /// `reconstruct` and `merge` per placement, `placements`, `write`, `mesh`.
     pub stages: Vec<StageTime>,
@@ -434,9 +477,10 @@ pub struct DeviceScan {
 
 /// The devices as [`capture_placements`] sees them: each session captured with
 /// [`capture_device_session`], the operator told before and after and asked to re-place.
-struct DeviceSessions<'a, C: ?Sized, P: ?Sized, T: ?Sized, O: ?Sized> {
+struct DeviceSessions<'a, C: ?Sized, R: ?Sized, P: ?Sized, T: ?Sized, O: ?Sized> {
     cfg: &'a DeviceScanConfig,
     camera: &'a mut C,
+    right: Option<&'a mut R>,
     projector: &'a mut P,
     turntable: &'a mut T,
     operator: &'a mut O,
@@ -444,9 +488,10 @@ struct DeviceSessions<'a, C: ?Sized, P: ?Sized, T: ?Sized, O: ?Sized> {
     captures: Vec<SessionCapture>,
 }
 
-impl<C, P, T, O> PlacementRig for DeviceSessions<'_, C, P, T, O>
+impl<C, R, P, T, O> PlacementRig for DeviceSessions<'_, C, R, P, T, O>
 where
     C: Camera + ?Sized,
+    R: Camera + ?Sized,
     P: Projector + ?Sized,
     T: Turntable + ?Sized,
     O: ScanOperator + ?Sized,
@@ -454,11 +499,12 @@ where
     fn capture(&mut self, placement: usize, session_dir: &Path) -> Result<usize, ScanError> {
         self.operator
             .capturing(placement, self.cfg.placements, session_dir)?;
-        let capture = capture_device_session(
+        let capture = capture_cameras(
             &self.cfg.capture,
-            self.cfg.calibration.turntable.as_ref(),
+            self.cfg.calibration.turntable(),
             session_dir,
             &mut *self.camera,
+            self.right.as_deref_mut(),
             &mut *self.projector,
             &mut *self.turntable,
             &mut *self.progress,
@@ -483,8 +529,11 @@ where
 /// `mesh_preview.png`, `view3d.html`) written. A real object has no truth: nothing is measured.
 /// The caller writes the report from the returned [`DeviceScan`].
 ///
+/// The calibration is for one camera and the projector ([`ScanCalibration::Monocular`]).
+///
 /// # Errors
-/// [`DeviceScanConfig::check`]'s before anything is written; [`ScanError::Io`] naming `out`;
+/// [`DeviceScanConfig::check`]'s before anything is written, and [`ScanError::Stage`] naming
+/// the calibration file when it is a two-camera calibration; [`ScanError::Io`] naming `out`;
 /// those of the devices, the operator and every stage but the mesh (see [`DeviceScan::mesh`]).
 pub fn scan_devices<C, P, T, O>(
     cfg: &DeviceScanConfig,
@@ -493,7 +542,7 @@ pub fn scan_devices<C, P, T, O>(
     projector: &mut P,
     turntable: &mut T,
     operator: &mut O,
-    mut progress: impl FnMut(ScanProgress<'_>),
+    progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<DeviceScan, ScanError>
 where
     C: Camera + ?Sized,
@@ -501,7 +550,98 @@ where
     T: Turntable + ?Sized,
     O: ScanOperator + ?Sized,
 {
+    scan_cameras(
+        cfg,
+        out,
+        camera,
+        None::<&mut C>,
+        projector,
+        turntable,
+        operator,
+        progress,
+    )
+}
+
+/// [`scan_devices`] with the two cameras of a binocular rig and a two-camera calibration
+/// ([`ScanCalibration::Binocular`], [`DeviceScanConfig::load_binocular`]): every view is
+/// captured by both cameras under each pattern ([`capture_binocular_device_session`]), matched
+/// between them and triangulated ([`scan_binocular_session`](crate::scan_binocular_session)),
+/// the projector only labelling the surface; then merged, placed and meshed as
+/// [`scan_devices`] does. The clouds are in the left camera's frame.
+///
+/// # Errors
+/// As [`scan_devices`], and [`ScanError::Stage`] naming the calibration file when it is for
+/// one camera.
+#[allow(clippy::too_many_arguments)]
+pub fn scan_binocular_devices<C, R, P, T, O>(
+    cfg: &DeviceScanConfig,
+    out: &Path,
+    cameras: (&mut C, &mut R),
+    projector: &mut P,
+    turntable: &mut T,
+    operator: &mut O,
+    progress: impl FnMut(ScanProgress<'_>),
+) -> Result<DeviceScan, ScanError>
+where
+    C: Camera + ?Sized,
+    R: Camera + ?Sized,
+    P: Projector + ?Sized,
+    T: Turntable + ?Sized,
+    O: ScanOperator + ?Sized,
+{
+    scan_cameras(
+        cfg,
+        out,
+        cameras.0,
+        Some(cameras.1),
+        projector,
+        turntable,
+        operator,
+        progress,
+    )
+}
+
+/// The scan of both: one camera, or two with `right` (and a calibration of the same kind).
+#[allow(clippy::too_many_arguments)]
+fn scan_cameras<C, R, P, T, O>(
+    cfg: &DeviceScanConfig,
+    out: &Path,
+    camera: &mut C,
+    right: Option<&mut R>,
+    projector: &mut P,
+    turntable: &mut T,
+    operator: &mut O,
+    mut progress: impl FnMut(ScanProgress<'_>),
+) -> Result<DeviceScan, ScanError>
+where
+    C: Camera + ?Sized,
+    R: Camera + ?Sized,
+    P: Projector + ?Sized,
+    T: Turntable + ?Sized,
+    O: ScanOperator + ?Sized,
+{
     cfg.check()?;
+    if right.is_some() != cfg.calibration.is_binocular() {
+        let file = cfg
+            .capture
+            .calibration_file
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("the calibration"));
+        return Err(stage_err(
+            "calibration",
+            if right.is_some() {
+                format!(
+                    "{}: a calibration of one camera and the projector, but the scan has two cameras: give the two-camera calibration (`slscan calibrate stereo` writes stereo.json)",
+                    file.display()
+                )
+            } else {
+                format!(
+                    "{}: a two-camera calibration, but the scan has one camera: give the second camera (--right-camera) or a calibration of the camera and the projector",
+                    file.display()
+                )
+            },
+        ));
+    }
     std::fs::create_dir_all(out).map_err(io(out))?;
 
     // 1. Capture every placement's session.
@@ -509,6 +649,7 @@ where
     let mut sessions = DeviceSessions {
         cfg,
         camera,
+        right,
         projector,
         turntable,
         operator,
@@ -533,7 +674,9 @@ where
         let dir = dirs
             .first()
             .ok_or_else(|| stage_err("capture", "no session captured"))?;
-        let scan = scan_session(dir, &cfg.calibration, &cfg.session, &mut progress)?;
+        let scan = cfg
+            .calibration
+            .scan_session(dir, &cfg.session, &mut progress)?;
         stages.extend(scan.stages.iter().cloned());
         let merged = scan.merged.clone();
         (vec![scan], merged, Vec::new())
@@ -589,6 +732,7 @@ where
     Ok(DeviceScan {
         placements,
         merged,
+        binocular: cfg.calibration.is_binocular(),
         files,
         #[cfg(feature = "mesh")]
         mesh,
@@ -757,6 +901,141 @@ mod tests {
         assert!(d.rms_mm < 0.2, "{d:?}");
     }
 
+    /// Two cameras on the virtual rig's devices (the rig's default second camera, behind the
+    /// same traits as real ones) and their true two-camera calibration: every view holds the
+    /// second camera's frames, the merged cloud lies on the pebble's true surface and covers
+    /// it as the one-camera scan does (both cameras must see a point, so a little less).
+    #[test]
+    fn two_cameras_scan_onto_the_true_surface() {
+        let (config, _, mono) = setup(1);
+        let scene = Scene::pebble().unwrap();
+        let second = config.default_second_camera();
+        let left = VirtualRig::new(config.clone(), scene.clone()).unwrap();
+        let right = VirtualRig::new(config.seen_from(&second), scene.seen_from(&second)).unwrap();
+        let mut pair = BinocularCalibration::new(config.camera, second.camera, second.t_cam_second);
+        pair.turntable = Some(config.turntable_axis());
+        let mut cfg = DeviceScanConfig::new(pair);
+        cfg.capture = mono.capture.clone();
+        // Both cameras must see a point: each view keeps about 65 % of the one-camera view's
+        // points here, too few for the registrations of 8 views 45 degrees apart (a view left
+        // unplaced is an error naming it); 12 views overlap enough.
+        cfg.capture.views = 12;
+        // The pebble is smooth and nearly round: the registrations of these small clouds are
+        // weak or degenerate, and the merge took the axis from them (5 sigma off the true
+        // one, 2 mm RMS off the surface). Placed by the calibrated turntable alone
+        // (`slscan scan --no-refine`), as a good calibration of a symmetric object should be.
+        cfg.session.merge.icp_refinement = false;
+        cfg.mesh_depth = mono.mesh_depth;
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("scan");
+        let (mut l, mut r, mut projector, mut table) = left.binocular_devices(&right).unwrap();
+        let mut replace = |_: usize, _: usize| -> Result<(), ScanError> { Ok(()) };
+
+        // A calibration of the other kind is refused before anything is captured.
+        let err = scan_devices(
+            &cfg,
+            &out,
+            &mut l,
+            &mut projector,
+            &mut table,
+            &mut replace,
+            |_| {},
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("two-camera calibration") && err.contains("--right-camera"),
+            "{err}"
+        );
+        let err = scan_binocular_devices(
+            &mono,
+            &out,
+            (&mut l, &mut r),
+            &mut projector,
+            &mut table,
+            &mut replace,
+            |_| {},
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("one camera and the projector") && err.contains("stereo"),
+            "{err}"
+        );
+        assert!(!out.exists(), "nothing is written before the checks pass");
+
+        let scan = scan_binocular_devices(
+            &cfg,
+            &out,
+            (&mut l, &mut r),
+            &mut projector,
+            &mut table,
+            &mut replace,
+            |_| {},
+        )
+        .unwrap();
+        let p = &scan.placements[0];
+        assert_eq!(p.capture.summary.captured, 12);
+        for v in 0..12 {
+            // Every frame the left camera took under a pattern, the right one took too.
+            let view = out.join(format!("session/view_{v:03}"));
+            let pngs = |d: &Path| {
+                let mut n: Vec<_> = std::fs::read_dir(d)
+                    .unwrap()
+                    .map(|e| e.unwrap().file_name())
+                    .filter(|n| n.to_string_lossy().ends_with(".png"))
+                    .collect();
+                n.sort();
+                n
+            };
+            let left_frames = pngs(&view);
+            assert!(!left_frames.is_empty());
+            assert_eq!(pngs(&view.join("right")), left_frames, "{}", view.display());
+        }
+        let session = std::fs::read_to_string(out.join("session/session.json")).unwrap();
+        assert!(session.contains("second camera"), "{session}");
+        assert!(out.join("merged.ply").is_file() && out.join("mesh.ply").is_file());
+
+        let truth = truth(&config, &scene);
+        let (c, d) = measure(&config, &cfg, &scan.merged, &truth);
+        eprintln!("two cameras: {c:?}\n{d:?}");
+        // The one-camera scan's bounds (above), the lower one loosened for the points only one
+        // camera sees.
+        assert!(
+            c.covered_fraction > 0.6 && c.covered_fraction < 0.845,
+            "{c:?}"
+        );
+        assert!(d.rms_mm < 0.2, "{d:?}");
+    }
+
+    /// A two-camera calibration file without the turntable axis is named for it.
+    #[test]
+    fn a_pair_without_axis_is_refused_by_name() {
+        let config = scaled_rig_config(DIVISOR);
+        let second = config.default_second_camera();
+        let pair = BinocularCalibration::new(config.camera, second.camera, second.t_cam_second);
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("stereo.json");
+        pair.save(&path).unwrap();
+        let err = DeviceScanConfig::load_binocular(&path)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("stereo.json") && err.contains("no turntable axis"),
+            "{err}"
+        );
+        let mut with_axis = pair;
+        with_axis.turntable = Some(config.turntable_axis());
+        with_axis.save(&path).unwrap();
+        let cfg = DeviceScanConfig::load_binocular(&path).unwrap();
+        assert!(cfg.calibration.is_binocular());
+        assert_eq!(
+            cfg.capture.calibration_file.as_deref(),
+            Some(path.as_path())
+        );
+        cfg.check().unwrap();
+    }
+
     /// Two placements: the operator is asked once, between the sessions; the second
     /// placement is aligned onto the first with no pose hint; the merged model covers the
     /// pebble (its bottom too) and lies on it as tightly as one placement.
@@ -842,7 +1121,9 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let out = tmp.path().join("scan");
         let mut no_axis = cfg.clone();
-        no_axis.calibration.turntable = None;
+        if let ScanCalibration::Monocular(c) = &mut no_axis.calibration {
+            c.turntable = None;
+        }
         no_axis.capture.calibration_file = Some(PathBuf::from("rig.json"));
         let cases = [
             (

@@ -12,7 +12,7 @@
 //! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`reconstruct_decoded`], [`drop_grazing`]; two cameras: [`reconstruct_binocular_session`], [`reconstruct_binocular_view`] |
 //! | merge | `merge.rs` | [`merge_scan`] |
 //! | several placements | `placements.rs`, `virtual_placements.rs` | [`capture_placements`], [`scan_placements`], [`merge_placements`], [`scan_virtual_placements`] |
-//! | scan on devices (capture, reconstruct, merge, placements, mesh) | `device_scan.rs`, `virtual_object.rs` | [`scan_devices`], [`DeviceScanConfig`], [`ScanOperator`], [`capture_device_session`], two cameras: [`capture_binocular_device_session`], [`VirtualObjectRig`] |
+//! | scan on devices (capture, reconstruct, merge, placements, mesh) | `device_scan.rs`, `virtual_object.rs` | [`scan_devices`], [`DeviceScanConfig`], [`ScanOperator`], [`capture_device_session`], two cameras: [`scan_binocular_devices`], [`capture_binocular_device_session`], [`VirtualObjectRig`] |
 //! | measure (where a truth exists) | `measure.rs` | [`measure_scan`], [`scene_truth`], [`plate_truth`] |
 //! | mesh a cloud (`slscan mesh`) | `mesh_chain.rs` | [`mesh_chain`], [`MeshChainConfig`] |
 //! | output folders (staged, locked, inputs kept) | `output_folder.rs` | [`OutputFolder`], [`Inputs`] |
@@ -135,7 +135,8 @@ pub use capture_reconstruction::{
 };
 pub use device_scan::{
     DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig, ScanOperator,
-    SessionCapture, capture_binocular_device_session, capture_device_session, scan_devices,
+    SessionCapture, capture_binocular_device_session, capture_device_session,
+    scan_binocular_devices, scan_devices,
 };
 pub use error::ScanError;
 #[cfg(feature = "sim")]
@@ -177,7 +178,9 @@ pub use session_calibration::{
     calibrate_turntable_files, camera_images, layout_white_frames, session_poses,
     session_projector_size, turntable_views,
 };
-pub use session_scan::{SessionScan, SessionScanConfig, scan_binocular_session, scan_session};
+pub use session_scan::{
+    ScanCalibration, SessionScan, SessionScanConfig, scan_binocular_session, scan_session,
+};
 pub use stereo_calibration::{STEREO_FILE, StereoFiles, calibrate_stereo_files};
 pub use view_files::{
     CloudRegistration, TRANSFORM_FILE, ViewsMerge, merge_and_write, read_transform,

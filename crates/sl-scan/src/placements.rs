@@ -6,7 +6,7 @@
 //! `placement_1/session/`, `placement_2/session/`, …, asking a [`PlacementRig`] to re-place the
 //! object in between: the virtual rig lays its object on its side; on real devices the CLI
 //! waits for the user. Each session is reconstructed and merged as a single-placement scan
-//! ([`scan_session`]); each later placement's merged cloud is aligned onto the first one's
+//! ([`scan_session`](crate::scan_session)); each later placement's merged cloud is aligned onto the first one's
 //! with no pose hint (`sl_icp::register_global`: FPFH descriptors, RANSAC, ICP), refined by
 //! ICP on the full clouds ([`align_placement`]), and all are merged into one cloud
 //! (`sl_icp::merge_aligned`) in the camera frame of the first placement's first view
@@ -17,7 +17,6 @@ use std::time::Instant;
 
 use nalgebra::Isometry3;
 use serde::Serialize;
-use sl_camera::Calibration;
 use sl_cloud::PointCloud;
 use sl_icp::{
     GlobalConfig, IcpConfig, MergeConfig, Metric, PrepareConfig, PreparedCloud, merge_aligned,
@@ -25,7 +24,7 @@ use sl_icp::{
 };
 
 use crate::error::stage_err;
-use crate::{ScanError, ScanProgress, SessionScan, SessionScanConfig, StageTime, scan_session};
+use crate::{ScanCalibration, ScanError, ScanProgress, SessionScan, SessionScanConfig, StageTime};
 
 /// The most placements a scan supports: a standing one and one on the side cover every
 /// surface of an object that is not hollow; more would need a multiway alignment of the
@@ -272,14 +271,15 @@ pub struct PlacementsScan {
     pub stages: Vec<StageTime>,
 }
 
-/// Reconstructs and merges each placement's session ([`scan_session`]), then aligns and
-/// merges the placements ([`merge_placements`]), reporting the stage `placements`.
+/// Reconstructs and merges each placement's session with `calibration`
+/// ([`ScanCalibration::scan_session`]: one camera and the projector, or two cameras), then
+/// aligns and merges the placements ([`merge_placements`]), reporting the stage `placements`.
 ///
 /// # Errors
-/// Those of [`scan_session`] and [`merge_placements`].
+/// Those of [`ScanCalibration::scan_session`] and [`merge_placements`].
 pub fn scan_placements(
     sessions: &[PathBuf],
-    calibration: &Calibration,
+    calibration: &ScanCalibration,
     session_cfg: &SessionScanConfig,
     cfg: &PlacementConfig,
     mut progress: impl FnMut(ScanProgress<'_>),
@@ -287,7 +287,7 @@ pub fn scan_placements(
     let mut scans = Vec::with_capacity(sessions.len());
     let mut stages = Vec::new();
     for dir in sessions {
-        let scan = scan_session(dir, calibration, session_cfg, &mut progress)?;
+        let scan = calibration.scan_session(dir, session_cfg, &mut progress)?;
         stages.extend(scan.stages.iter().cloned());
         scans.push(scan);
     }

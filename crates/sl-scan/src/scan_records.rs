@@ -234,6 +234,7 @@ impl DeviceScan {
     ) -> Result<(), ScanError> {
         report.add_stages(&self.stages);
         report.figure("rig", "hardware");
+        report.figure("cameras", if self.binocular { 2 } else { 1 });
         report.figure("calibration", calibration.display().to_string());
         if let [single] = self.placements.as_slice() {
             let s = &single.scan;
@@ -289,10 +290,15 @@ impl DeviceScan {
         if let [single] = self.placements.as_slice() {
             lines.push(format!("poses: {}", single.scan.merge.summary));
             lines.push(format!(
-                "{}: {} points merged from {} views (calibration {})",
+                "{}: {} points merged from {} views{} (calibration {})",
                 merged.display(),
                 self.merged.len(),
                 single.scan.view_points.len(),
+                if self.binocular {
+                    " of two cameras"
+                } else {
+                    ""
+                },
                 calibration.display()
             ));
             #[cfg(feature = "mesh")]

@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use nalgebra::Isometry3;
-use sl_camera::{BinocularCalibration, Calibration};
+use sl_camera::{BinocularCalibration, Calibration, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_tri::BinocularConfig;
 
@@ -42,6 +42,67 @@ pub struct SessionScanConfig {
     /// Initial poses of the views instead of the calibrated turntable's (diagnostic: the
     /// virtual rig's true poses). Default `None`.
     pub poses: Option<Vec<Isometry3<f64>>>,
+    /// The matching between the two cameras of a session captured with two
+    /// ([`ScanCalibration::Binocular`]); unused with one camera.
+    pub binocular: BinocularConfig,
+}
+
+/// The calibration a turntable scan reconstructs with: one camera and the projector
+/// ([`scan_session`]), or two cameras, the projector only labelling the surface
+/// ([`scan_binocular_session`]). Either holds the turntable axis the views are placed by.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ScanCalibration {
+    /// The camera, the projector and its pose (`calibration.json`).
+    Monocular(Calibration),
+    /// Two cameras and their relative pose (`stereo.json`, as `slscan calibrate stereo` writes
+    /// it); the session's views hold the second camera's frames in `view_NNN/right/`.
+    Binocular(BinocularCalibration),
+}
+
+impl ScanCalibration {
+    /// The turntable axis, when calibrated.
+    pub fn turntable(&self) -> Option<&TurntableAxis> {
+        match self {
+            Self::Monocular(c) => c.turntable.as_ref(),
+            Self::Binocular(p) => p.turntable.as_ref(),
+        }
+    }
+
+    /// Whether the scan needs the second camera's frames.
+    pub fn is_binocular(&self) -> bool {
+        matches!(self, Self::Binocular(_))
+    }
+
+    /// Reconstructs and merges the session in `session_dir` with this calibration:
+    /// [`scan_session`] or [`scan_binocular_session`] (with `config.binocular`).
+    ///
+    /// # Errors
+    /// Those of the two.
+    pub fn scan_session(
+        &self,
+        session_dir: &Path,
+        config: &SessionScanConfig,
+        progress: impl FnMut(ScanProgress<'_>),
+    ) -> Result<SessionScan, ScanError> {
+        match self {
+            Self::Monocular(c) => scan_session(session_dir, c, config, progress),
+            Self::Binocular(p) => {
+                scan_binocular_session(session_dir, p, &config.binocular, config, progress)
+            }
+        }
+    }
+}
+
+impl From<Calibration> for ScanCalibration {
+    fn from(c: Calibration) -> Self {
+        Self::Monocular(c)
+    }
+}
+
+impl From<BinocularCalibration> for ScanCalibration {
+    fn from(p: BinocularCalibration) -> Self {
+        Self::Binocular(p)
+    }
 }
 
 /// A session reconstructed and merged by [`scan_session`].

@@ -18,6 +18,7 @@ use sl_metrology::{
 };
 use sl_rig::turntable_angles;
 use sl_sim::{DEFAULT_WORKING_DISTANCE_MM, Scene, VirtualRig};
+use sl_tri::BinocularConfig;
 
 use crate::error::{io, stage_err};
 use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
@@ -25,9 +26,9 @@ use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::virtual_calibrate::calibrate_virtual_stage;
 use crate::virtual_scan::{VirtualRigs, capture_virtual, check_virtual_sessions};
 use crate::{
-    CalibrationSummary, MergeStageConfig, ScanError, ScanProgress, SessionScanConfig, StageTime,
-    VirtualScanConfig, capture_placements, placement_dir_name, scaled_rig_config, scan_placements,
-    write_scan_cloud,
+    CalibrationSummary, MergeStageConfig, ScanCalibration, ScanError, ScanProgress,
+    SessionScanConfig, StageTime, VirtualScanConfig, capture_placements, placement_dir_name,
+    scaled_rig_config, scan_placements, write_scan_cloud,
 };
 
 /// The virtual rig's placements: captures each session of the current scene, and lays the
@@ -214,6 +215,7 @@ pub fn scan_virtual_placements(
         reconstruct: cfg.reconstruct(),
         merge: MergeStageConfig::scan(cfg.average_overlaps, cfg.smoothing_neighbours, true),
         poses: None,
+        binocular: BinocularConfig::default(),
     };
     let mut placement_cfg = PlacementConfig::default();
     placement_cfg.merge.average_overlaps = cfg.average_overlaps;
@@ -221,7 +223,7 @@ pub fn scan_virtual_placements(
     let dirs: Vec<_> = sessions.iter().map(|(d, _)| d.clone()).collect();
     let scan = scan_placements(
         &dirs,
-        &calibration,
+        &ScanCalibration::Monocular(calibration.clone()),
         &session_cfg,
         &placement_cfg,
         &mut progress,

@@ -24,9 +24,9 @@ use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_pois
 use crate::virtual_calibrate::{calibrate_virtual_binocular_stage, calibrate_virtual_stage};
 use crate::{
     CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX,
-    ScanError, ScanProgress, SessionScanConfig, StageTime, capture_binocular_session,
-    capture_session, measure_scan, plate_scene, plate_truth, reconstruct_binocular_view,
-    reconstruct_view_eroded, scan_binocular_session, scan_patterns, scan_session, scene_truth,
+    ScanCalibration, ScanError, ScanProgress, SessionScanConfig, StageTime,
+    capture_binocular_session, capture_session, measure_scan, plate_scene, plate_truth,
+    reconstruct_binocular_view, reconstruct_view_eroded, scan_patterns, scene_truth,
     write_heat_map, write_scan_cloud,
 };
 
@@ -379,12 +379,6 @@ impl VirtualRigs {
     }
 }
 
-/// The calibration a scan reconstructs with: the camera and the projector, or two cameras.
-enum ScanCalibration {
-    Monocular(Calibration),
-    Binocular(BinocularCalibration),
-}
-
 /// Runs the whole scan on the virtual rig into `out`: the estimated calibration
 /// (`calibration.json`), the capture session (`session/`, resumed if interrupted), the
 /// merged cloud (`merged.ply`), previews (`preview_*.png`) and the error heat map
@@ -506,19 +500,9 @@ pub fn scan_virtual(
             !cfg.true_poses,
         ),
         poses,
+        binocular: cfg.binocular_options,
     };
-    let scan = match &calibration {
-        ScanCalibration::Monocular(c) => {
-            scan_session(&session_dir, c, &scan_config, &mut progress)?
-        }
-        ScanCalibration::Binocular(pair) => scan_binocular_session(
-            &session_dir,
-            pair,
-            &cfg.binocular_options,
-            &scan_config,
-            &mut progress,
-        )?,
-    };
+    let scan = calibration.scan_session(&session_dir, &scan_config, &mut progress)?;
     stages.extend(scan.stages.iter().cloned());
 
     // 4. The flatness plate: one more capture, through the same calibration, decoding and
