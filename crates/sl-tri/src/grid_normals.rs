@@ -25,7 +25,7 @@ fn diff(
 /// Unit normal at column `x` of the row `here` (with the rows above and below), facing the
 /// camera at the origin; zero where there is no neighbour pair.
 #[inline(always)]
-fn normal_in_rows(
+pub(crate) fn normal_in_rows(
     here: &[Point3<f64>],
     above: Option<&[Point3<f64>]>,
     below: Option<&[Point3<f64>]>,

@@ -26,21 +26,7 @@ pub(crate) fn filter_mixed_pixels(
     if width == 0 || !max_jump.is_finite() {
         return;
     }
-    let depths: &[Point3<f64>] = points;
-    let rows: Vec<&[Point3<f64>]> = depths.chunks(width).collect();
-    let mut mixed = vec![false; depths.len()];
-    mixed
-        .par_chunks_mut(width * ROWS_PER_TASK)
-        .enumerate()
-        .for_each(|(band, flags)| {
-            for (k, row_flags) in flags.chunks_mut(width).enumerate() {
-                let y = band * ROWS_PER_TASK + k;
-                let here = rows.get(y).copied().unwrap_or(&[]);
-                let above = y.checked_sub(1).and_then(|a| rows.get(a)).copied();
-                let below = rows.get(y + 1).copied();
-                mark_row(here, above, below, max_jump, row_flags);
-            }
-        });
+    let mixed = mixed_flags(points, width, max_jump, |p| p.z);
     let nan = Point3::new(f64::NAN, f64::NAN, f64::NAN);
     points
         .par_chunks_mut(width * ROWS_PER_TASK)
@@ -56,21 +42,52 @@ pub(crate) fn filter_mixed_pixels(
         });
 }
 
+/// The mixed-pixel flags of a grid of `width` columns whose cells have the depth `z` (NaN: no
+/// point): true where a valid cell's depth differs from a valid 4-neighbour's by more than
+/// `max_jump` times its own. The grid is only read. The one-camera triangulation passes its
+/// points, the binocular one a grid of depths alone (a quarter of the memory of the points).
+pub(crate) fn mixed_flags<T: Sync>(
+    cells: &[T],
+    width: usize,
+    max_jump: f64,
+    z: impl Fn(&T) -> f64 + Sync,
+) -> Vec<bool> {
+    let mut mixed = vec![false; cells.len()];
+    if width == 0 || !max_jump.is_finite() {
+        return mixed;
+    }
+    let rows: Vec<&[T]> = cells.chunks(width).collect();
+    mixed
+        .par_chunks_mut(width * ROWS_PER_TASK)
+        .enumerate()
+        .for_each(|(band, flags)| {
+            for (k, row_flags) in flags.chunks_mut(width).enumerate() {
+                let y = band * ROWS_PER_TASK + k;
+                let here = rows.get(y).copied().unwrap_or(&[]);
+                let above = y.checked_sub(1).and_then(|a| rows.get(a)).copied();
+                let below = rows.get(y + 1).copied();
+                mark_row(here, above, below, max_jump, &z, row_flags);
+            }
+        });
+    mixed
+}
+
 /// Flags of one row given its neighbours (NaN depths are no points and judge nothing).
 #[inline]
-fn mark_row(
-    here: &[Point3<f64>],
-    above: Option<&[Point3<f64>]>,
-    below: Option<&[Point3<f64>]>,
+fn mark_row<T>(
+    here: &[T],
+    above: Option<&[T]>,
+    below: Option<&[T]>,
     max_jump: f64,
+    z: &impl Fn(&T) -> f64,
     flags: &mut [bool],
 ) {
-    let far = |zc: f64, limit: f64, n: Option<&Point3<f64>>| {
+    let far = |zc: f64, limit: f64, n: Option<&T>| {
         // NaN neighbours compare false: no point, no judgement.
-        n.is_some_and(|n| (n.z - zc).abs() > limit)
+        n.is_some_and(|n| (z(n) - zc).abs() > limit)
     };
     for (x, (p, flag)) in here.iter().zip(flags.iter_mut()).enumerate() {
-        let zc = p.z;
+        let zc = z(p);
         if !zc.is_finite() {
             continue;
         }
