@@ -519,37 +519,20 @@ fn run_hardware(args: &Args) -> anyhow::Result<()> {
         reason: format!("{e:#}"),
     };
     // The window lives on the main thread's event loop; the capture runs in the worker.
-    if description.right_camera.is_some() {
-        sl_rig::with_binocular_devices(&description, move |camera, right, projector, table| {
-            run_devices(
-                &args,
-                &devices,
-                camera,
-                Some(right),
-                projector,
-                table,
-                &mut HandHeld,
-                sl_rig::DEFAULT_DISPLAY_LATENCY,
-                || Ok(()),
-            )
-            .map_err(failed)
-        })?;
-    } else {
-        sl_rig::with_devices(&description, move |camera, projector, table| {
-            run_devices(
-                &args,
-                &devices,
-                camera,
-                None,
-                projector,
-                table,
-                &mut HandHeld,
-                sl_rig::DEFAULT_DISPLAY_LATENCY,
-                || Ok(()),
-            )
-            .map_err(failed)
-        })?;
-    }
+    sl_rig::with_described_devices(&description, move |camera, right, projector, table| {
+        run_devices(
+            &args,
+            &devices,
+            camera,
+            right,
+            projector,
+            table,
+            &mut HandHeld,
+            sl_rig::DEFAULT_DISPLAY_LATENCY,
+            || Ok(()),
+        )
+        .map_err(failed)
+    })?;
     Ok(())
 }
 

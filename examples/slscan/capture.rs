@@ -271,33 +271,18 @@ pub(crate) fn run_hardware(args: &Args) -> anyhow::Result<()> {
         device: "capture session".to_owned(),
         reason: format!("{e:#}"),
     };
-    if description.right_camera.is_some() {
-        sl_rig::with_binocular_devices(&description, move |camera, right, projector, table| {
-            run_session(
-                &args,
-                devices,
-                camera,
-                Some(right),
-                projector,
-                table,
-                DEFAULT_HARDWARE_LATENCY,
-            )
-            .map_err(failed)
-        })?;
-    } else {
-        sl_rig::with_devices(&description, move |camera, projector, table| {
-            run_session(
-                &args,
-                devices,
-                camera,
-                None,
-                projector,
-                table,
-                DEFAULT_HARDWARE_LATENCY,
-            )
-            .map_err(failed)
-        })?;
-    }
+    sl_rig::with_described_devices(&description, move |camera, right, projector, table| {
+        run_session(
+            &args,
+            devices,
+            camera,
+            right,
+            projector,
+            table,
+            DEFAULT_HARDWARE_LATENCY,
+        )
+        .map_err(failed)
+    })?;
     folder.commit()?;
     Ok(())
 }

@@ -122,6 +122,13 @@ pub(crate) struct Args {
     /// calibration and the scan, as a projector warming up or knocked does (-5 to 5).
     #[arg(long, default_value_t = 0.0, value_parser = values::in_range(-5.0..=5.0))]
     pub(crate) projector_drift: f64,
+    /// Width of one fringe period of the virtual rig's scan patterns (projector pixels; the
+    /// hybrid code, 4 phase steps; 4 to 480). A projector response the patterns do not
+    /// pre-compensate bends the phase by a fraction of a period: longer periods turn it into
+    /// more millimetres. On devices, --patterns sets the patterns.
+    #[arg(long, default_value_t = structured_light::scan::SCAN_PERIOD_PX,
+          value_parser = values::in_range(4.0..=480.0))]
+    pub(crate) period: f64,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
     #[command(flatten)]
@@ -136,8 +143,9 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
             !args.binocular
                 && args.projector_gamma == 1.0
                 && args.projector_distortion.is_none()
-                && args.projector_drift == 0.0,
-            "--binocular, --projector-gamma, --projector-distortion and --projector-drift are options of the virtual rig's scan: on devices, a scan with two cameras names the second with --right-camera and takes the two-camera calibration (stereo.json) as --calib"
+                && args.projector_drift == 0.0
+                && args.period == structured_light::scan::SCAN_PERIOD_PX,
+            "--binocular, --projector-gamma, --projector-distortion, --projector-drift and --period are options of the virtual rig's scan: on devices, a scan with two cameras names the second with --right-camera and takes the two-camera calibration (stereo.json) as --calib"
         );
         return Ok(());
     }
@@ -217,6 +225,7 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         projector_gamma: args.projector_gamma,
         projector_distortion: args.projector_distortion,
         projector_drift_deg: args.projector_drift,
+        period_px: args.period,
         ..VirtualScanConfig::default()
     }
 }

@@ -86,32 +86,19 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         let terminal =
             move || TerminalOperator::new(std::io::stdin().lock(), std::io::stdout(), wait);
         // The window lives on the main thread's event loop; the scan runs in the worker.
-        let scan = if description.right_camera.is_some() {
-            sl_rig::with_binocular_devices(
-                &description,
-                move |camera, right, projector, table| {
-                    Ok(scan_on(
-                        &cfg,
-                        &out,
-                        (camera, Some(right)),
-                        projector,
-                        table,
-                        terminal(),
-                    ))
-                },
-            )??
-        } else {
-            sl_rig::with_devices(&description, move |camera, projector, table| {
+        let scan = sl_rig::with_described_devices(
+            &description,
+            move |camera, right, projector, table| {
                 Ok(scan_on(
                     &cfg,
                     &out,
-                    (camera, None),
+                    (camera, right),
                     projector,
                     table,
                     terminal(),
                 ))
-            })??
-        };
+            },
+        )??;
         Ok(scan)
     })
 }

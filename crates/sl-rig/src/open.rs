@@ -222,6 +222,35 @@ where
     })
 }
 
+/// The devices `description` names, one camera or two: [`with_devices`], or
+/// [`with_binocular_devices`] when it names a `right_camera`, whose camera `work` then gets as
+/// `Some`. For a program that takes both rigs through one path.
+///
+/// # Errors
+/// Those of [`with_devices`] or [`with_binocular_devices`].
+pub fn with_described_devices<T, F>(description: &DeviceDescription, work: F) -> Result<T, RigError>
+where
+    T: Send + 'static,
+    F: FnOnce(
+            &mut dyn Camera,
+            Option<&mut dyn Camera>,
+            &mut dyn Projector,
+            &mut dyn Turntable,
+        ) -> Result<T, RigError>
+        + Send
+        + 'static,
+{
+    if description.right_camera.is_some() {
+        with_binocular_devices(description, move |camera, right, projector, table| {
+            work(camera, Some(right), projector, table)
+        })
+    } else {
+        with_devices(description, move |camera, projector, table| {
+            work(camera, None, projector, table)
+        })
+    }
+}
+
 /// Opens the three devices of `description` and runs `work` on them.
 ///
 /// The projector window lives on the calling (main) thread's event loop, so `work` runs on a
