@@ -125,10 +125,10 @@ pub(crate) struct Args {
     /// Width of one fringe period of the virtual rig's scan patterns (projector pixels; the
     /// hybrid code, 4 phase steps; 4 to 480). A projector response the patterns do not
     /// pre-compensate bends the phase by a fraction of a period: longer periods turn it into
-    /// more millimetres. On devices, --patterns sets the patterns.
-    #[arg(long, default_value_t = structured_light::scan::SCAN_PERIOD_PX,
-          value_parser = values::in_range(4.0..=480.0))]
-    pub(crate) period: f64,
+    /// more millimetres. Default 15 (`sl_scan::SCAN_PERIOD_PX`). On devices, --patterns sets
+    /// the patterns.
+    #[arg(long, value_parser = values::in_range(4.0..=480.0))]
+    pub(crate) period: Option<f64>,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
     #[command(flatten)]
@@ -144,7 +144,7 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
                 && args.projector_gamma == 1.0
                 && args.projector_distortion.is_none()
                 && args.projector_drift == 0.0
-                && args.period == structured_light::scan::SCAN_PERIOD_PX,
+                && args.period.is_none(),
             "--binocular, --projector-gamma, --projector-distortion, --projector-drift and --period are options of the virtual rig's scan: on devices, a scan with two cameras names the second with --right-camera and takes the two-camera calibration (stereo.json) as --calib"
         );
         return Ok(());
@@ -225,7 +225,9 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         projector_gamma: args.projector_gamma,
         projector_distortion: args.projector_distortion,
         projector_drift_deg: args.projector_drift,
-        period_px: args.period,
+        period_px: args
+            .period
+            .unwrap_or(structured_light::scan::SCAN_PERIOD_PX),
         ..VirtualScanConfig::default()
     }
 }

@@ -406,6 +406,11 @@ fn two_cameras_on_devices() {
     both.push("--binocular");
     let e = crate::scan::check(&with(&stereo, &both)).unwrap_err();
     assert!(format!("{e:#}").contains("--right-camera"), "{e:#}");
+    // So is --period (on devices --patterns sets the patterns).
+    let mut period = devices.to_vec();
+    period.extend(["--period", "60"]);
+    let e = crate::scan::check(&with(&stereo, &period)).unwrap_err();
+    assert!(format!("{e:#}").contains("--period"), "{e:#}");
     assert!(!out.exists());
 
     // The smooth pebble's registrations are weak at this size: placed by the calibrated
