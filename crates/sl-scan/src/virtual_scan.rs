@@ -100,9 +100,10 @@ pub struct VirtualScanConfig {
     /// camera ([`RigConfig::default_second_camera`]: the camera's twin on the other side of
     /// the projector), the calibration is of the two cameras and the turntable
     /// ([`calibrate_virtual_binocular`](crate::calibrate_virtual_binocular)), each view is
-    /// captured by both and matched between them ([`scan_binocular_session`]); the projector
-    /// only labels the surface. The same scene, patterns, merge and measures as the
-    /// one-camera scan. Default `false`.
+    /// captured by both and matched between them
+    /// ([`scan_binocular_session`](crate::scan_binocular_session)); the projector only labels
+    /// the surface. The same scene, patterns, merge and measures as the one-camera scan.
+    /// Default `false`.
     pub binocular: bool,
     /// Exponent of the virtual projector's response (`sl_sim::Illumination::gamma`), which
     /// the patterns do not pre-compensate: 1 (the default) is a linear projector; 2.2 a
