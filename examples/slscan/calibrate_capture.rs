@@ -170,14 +170,9 @@ fn run_virtual(args: &Args) -> anyhow::Result<()> {
             .calibration()
             .save(out.join("calibration_true.json"))?;
         if binocular {
-            let mut pair = sl_calib::sl_camera::BinocularCalibration::new(
-                truth.camera,
-                second.camera,
-                second.t_cam_second,
-            );
-            pair.turntable = Some(truth.turntable_axis());
-            pair.metadata.notes = "the virtual rig's true two-camera calibration".to_owned();
-            pair.save(out.join("calibration_true_pair.json"))?;
+            truth
+                .binocular_calibration()
+                .save(out.join("calibration_true_pair.json"))?;
         }
         Ok(())
     };

@@ -251,10 +251,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         .calibration()
         .save(args.out.join("calibration_true.json"))?;
     if args.binocular {
-        let mut pair = BinocularCalibration::new(config.camera, second.camera, second.t_cam_second);
-        pair.turntable = Some(config.turntable_axis());
-        pair.metadata.notes = "the virtual rig's true two-camera calibration".to_owned();
-        pair.save(args.out.join("calibration_true_pair.json"))?;
+        config
+            .binocular_calibration()
+            .save(args.out.join("calibration_true_pair.json"))?;
     }
     folder.commit()?;
     Ok(())

@@ -361,12 +361,7 @@ fn two_cameras_on_devices() {
     let tmp = tempfile::tempdir().unwrap();
     let config = scaled_rig_config(4);
     let second = config.default_second_camera();
-    let mut pair = structured_light::camera::BinocularCalibration::new(
-        config.camera,
-        second.camera,
-        second.t_cam_second,
-    );
-    pair.turntable = Some(config.turntable_axis());
+    let pair = config.binocular_calibration();
     let stereo = tmp.path().join("stereo.json");
     pair.save(&stereo).unwrap();
     let mono = tmp.path().join("calibration.json");

@@ -912,9 +912,7 @@ mod tests {
         let second = config.default_second_camera();
         let left = VirtualRig::new(config.clone(), scene.clone()).unwrap();
         let right = VirtualRig::new(config.seen_from(&second), scene.seen_from(&second)).unwrap();
-        let mut pair = BinocularCalibration::new(config.camera, second.camera, second.t_cam_second);
-        pair.turntable = Some(config.turntable_axis());
-        let mut cfg = DeviceScanConfig::new(pair);
+        let mut cfg = DeviceScanConfig::new(config.binocular_calibration());
         cfg.capture = mono.capture.clone();
         // Both cameras must see a point: each view keeps about 65 % of the one-camera view's
         // points here, too few for the registrations of 8 views 45 degrees apart (a view left
@@ -947,33 +945,25 @@ mod tests {
             err.contains("two-camera calibration") && err.contains("--right-camera"),
             "{err}"
         );
-        let err = scan_binocular_devices(
-            &mono,
-            &out,
-            (&mut l, &mut r),
-            &mut projector,
-            &mut table,
-            &mut replace,
-            |_| {},
-        )
-        .unwrap_err()
-        .to_string();
+        let mut scan_both = |cfg: &DeviceScanConfig| {
+            scan_binocular_devices(
+                cfg,
+                &out,
+                (&mut l, &mut r),
+                &mut projector,
+                &mut table,
+                &mut replace,
+                |_| {},
+            )
+        };
+        let err = scan_both(&mono).unwrap_err().to_string();
         assert!(
             err.contains("one camera and the projector") && err.contains("stereo"),
             "{err}"
         );
         assert!(!out.exists(), "nothing is written before the checks pass");
 
-        let scan = scan_binocular_devices(
-            &cfg,
-            &out,
-            (&mut l, &mut r),
-            &mut projector,
-            &mut table,
-            &mut replace,
-            |_| {},
-        )
-        .unwrap();
+        let scan = scan_both(&cfg).unwrap();
         let p = &scan.placements[0];
         assert_eq!(p.capture.summary.captured, 12);
         for v in 0..12 {
@@ -1012,8 +1002,8 @@ mod tests {
     #[test]
     fn a_pair_without_axis_is_refused_by_name() {
         let config = scaled_rig_config(DIVISOR);
-        let second = config.default_second_camera();
-        let pair = BinocularCalibration::new(config.camera, second.camera, second.t_cam_second);
+        let mut pair = config.binocular_calibration();
+        pair.turntable = None;
         let tmp = tempfile::tempdir().unwrap();
         let path = tmp.path().join("stereo.json");
         pair.save(&path).unwrap();

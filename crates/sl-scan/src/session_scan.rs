@@ -86,9 +86,7 @@ impl ScanCalibration {
     ) -> Result<SessionScan, ScanError> {
         match self {
             Self::Monocular(c) => scan_session(session_dir, c, config, progress),
-            Self::Binocular(p) => {
-                scan_binocular_session(session_dir, p, &config.binocular, config, progress)
-            }
+            Self::Binocular(p) => scan_binocular_session(session_dir, p, config, progress),
         }
     }
 }
@@ -144,7 +142,8 @@ pub fn scan_session(
 
 /// [`scan_session`] for a session captured with two cameras: each view matched and
 /// triangulated between the cameras ([`reconstruct_binocular_session`] with the two-camera
-/// calibration `pair`, which holds the turntable axis), then merged as [`scan_session`] does.
+/// calibration `pair`, which holds the turntable axis, and `config.binocular`), then merged as
+/// [`scan_session`] does.
 /// The merged cloud is in the left camera's frame of view 0.
 ///
 /// # Errors
@@ -152,7 +151,6 @@ pub fn scan_session(
 pub fn scan_binocular_session(
     session_dir: &Path,
     pair: &BinocularCalibration,
-    options: &BinocularConfig,
     config: &SessionScanConfig,
     mut progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<SessionScan, ScanError> {
@@ -161,7 +159,7 @@ pub fn scan_binocular_session(
         session_dir,
         pair,
         &config.reconstruct,
-        options,
+        &config.binocular,
         &mut progress,
     )?;
     merge_views(views, t, config, progress)

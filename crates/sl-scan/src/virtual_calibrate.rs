@@ -201,7 +201,7 @@ pub(crate) fn calibrate_virtual_binocular_stage(
     let t = Instant::now();
     let (pair, summary) = if cfg.true_calibration {
         let (_, summary) = true_calibration(left);
-        (true_pair(left), summary)
+        (left.config().binocular_calibration(), summary)
     } else {
         calibrate_virtual_binocular(left, right, second, cfg, progress)?
     };
@@ -209,17 +209,6 @@ pub(crate) fn calibrate_virtual_binocular_stage(
     pair.save(&calib_path)?;
     stages.push(StageTime::since("calibrate", t));
     Ok((pair, summary, calib_path))
-}
-
-/// The binocular rig's exact calibration: the camera, its default second camera
-/// (`sl_sim::RigConfig::default_second_camera`) and the turntable axis.
-fn true_pair(left: &VirtualRig) -> BinocularCalibration {
-    let config = left.config();
-    let second = config.default_second_camera();
-    let mut pair = BinocularCalibration::new(config.camera, second.camera, second.t_cam_second);
-    pair.turntable = Some(config.turntable_axis());
-    pair.metadata.notes = "the virtual rig's true two-camera calibration".to_owned();
-    pair
 }
 
 /// Calibrates the two cameras of a binocular virtual rig and its turntable from simulated board

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
-use sl_camera::{Calibration, Metadata};
+use sl_camera::{BinocularCalibration, Calibration, Metadata};
 use sl_codec::{Frame, write_png_grey8, write_tiff_f32};
 
 use crate::{RigConfig, SimError, ViewTruth};
@@ -27,6 +27,17 @@ impl RigConfig {
             ..c.metadata
         };
         c
+    }
+
+    /// The exact two-camera calibration of the rig with its default second camera
+    /// ([`RigConfig::default_second_camera`]): both camera models, `T_left_right` and the
+    /// turntable axis in the first camera's frame (no projector: two cameras do not need it).
+    pub fn binocular_calibration(&self) -> BinocularCalibration {
+        let second = self.default_second_camera();
+        let mut pair = BinocularCalibration::new(self.camera, second.camera, second.t_cam_second);
+        pair.turntable = Some(self.turntable_axis());
+        pair.metadata.notes = "the virtual rig's true two-camera calibration".to_owned();
+        pair
     }
 }
 
