@@ -171,6 +171,33 @@ mod tests {
         assert!(out.join("failed-run/report.json").is_file());
     }
 
+    /// A frame that repeats the previous one (a late projector) decodes all the same and is
+    /// named in the output's report, with what happened; the capture as written has none.
+    #[test]
+    fn a_repeated_frame_is_named() {
+        let tmp = tempfile::tempdir().unwrap();
+        let capture = patterns(tmp.path(), "capture");
+        let c = capture.to_str().unwrap();
+        let issues = |out: &std::path::Path| -> Vec<String> {
+            let text = std::fs::read_to_string(out.join("report.json")).unwrap();
+            let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+            serde_json::from_value(v["figures"]["frame_issues"].clone()).unwrap()
+        };
+        let clean = tmp.path().join("clean");
+        slscan(&["decode", c, "--out", clean.to_str().unwrap()]).unwrap();
+        assert_eq!(issues(&clean), Vec::<String>::new());
+        std::fs::copy(capture.join("004.png"), capture.join("005.png")).unwrap();
+        let late = tmp.path().join("late");
+        slscan(&["decode", c, "--out", late.to_str().unwrap()]).unwrap();
+        let found = issues(&late);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert!(
+            found[0].starts_with("frame 5 (") && found[0].contains("005.png"),
+            "{found:?}"
+        );
+        assert!(found[0].contains("shows frame 4's pattern"), "{found:?}");
+    }
+
     /// `slscan patterns` for a 64x32 projector (Gray code, both axes) into `dir/name`.
     fn patterns(dir: &std::path::Path, name: &str) -> std::path::PathBuf {
         let p = dir.join(name);

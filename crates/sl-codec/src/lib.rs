@@ -74,6 +74,7 @@ mod error;
 mod export;
 mod fast_math;
 mod frame;
+mod frame_check;
 mod gray;
 mod hybrid;
 #[cfg(feature = "image-files")]
@@ -104,6 +105,7 @@ pub use export::{write_npy_f32, write_tiff_f32};
 #[cfg(feature = "image-files")]
 pub use export::{write_png_grey, write_png_grey8, write_png_grey16, write_png_rgb8};
 pub use frame::{Frame, Frames, Sample};
+pub use frame_check::{FrameFault, FrameIssue, check_frames};
 pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIFT, decode_gray};
 pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, decode_hybrid};
 #[cfg(feature = "image-files")]

@@ -9,8 +9,8 @@ use serde::Serialize;
 use sl_camera::Calibration;
 use sl_cloud::{PlyFormat, PreviewColoring, PreviewConfig, render_preview, write_ply};
 use sl_codec::{
-    CaptureSet, DecodeConfig, Frames, InvalidReason, MANIFEST_FILE, MapFormat, decode, load_frame,
-    write_outputs, write_png_rgb8,
+    CaptureSet, DecodeConfig, Frames, InvalidReason, MANIFEST_FILE, MapFormat, check_frames,
+    decode, load_frame, write_outputs, write_png_rgb8,
 };
 use sl_tri::{
     DEPTH_PNG_SCALE_MM, PointStatus, Texture, TriConfig, Triangulator, check_depth_png_scale,
@@ -323,9 +323,13 @@ pub struct CaptureDecoding {
     pub decode_ms: f64,
     /// Pixels per reason (`valid`, `shadow`, ...), every reason listed.
     pub pixels_by_reason: Vec<(&'static str, usize)>,
+    /// Frames that do not show what the manifest says was projected (`sl_codec::check_frames`:
+    /// a repeated, mixed or dark frame), one message each naming the frame; decoded all the
+    /// same.
+    pub frame_issues: Vec<String>,
     /// The files written: the float maps, the label PNG, the pictures.
     pub files: Vec<PathBuf>,
-    /// Wall time per stage: `read`, `decode`, `write`.
+    /// Wall time per stage: `read`, `decode`, `check frames`, `write`.
     pub stages: Vec<StageTime>,
 }
 
@@ -368,6 +372,10 @@ pub fn decode_capture(
     let started = Instant::now();
     let map = timed(&mut stages, "decode", || decode(&set, config))?;
     let decode_ms = started.elapsed().as_secs_f64() * 1e3;
+    let frame_issues = timed(&mut stages, "check frames", || check_frames(&set, &map))
+        .iter()
+        .map(ToString::to_string)
+        .collect();
     step(2);
     let files = timed(&mut stages, "write", || {
         write_outputs(&map, out, format, Some(set.manifest.projector))
@@ -381,6 +389,7 @@ pub fn decode_capture(
         blocks: set.manifest.blocks.len(),
         valid_fraction: map.valid_fraction(),
         decode_ms,
+        frame_issues,
         pixels_by_reason: InvalidReason::ALL
             .iter()
             .zip(map.reason_counts())
@@ -406,6 +415,7 @@ impl CaptureDecoding {
         report.figure("valid_fraction", self.valid_fraction);
         report.figure("decode_ms", self.decode_ms);
         report.figure("pixels_by_reason", counts_by_name(&self.pixels_by_reason));
+        report.figure("frame_issues", self.frame_issues.clone());
         let files: Vec<String> = self.files.iter().map(|p| p.display().to_string()).collect();
         report.figure("files", files);
     }
@@ -439,6 +449,7 @@ impl CaptureDecoding {
             ),
         ];
         lines.extend(self.invalid().map(|(name, n)| format!("  {name:<18} {n}")));
+        lines.extend(self.frame_issues.iter().map(|i| format!("warning: {i}")));
         lines
     }
 

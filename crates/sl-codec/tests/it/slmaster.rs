@@ -182,3 +182,85 @@ fn fringe_means_of_the_two_captures_agree() {
     assert!(median < 3.0 && p95 < 10.0, "median {median}, 95 % {p95}");
     assert!(bright - dark > 30.0, "no contrast: {dark}..{bright}");
 }
+
+/// The frame checks on real captures: SLMaster's two sets pass as captured, and the faults a
+/// late projector, a camera exposing while the projector updates and a projector that shows
+/// nothing leave are found when made in them (a frame replaced by the previous one, the top
+/// third of a frame by the previous frame's rows, a frame by the set's darkest level).
+#[test]
+fn real_frames_pass_and_real_faults_are_named() {
+    use sl_codec::{FrameFault, Frames, check_frames};
+    // The frames to darken: ones with a complementary partner (phase steps half a period
+    // apart); the 5 Gray frames of `shift_graycode` have no inverses and are not judged for it.
+    for (set, darken) in [
+        ("three_frequency_heterodyne", [2, 11]),
+        ("shift_graycode", [2, 1]),
+    ] {
+        let Some(frames) = data_dir(set) else {
+            return;
+        };
+        let capture = CaptureSet::load_with_frames_dir(&manifest(set), Some(&frames)).unwrap();
+        let config = DecodeConfig::default();
+        let issues = check_frames(&capture, &decode(&capture, &config).unwrap());
+        assert!(issues.is_empty(), "{set}: {issues:#?}");
+        let n = capture.frames.len();
+        let edit = |k: usize, f: FrameEdit<'_>| {
+            let mut c = capture.clone();
+            if let Frames::U8(fr) = &mut c.frames {
+                let (w, h) = (fr[k].width(), fr[k].height());
+                let data = f(fr[k].data(), fr[k - 1].data());
+                fr[k] = sl_codec::Frame::new(w, h, data).unwrap();
+            } else {
+                panic!("{set}: 8-bit frames expected");
+            }
+            check_frames(&c, &decode(&c, &DecodeConfig::default()).unwrap())
+        };
+        for k in [2, n - 1] {
+            let late = edit(k, &|_, prev| prev.to_vec());
+            assert!(
+                late.iter()
+                    .any(|i| i.frame == k && i.fault == FrameFault::Repeats { previous: k - 1 }),
+                "{set} frame {k}: {late:#?}"
+            );
+            let mixed = edit(k, &|here, prev| {
+                let third = here.len() / 3;
+                let mut d = here.to_vec();
+                d[..third].copy_from_slice(&prev[..third]);
+                d
+            });
+            assert!(
+                mixed
+                    .iter()
+                    .any(|i| i.frame == k && matches!(i.fault, FrameFault::Mixed { .. })),
+                "{set} frame {k}: {mixed:#?}"
+            );
+        }
+        let low = capture_min(&capture);
+        for k in darken {
+            let dark = edit(k, &|here, _| vec![low; here.len()]);
+            assert!(
+                dark.iter()
+                    .any(|i| i.frame == k && matches!(i.fault, FrameFault::Dark { .. })),
+                "{set} frame {k}: {dark:#?}"
+            );
+            assert!(
+                dark[0].to_string().contains("showed nothing"),
+                "{}",
+                dark[0]
+            );
+        }
+    }
+}
+
+/// A frame made from itself and the previous frame.
+type FrameEdit<'a> = &'a dyn Fn(&[u8], &[u8]) -> Vec<u8>;
+
+/// The 5th percentile of the set's first frame: the scene's darkest level.
+fn capture_min(c: &CaptureSet) -> u8 {
+    let sl_codec::Frames::U8(f) = &c.frames else {
+        return 0;
+    };
+    let mut v = f[0].data().to_vec();
+    v.sort_unstable();
+    v[v.len() / 20]
+}

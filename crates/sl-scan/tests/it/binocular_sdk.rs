@@ -44,6 +44,12 @@ fn the_binocular_sdk_pair_reconstructs() {
         std::fs::create_dir_all(&dir).unwrap();
         let text = manifest(&data.join("phaseGray").join(side));
         std::fs::write(dir.join("manifest.json"), text).unwrap();
+        // Each camera's frames show what the manifest says was projected: the frame checks
+        // name none of them (a false alarm on a real capture would be one too many).
+        let set = sl_codec::CaptureSet::load(&dir.join("manifest.json")).unwrap();
+        let map = sl_codec::decode(&set, &sl_codec::DecodeConfig::default()).unwrap();
+        let issues = sl_codec::check_frames(&set, &map);
+        assert!(issues.is_empty(), "{side}: {issues:#?}");
     }
     let out = tmp.path().join("out");
     let r = reconstruct_binocular_capture(

@@ -4,6 +4,7 @@
 mod binocular_scan;
 mod binocular_sdk;
 mod calibration_capture;
+mod frame_checks;
 mod placements;
 mod scan_pipeline;
 mod session_scan;
