@@ -679,10 +679,14 @@ pub fn check_frames(set: &CaptureSet, decoded: &CorrespondenceMap) -> Vec<FrameI
                     .filter(|&b| own_band[k][b] + own_band[j][b] < typical - DARK_SHORTFALL)
                     .collect();
                 let in_short = |f: usize| short.iter().map(|&b| own_band[f][b]).sum::<f64>();
+                // Two frames about as dark there (within 0.02 of the range a band): the later
+                // one, which can be a copy of the other (a frame repeats its predecessor).
                 let k_darker = if short.is_empty() {
                     mean(k) <= mean(j)
+                } else if (in_short(k) - in_short(j)).abs() <= 0.02 * short.len() as f64 {
+                    k > j
                 } else {
-                    in_short(k) <= in_short(j)
+                    in_short(k) < in_short(j)
                 };
                 let (dark, other) = if k_darker { (k, j) } else { (j, k) };
                 issues.push(FrameIssue {

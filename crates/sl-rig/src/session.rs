@@ -14,10 +14,15 @@
 //! their frame under it (after the display latency and each camera's flush).
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
-use sl_codec::{MANIFEST_FILE, Manifest, write_png_grey};
+use sl_codec::{
+    CaptureSet, DecodeConfig, FrameIssue, Frames, MANIFEST_FILE, Manifest, check_frames, decode,
+    write_png_grey,
+};
 
 use crate::{Camera, GreyImage, Projector, RigError, Turntable};
 
@@ -87,7 +92,16 @@ pub struct SessionConfig {
     /// Recapture views that are already complete, and accept a `session.json` with another
     /// plan (which is then replaced). Default `false`: a finished view is never overwritten.
     pub overwrite: bool,
+    /// Check each view's frames once captured (`sl_codec::check_frames` after a decode) and
+    /// capture the frames it names again — late, mixed or dark: the projector or the camera
+    /// out of step — after a longer wait, which the rest of the session keeps (doubled, at
+    /// least 50 ms, at most 2 s). Default `true`.
+    pub check_frames: bool,
 }
+
+/// Rounds of capturing named frames again before a view is kept with them (each named in
+/// [`ViewOutcome::frame_issues`]).
+pub const RECAPTURE_ROUNDS: usize = 3;
 
 /// Default display latency: a 60 Hz projector shows a new image within two or three refreshes
 /// (17–50 ms) once the compositor has it; 100 ms leaves a margin for a slow compositor or a
@@ -100,6 +114,7 @@ impl Default for SessionConfig {
             display_latency: DEFAULT_DISPLAY_LATENCY,
             flush_frames: 0,
             overwrite: false,
+            check_frames: true,
         }
     }
 }
@@ -133,6 +148,12 @@ pub struct ViewOutcome {
     pub frames: usize,
     /// Wall time spent on the view (ms): rotation, capture and writing.
     pub ms: f64,
+    /// Frames captured again because the frame checks named them (one message each: the
+    /// frame, what was wrong, the wait it was captured again after).
+    pub recaptured: Vec<String>,
+    /// Frames the checks still name after [`RECAPTURE_ROUNDS`] rounds: the view is kept with
+    /// them (decoded all the same), and they are named here.
+    pub frame_issues: Vec<String>,
 }
 
 /// What a whole [`CaptureSession::run`] did.
@@ -220,6 +241,9 @@ pub struct CaptureSession {
     dir: PathBuf,
     plan: SessionPlan,
     config: SessionConfig,
+    /// The wait after showing a pattern (ns): the configured display latency, longer once a
+    /// frame came out of step ([`SessionConfig::check_frames`]).
+    settle_ns: Arc<AtomicU64>,
 }
 
 impl CaptureSession {
@@ -275,6 +299,7 @@ impl CaptureSession {
         let session = Self {
             dir: dir.to_path_buf(),
             plan,
+            settle_ns: Arc::new(AtomicU64::new(duration_ns(config.display_latency))),
             config,
         };
         let file = session.file();
@@ -450,6 +475,8 @@ impl CaptureSession {
                     captured: false,
                     frames: 0,
                     ms: ms(t),
+                    recaptured: Vec::new(),
+                    frame_issues: Vec::new(),
                 }
             } else {
                 let at = |frame: Option<usize>| {
@@ -465,12 +492,18 @@ impl CaptureSession {
                     prepare_view_dir(&right_dir).map_err(at(None))?;
                 }
                 let reached = turntable.rotate_to(angle).map_err(at(None))?;
-                for (k, (pattern, name)) in patterns.iter().zip(&names).enumerate() {
+                let (mut lefts, mut rights) = (Vec::new(), Vec::new());
+                // Show pattern `k`, capture it with each camera and write the frames.
+                let take = |k: usize,
+                            camera: &mut C,
+                            right: Option<&mut R>,
+                            projector: &mut P|
+                 -> Result<(GreyImage, Option<GreyImage>), RigError> {
                     let frame = self
-                        .capture_one(camera, projector, pattern)
+                        .capture_one(camera, projector, &patterns[k])
                         .map_err(at(Some(k)))?;
                     // The pattern is still on: the second camera captures under it too.
-                    let second = match right.as_deref_mut() {
+                    let second = match right {
                         Some(r) => Some(
                             self.grab(r, "second camera")
                                 .map_err(|e| e.of_right_camera(right_name))
@@ -478,13 +511,53 @@ impl CaptureSession {
                         ),
                         None => None,
                     };
-                    let path = dir.join(name);
+                    let path = dir.join(&names[k]);
                     write_atomically(&path, |tmp| Ok(write_png_grey(tmp, &frame)?))
                         .map_err(at(Some(k)))?;
-                    if let Some(second) = second {
-                        let path = right_dir.join(name);
-                        write_atomically(&path, |tmp| Ok(write_png_grey(tmp, &second)?))
+                    if let Some(second) = &second {
+                        let path = right_dir.join(&names[k]);
+                        write_atomically(&path, |tmp| Ok(write_png_grey(tmp, second)?))
                             .map_err(at(Some(k)))?;
+                    }
+                    Ok((frame, second))
+                };
+                for k in 0..patterns.len() {
+                    let (frame, second) = take(k, camera, right.as_deref_mut(), projector)?;
+                    lefts.push(frame);
+                    rights.extend(second);
+                }
+                // Frames out of step captured again, after a longer wait.
+                let (mut recaptured, mut frame_issues) = (Vec::new(), Vec::new());
+                if self.config.check_frames {
+                    for round in 0..=RECAPTURE_ROUNDS {
+                        let mut issues = self.lying_frames(&lefts);
+                        if !rights.is_empty() {
+                            issues.extend(self.lying_frames(&rights));
+                        }
+                        if issues.is_empty() {
+                            break;
+                        }
+                        if round == RECAPTURE_ROUNDS {
+                            frame_issues = issues.iter().map(ToString::to_string).collect();
+                            break;
+                        }
+                        let settle = self.settle_longer();
+                        let mut again: Vec<usize> = issues.iter().map(|i| i.frame).collect();
+                        again.sort_unstable();
+                        again.dedup();
+                        for issue in &issues {
+                            recaptured.push(format!(
+                                "{issue}; captured again after {} ms",
+                                settle.as_millis()
+                            ));
+                        }
+                        for k in again {
+                            let (frame, second) = take(k, camera, right.as_deref_mut(), projector)?;
+                            lefts[k] = frame;
+                            if let (Some(second), Some(slot)) = (second, rights.get_mut(k)) {
+                                *slot = second;
+                            }
+                        }
                     }
                 }
                 // The second camera's manifest first: the view's own marks it complete.
@@ -502,6 +575,8 @@ impl CaptureSession {
                     captured: true,
                     frames: names.len(),
                     ms: ms(t),
+                    recaptured,
+                    frame_issues,
                 }
             };
             on_view(&outcome);
@@ -513,6 +588,19 @@ impl CaptureSession {
             captured,
             views,
         })
+    }
+
+    /// The wait after showing a pattern: the display latency, or longer once frames came out
+    /// of step in this session.
+    pub fn settle(&self) -> Duration {
+        Duration::from_nanos(self.settle_ns.load(Ordering::Relaxed))
+    }
+
+    /// Waits longer after each pattern from now on: twice as long, at least 50 ms, at most 2 s.
+    fn settle_longer(&self) -> Duration {
+        let longer = (self.settle() * 2).clamp(Duration::from_millis(50), Duration::from_secs(2));
+        self.settle_ns.store(duration_ns(longer), Ordering::Relaxed);
+        longer
     }
 
     /// Show → wait for the display latency → flush → capture.
@@ -527,10 +615,40 @@ impl CaptureSession {
         P: Projector + ?Sized,
     {
         projector.show(pattern)?;
-        if !self.config.display_latency.is_zero() {
-            std::thread::sleep(self.config.display_latency);
+        let settle = self.settle();
+        if !settle.is_zero() {
+            std::thread::sleep(settle);
         }
         self.grab(camera, "camera")
+    }
+
+    /// The frames of one camera's view that the frame checks name (none when the frames do not
+    /// decode: the checks need the codes).
+    fn lying_frames(&self, frames: &[GreyImage]) -> Vec<FrameIssue> {
+        let eight: Option<Vec<_>> = frames
+            .iter()
+            .map(|f| match f {
+                GreyImage::U8(f) => Some(f.clone()),
+                GreyImage::U16(_) => None,
+            })
+            .collect();
+        let sixteen: Option<Vec<_>> = frames
+            .iter()
+            .map(|f| match f {
+                GreyImage::U16(f) => Some(f.clone()),
+                GreyImage::U8(_) => None,
+            })
+            .collect();
+        let Some(frames) = eight.map(Frames::U8).or(sixteen.map(Frames::U16)) else {
+            return Vec::new();
+        };
+        let Ok(set) = CaptureSet::from_frames(self.plan.manifest.clone(), frames) else {
+            return Vec::new();
+        };
+        match decode(&set, &DecodeConfig::default()) {
+            Ok(map) => check_frames(&set, &map),
+            Err(_) => Vec::new(),
+        }
     }
 
     /// Flush → capture, the frame's size checked against the camera's.
@@ -723,6 +841,11 @@ fn write_atomically(
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
+}
+
+/// `d` in nanoseconds, saturated.
+fn duration_ns(d: Duration) -> u64 {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
 #[cfg(test)]

@@ -208,6 +208,7 @@ where
         display_latency: cfg.display_latency,
         flush_frames: 0,
         overwrite: cfg.overwrite,
+        check_frames: true,
     };
     let latency = match &cfg.measure_latency {
         Some(lc) => {

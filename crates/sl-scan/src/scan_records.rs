@@ -236,6 +236,17 @@ impl DeviceScan {
         report.figure("rig", "hardware");
         report.figure("cameras", if self.binocular { 2 } else { 1 });
         report.figure("calibration", calibration.display().to_string());
+        // Frames the checks named while capturing: captured again, or kept and named.
+        let (mut recaptured, mut frame_issues) = (Vec::new(), Vec::new());
+        for p in &self.placements {
+            for v in &p.capture.summary.views {
+                let at = |m: &String| format!("placement {} view {}: {m}", p.placement, v.index);
+                recaptured.extend(v.recaptured.iter().map(at));
+                frame_issues.extend(v.frame_issues.iter().map(at));
+            }
+        }
+        report.figure("recaptured_frames", recaptured);
+        report.figure("frame_issues", frame_issues);
         if let [single] = self.placements.as_slice() {
             let s = &single.scan;
             report.figure("views", s.view_points.len());

@@ -270,6 +270,7 @@ fn virtual_session(
         display_latency: Duration::ZERO,
         flush_frames: 0,
         overwrite: cfg.overwrite,
+        check_frames: true,
     };
     (plan, config)
 }

@@ -117,7 +117,9 @@ pub use simulate::{
     CalibrationSession, SimulatedCapture, projector_images, simulate_calibration, simulate_scan,
 };
 pub use truth::{NO_OBJECT, ObjectPose, ViewTruth};
-pub use virtual_rig::{View, VirtualCamera, VirtualProjector, VirtualRig, VirtualTurntable};
+pub use virtual_rig::{
+    DeviceFaults, View, VirtualCamera, VirtualProjector, VirtualRig, VirtualTurntable,
+};
 
 // The device layer the virtual devices implement, re-exported so that one import serves.
 pub use sl_rig::{

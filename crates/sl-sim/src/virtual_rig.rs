@@ -3,6 +3,8 @@
 
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
+use sl_image::Frame;
+
 use crate::geometry::{CameraRays, Caster};
 use crate::sensor::{NoiseKey, expose};
 use crate::truth::ObjectPose;
@@ -264,6 +266,32 @@ impl View {
     }
 }
 
+/// Frames that lie, on demand: the virtual devices told to be late, caught mid-update or to
+/// deliver a stale frame, as real projectors and cameras are ([`VirtualProjector::set_faults`]).
+/// Shows and captures are counted from 0 over the devices' life, so that a capture session's
+/// frame `k` of view `v` is show `v · frames + k` when nothing is captured again.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DeviceFaults {
+    /// Shows the projector is late with: until `late_by` has passed since [`Projector::show`],
+    /// a camera sees the previous image.
+    pub late_shows: Vec<u64>,
+    /// Shows a camera catches half-updated: until `late_by` has passed, the top half of its
+    /// rows still shows the previous image.
+    pub mixed_shows: Vec<u64>,
+    /// How long a late or mixed show takes to settle.
+    pub late_by: std::time::Duration,
+    /// Captures (of each camera, counted from 0) at which the camera delivers its previous
+    /// frame again: a dropped frame.
+    pub stale_captures: Vec<u64>,
+}
+
+/// How the projector's current image is still settling.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Settling {
+    Late,
+    Mixed,
+}
+
 /// What the devices share: the platter's angle and the projector's image.
 #[derive(Debug, Default)]
 struct DeviceState {
@@ -271,6 +299,20 @@ struct DeviceState {
     /// Counts the turntable's moves: a camera whose view is of another move casts again.
     moves: u64,
     shown: Option<GreyImage>,
+    /// The image shown before `shown`, and how `shown` is still settling (since when).
+    previous: Option<GreyImage>,
+    settling: Option<(Settling, std::time::Instant)>,
+    shows: u64,
+    faults: DeviceFaults,
+}
+
+impl DeviceState {
+    /// How the projector's image is still settling now.
+    fn settling(&self) -> Option<Settling> {
+        self.settling
+            .filter(|(_, since)| since.elapsed() < self.faults.late_by)
+            .map(|(how, _)| how)
+    }
 }
 
 /// A camera's view of the current platter position, cast on first use.
@@ -279,6 +321,9 @@ struct ViewCache {
     view: Option<(u64, Arc<View>)>,
     views_cast: u64,
     frames_in_view: u64,
+    /// Captures so far, and the last frame delivered (for [`DeviceFaults::stale_captures`]).
+    captures: u64,
+    last: Option<GreyImage>,
 }
 
 fn lock<T>(state: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -339,18 +384,40 @@ impl Camera for VirtualCamera {
 
     fn capture(&mut self) -> Result<GreyImage, RigError> {
         let view = self.current_view()?;
-        let frame = {
+        let (frame, stale) = {
             let mut cache = lock(&self.cache);
             let frame = cache.frames_in_view;
             cache.frames_in_view += 1;
-            frame
+            let index = cache.captures;
+            cache.captures += 1;
+            let stale = lock(&self.state).faults.stale_captures.contains(&index);
+            (frame, stale.then(|| cache.last.clone()).flatten())
         };
-        let shown = lock(&self.state).shown.clone();
-        match shown {
-            Some(img) => Ok(view.capture(&img, frame)?),
-            // Nothing shown yet: the projector is dark.
-            None => Ok(view.capture_fn(|_, _| 0.0, ProjectorSampling::Nearest, frame)?),
+        if let Some(last) = stale {
+            return Ok(last);
         }
+        let (shown, previous, settling) = {
+            let st = lock(&self.state);
+            (st.shown.clone(), st.previous.clone(), st.settling())
+        };
+        let render = |img: Option<&GreyImage>| -> Result<GreyImage, RigError> {
+            match img {
+                Some(img) => Ok(view.capture(img, frame)?),
+                // Nothing shown yet: the projector is dark.
+                None => Ok(view.capture_fn(|_, _| 0.0, ProjectorSampling::Nearest, frame)?),
+            }
+        };
+        let image = match settling {
+            None => render(shown.as_ref())?,
+            Some(Settling::Late) => render(previous.as_ref())?,
+            Some(Settling::Mixed) => {
+                let (old, new) = (render(previous.as_ref())?, render(shown.as_ref())?);
+                let split = new.height() / 2;
+                splice_rows(&old, &new, split)
+            }
+        };
+        lock(&self.cache).last = Some(image.clone());
+        Ok(image)
     }
 }
 
@@ -370,9 +437,49 @@ impl Projector for VirtualProjector {
                 height: size.height,
             });
         }
-        lock(&self.state).shown = Some(image.clone());
+        let mut st = lock(&self.state);
+        let show = st.shows;
+        st.shows += 1;
+        st.previous = st.shown.replace(image.clone());
+        st.settling = if st.faults.late_shows.contains(&show) {
+            Some((Settling::Late, std::time::Instant::now()))
+        } else if st.faults.mixed_shows.contains(&show) {
+            Some((Settling::Mixed, std::time::Instant::now()))
+        } else {
+            None
+        };
         Ok(())
     }
+}
+
+impl VirtualProjector {
+    /// Tells the devices to lie as `faults` says (shows and captures counted from now on
+    /// as from the devices' start: the counts are not reset).
+    pub fn set_faults(&mut self, faults: DeviceFaults) {
+        lock(&self.state).faults = faults;
+    }
+}
+
+/// The rows `0..split` of `top` above the rows of `bottom` below them (two images of one size
+/// and depth; `bottom` whole otherwise).
+fn splice_rows(top: &GreyImage, bottom: &GreyImage, split: usize) -> GreyImage {
+    fn splice<T: sl_codec::Sample>(
+        top: &Frame<T>,
+        bottom: &Frame<T>,
+        split: usize,
+    ) -> Option<Frame<T>> {
+        let w = bottom.width();
+        let mut data = bottom.data().to_vec();
+        let n = (split * w).min(data.len()).min(top.data().len());
+        data[..n].copy_from_slice(&top.data()[..n]);
+        Frame::new(w, bottom.height(), data).ok()
+    }
+    let spliced = match (top, bottom) {
+        (GreyImage::U8(t), GreyImage::U8(b)) => splice(t, b, split).map(GreyImage::U8),
+        (GreyImage::U16(t), GreyImage::U16(b)) => splice(t, b, split).map(GreyImage::U16),
+        _ => None,
+    };
+    spliced.unwrap_or_else(|| bottom.clone())
 }
 
 impl Turntable for VirtualTurntable {

@@ -94,6 +94,7 @@ fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
             display_latency: Duration::ZERO,
             flush_frames: 0,
             overwrite: false,
+            check_frames: true,
         },
     )
     .unwrap();
@@ -376,6 +377,7 @@ fn capture_dumbbell(
             display_latency: Duration::ZERO,
             flush_frames: 0,
             overwrite: false,
+            check_frames: true,
         },
     )
     .unwrap();
