@@ -7,8 +7,6 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 #[cfg(feature = "image-files")]
-use crate::Frame;
-#[cfg(feature = "image-files")]
 use crate::GreyImage;
 #[cfg(feature = "image-files")]
 use crate::frame::check_sizes;
@@ -156,21 +154,10 @@ fn load_frames(paths: &[PathBuf]) -> Result<Frames, CodecError> {
         .map(|p| read_image(p))
         .collect::<Result<_, _>>()?;
     let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
-    let any16 = loaded.iter().any(|f| matches!(f, GreyImage::U16(_)));
-    let frames = if any16 {
-        let v: Vec<Frame<u16>> = loaded.into_iter().map(GreyImage::into_u16).collect();
-        check_sizes(&v, Some(&names))?;
-        Frames::U16(v)
-    } else {
-        let v: Vec<Frame<u8>> = loaded
-            .into_iter()
-            .filter_map(|f| match f {
-                GreyImage::U8(f) => Some(f),
-                GreyImage::U16(_) => None,
-            })
-            .collect();
-        check_sizes(&v, Some(&names))?;
-        Frames::U8(v)
-    };
+    let frames = Frames::from_images(loaded);
+    match &frames {
+        Frames::U8(v) => check_sizes(v, Some(&names))?,
+        Frames::U16(v) => check_sizes(v, Some(&names))?,
+    }
     Ok(frames)
 }

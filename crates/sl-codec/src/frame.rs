@@ -1,5 +1,6 @@
 //! The frames of a capture: grey frames ([`Frame`], from `sl-image`) of one size and one depth.
 
+use sl_image::GreyImage;
 pub use sl_image::{Frame, Sample};
 
 use crate::{Axis, CodecError};
@@ -14,6 +15,24 @@ pub enum Frames {
 }
 
 impl Frames {
+    /// Images of one capture as frames: 8-bit when every image is, else all 16-bit (an 8-bit
+    /// image promoted as [`GreyImage::into_u16`] does).
+    pub fn from_images(images: Vec<GreyImage>) -> Self {
+        if images.iter().any(|f| matches!(f, GreyImage::U16(_))) {
+            Self::U16(images.into_iter().map(GreyImage::into_u16).collect())
+        } else {
+            Self::U8(
+                images
+                    .into_iter()
+                    .filter_map(|f| match f {
+                        GreyImage::U8(f) => Some(f),
+                        GreyImage::U16(_) => None,
+                    })
+                    .collect(),
+            )
+        }
+    }
+
     /// Number of frames.
     pub fn len(&self) -> usize {
         match self {

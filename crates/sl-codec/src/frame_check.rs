@@ -316,19 +316,7 @@ fn local_pattern_change(
                         .collect()
                 })
                 .collect();
-            (0..n)
-                .map(|k| match k.checked_sub(1) {
-                    Some(p) => {
-                        values[k]
-                            .iter()
-                            .zip(&values[p])
-                            .map(|(a, b)| (a - b).abs())
-                            .sum::<f64>()
-                            / SAMPLES as f64
-                    }
-                    None => 0.0,
-                })
-                .collect()
+            consecutive_change(&values)
         })
         .collect();
     (0..n)
@@ -338,6 +326,24 @@ fn local_pattern_change(
                 *v = per_band[b].get(k).copied().unwrap_or(0.0);
             }
             row
+        })
+        .collect()
+}
+
+/// Each frame's pattern change from the previous frame's: the mean absolute difference of
+/// their values at the same sample points (`values[k]`, frame `k`'s); 0 for the first frame.
+fn consecutive_change(values: &[Vec<f64>]) -> Vec<f64> {
+    (0..values.len())
+        .map(|k| match k.checked_sub(1) {
+            Some(p) => {
+                values[k]
+                    .iter()
+                    .zip(&values[p])
+                    .map(|(a, b)| (a - b).abs())
+                    .sum::<f64>()
+                    / values[k].len().max(1) as f64
+            }
+            None => 0.0,
         })
         .collect()
 }
@@ -381,19 +387,7 @@ fn complement_pairs(set: &CaptureSet) -> (Vec<(usize, usize, bool)>, Vec<f64>) {
             .collect()
     };
     let all: Vec<Vec<f64>> = (0..set.frames.len()).map(values).collect();
-    let change = (0..all.len())
-        .map(|k| match k.checked_sub(1) {
-            Some(p) => {
-                all[k]
-                    .iter()
-                    .zip(&all[p])
-                    .map(|(a, b)| (a - b).abs())
-                    .sum::<f64>()
-                    / all[k].len().max(1) as f64
-            }
-            None => 0.0,
-        })
-        .collect();
+    let change = consecutive_change(&all);
     let mut paired = vec![false; all.len()];
     let mut pairs = Vec::new();
     for k in 0..all.len() {

@@ -625,23 +625,7 @@ impl CaptureSession {
     /// The frames of one camera's view that the frame checks name (none when the frames do not
     /// decode: the checks need the codes).
     fn lying_frames(&self, frames: &[GreyImage]) -> Vec<FrameIssue> {
-        let eight: Option<Vec<_>> = frames
-            .iter()
-            .map(|f| match f {
-                GreyImage::U8(f) => Some(f.clone()),
-                GreyImage::U16(_) => None,
-            })
-            .collect();
-        let sixteen: Option<Vec<_>> = frames
-            .iter()
-            .map(|f| match f {
-                GreyImage::U16(f) => Some(f.clone()),
-                GreyImage::U8(_) => None,
-            })
-            .collect();
-        let Some(frames) = eight.map(Frames::U8).or(sixteen.map(Frames::U16)) else {
-            return Vec::new();
-        };
+        let frames = Frames::from_images(frames.to_vec());
         let Ok(set) = CaptureSet::from_frames(self.plan.manifest.clone(), frames) else {
             return Vec::new();
         };
