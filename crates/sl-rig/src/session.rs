@@ -530,9 +530,9 @@ impl CaptureSession {
                 let (mut recaptured, mut frame_issues) = (Vec::new(), Vec::new());
                 if self.config.check_frames {
                     for round in 0..=RECAPTURE_ROUNDS {
-                        let mut issues = self.lying_frames(&lefts);
+                        let mut issues = self.lying_frames(&lefts, &dir, &names);
                         if !rights.is_empty() {
-                            issues.extend(self.lying_frames(&rights));
+                            issues.extend(self.lying_frames(&rights, &right_dir, &names));
                         }
                         if issues.is_empty() {
                             break;
@@ -596,9 +596,13 @@ impl CaptureSession {
         Duration::from_nanos(self.settle_ns.load(Ordering::Relaxed))
     }
 
-    /// Waits longer after each pattern from now on: twice as long, at least 50 ms, at most 2 s.
+    /// Waits longer after each pattern from now on: twice as long, at least 50 ms, at most 2 s
+    /// (or as long as it was, when that was longer).
     fn settle_longer(&self) -> Duration {
-        let longer = (self.settle() * 2).clamp(Duration::from_millis(50), Duration::from_secs(2));
+        let now = self.settle();
+        let longer = (now * 2)
+            .clamp(Duration::from_millis(50), Duration::from_secs(2))
+            .max(now);
         self.settle_ns.store(duration_ns(longer), Ordering::Relaxed);
         longer
     }
@@ -622,17 +626,23 @@ impl CaptureSession {
         self.grab(camera, "camera")
     }
 
-    /// The frames of one camera's view that the frame checks name (none when the frames do not
-    /// decode: the checks need the codes).
-    fn lying_frames(&self, frames: &[GreyImage]) -> Vec<FrameIssue> {
+    /// The frames of one camera's view that the frame checks name, each by its file in `dir`
+    /// (none when the frames do not decode: the checks need the codes).
+    fn lying_frames(&self, frames: &[GreyImage], dir: &Path, names: &[String]) -> Vec<FrameIssue> {
         let frames = Frames::from_images(frames.to_vec());
         let Ok(set) = CaptureSet::from_frames(self.plan.manifest.clone(), frames) else {
             return Vec::new();
         };
-        match decode(&set, &DecodeConfig::default()) {
-            Ok(map) => check_frames(&set, &map),
-            Err(_) => Vec::new(),
+        let Ok(map) = decode(&set, &DecodeConfig::default()) else {
+            return Vec::new();
+        };
+        let mut issues = check_frames(&set, &map);
+        for issue in &mut issues {
+            if let Some(name) = names.get(issue.frame) {
+                issue.name = dir.join(name).display().to_string();
+            }
         }
+        issues
     }
 
     /// Flush → capture, the frame's size checked against the camera's.

@@ -416,11 +416,13 @@ fn frames_out_of_step_are_captured_again() {
     let (view, issues, settle, _dir) = checked(true);
     assert_eq!(issues, Vec::new(), "the view as written: {issues:#?}");
     assert!(view.frame_issues.is_empty(), "{:?}", view.frame_issues);
+    // Each named by its file.
     for k in [5, 9, 12] {
+        let file = session_file(&view.dir, k);
         assert!(
             view.recaptured
                 .iter()
-                .any(|m| m.starts_with(&format!("frame {k} ("))),
+                .any(|m| m.starts_with(&format!("frame {k} ({file})"))),
             "frame {k}: {:#?}",
             view.recaptured
         );
@@ -442,4 +444,9 @@ fn frames_out_of_step_are_captured_again() {
         Duration::from_millis(100),
         "the wait the session learned"
     );
+}
+
+/// The path of frame `k` of a session view in `dir`, as a message names it.
+fn session_file(dir: &Path, k: usize) -> String {
+    dir.join(format!("{k:03}.png")).display().to_string()
 }
