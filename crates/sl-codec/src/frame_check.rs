@@ -575,7 +575,7 @@ pub fn check_frames(set: &CaptureSet, decoded: &CorrespondenceMap) -> Vec<FrameI
             });
         }
     }
-    // One liar a pair: where both frames of a short pair were flagged, the copy (every band
+    // One liar a pair: where both frames of a pair that is off were flagged, the copy (every band
     // still) over the mixed frame, of two copies the later one (the spoilt decode can make
     // the partner of a late frame look mixed).
     for &(k, j, _) in &pairs {
@@ -599,11 +599,8 @@ pub fn check_frames(set: &CaptureSet, decoded: &CorrespondenceMap) -> Vec<FrameI
         }
     }
 
-    // Dark frames: where the projector lights the scene, one of two frames whose patterns are
-    // each other's complement is bright and the other dark, so their difference is large at
-    // almost every pixel. A frame the projector did not light leaves both dark wherever its own
-    // pattern was bright: the share of pixels with a small difference jumps above every other
-    // pair's. The darker frame of such a pair is named.
+    // Pairs whose light is off, not explained by a frame the band check named: the frame that
+    // lies in each is named (late, mixed or dark).
     if !lit.is_empty() {
         let mean = |k: usize| lit.iter().map(|&b| stats.mean[k][b]).sum::<f64>() / lit.len() as f64;
         for (&(k, j, binary), &l) in pairs.iter().zip(&light) {
@@ -612,14 +609,11 @@ pub fn check_frames(set: &CaptureSet, decoded: &CorrespondenceMap) -> Vec<FrameI
                 if (l - typical).abs() <= DARK_SHORTFALL || flagged[k] || flagged[j] {
                     continue;
                 }
-                // Which of the two lies. A frame that is a copy of the one before it although
-                // their patterns differ was late: the band check passes such a frame over when
-                // the two patterns coincide on what its bands' codes span (the codes it spoilt
-                // included), and the copy then spoils this pair only. Failing that, the darker
-                // frame: a black one. (The decoded codes cannot say which: a lying frame moves
-                // them to agree with itself.)
-                // Each lit band's change from the frame before, per what the projector-wide
-                // pattern change predicts (empty where the frame cannot be judged so).
+                // Which of the two lies (the decoded codes cannot say: a lying frame moves them
+                // to agree with itself). First by likeness to the frame before: each lit band's
+                // change from it, per what the projector-wide pattern change predicts (empty
+                // where the frame cannot be judged so); the band check passes a late frame over
+                // where the two patterns coincide on its bands' codes' span.
                 let ratio = |f: usize| -> Vec<(usize, f64)> {
                     if f == 0
                         || nearly_black(f)

@@ -384,21 +384,30 @@ impl Camera for VirtualCamera {
 
     fn capture(&mut self) -> Result<GreyImage, RigError> {
         let view = self.current_view()?;
-        let (frame, stale) = {
+        let (frame, stale, keep_last) = {
             let mut cache = lock(&self.cache);
             let frame = cache.frames_in_view;
             cache.frames_in_view += 1;
             let index = cache.captures;
             cache.captures += 1;
-            let stale = lock(&self.state).faults.stale_captures.contains(&index);
-            (frame, stale.then(|| cache.last.clone()).flatten())
+            let stale_captures = &lock(&self.state).faults.stale_captures;
+            let stale = stale_captures.contains(&index);
+            let keep_last = !stale_captures.is_empty();
+            (
+                frame,
+                stale.then(|| cache.last.clone()).flatten(),
+                keep_last,
+            )
         };
         if let Some(last) = stale {
             return Ok(last);
         }
+        // The previous image only while the current one settles: each is a whole image.
         let (shown, previous, settling) = {
             let st = lock(&self.state);
-            (st.shown.clone(), st.previous.clone(), st.settling())
+            let settling = st.settling();
+            let previous = settling.and(st.previous.clone());
+            (st.shown.clone(), previous, settling)
         };
         let render = |img: Option<&GreyImage>| -> Result<GreyImage, RigError> {
             match img {
@@ -416,7 +425,10 @@ impl Camera for VirtualCamera {
                 splice_rows(&old, &new, split)
             }
         };
-        lock(&self.cache).last = Some(image.clone());
+        // The frame kept for a stale capture only when one is asked for.
+        if keep_last {
+            lock(&self.cache).last = Some(image.clone());
+        }
         Ok(image)
     }
 }
