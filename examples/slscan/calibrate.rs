@@ -57,6 +57,11 @@ pub(crate) enum What {
     /// both models and `T_left_right`, with the projector when `--projector` asks for it and
     /// the turntable axis when the session has `turntable/`) and `report.json`.
     Stereo(StereoArgs),
+    /// The projector's response from a grey ramp: captured on the virtual rig (`--virtual`)
+    /// or on devices (`--camera`, `--projector-monitor`: point the projector at a matte wall),
+    /// or read from a ramp folder (`--from`). Writes `response/`, `response.json` and, with
+    /// `--calib`, the calibration with the response, whose scans correct their phase with it.
+    Response(crate::calibrate_response::Args),
 }
 
 /// Arguments of `slscan calibrate stereo`.
@@ -222,6 +227,7 @@ fn run_with(
 ) -> anyhow::Result<()> {
     match &args.what {
         What::Capture(a) => crate::calibrate_capture::run(a),
+        What::Response(a) => crate::calibrate_response::run(a),
         What::Camera(a) => {
             let zhang = ZhangConfig {
                 fix_principal_point: a.fix_principal_point,

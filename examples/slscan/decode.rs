@@ -3,6 +3,8 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context;
+
 use sl_codec::{DecodeConfig, MapFormat};
 use sl_scan::decode_capture;
 
@@ -51,14 +53,33 @@ pub(crate) struct Args {
     /// Gray code: plain pattern-against-inverse comparison instead of Xu & Aliaga's rules.
     #[arg(long)]
     pub(crate) no_robust: bool,
+    /// Correct the phase for the projector's response this calibration holds (`slscan
+    /// calibrate response`); a calibration without one is refused.
+    #[arg(long)]
+    pub(crate) calib: Option<PathBuf>,
 }
 
 /// Runs `slscan decode`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("decode");
     let manifest = manifest_file(&args.capture);
+    let projector_response = match &args.calib {
+        Some(path) => {
+            let calibration = sl_camera::Calibration::load(path)
+                .with_context(|| format!("cannot read the calibration {}", path.display()))?;
+            let Some(response) = calibration.projector_response else {
+                anyhow::bail!(
+                    "--calib {}: the calibration holds no projector response (add one with slscan calibrate response --calib {0})",
+                    path.display()
+                );
+            };
+            Some(response)
+        }
+        None => None,
+    };
     let folder = open_out(&args.out, "decode", &[&manifest], &[], args.force)?;
     let config = DecodeConfig {
+        projector_response,
         min_direct: args.min_direct,
         min_contrast: args.min_contrast,
         min_modulation: args.min_modulation,

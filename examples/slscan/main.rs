@@ -44,6 +44,7 @@ mod blob_support;
 mod bunny_support;
 mod calibrate;
 mod calibrate_capture;
+mod calibrate_response;
 #[cfg(test)]
 mod calibrate_stereo_tests;
 mod capture;

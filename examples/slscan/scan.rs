@@ -113,6 +113,23 @@ pub(crate) struct Args {
     /// (1: a linear projector; 2.2: a display-calibrated one run as it comes; 0.2 to 5).
     #[arg(long, default_value_t = 1.0, value_parser = values::in_range(0.2..=5.0))]
     pub(crate) projector_gamma: f64,
+    /// The shape of the virtual projector's response: `power` (a power law of
+    /// --projector-gamma) or `measured` (a consumer DLP's curve: blacks crushed below 3 %, a
+    /// gamma of about 2.4, the whites rolled off).
+    #[arg(long, value_enum, default_value_t = ResponseArg::Power)]
+    pub(crate) projector_response: ResponseArg,
+    /// What the virtual scan does about its projector's response: `none`; `decode` (measure
+    /// it first with a grey ramp on a flat plate, `response/`, keep it in calibration.json
+    /// and correct every decoded phase with it); `precompensate` (measure it, keep it, and
+    /// pre-compensate it in the fringes: full fringe contrast). On devices the calibration's
+    /// response (`slscan calibrate response`) is used whenever it holds one.
+    #[arg(long, value_enum, default_value_t = CorrectionArg::None)]
+    pub(crate) correct_response: CorrectionArg,
+    /// Phase steps of the virtual rig's scan patterns (3 to 16; default 8, the recommended
+    /// capture's).
+    #[arg(long, default_value_t = structured_light::scan::SCAN_PHASE_STEPS,
+          value_parser = values::count_in::<u32>(3..=16))]
+    pub(crate) phase_steps: u32,
     /// The virtual projector's lens distortion instead of the rig's: OpenCV's coefficients
     /// `k1,k2,p1,p2,k3` or, for the rational model, `k1,k2,p1,p2,k3,k4,k5,k6` (the
     /// calibration estimates 5 coefficients; `docs/binocular.md` compares the two scans).
@@ -135,6 +152,45 @@ pub(crate) struct Args {
     pub(crate) rig: crate::scan_hardware::ScanHardwareArgs,
 }
 
+/// The shape of the virtual projector's response (`--projector-response`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum ResponseArg {
+    /// `v^gamma`, the exponent `--projector-gamma`.
+    Power,
+    /// A measured projector's curve.
+    Measured,
+}
+
+impl From<ResponseArg> for sl_sim::ResponseShape {
+    fn from(a: ResponseArg) -> Self {
+        match a {
+            ResponseArg::Power => Self::Power,
+            ResponseArg::Measured => Self::Measured,
+        }
+    }
+}
+
+/// What the virtual scan does about the projector's response (`--correct-response`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum CorrectionArg {
+    /// Nothing.
+    None,
+    /// Correct the decoded phase with the measured response.
+    Decode,
+    /// Pre-compensate the measured response in the fringes.
+    Precompensate,
+}
+
+impl From<CorrectionArg> for structured_light::scan::ResponseCorrection {
+    fn from(a: CorrectionArg) -> Self {
+        match a {
+            CorrectionArg::None => Self::None,
+            CorrectionArg::Decode => Self::Decode,
+            CorrectionArg::Precompensate => Self::Precompensate,
+        }
+    }
+}
+
 /// The checks of `slscan scan` that need more than one value.
 pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
     check_placements(args.placements).map_err(|e| anyhow::anyhow!("--placements: {e}"))?;
@@ -142,10 +198,13 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
         anyhow::ensure!(
             !args.binocular
                 && args.projector_gamma == 1.0
+                && args.projector_response == ResponseArg::Power
+                && args.correct_response == CorrectionArg::None
+                && args.phase_steps == structured_light::scan::SCAN_PHASE_STEPS
                 && args.projector_distortion.is_none()
                 && args.projector_drift == 0.0
                 && args.period.is_none(),
-            "--binocular, --projector-gamma, --projector-distortion, --projector-drift and --period are options of the virtual rig's scan: on devices, a scan with two cameras names the second with --right-camera and takes the two-camera calibration (stereo.json) as --calib"
+            "--binocular, --projector-gamma, --projector-response, --correct-response, --phase-steps, --projector-distortion, --projector-drift and --period are options of the virtual rig's scan: on devices, a scan with two cameras names the second with --right-camera and takes the two-camera calibration (stereo.json) as --calib; the projector's response is the calibration's (slscan calibrate response); --patterns sets the patterns"
         );
         return Ok(());
     }
@@ -156,6 +215,10 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         args.placements == 1 || !args.true_poses,
         "--true-poses is a diagnostic of the single-placement scan"
+    );
+    anyhow::ensure!(
+        !(args.binocular && args.correct_response != CorrectionArg::None),
+        "--correct-response applies to one camera: two cameras match codes that the projector's response bends alike in both"
     );
     anyhow::ensure!(
         args.placements == 1 || !args.binocular,
@@ -223,6 +286,9 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         smoothing: smoothing(args),
         binocular: args.binocular,
         projector_gamma: args.projector_gamma,
+        projector_response: args.projector_response.into(),
+        response_correction: args.correct_response.into(),
+        phase_steps: args.phase_steps,
         projector_distortion: args.projector_distortion,
         projector_drift_deg: args.projector_drift,
         period_px: args

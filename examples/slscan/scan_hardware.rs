@@ -209,6 +209,7 @@ fn scan_config(args: &Args) -> anyhow::Result<DeviceScanConfig> {
             edge_erosion_px: args.edge_erosion,
             max_view_angle_deg: args.max_view_angle,
             smoothing: crate::scan::smoothing(args),
+            ..ReconstructConfig::default()
         },
         merge: MergeStageConfig::scan(
             !args.no_average,

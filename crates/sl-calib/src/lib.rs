@@ -5,7 +5,8 @@
 //! homographies of the decoded patterns ([`projector_corners`]), then both devices and
 //! `T_cam_proj` refined jointly. The turntable axis ([`calibrate_turntable`]): a closed form
 //! from the relative board poses at several motor angles, refined over every corner's
-//! reprojection. Pictures of a calibration ([`draw_corners`], [`error_bars`],
+//! reprojection. The projector's response ([`measure_response`]) from a grey ramp's
+//! captures, for the decoders' phase correction. Pictures of a calibration ([`draw_corners`], [`error_bars`],
 //! [`residual_plot`]) for reports such as `slscan calibrate`'s.
 //!
 //! ```
@@ -49,6 +50,7 @@ mod local_homography;
 mod pictures;
 mod predicted;
 mod procam;
+mod response;
 mod saddle;
 mod stereo;
 mod stereo_cameras;
@@ -70,6 +72,7 @@ pub use predicted::{PREDICTED_BOUND_SIGMAS, PredictedError};
 pub use procam::{
     ProcamCalibration, ProcamConfig, ProcamView, ProcamViewReport, SkippedView, calibrate_procam,
 };
+pub use response::{RESPONSE_LEVELS, ResponseMeasurement, measure_response, ramp_levels};
 pub use stereo_cameras::{
     StereoCameraCalibration, StereoCameraConfig, StereoCameraView, StereoCameraViewReport,
     calibrate_stereo_cameras,

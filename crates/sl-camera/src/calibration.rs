@@ -12,6 +12,7 @@ use crate::layouts::{
 };
 use crate::pose::PoseRepr;
 use crate::{CameraError, CameraModel, DistortionModel, ProjectorModel, TurntableAxis};
+use sl_image::ToneCurve;
 
 /// Version of the JSON calibration format this build writes and reads. Files with another
 /// version are refused with [`CameraError::UnsupportedVersion`].
@@ -99,6 +100,11 @@ pub struct Calibration {
     pub t_cam_proj: Option<Isometry3<f64>>,
     /// The turntable axis in the camera frame.
     pub turntable: Option<TurntableAxis>,
+    /// The projector's response as the camera sees it (`slscan calibrate response`): the
+    /// decoders correct the phase with it (`sl_codec::DecodeConfig::projector_response`).
+    /// Written as `"projector_response": {"samples": [...]}`; only this project's JSON format
+    /// holds it (OpenCV's layouts have no place for it).
+    pub projector_response: Option<ToneCurve>,
     /// RMS reprojection errors.
     pub rms: RmsErrors,
     /// Who wrote the file, when, and notes.
@@ -195,6 +201,8 @@ struct CalibrationJson {
     t_cam_proj: Option<PoseRepr>,
     #[serde(default)]
     turntable: Option<TurntableAxis>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    projector_response: Option<ToneCurve>,
     #[serde(default)]
     rms: RmsErrors,
     #[serde(default)]
@@ -214,6 +222,7 @@ impl Calibration {
             projector: None,
             t_cam_proj: None,
             turntable: None,
+            projector_response: None,
             rms: RmsErrors::default(),
             metadata: Metadata::default(),
         }
@@ -490,6 +499,7 @@ impl Calibration {
             projector: repr.projector,
             t_cam_proj,
             turntable,
+            projector_response: repr.projector_response,
             rms: repr.rms,
             metadata: repr.metadata,
         };
@@ -518,6 +528,7 @@ impl Calibration {
             projector: self.projector,
             t_cam_proj: self.t_cam_proj.as_ref().map(PoseRepr::from_isometry),
             turntable: self.turntable,
+            projector_response: self.projector_response.clone(),
             rms: self.rms,
             metadata: self.metadata.clone(),
         };

@@ -104,6 +104,8 @@ pub use turntable::TurntableAxis;
 /// Size of an image in pixels: the workspace's one image size, defined in `sl-image` and
 /// re-exported so camera users need one import.
 pub use sl_image::ImageSize;
+/// A projector's response curve ([`Calibration::projector_response`]), from `sl-image`.
+pub use sl_image::ToneCurve;
 
 /// Re-export of the linear algebra crate used in the public API.
 pub use nalgebra;

@@ -69,6 +69,11 @@ pub struct DecodeConfig {
     pub unwrap_tolerance: f32,
     /// Camera rows per parallel task.
     pub rows_per_task: usize,
+    /// Phase shift and hybrid: the projector's measured response (`slscan calibrate
+    /// response`, a calibration's `projector_response`). When given and not linear, every
+    /// phase is corrected for the error the response causes with the block's step count
+    /// ([`crate::PhaseCorrection`]); `None` (the default) trusts the fringes to be sinusoids.
+    pub projector_response: Option<sl_image::ToneCurve>,
 }
 
 impl Default for DecodeConfig {
@@ -83,6 +88,7 @@ impl Default for DecodeConfig {
             saturation_level: DEFAULT_SATURATION_LEVEL,
             unwrap_tolerance: DEFAULT_UNWRAP_TOLERANCE,
             rows_per_task: DEFAULT_ROWS_PER_TASK,
+            projector_response: None,
         }
     }
 }

@@ -30,6 +30,7 @@ use crate::phase_shift::{
     Fringe, MAX_STEPS, MIN_PERIOD_PIXELS, PhaseRow, StepTable, fused_pass, validate_steps,
 };
 use crate::{Axis, CodecError, DecodeConfig, Frame, ImageSize, Sample, ShiftSign};
+use sl_image::ToneCurve;
 
 /// Phase steps of the capture the toolkit recommends and scans with (`slscan patterns --codec
 /// hybrid` and `slscan capture`/`scan` by default). 8 rather than 4: with
@@ -65,6 +66,10 @@ pub struct HybridSpec {
     pub shift_sign: ShiftSign,
     /// Projector gamma pre-compensated in the rendered fringes.
     pub gamma: f64,
+    /// The projector's measured response pre-compensated in the rendered fringes (as
+    /// [`crate::PhaseShiftSpec::precompensation`]; the Gray code's black and white need
+    /// none). Default `None`.
+    pub precompensation: Option<ToneCurve>,
     /// The Gray code that locates the period; its stripes must be at most one period wide.
     pub gray: GrayCodeSpec,
 }
@@ -99,6 +104,7 @@ impl HybridSpec {
             phase_offset: 0.0,
             shift_sign: ShiftSign::Positive,
             gamma: 1.0,
+            precompensation: None,
             gray: GrayCodeSpec {
                 axis,
                 extent,
@@ -220,7 +226,7 @@ impl HybridSpec {
         (1u64 << self.gray.bits.min(63)) as f64 * self.gray.stripe_width / self.period_pixels()
     }
 
-    fn fringe(&self) -> Fringe {
+    fn fringe(&self) -> Fringe<'_> {
         Fringe {
             period: self.period_pixels(),
             origin: self.origin,
@@ -228,7 +234,16 @@ impl HybridSpec {
             sign: self.shift_sign.value(),
             steps: self.steps,
             gamma: self.gamma,
+            precompensation: self.precompensation.as_ref(),
         }
+    }
+
+    /// This block with the projector's measured `response` pre-compensated in its fringes
+    /// ([`Self::precompensation`]).
+    #[must_use]
+    pub fn precompensated(mut self, response: ToneCurve) -> Self {
+        self.precompensation = Some(response);
+        self
     }
 
     /// Intensity in `[0, 1]` of frame `frame` of the block at coordinate `t`, or `None` if
@@ -318,7 +333,13 @@ impl<'a, T: Sample> HybridKernel<'a, T> {
             frames,
             frames8,
             width: dims(frames).0,
-            table: StepTable::new(spec.steps, spec.shift_sign.value(), spec.phase_offset),
+            table: StepTable::for_block(
+                spec.steps,
+                spec.shift_sign,
+                spec.phase_offset,
+                (spec.gamma, spec.precompensation.as_ref()),
+                config,
+            )?,
             th: BitThresholds::new::<T>(config),
             min_modulation: config.min_modulation * scale,
             quality_scale: 1.0 / scale,
@@ -377,6 +398,7 @@ impl<'a, T: Sample> HybridKernel<'a, T> {
             &mut s.maxv,
             &mut s.acc,
         );
+        self.table.correct(&mut s.frac);
         for (a, &b) in s.background.iter_mut().zip(&s.modulation) {
             *a += b;
         }

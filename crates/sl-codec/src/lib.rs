@@ -85,6 +85,7 @@ mod pattern;
 mod phase_shift;
 mod pictures;
 mod ramps;
+mod response;
 mod sequence;
 mod smooth;
 mod synthetic;
@@ -123,6 +124,7 @@ pub use phase_shift::{
 pub use pictures::write_outputs;
 pub use pictures::{INVALID_PALETTE, MapFormat, OutputFiles, false_color, invalid_colors, turbo};
 pub use ramps::ramp_stair_codes;
+pub use response::PhaseCorrection;
 pub use sequence::{PatternSequence, render_pattern};
 /// A grey image at either depth, as [`read_image`] returns it: the workspace's one grey image,
 /// defined in `sl-image` and re-exported here.
@@ -130,6 +132,8 @@ pub use sl_image::GreyImage;
 /// The error of `sl-image`'s types ([`Frame::new`], [`ImageSize::validate`]); it converts
 /// into [`CodecError`].
 pub use sl_image::ImageError;
+/// A projector's response curve ([`DecodeConfig::projector_response`]), from `sl-image`.
+pub use sl_image::ToneCurve;
 pub use smooth::{MAX_SMOOTH_RADIUS, SmoothConfig, smooth_correspondences};
 pub use synthetic::SyntheticScene;
 pub use texture::{CaptureTexture, TextureSource, capture_texture};

@@ -13,6 +13,7 @@ use crate::{
     Axis, BitDepth, CodecError, GrayCodeSpec, GrayReference, HybridSpec, ImageSize, Pattern,
     PatternSequence, PhaseShiftSpec, ShiftSign, Unwrap,
 };
+use sl_image::ToneCurve;
 
 /// The file name of a manifest inside a capture folder.
 pub const MANIFEST_FILE: &str = "manifest.json";
@@ -153,6 +154,9 @@ fn pattern_json(p: &Pattern) -> Map<String, Value> {
             o.insert("phase_offset".into(), json!(s.phase_offset));
             o.insert("shift_sign".into(), json!(s.shift_sign.value() as i64));
             o.insert("gamma".into(), json!(s.gamma));
+            if let Some(c) = &s.precompensation {
+                o.insert("precompensation".into(), json!(c));
+            }
             o
         }
         Pattern::Hybrid(s) => {
@@ -165,6 +169,9 @@ fn pattern_json(p: &Pattern) -> Map<String, Value> {
             o.insert("phase_offset".into(), json!(s.phase_offset));
             o.insert("shift_sign".into(), json!(s.shift_sign.value() as i64));
             o.insert("gamma".into(), json!(s.gamma));
+            if let Some(c) = &s.precompensation {
+                o.insert("precompensation".into(), json!(c));
+            }
             o.insert("gray".into(), Value::Object(gray_json(&s.gray, false)));
             o
         }
@@ -203,6 +210,7 @@ const PHASE_KEYS: &[&str] = &[
     "phase_offset",
     "shift_sign",
     "gamma",
+    "precompensation",
     "frames",
 ];
 const HYBRID_KEYS: &[&str] = &[
@@ -214,6 +222,7 @@ const HYBRID_KEYS: &[&str] = &[
     "phase_offset",
     "shift_sign",
     "gamma",
+    "precompensation",
     "gray",
     "frames",
 ];
@@ -284,6 +293,21 @@ impl Parser<'_> {
             .u64_opt(o, key)?
             .ok_or_else(|| self.err(join(&o.at, key), "is required"))?;
         u32::try_from(v).map_err(|_| self.err(join(&o.at, key), format!("{v} is too large")))
+    }
+
+    /// A tone curve, `{"samples": [0, ..., 1]}` (`sl_image::ToneCurve`).
+    fn curve_opt(&self, o: &Obj<'_>, key: &str) -> Result<Option<ToneCurve>, CodecError> {
+        match self.get(o, key) {
+            None => Ok(None),
+            Some(v) => serde_json::from_value(v.clone()).map(Some).map_err(|e| {
+                self.err(
+                    join(&o.at, key),
+                    format!(
+                        "must be a tone curve {{\"samples\": [0, ..., 1]}} rising from 0 to 1: {e}"
+                    ),
+                )
+            }),
+        }
     }
 
     fn f64_opt(&self, o: &Obj<'_>, key: &str) -> Result<Option<f64>, CodecError> {
@@ -440,6 +464,7 @@ impl Parser<'_> {
                 s.phase_offset = self.f64_opt(&o, "phase_offset")?.unwrap_or(0.0);
                 s.shift_sign = self.shift_sign(&o)?;
                 s.gamma = self.f64_opt(&o, "gamma")?.unwrap_or(1.0);
+                s.precompensation = self.curve_opt(&o, "precompensation")?;
                 Pattern::Phase(s)
             }
             _ => {
@@ -453,6 +478,7 @@ impl Parser<'_> {
                 s.phase_offset = self.f64_opt(&o, "phase_offset")?.unwrap_or(0.0);
                 s.shift_sign = self.shift_sign(&o)?;
                 s.gamma = self.f64_opt(&o, "gamma")?.unwrap_or(1.0);
+                s.precompensation = self.curve_opt(&o, "precompensation")?;
                 if let Some(g) = self.get(&o, "gray") {
                     let go = self.obj(g, &join(at, "gray"), HYBRID_GRAY_KEYS)?;
                     s.gray = self.gray(&go, axis, extent, Some(&s.gray))?;
@@ -662,6 +688,22 @@ mod tests {
         }));
         let m = seq2.manifest(BitDepth::Eight);
         assert_eq!(parse(&m.to_json().to_string()).unwrap(), m);
+        // A measured response pre-compensated in a hybrid block survives the round trip; a
+        // malformed one is named by its key.
+        let curve = ToneCurve::from_samples(vec![0.0, 0.1, 0.45, 1.0]).unwrap();
+        let seq3 = PatternSequence::new(p).with(Pattern::Hybrid(
+            HybridSpec::complementary(Axis::Column, p, 3, 40.0).precompensated(curve),
+        ));
+        let m = seq3.manifest(BitDepth::Eight);
+        let text = m.to_json().to_string();
+        assert!(
+            text.contains("\"precompensation\":{\"samples\":[0.0,0.1,0.45,1.0]}"),
+            "{text}"
+        );
+        assert_eq!(parse(&text).unwrap(), m);
+        let bad = text.replace("0.45", "0.05");
+        let e = parse(&bad).unwrap_err().to_string();
+        assert!(e.contains("precompensation"), "{e}");
     }
 
     #[test]

@@ -25,8 +25,10 @@ use crate::fast_math;
 use crate::frame::{check_block, dims};
 use crate::kernel::{self, AxisRows, Kernel, fill_out};
 use crate::pattern::{positive, within};
+use crate::response::PhaseCorrection;
 use crate::unwrap::{Plan, Unwrap, UnwrapScratch, gcd};
 use crate::{Axis, CodecError, DecodeConfig, Frame, ImageSize, Sample};
+use sl_image::ToneCurve;
 
 /// Smallest fringe period in projector pixels: below 2 pixels a sinusoid cannot be displayed
 /// (Nyquist), and the decoder would see aliases.
@@ -69,26 +71,36 @@ impl ShiftSign {
 
 /// The sinusoid shared by phase and hybrid blocks (one frequency).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Fringe {
+pub(crate) struct Fringe<'a> {
     pub(crate) period: f64,
     pub(crate) origin: f64,
     pub(crate) phase_offset: f64,
     pub(crate) sign: f64,
     pub(crate) steps: u32,
     pub(crate) gamma: f64,
+    pub(crate) precompensation: Option<&'a ToneCurve>,
 }
 
-impl Fringe {
+impl Fringe<'_> {
     /// Pattern intensity of step `k` at coordinate `t`.
     pub(crate) fn value(&self, k: u32, t: f64) -> f64 {
         let phi = TAU * (t - self.origin) / self.period;
         let delta = self.sign * TAU * f64::from(k) / f64::from(self.steps);
-        let v = 0.5 + 0.5 * (phi + self.phase_offset - delta).cos();
-        if self.gamma == 1.0 {
-            v
-        } else {
-            v.clamp(0.0, 1.0).powf(1.0 / self.gamma)
-        }
+        precompensate(
+            0.5 + 0.5 * (phi + self.phase_offset - delta).cos(),
+            self.gamma,
+            self.precompensation,
+        )
+    }
+}
+
+/// The value a block shows for the light `v` it wants: through the measured response's
+/// inverse when the block pre-compensates one, else `v^(1/gamma)`.
+pub(crate) fn precompensate(v: f64, gamma: f64, curve: Option<&ToneCurve>) -> f64 {
+    match curve {
+        Some(c) => c.value_for(v),
+        None if gamma == 1.0 => v,
+        None => v.clamp(0.0, 1.0).powf(1.0 / gamma),
     }
 }
 
@@ -114,6 +126,10 @@ pub struct PhaseShiftSpec {
     pub shift_sign: ShiftSign,
     /// Projector gamma pre-compensated in the rendered patterns (1 = linear projector).
     pub gamma: f64,
+    /// The projector's measured response pre-compensated in the rendered patterns (each
+    /// value `p` shown as `response.value_for(p)`, so that the light is a sinusoid); when
+    /// given it replaces `gamma`. Manifest key `precompensation`. Default `None`.
+    pub precompensation: Option<ToneCurve>,
 }
 
 impl PhaseShiftSpec {
@@ -135,7 +151,16 @@ impl PhaseShiftSpec {
             phase_offset: 0.0,
             shift_sign: ShiftSign::Positive,
             gamma: 1.0,
+            precompensation: None,
         }
+    }
+
+    /// This block with the projector's measured `response` pre-compensated in its patterns
+    /// ([`Self::precompensation`]).
+    #[must_use]
+    pub fn precompensated(mut self, response: ToneCurve) -> Self {
+        self.precompensation = Some(response);
+        self
     }
 
     /// Three frequencies for heterodyne unwrapping whose finest period is `finest_period_px`
@@ -278,7 +303,7 @@ impl PhaseShiftSpec {
         Ok(())
     }
 
-    pub(crate) fn fringe(&self, i: usize) -> Option<Fringe> {
+    pub(crate) fn fringe(&self, i: usize) -> Option<Fringe<'_>> {
         Some(Fringe {
             period: self.period_pixels(i)?,
             origin: self.origin,
@@ -286,6 +311,7 @@ impl PhaseShiftSpec {
             sign: self.shift_sign.value(),
             steps: self.steps,
             gamma: self.gamma,
+            precompensation: self.precompensation.as_ref(),
         })
     }
 
@@ -321,6 +347,8 @@ pub(crate) struct StepTable {
     two_over_n: f32,
     /// `psi / (2 pi)`
     offset_cycles: f32,
+    /// The correction of a projector response that is not linear.
+    correction: Option<PhaseCorrection>,
 }
 
 impl StepTable {
@@ -333,6 +361,41 @@ impl StepTable {
             inv_n: (1.0 / n) as f32,
             two_over_n: (2.0 / n) as f32,
             offset_cycles: (phase_offset / TAU) as f32,
+            correction: None,
+        }
+    }
+
+    /// The table of a block's fringes (`steps`, `sign`, `phase_offset`, pre-compensated
+    /// `gamma`) decoded with `config`: with a phase correction when `config` gives a projector
+    /// response that is not linear.
+    pub(crate) fn for_block(
+        steps: u32,
+        sign: ShiftSign,
+        phase_offset: f64,
+        shown: (f64, Option<&ToneCurve>),
+        config: &DecodeConfig,
+    ) -> Result<Self, CodecError> {
+        let mut table = Self::new(steps, sign.value(), phase_offset);
+        let (gamma, precompensation) = shown;
+        if let Some(response) = &config.projector_response
+            && !(response.is_linear() && gamma == 1.0 && precompensation.is_none())
+        {
+            table.correction = Some(PhaseCorrection::for_patterns(
+                response,
+                steps,
+                sign,
+                gamma,
+                precompensation,
+            )?);
+        }
+        Ok(table)
+    }
+
+    /// Corrects wrapped phases (cycles of `Phi`) for the projector's response, if known.
+    #[inline]
+    pub(crate) fn correct(&self, fracs: &mut [f32]) {
+        if let Some(c) = &self.correction {
+            c.correct_fracs(fracs, self.offset_cycles);
         }
     }
 }
@@ -655,7 +718,13 @@ impl<'a, T: Sample> PhaseKernel<'a, T> {
             spec: spec.clone(),
             frames,
             width: dims(frames).0,
-            table: StepTable::new(spec.steps, spec.shift_sign.value(), spec.phase_offset),
+            table: StepTable::for_block(
+                spec.steps,
+                spec.shift_sign,
+                spec.phase_offset,
+                (spec.gamma, spec.precompensation.as_ref()),
+                config,
+            )?,
             plan: Plan::new(spec.unwrap, &spec.periods),
             periods: spec.periods.iter().map(|&p| p as f32).collect(),
             min_modulation: config.min_modulation * scale,
@@ -718,6 +787,7 @@ impl<'a, T: Sample> PhaseKernel<'a, T> {
                 &mut s.maxv,
                 &mut s.acc,
             );
+            self.table.correct(frac);
         }
         self.plan.unwrap_row(&s.fracs, &self.periods, &mut s.unwrap);
         let extent = self.spec.extent as f32;

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 
 use crate::manifest::{Manifest, ManifestBlock};
 use crate::{Axis, BitDepth, CodecError, Frame, GreyImage, ImageSize, Pattern, Sample};
+use sl_image::ToneCurve;
 
 /// The blocks of a scan in projection order, for one projector.
 ///
@@ -34,6 +35,21 @@ impl PatternSequence {
     #[must_use]
     pub fn with(mut self, block: Pattern) -> Self {
         self.blocks.push(block);
+        self
+    }
+
+    /// This sequence with the projector's measured `response` pre-compensated in every
+    /// phase and hybrid block's fringes (binary blocks show black and white, which need
+    /// none): what to project once `slscan calibrate response` has measured the projector.
+    #[must_use]
+    pub fn precompensated(mut self, response: &ToneCurve) -> Self {
+        for block in &mut self.blocks {
+            match block {
+                Pattern::Phase(s) => s.precompensation = Some(response.clone()),
+                Pattern::Hybrid(s) => s.precompensation = Some(response.clone()),
+                Pattern::Gray(_) => {}
+            }
+        }
         self
     }
 

@@ -1,6 +1,6 @@
 //! The image types the structured-light crates share, and nothing else: an [`ImageSize`], a
-//! grey [`Frame`] of 8- or 16-bit samples, and a [`GreyImage`] holding a frame of either
-//! depth. Cameras, projectors, pattern sequences, decoders, the simulator and the rig all
+//! grey [`Frame`] of 8- or 16-bit samples, a [`GreyImage`] holding a frame of either
+//! depth, and the [`ToneCurve`] of a projector's response. Cameras, projectors, pattern sequences, decoders, the simulator and the rig all
 //! speak these types, so any project can take one crate (or write its own on top of these)
 //! without converting images between them. The crate needs only `serde` and `thiserror`.
 //!
@@ -30,11 +30,13 @@ mod error;
 mod frame;
 mod grey;
 mod size;
+mod tone;
 
 pub use error::ImageError;
 pub use frame::{Frame, Sample};
 pub use grey::GreyImage;
 pub use size::ImageSize;
+pub use tone::{MAX_TONE_SAMPLES, ToneCurve};
 
 /// The README's example, compiled and run by `cargo test --doc`.
 #[cfg(doctest)]

@@ -81,7 +81,7 @@ pub use files::write_capture_set;
 pub use latency::{BufferedCamera, Latency, LatencyConfig, MIN_FLASH_CONTRAST, measure_latency};
 pub use open::{
     BoxedCamera, BoxedTurntable, DeviceDescription, open_camera, open_turntable, serial_ports,
-    with_binocular_devices, with_described_devices, with_devices,
+    with_binocular_devices, with_camera_and_projector, with_described_devices, with_devices,
 };
 pub use pixel_format::{FrameLayout, PixelFormat, convert_frame};
 #[cfg(feature = "window")]

@@ -275,6 +275,40 @@ where
     })
 }
 
+/// Opens the camera at `camera` and the projector window on monitor `projector_monitor` (no
+/// turntable: what a measurement of the projector alone needs, such as its response) and runs
+/// `work` on them, on a worker thread as [`with_devices`] does.
+///
+/// # Errors
+/// [`RigError::FeatureNotBuilt`] naming the camera or the projector when this build lacks its
+/// feature (checked before anything opens); a driver's or `work`'s error otherwise.
+pub fn with_camera_and_projector<T, F>(
+    camera: &std::path::Path,
+    projector_monitor: usize,
+    work: F,
+) -> Result<T, RigError>
+where
+    T: Send + 'static,
+    F: FnOnce(&mut dyn Camera, &mut dyn Projector) -> Result<T, RigError> + Send + 'static,
+{
+    if !cfg!(feature = "v4l") {
+        return Err(RigError::FeatureNotBuilt {
+            device: format!("camera {}", camera.display()),
+            feature: "v4l",
+        });
+    }
+    if !cfg!(feature = "window") {
+        return Err(RigError::FeatureNotBuilt {
+            device: format!("projector on monitor {projector_monitor}"),
+            feature: "window",
+        });
+    }
+    let mut camera = open_camera(camera)?;
+    run_window(projector_monitor, move |projector| {
+        work(camera.as_mut(), projector)
+    })
+}
+
 #[cfg(feature = "window")]
 fn run_window<T, F>(monitor: usize, work: F) -> Result<T, RigError>
 where
@@ -304,6 +338,16 @@ where
 
 #[cfg(test)]
 mod tests {
+    #[cfg(not(all(feature = "v4l", feature = "window")))]
+    #[test]
+    fn camera_and_projector_without_their_features_are_named() {
+        let e =
+            super::with_camera_and_projector(std::path::Path::new("/dev/video7"), 2, |_, _| Ok(()))
+                .unwrap_err()
+                .to_string();
+        assert!(e.contains("/dev/video7") || e.contains("monitor 2"), "{e}");
+    }
+
     #[test]
     fn serial_ports_are_usb_and_acm_nodes_sorted() {
         let dir = tempfile::tempdir().unwrap();

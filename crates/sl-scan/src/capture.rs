@@ -30,10 +30,16 @@ pub const SCAN_PERIOD_PX: f64 = sl_codec::RECOMMENDED_PERIOD_PX;
 /// phase steps, periods of `period_px` projector pixels ([`SCAN_PERIOD_PX`] by default, on
 /// the virtual and the real rig).
 pub fn scan_patterns(projector: ImageSize, period_px: f64) -> PatternSequence {
+    scan_patterns_with(projector, period_px, SCAN_PHASE_STEPS)
+}
+
+/// [`scan_patterns`] with `steps` phase steps instead of [`SCAN_PHASE_STEPS`] (3 steps: one
+/// frame less a view, and the phase most sensitive to the projector's response).
+pub fn scan_patterns_with(projector: ImageSize, period_px: f64, steps: u32) -> PatternSequence {
     PatternSequence::new(projector).with(Pattern::Hybrid(HybridSpec::complementary(
         Axis::Column,
         projector,
-        SCAN_PHASE_STEPS,
+        steps,
         f64::from(projector.width) / period_px,
     )))
 }

@@ -64,7 +64,8 @@ pub struct DeviceCaptureConfig {
     /// Turntable views over a full turn of the platter. Default 36 (10° apart).
     pub views: usize,
     /// The pattern sequence every view captures; `None` (the default): [`scan_patterns`] at
-    /// [`SCAN_PERIOD_PX`] for the projector's size, 8-bit frames.
+    /// [`SCAN_PERIOD_PX`] for the projector's size, 8-bit frames (in [`scan_devices`], with
+    /// the calibration's projector response pre-compensated when it holds one).
     pub patterns: Option<Manifest>,
     /// Wait after showing a pattern before capturing. Default
     /// [`sl_rig::DEFAULT_DISPLAY_LATENCY`] (100 ms).
@@ -644,6 +645,23 @@ where
         ));
     }
     std::fs::create_dir_all(out).map_err(io(out))?;
+    // A calibration that holds the projector's response: the default patterns pre-compensate
+    // it (the fringes keep their full contrast; the decode's correction has nothing left).
+    let precompensated;
+    let cfg = match (&cfg.calibration, &cfg.capture.patterns) {
+        (ScanCalibration::Monocular(c), None) if c.projector_response.is_some() => {
+            let mut with = cfg.clone();
+            let (width, height) = projector.image_size();
+            let mut patterns = scan_patterns(ImageSize::new(width, height), SCAN_PERIOD_PX);
+            if let Some(curve) = &c.projector_response {
+                patterns = patterns.precompensated(curve);
+            }
+            with.capture.patterns = Some(patterns.manifest(BitDepth::Eight));
+            precompensated = with;
+            &precompensated
+        }
+        _ => cfg,
+    };
 
     // 1. Capture every placement's session.
     let t = Instant::now();

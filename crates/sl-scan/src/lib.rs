@@ -8,6 +8,7 @@
 //! | calibrate | `calibrate.rs` | [`calibrate_virtual`], [`load_scan_calibration`] |
 //! | read a calibration session (own or another program's layout) | `calibration_layout.rs` | [`CalibrationLayout`], [`PoseCapture`] |
 //! | calibrate from files (a session folder, board pictures) | `session_calibration.rs`, `stereo_calibration.rs` | [`calibrate_session`], [`calibrate_camera_files`], [`calibrate_procam_files`], [`calibrate_turntable_files`], two cameras: [`calibrate_stereo_files`] |
+//! | measure the projector's response (a grey ramp) | `response.rs` | [`capture_ramp`], [`measure_ramp_folder`], [`capture_virtual_ramp`] |
 //! | capture a scan session | `capture.rs` | [`capture_session`], [`scan_patterns`], [`full_turn_motor_angles`] |
 //! | reconstruct the views | `reconstruct.rs` | [`reconstruct_session`], [`reconstruct_view_eroded`], [`reconstruct_decoded`], [`drop_grazing`]; two cameras: [`reconstruct_binocular_session`], [`reconstruct_binocular_view`] |
 //! | merge | `merge.rs` | [`merge_scan`] |
@@ -67,6 +68,7 @@ mod placements;
 mod progress;
 mod reconstruct;
 mod report;
+mod response;
 mod run_report;
 mod scan_records;
 mod session_calibration;
@@ -118,6 +120,12 @@ pub use pose_quality::{
     nominal_camera, saturated_fraction,
 };
 #[cfg(feature = "sim")]
+pub use response::capture_virtual_ramp;
+pub use response::{
+    RAMP_FILE, RAMP_FORMAT, RESPONSE_DIR, RESPONSE_FILE, RampConfig, RampFile, ResponseFiles,
+    ResponseSummary, capture_ramp, measure_ramp_folder, response_phase_error, write_response_files,
+};
+#[cfg(feature = "sim")]
 pub use virtual_board::{
     BoardCamera, BoardPlacement, BoardProjector, BoardRightCamera, BoardTurntable,
     VirtualBoardMover, VirtualBoardRig,
@@ -127,7 +135,7 @@ pub use binocular_reconstruction::{BinocularReconstruction, reconstruct_binocula
 pub use calibrate::{load_scan_calibration, require_turntable_axis};
 pub use capture::{
     SCAN_PERIOD_PX, SCAN_PHASE_STEPS, capture_binocular_session, capture_session,
-    full_turn_motor_angles, scan_patterns,
+    full_turn_motor_angles, scan_patterns, scan_patterns_with,
 };
 pub use capture_reconstruction::{
     CaptureDecoding, CaptureReconstruction, CaptureReconstructionConfig, decode_capture,
@@ -195,7 +203,10 @@ pub use virtual_placements::{
     PlacementFigures, PlacementsResult, TRUTH_MESH_FILE, scan_virtual_placements,
 };
 #[cfg(feature = "sim")]
-pub use virtual_scan::{ScanFiles, ScanResult, VirtualScanConfig, scaled_rig_config, scan_virtual};
+pub use virtual_scan::{
+    PhaseError, ResponseCorrection, ScanFiles, ScanResult, VirtualScanConfig, scaled_rig_config,
+    scan_virtual,
+};
 
 /// The README's example, compiled and run by `cargo test --doc`.
 #[cfg(doctest)]

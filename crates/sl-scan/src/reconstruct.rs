@@ -38,6 +38,10 @@ pub struct ReconstructConfig {
     /// Default: a 3 × 3 binomial window, which divides the per-point noise by 2.7 for half a
     /// pixel of lateral resolution (`docs/triangulation.md`).
     pub smoothing: Option<SmoothConfig>,
+    /// The decoders' thresholds and options. Default [`DecodeConfig::default`]; a session
+    /// reconstructed with a calibration that holds the projector's response decodes with it
+    /// ([`Self::for_calibration`]).
+    pub decode: DecodeConfig,
 }
 
 impl Default for ReconstructConfig {
@@ -46,6 +50,7 @@ impl Default for ReconstructConfig {
             edge_erosion_px: 3,
             max_view_angle_deg: 90.0,
             smoothing: Some(SmoothConfig::default()),
+            decode: DecodeConfig::default(),
         }
     }
 }
@@ -57,7 +62,22 @@ impl ReconstructConfig {
             edge_erosion_px: 0,
             max_view_angle_deg: 90.0,
             smoothing: None,
+            decode: DecodeConfig::default(),
         }
+    }
+
+    /// These settings for views triangulated with `calibration`: when the decode settings
+    /// name no projector response and the calibration holds one (`slscan calibrate
+    /// response`), the phase is corrected with the calibration's.
+    pub fn for_calibration(&self, calibration: &Calibration) -> Self {
+        let mut config = self.clone();
+        if config.decode.projector_response.is_none() {
+            config
+                .decode
+                .projector_response
+                .clone_from(&calibration.projector_response);
+        }
+        config
     }
 }
 
@@ -89,7 +109,7 @@ pub fn reconstruct_view_eroded(
     config: &ReconstructConfig,
 ) -> Result<PointCloud, ScanError> {
     let set = CaptureSet::load(&dir.join(MANIFEST_FILE))?;
-    let map = decode(&set, &DecodeConfig::default())?;
+    let map = decode(&set, &config.decode)?;
     drop(set);
     reconstruct_decoded(&map, triangulator, &TriConfig::default(), config)
 }
@@ -171,7 +191,7 @@ pub fn reconstruct_binocular_view(
     let mut maps = Vec::with_capacity(2);
     for d in [dir.to_path_buf(), dir.join(RIGHT_DIR)] {
         let set = CaptureSet::load(&d.join(MANIFEST_FILE))?;
-        let mut map = decode(&set, &DecodeConfig::default())?;
+        let mut map = decode(&set, &config.decode)?;
         drop(set);
         // A Gray code's whole-number stripes as ramps: the matching needs codes that vary
         // within a stripe (phase codes are left as they are).
@@ -263,6 +283,7 @@ pub fn reconstruct_session(
         .map(|t| Point3::from(t.translation.vector))
         .ok_or_else(|| stage_err("reconstruct", "the calibration has no projector pose"))?;
     let grazing = (projector_centre, config.max_view_angle_deg);
+    let config = &config.for_calibration(calibration);
     reconstruct_views(
         session_dir,
         plan.angles_deg,

@@ -83,6 +83,7 @@ impl ScanResult {
         report.figure_of("calibration", &self.calibration_summary)?;
         report.figure_of("accuracy", &self.accuracy)?;
         report.figure_of("flatness", &self.flatness)?;
+        report.figure_of("plate_phase", &self.plate_phase)?;
         report.figure_of("first_view", &self.first_view)?;
         report.figure_of("mesh", &self.mesh)?;
         report.figure_of("merge", &self.merge)?;
@@ -132,6 +133,33 @@ impl ScanResult {
         }
         if let Some(f) = &self.flatness {
             lines.extend(f.summary().into_iter().map(|l| format!("  {l}")));
+        }
+        if let Some(p) = &self.plate_phase {
+            lines.push(format!(
+                "  plate: decoded projector columns against the truth over {} pixels: RMS {:.4} px ({:.4} rad), 99 % within {:.4} px, mean {:+.4} px",
+                p.pixels, p.rms_px, p.rms_rad, p.p99_px, p.mean_px
+            ));
+        }
+        if let Some(r) = &self.calibration_summary.response {
+            let errors: Vec<String> = r
+                .phase_error_rad
+                .iter()
+                .map(|(n, e)| match e {
+                    Some(e) => format!("{n} steps {e:.4} rad"),
+                    None => format!("{n} steps: folds the phase"),
+                })
+                .collect();
+            let truth = r
+                .truth_difference
+                .map(|d| format!(" (within {d:.4} of the true curve)"))
+                .unwrap_or_default();
+            lines.push(format!(
+                "  projector response measured on {} pixels ({}/): equivalent gamma {:.3}{truth}; fringes it is not corrected for would have a phase error of up to {}",
+                r.pixels,
+                r.ramp.display(),
+                r.equivalent_gamma,
+                errors.join(", ")
+            ));
         }
         lines.extend(stage_lines(&self.stages));
         lines

@@ -51,6 +51,8 @@ pub struct CalibrationSummary {
     /// its board poses (`sl_calib::ProcamCalibration::predicted_error`); `None` when not
     /// estimated.
     pub predicted_error: Option<sl_calib::PredictedError>,
+    /// The projector's response, when measured ([`VirtualScanConfig::correct_response`]).
+    pub response: Option<crate::ResponseSummary>,
 }
 
 fn frames_u8(images: Vec<GreyImage>) -> Frames {
@@ -140,26 +142,33 @@ pub fn calibrate_virtual(
         axis_direction_error_deg: direction_error,
         axis_position_error_mm: position_error,
         predicted_error: procam.predicted_error,
+        response: None,
     };
     Ok((calibration, summary))
 }
 
 /// Stage 1 of a scan on the virtual rig: the calibration estimated from simulated board
-/// captures ([`calibrate_virtual`]), or the rig's truth with `cfg.true_calibration`, saved as
-/// `calibration.json` in `out` (its path returned) and timed into `stages`.
+/// captures ([`calibrate_virtual`]), or the rig's truth with `cfg.true_calibration`, with the
+/// projector's `response` when measured, saved as `calibration.json` in `out` (its path
+/// returned) and timed into `stages`.
 pub(crate) fn calibrate_virtual_stage(
     rig: &VirtualRig,
     cfg: &VirtualScanConfig,
     out: &Path,
     stages: &mut Vec<StageTime>,
     progress: impl FnMut(ScanProgress<'_>),
+    response: Option<(sl_codec::ToneCurve, crate::ResponseSummary)>,
 ) -> Result<(Calibration, CalibrationSummary, PathBuf), ScanError> {
     let t = Instant::now();
-    let (calibration, summary) = if cfg.true_calibration {
+    let (mut calibration, mut summary) = if cfg.true_calibration {
         true_calibration(rig)
     } else {
         calibrate_virtual(rig, cfg, progress)?
     };
+    if let Some((curve, figures)) = response {
+        calibration.projector_response = Some(curve);
+        summary.response = Some(figures);
+    }
     let calib_path = out.join("calibration.json");
     calibration.save(&calib_path)?;
     stages.push(StageTime::since("calibrate", t));
@@ -181,6 +190,7 @@ pub(crate) fn true_calibration(rig: &VirtualRig) -> (Calibration, CalibrationSum
         axis_direction_error_deg: 0.0,
         axis_position_error_mm: 0.0,
         predicted_error: None,
+        response: None,
     };
     (rig.config().calibration(), summary)
 }
@@ -300,6 +310,7 @@ pub fn calibrate_virtual_binocular(
         axis_direction_error_deg: direction_error,
         axis_position_error_mm: position_error,
         predicted_error: None,
+        response: None,
     };
     Ok((pair, summary))
 }

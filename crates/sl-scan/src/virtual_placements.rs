@@ -24,7 +24,9 @@ use crate::error::{io, stage_err};
 use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::virtual_calibrate::calibrate_virtual_stage;
-use crate::virtual_scan::{VirtualRigs, capture_virtual, check_virtual_sessions};
+use crate::virtual_scan::{
+    VirtualRigs, capture_virtual, check_virtual_sessions, measure_virtual_response, precompensation,
+};
 use crate::{
     CalibrationSummary, MergeStageConfig, ScanCalibration, ScanError, ScanProgress,
     SessionScanConfig, StageTime, VirtualScanConfig, capture_placements, placement_dir_name,
@@ -39,6 +41,7 @@ struct VirtualPlacements<'a> {
     angles: Vec<f64>,
     cfg: &'a VirtualScanConfig,
     calibration: &'a Path,
+    precompensation: Option<sl_codec::ToneCurve>,
 }
 
 impl PlacementRig for VirtualPlacements<'_> {
@@ -47,6 +50,7 @@ impl PlacementRig for VirtualPlacements<'_> {
             left: self.rig.clone(),
             right: None,
             second: None,
+            precompensation: self.precompensation.clone(),
         };
         let summary = capture_virtual(
             &rigs,
@@ -157,7 +161,9 @@ pub fn scan_virtual_placements(
     let mut config = scaled_rig_config(cfg.resolution_divisor);
     config.render.seed = cfg.seed;
     config.render.illumination.gamma = cfg.projector_gamma;
+    config.render.illumination.response = cfg.projector_response;
     let scene = Scene::pebble()?;
+    let response = measure_virtual_response(&config, cfg, out, &mut stages)?;
     let rig = VirtualRig::new(config, scene.clone())?;
     let sessions: Vec<_> = (0..placements)
         .map(|k| {
@@ -173,16 +179,18 @@ pub fn scan_virtual_placements(
             "a scan in several placements runs with one camera: binocular placements are not built yet",
         ));
     }
+    let precompensation = precompensation(cfg, response.as_ref());
     let rigs = VirtualRigs {
         left: rig.clone(),
         right: None,
         second: None,
+        precompensation: precompensation.clone(),
     };
     check_virtual_sessions(&rigs, &sessions, cfg, out)?;
 
     // 1. Calibrate.
     let (calibration, calibration_summary, calib_path) =
-        calibrate_virtual_stage(&rig, cfg, out, &mut stages, &mut progress)?;
+        calibrate_virtual_stage(&rig, cfg, out, &mut stages, &mut progress, response)?;
 
     // 2. The placement loop: capture, lay the object on its side, capture.
     let t = Instant::now();
@@ -196,6 +204,7 @@ pub fn scan_virtual_placements(
         angles,
         cfg,
         calibration: &calib_path,
+        precompensation,
     };
     progress(ScanProgress {
         stage: "capture",

@@ -26,9 +26,29 @@ use crate::{
     CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX,
     ScanCalibration, ScanError, ScanProgress, SessionScanConfig, StageTime,
     capture_binocular_session, capture_session, measure_scan, plate_scene, plate_truth,
-    reconstruct_binocular_view, reconstruct_view_eroded, scan_patterns, scene_truth,
+    reconstruct_binocular_view, reconstruct_view_eroded, scan_patterns_with, scene_truth,
     write_heat_map, write_scan_cloud,
 };
+
+/// What a scan on the virtual rig does about its projector's response
+/// ([`VirtualScanConfig::response_correction`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ResponseCorrection {
+    /// Nothing: the fringes are taken for sinusoids.
+    #[default]
+    None,
+    /// Measure the response first (a grey ramp on the plate,
+    /// [`capture_virtual_ramp`](crate::capture_virtual_ramp), into `response/`), keep it in
+    /// `calibration.json` and correct every decoded phase with it
+    /// ([`sl_codec::PhaseCorrection`]): the fringes keep the contrast the response leaves
+    /// them.
+    Decode,
+    /// Measure the response first, keep it in `calibration.json` and pre-compensate it in the
+    /// scan's fringes (`sl_codec::HybridSpec::precompensation`): the light is a sinusoid of
+    /// full contrast; the decode's correction then has only the 8-bit quantisation left.
+    Precompensate,
+}
 
 /// Options of [`scan_virtual`].
 #[derive(Debug, Clone, PartialEq)]
@@ -109,6 +129,15 @@ pub struct VirtualScanConfig {
     /// the patterns do not pre-compensate: 1 (the default) is a linear projector; 2.2 a
     /// display-calibrated one run as it comes, whose fringes are no longer sinusoids.
     pub projector_gamma: f64,
+    /// The shape of the virtual projector's response: a power law of `projector_gamma`
+    /// (the default) or a measured projector's curve ([`sl_sim::ResponseShape::Measured`]).
+    pub projector_response: sl_sim::ResponseShape,
+    /// What the scan does about the projector's response. Default
+    /// [`ResponseCorrection::None`].
+    pub response_correction: ResponseCorrection,
+    /// Phase steps of the scan's hybrid code (3 to 64). Default
+    /// [`SCAN_PHASE_STEPS`](crate::SCAN_PHASE_STEPS) (8).
+    pub phase_steps: u32,
     /// Options of the matching between the two cameras (with `binocular`).
     pub binocular_options: BinocularConfig,
     /// The virtual projector's lens distortion instead of the rig's (OpenCV's coefficients:
@@ -130,6 +159,7 @@ impl VirtualScanConfig {
             edge_erosion_px: self.edge_erosion_px,
             max_view_angle_deg: self.max_view_angle_deg,
             smoothing: self.smoothing,
+            decode: sl_codec::DecodeConfig::default(),
         }
     }
 }
@@ -157,6 +187,9 @@ impl Default for VirtualScanConfig {
             smoothing: ReconstructConfig::default().smoothing,
             binocular: false,
             projector_gamma: 1.0,
+            projector_response: sl_sim::ResponseShape::Power,
+            response_correction: ResponseCorrection::None,
+            phase_steps: crate::SCAN_PHASE_STEPS,
             binocular_options: BinocularConfig::default(),
             projector_distortion: None,
             projector_drift_deg: 0.0,
@@ -216,6 +249,8 @@ pub struct ScanResult {
     pub first_view: Report,
     /// The plate's cloud measured against its truth (flatness), when captured.
     pub flatness: Option<Report>,
+    /// The plate's decoded projector columns against the true ones, when captured.
+    pub plate_phase: Option<PhaseError>,
     /// The mesh of the merged cloud: size, topology, accuracy.
     pub mesh: Option<MeshSummary>,
     /// Where each view's pose came from in the merge.
@@ -259,10 +294,17 @@ fn virtual_session(
         let c = right.config().camera.size;
         devices.right_camera = Some(format!("virtual camera {}x{}", c.width, c.height));
     }
+    let mut patterns = scan_patterns_with(
+        ImageSize::new(psize.width, psize.height),
+        cfg.period_px,
+        cfg.phase_steps,
+    );
+    if let Some(curve) = &rig.precompensation {
+        patterns = patterns.precompensated(curve);
+    }
     let plan = SessionPlan {
         angles_deg,
-        manifest: scan_patterns(ImageSize::new(psize.width, psize.height), cfg.period_px)
-            .manifest(BitDepth::Eight),
+        manifest: patterns.manifest(BitDepth::Eight),
         devices,
         calibration: Some(calibration.to_path_buf()),
     };
@@ -344,6 +386,9 @@ pub(crate) struct VirtualRigs {
     pub(crate) right: Option<VirtualRig>,
     /// Where the second camera is in the first's frame.
     pub(crate) second: Option<SecondCamera>,
+    /// The response the scan's fringes pre-compensate
+    /// ([`ResponseCorrection::Precompensate`]).
+    pub(crate) precompensation: Option<sl_codec::ToneCurve>,
 }
 
 impl VirtualRigs {
@@ -364,6 +409,7 @@ impl VirtualRigs {
             left: VirtualRig::new(config, scene)?,
             right,
             second: second.copied(),
+            precompensation: None,
         })
     }
 
@@ -377,6 +423,7 @@ impl VirtualRigs {
             left: self.left.with_scene(scene)?,
             right,
             second: self.second,
+            precompensation: self.precompensation.clone(),
         })
     }
 }
@@ -403,6 +450,15 @@ pub fn scan_virtual(
     let mut config = scaled_rig_config(cfg.resolution_divisor);
     config.render.seed = cfg.seed;
     config.render.illumination.gamma = cfg.projector_gamma;
+    config.render.illumination.response = cfg.projector_response;
+    if cfg.response_correction != ResponseCorrection::None && cfg.binocular {
+        return Err(ScanError::InvalidParameter {
+            name: "response_correction".to_owned(),
+            reason: "applies to one camera: two cameras match codes that the projector's \
+                     response bends alike in both"
+                .to_owned(),
+        });
+    }
     if let Some(d) = cfg.projector_distortion {
         config.projector.distortion = d;
     }
@@ -415,6 +471,8 @@ pub fn scan_virtual(
             ),
         ));
     }
+    // The projector's response, first: pre-compensated patterns need it before any capture.
+    let response = measure_virtual_response(&config, cfg, out, &mut stages)?;
     // The second camera stands where the rig puts it, whatever the projector does later.
     let second = cfg.binocular.then(|| config.default_second_camera());
     let calibration_rig = VirtualRigs::new(config.clone(), Scene::dumbbell(), second.as_ref())?;
@@ -430,6 +488,10 @@ pub fn scan_virtual(
         drifted.t_cam_proj.rotation *= turn;
         VirtualRigs::new(drifted, Scene::dumbbell(), second.as_ref())?
     };
+    let rig = VirtualRigs {
+        precompensation: precompensation(cfg, response.as_ref()),
+        ..rig
+    };
     let angles = turntable_angles(cfg.views);
     let session_dir = out.join("session");
     let plate_dir = out.join("plate_session");
@@ -439,7 +501,7 @@ pub fn scan_virtual(
     }
     check_virtual_sessions(&rig, &sessions, cfg, out)?;
 
-    // 1. Calibrate.
+    // 1. Calibrate (and, when asked, measure the projector's response).
     let (calibration, calibration_summary, calib_path) = match &calibration_rig.right {
         None => {
             let (c, summary, path) = calibrate_virtual_stage(
@@ -448,6 +510,7 @@ pub fn scan_virtual(
                 out,
                 &mut stages,
                 &mut progress,
+                response,
             )?;
             (ScanCalibration::Monocular(c), summary, path)
         }
@@ -509,7 +572,7 @@ pub fn scan_virtual(
 
     // 4. The flatness plate: one more capture, through the same calibration, decoding and
     // triangulation as the turntable views.
-    let plate = if cfg.flatness_plate {
+    let (plate, plate_phase) = if cfg.flatness_plate {
         let t = Instant::now();
         progress(ScanProgress {
             stage: "plate",
@@ -528,9 +591,11 @@ pub fn scan_virtual(
         )?;
         let view = plate_dir.join(view_dir_name(0));
         let cloud = match &calibration {
-            ScanCalibration::Monocular(c) => {
-                reconstruct_view_eroded(&view, &Triangulator::new(c)?, &cfg.reconstruct())?
-            }
+            ScanCalibration::Monocular(c) => reconstruct_view_eroded(
+                &view,
+                &Triangulator::new(c)?,
+                &cfg.reconstruct().for_calibration(c),
+            )?,
             ScanCalibration::Binocular(pair) => reconstruct_binocular_view(
                 &view,
                 &Binocular::new(&pair.left, &pair.right, &pair.t_left_right)?,
@@ -545,10 +610,20 @@ pub fn scan_virtual(
             done: 1,
             total: 1,
         });
+        // The decoded columns against the rig's truth (one camera: the view's own decode).
+        let phase = match &calibration {
+            ScanCalibration::Monocular(c) => Some(plate_phase_error(
+                &plate_rig.left,
+                &view,
+                &cfg.reconstruct().for_calibration(c).decode,
+                cfg.period_px,
+            )?),
+            ScanCalibration::Binocular(_) => None,
+        };
         stages.push(StageTime::since("plate", t));
-        Some(cloud)
+        (Some(cloud), phase)
     } else {
-        None
+        (None, None)
     };
 
     // 5. Measure against the truth (sl-metrology, from the truth files a user can re-run
@@ -617,6 +692,7 @@ pub fn scan_virtual(
         accuracy: measured.accuracy,
         first_view: measured.first_view,
         flatness: measured.flatness,
+        plate_phase,
         mesh,
         stages,
         files: ScanFiles {
@@ -632,4 +708,98 @@ pub fn scan_virtual(
             mesh: mesh_files,
         },
     })
+}
+
+/// Decoded projector columns against the true ones over a view (projector pixels).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PhaseError {
+    /// Pixels compared: decoded, and lit by the projector in the truth.
+    pub pixels: usize,
+    /// Mean of decoded minus true column.
+    pub mean_px: f64,
+    /// RMS of decoded minus true column, the mean removed.
+    pub rms_px: f64,
+    /// The same RMS as a phase (radians of the fringe period).
+    pub rms_rad: f64,
+    /// 99th percentile of the absolute error, the mean removed.
+    pub p99_px: f64,
+}
+
+/// Decodes the capture in `view` with `decode` and compares its projector columns with the
+/// true ones of `rig` (motor angle 0): how far the decoded phase is from the truth, the
+/// figure a projector's response bends (`period_px` turns pixels into radians).
+pub(crate) fn plate_phase_error(
+    rig: &VirtualRig,
+    view: &Path,
+    decode: &sl_codec::DecodeConfig,
+    period_px: f64,
+) -> Result<PhaseError, ScanError> {
+    let set = sl_codec::CaptureSet::load(&view.join(sl_codec::MANIFEST_FILE))?;
+    let map = sl_codec::decode(&set, decode)?;
+    drop(set);
+    let truth = rig.view(0.0, 0)?.truth;
+    let errors: Vec<f64> = map
+        .col
+        .iter()
+        .zip(&truth.projector)
+        .filter(|(c, t)| c.is_finite() && t.x.is_finite())
+        .map(|(&c, t)| f64::from(c) - t.x)
+        .collect();
+    if errors.is_empty() {
+        return Err(stage_err("plate", "no pixel of the plate decoded"));
+    }
+    let n = errors.len() as f64;
+    let mean = errors.iter().sum::<f64>() / n;
+    let mut centred: Vec<f64> = errors.iter().map(|e| (e - mean).abs()).collect();
+    let rms = (centred.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+    let k = ((centred.len() - 1) as f64 * 0.99) as usize;
+    let p99 = *centred.select_nth_unstable_by(k, f64::total_cmp).1;
+    Ok(PhaseError {
+        pixels: errors.len(),
+        mean_px: mean,
+        rms_px: rms,
+        rms_rad: rms * std::f64::consts::TAU / period_px,
+        p99_px: p99,
+    })
+}
+
+/// The response stage of a scan on the virtual rig of `config`: when `cfg` asks for a
+/// correction, the ramp captured on the plate into `out/response/` and measured (timed as
+/// `response`), with its figures against the rig's true response.
+pub(crate) fn measure_virtual_response(
+    config: &RigConfig,
+    cfg: &VirtualScanConfig,
+    out: &Path,
+    stages: &mut Vec<StageTime>,
+) -> Result<Option<(sl_codec::ToneCurve, crate::ResponseSummary)>, ScanError> {
+    if cfg.response_correction == ResponseCorrection::None {
+        return Ok(None);
+    }
+    let t = Instant::now();
+    let m = crate::capture_virtual_ramp(
+        config,
+        &out.join(crate::RESPONSE_DIR),
+        sl_calib::RESPONSE_LEVELS,
+    )?;
+    let mut summary = crate::ResponseSummary::new(&m, Path::new(crate::RESPONSE_DIR));
+    let truth = config
+        .render
+        .illumination
+        .response_curve()
+        .unwrap_or_else(sl_codec::ToneCurve::linear);
+    summary.truth_difference = Some(m.curve.max_difference(&truth));
+    stages.push(StageTime::since("response", t));
+    Ok(Some((m.curve, summary)))
+}
+
+/// The curve the scan's fringes pre-compensate: the measured response with
+/// [`ResponseCorrection::Precompensate`].
+pub(crate) fn precompensation(
+    cfg: &VirtualScanConfig,
+    response: Option<&(sl_codec::ToneCurve, crate::ResponseSummary)>,
+) -> Option<sl_codec::ToneCurve> {
+    match (cfg.response_correction, response) {
+        (ResponseCorrection::Precompensate, Some((curve, _))) => Some(curve.clone()),
+        _ => None,
+    }
 }

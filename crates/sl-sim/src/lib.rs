@@ -107,7 +107,7 @@ pub use files::{TRUTH_DIR, VIEW_JSON, pose_matrix, write_view_truth};
 pub use geometry::{CameraRays, ViewGeometry};
 pub use placement::{PEBBLE_CUT_MM, PEBBLE_RADIUS_MM, pebble_mesh, pebble_object};
 pub use raycast::{Hit, PlacedScene};
-pub use render::{Illumination, ProjectorSampling};
+pub use render::{Illumination, ProjectorSampling, ResponseShape};
 pub use scene::{
     AUTO_METRES_BELOW, DEFAULT_ALBEDO, DUMBBELL_CENTRE_DISTANCE_MM, MeshUnits, Mount, Scene,
     SceneObject, Shape, Texture, upright_facing_camera,

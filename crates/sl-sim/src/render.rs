@@ -5,12 +5,15 @@ use serde::{Deserialize, Serialize};
 
 use crate::geometry::UNLIT;
 use crate::{GreyImage, RigError, SimError, ViewGeometry, blur};
+use sl_camera::ToneCurve;
 
 /// The light in the scene: the room's ambient light and the projector's response and optics.
 ///
 /// A surface point of albedo `ρ` lit by projector value `v` (a fraction of full scale) under
 /// an angle `θ` to its normal has radiance
-/// `ρ · (ambient + power · (black_level + (1 − black_level) · v^gamma) · cos θ)`.
+/// `ρ · (ambient + power · (black_level + (1 − black_level) · r(v)) · cos θ)`, where the
+/// response `r` is `v^gamma` ([`ResponseShape::Power`]) or the curve of a measured projector
+/// ([`ResponseShape::Measured`]).
 ///
 /// Where the projector image has pixels, `v` is not the value of one pixel: each pixel lights
 /// a square (a box of one projector pixel) that the projection lens blurs with a Gaussian of
@@ -25,8 +28,12 @@ pub struct Illumination {
     /// Projector white at normal incidence (1 = the unit of radiance).
     pub projector_power: f64,
     /// Exponent of the projector's response curve (2.2 for a display-calibrated projector, 1
-    /// for a linear one).
+    /// for a linear one), with [`ResponseShape::Power`].
     pub gamma: f64,
+    /// The shape of the projector's response: a power law of [`Self::gamma`] (the default) or
+    /// a measured projector's curve.
+    #[serde(default)]
+    pub response: ResponseShape,
     /// Light the projector emits for a black pixel, as a fraction of white (a DLP's contrast
     /// ratio of 1000:1 is 0.001).
     pub black_level: f64,
@@ -178,6 +185,7 @@ impl Default for Illumination {
             ambient: 0.1,
             projector_power: 1.0,
             gamma: 1.0,
+            response: ResponseShape::Power,
             black_level: 0.001,
             projector_blur_px: Self::DEFAULT_PROJECTOR_BLUR_PX,
             projector_fill: Self::DEFAULT_PROJECTOR_FILL,
@@ -237,8 +245,57 @@ impl Illumination {
 
     /// Light leaving the projector for value `v` in `[0, 1]`, in units of full white.
     pub fn projector_output(&self, v: f64) -> f64 {
-        self.projector_power
-            * (self.black_level + (1.0 - self.black_level) * v.clamp(0.0, 1.0).powf(self.gamma))
+        self.projector_power * (self.black_level + (1.0 - self.black_level) * self.relative(v))
+    }
+
+    /// The response `r(v)` in `[0, 1]`: the share of the light between black and white.
+    fn relative(&self, v: f64) -> f64 {
+        let v = v.clamp(0.0, 1.0);
+        match self.response {
+            ResponseShape::Power => v.powf(self.gamma),
+            ResponseShape::Measured => ResponseShape::measured(v),
+        }
+    }
+
+    /// The projector's true response as a [`ToneCurve`] (the truth a measured response is
+    /// compared with); `None` when it is linear.
+    pub fn response_curve(&self) -> Option<ToneCurve> {
+        match self.response {
+            ResponseShape::Power if self.gamma == 1.0 => None,
+            _ => Some(ToneCurve::from_fn(|v| self.relative(v))),
+        }
+    }
+}
+
+/// The shape of a virtual projector's response ([`Illumination::response`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ResponseShape {
+    /// `v^gamma`.
+    #[default]
+    Power,
+    /// The curve of a consumer DLP projector in its default picture mode, as measured
+    /// responses look ([`ResponseShape::measured`]): the darkest 3 % of values crushed to
+    /// black, a gamma of about 2.4 in the shadows and mid-tones, and a shoulder that rolls
+    /// the brightest values off ("brilliant colour" white boost), with a ripple of a few
+    /// tenths of a percent from the colour wheel's segments. `gamma` is ignored.
+    Measured,
+}
+
+impl ResponseShape {
+    /// [`ResponseShape::Measured`]'s curve: `r(v)` for `v` in `[0, 1]`, from 0 to 1, never
+    /// decreasing.
+    pub fn measured(v: f64) -> f64 {
+        // Black crush below 3 %, full white reached at 98 %.
+        let x = ((v.clamp(0.0, 1.0) - 0.03) / 0.95).clamp(0.0, 1.0);
+        // Power law with a shoulder: (x^2.4 - 0.25 x^6.4) / 0.75 rises on [0, 1]
+        // (its slope, 2.4 x^1.4 - 1.6 x^5.4, is positive for x^4 < 1.5).
+        let base = (x.powf(2.4) - 0.25 * x.powf(6.4)) / 0.75;
+        // A small ripple that vanishes at both ends and never makes the curve fall:
+        // amplitude 0.004, slope at most 0.004 * 2 pi * 3 ~ 0.075, below the base's slope
+        // wherever the ripple is large.
+        let ripple = 0.004 * (std::f64::consts::TAU * 3.0 * x).sin() * x * (1.0 - x);
+        (base + ripple).clamp(0.0, 1.0)
     }
 }
 
@@ -582,6 +639,33 @@ fn upsample(v: &[f32], sigma: PixelSpread) -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_measured_response_rises_from_black_to_white() {
+        assert_eq!(ResponseShape::measured(0.0), 0.0);
+        assert_eq!(ResponseShape::measured(1.0), 1.0);
+        // Crushed below 3 %, rolled off at the top (steeper than a power law mid-way).
+        assert_eq!(ResponseShape::measured(0.02), 0.0);
+        let mut last = 0.0;
+        for i in 0..=10_000 {
+            let r = ResponseShape::measured(f64::from(i) / 10_000.0);
+            assert!(r >= last, "falls at {i}: {r} < {last}");
+            last = r;
+        }
+        let linear = Illumination::default();
+        assert!(linear.response_curve().is_none());
+        let measured = Illumination {
+            response: ResponseShape::Measured,
+            ..linear
+        };
+        let curve = measured.response_curve().unwrap();
+        assert!((curve.light(0.5) - ResponseShape::measured(0.5)).abs() < 1e-4);
+        // The projector's output keeps the black level and the power around the curve.
+        let out = measured.projector_output(0.5);
+        let expected =
+            linear.black_level + (1.0 - linear.black_level) * ResponseShape::measured(0.5);
+        assert!((out - expected).abs() < 1e-12);
+    }
     use approx::assert_abs_diff_eq;
 
     #[test]

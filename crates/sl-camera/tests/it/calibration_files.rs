@@ -11,7 +11,7 @@ use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use sl_camera::{
     Calibration, CameraError, CameraModel, Distortion, ImageSize, Intrinsics, Metadata, RmsErrors,
-    RvecTvec, TurntableAxis,
+    RvecTvec, ToneCurve, TurntableAxis,
 };
 
 fn fixture(name: &str) -> PathBuf {
@@ -56,6 +56,7 @@ fn full_calibration() -> Calibration {
         projector: Some(projector),
         t_cam_proj: Some(t_cam_proj),
         turntable: Some(turntable),
+        projector_response: None,
         rms: RmsErrors {
             camera: Some(0.187),
             projector: Some(0.241),
@@ -130,6 +131,28 @@ fn json_is_lossless_and_versioned() {
     assert!(text.contains("\"model\": \"rational\""));
     let back = Calibration::from_json(&text, "rig.json").unwrap();
     assert_same(&calib, &back);
+    // No response measured: no key (files of earlier versions read the same).
+    assert!(!text.contains("projector_response"));
+    assert_eq!(back.projector_response, None);
+}
+
+#[test]
+fn json_keeps_the_projector_response() {
+    let mut calib = full_calibration();
+    let response = ToneCurve::from_samples(vec![0.0, 0.05, 0.21, 0.5, 1.0]).unwrap();
+    calib.projector_response = Some(response.clone());
+    let text = calib.to_json().unwrap();
+    assert!(text.contains("\"projector_response\""), "{text}");
+    let back = Calibration::from_json(&text, "rig.json").unwrap();
+    assert_eq!(back.projector_response, Some(response));
+    // A response that decreases is refused, naming the file and the sample.
+    let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    value["projector_response"]["samples"][2] = serde_json::json!(0.6);
+    let bad = value.to_string();
+    let e = Calibration::from_json(&bad, "rig.json")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("rig.json") && e.contains("sample 3"), "{e}");
 }
 
 #[test]

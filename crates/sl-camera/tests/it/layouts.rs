@@ -255,6 +255,7 @@ fn full_calibration() -> Calibration {
             UnitQuaternion::from_scaled_axis(Vector3::new(-0.03, 0.31, 0.01)),
         )),
         turntable: Some(turntable),
+        projector_response: None,
         rms: RmsErrors {
             camera: Some(0.187),
             projector: Some(0.241),

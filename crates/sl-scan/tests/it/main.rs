@@ -6,5 +6,6 @@ mod binocular_sdk;
 mod calibration_capture;
 mod frame_checks;
 mod placements;
+mod response;
 mod scan_pipeline;
 mod session_scan;
