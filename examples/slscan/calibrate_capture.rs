@@ -599,6 +599,10 @@ mod tests {
     /// `calibrate stereo` on the session finds the rig's pair (baseline within 0.5 mm and
     /// 0.05°) with the turntable axis; the option is refused on devices.
     #[test]
+    #[cfg_attr(
+        debug_assertions,
+        ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    )]
     fn a_binocular_virtual_session_calibrates_both_cameras() {
         let tmp = tempfile::tempdir().unwrap();
         let session = tmp.path().join("session");
@@ -661,6 +665,10 @@ mod tests {
     }
 
     #[test]
+    #[cfg_attr(
+        debug_assertions,
+        ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    )]
     fn virtual_auto_session_calibrates_to_the_truth() {
         let tmp = tempfile::tempdir().unwrap();
         let session = tmp.path().join("session");

@@ -60,6 +60,10 @@ fn render_session(dir: &Path, poses: usize) -> SecondCamera {
 /// two-camera calibration whose `T_left_right` is the rig's within 0.5 mm and 0.05° (measured
 /// at half resolution: printed), with the axis; a pose without `right/white.png` is named.
 #[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+)]
 fn calibrate_stereo_recovers_the_rigs_two_cameras() {
     let tmp = tempfile::tempdir().unwrap();
     let session = tmp.path().join("session");

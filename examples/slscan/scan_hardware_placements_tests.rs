@@ -111,6 +111,10 @@ fn figures(out: &Path) -> serde_json::Value {
 /// side when asked and presses Enter, the placements are reconstructed, aligned with no pose
 /// hint and merged, and the merged model covers the pebble where one placement cannot.
 #[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+)]
 fn two_placements_on_devices_with_enter_between() {
     let mut keys: &[u8] = b"\n";
     let screen = two_placements(&[], &mut keys);
@@ -127,6 +131,10 @@ fn two_placements_on_devices_with_enter_between() {
 /// The same with `--placement-wait` (for scripts): the command says what to do and waits
 /// instead of reading the keyboard; the person re-places the object in that time.
 #[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+)]
 fn two_placements_on_devices_with_placement_wait() {
     let mut keys: &[u8] = b"not read\n";
     let screen = two_placements(&["--placement-wait", "0.5"], &mut keys);

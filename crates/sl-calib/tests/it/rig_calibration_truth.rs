@@ -96,6 +96,10 @@ fn shape_error_mm(pairs: &[(Point3<f64>, Point3<f64>)]) -> f64 {
 }
 
 #[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+)]
 fn scan_calibration_reconstructs_the_true_board() {
     let (config, views, truth) = scan_views();
     let board = Checkerboard::default();

@@ -57,6 +57,10 @@ fn errors(captures: &[Capture], config: &DetectorConfig) -> (Vector2<f64>, f64) 
 }
 
 #[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+)]
 fn scan_calibration_corners_both_refiners() {
     let captures = scan_calibration_captures();
     let default = DetectorConfig::default();

@@ -166,6 +166,10 @@ fn worst_errors(count: usize, seeds: &[u64], clean: bool) -> (ModelError, f64, f
 /// stereo RMS below 0.1 px. Measured (6 poses): see the printed figures and
 /// `docs/calibration.md`.
 #[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+)]
 fn two_rendered_cameras_calibrate_to_the_rigs_truth() {
     let (e, angle, shift, rms) = worst_errors(6, &[1, 2, 3], true);
     assert!(rms < 0.1, "{rms}");
@@ -178,6 +182,10 @@ fn two_rendered_cameras_calibrate_to_the_rigs_truth() {
 /// The same with the rig's default sensor (photon and read noise, as fitted to a real camera),
 /// 10 poses: within the bounds above over three seeds.
 #[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+)]
 fn two_noisy_cameras_calibrate_near_the_rigs_truth() {
     let (e, angle, shift, rms) = worst_errors(10, &[1, 2, 3], false);
     assert!(rms < NOISY_RMS_PX, "{rms}");

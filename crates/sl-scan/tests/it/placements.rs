@@ -9,6 +9,10 @@ use sl_scan::{VirtualScanConfig, scaled_rig_config, scan_virtual_placements};
 use sl_sim::{Mount, Scene};
 
 #[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+)]
 fn two_placements_cover_the_pebble() {
     let out = tempfile::tempdir().unwrap();
     let cfg = VirtualScanConfig {
