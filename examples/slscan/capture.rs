@@ -132,21 +132,23 @@ where
     P: Projector + ?Sized,
     T: Turntable + ?Sized,
 {
-    let axis = match &args.calib {
-        // A two-camera calibration (`calibrate stereo`) holds the axis too.
+    // The axis (a two-camera calibration, `calibrate stereo`, holds it too) and the projector's
+    // response, which the default patterns pre-compensate.
+    let (axis, projector_response) = match &args.calib {
         Some(path) => match BinocularCalibration::load(path) {
-            Ok(pair) => pair.turntable,
+            Ok(pair) => (pair.turntable, None),
             Err(_) => {
-                Calibration::load(path)
-                    .with_context(|| format!("cannot read the calibration {}", path.display()))?
-                    .turntable
+                let c = Calibration::load(path)
+                    .with_context(|| format!("cannot read the calibration {}", path.display()))?;
+                (c.turntable, c.projector_response)
             }
         },
-        None => None,
+        None => (None, None),
     };
     let config = DeviceCaptureConfig {
         views: args.views,
         patterns: load_patterns(args.patterns.as_deref())?,
+        projector_response,
         display_latency: args
             .latency_ms
             .map_or(default_latency, Duration::from_millis),

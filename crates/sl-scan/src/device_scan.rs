@@ -64,9 +64,13 @@ pub struct DeviceCaptureConfig {
     /// Turntable views over a full turn of the platter. Default 36 (10° apart).
     pub views: usize,
     /// The pattern sequence every view captures; `None` (the default): [`scan_patterns`] at
-    /// [`SCAN_PERIOD_PX`] for the projector's size, 8-bit frames (in [`scan_devices`], with
-    /// the calibration's projector response pre-compensated when it holds one).
+    /// [`SCAN_PERIOD_PX`] for the projector's size, 8-bit frames, with
+    /// [`Self::projector_response`] pre-compensated.
     pub patterns: Option<Manifest>,
+    /// The projector's measured response, pre-compensated in the default patterns (the
+    /// fringes keep their full contrast; `slscan calibrate response`). [`DeviceScanConfig::new`]
+    /// takes the calibration's. Default `None`.
+    pub projector_response: Option<sl_codec::ToneCurve>,
     /// Wait after showing a pattern before capturing. Default
     /// [`sl_rig::DEFAULT_DISPLAY_LATENCY`] (100 ms).
     pub display_latency: Duration,
@@ -87,6 +91,7 @@ impl Default for DeviceCaptureConfig {
         Self {
             views: 36,
             patterns: None,
+            projector_response: None,
             display_latency: DEFAULT_DISPLAY_LATENCY,
             measure_latency: None,
             overwrite: false,
@@ -225,7 +230,11 @@ where
         Some(m) => m.clone(),
         None => {
             let (width, height) = projector.image_size();
-            scan_patterns(ImageSize::new(width, height), SCAN_PERIOD_PX).manifest(BitDepth::Eight)
+            let mut patterns = scan_patterns(ImageSize::new(width, height), SCAN_PERIOD_PX);
+            if let Some(curve) = &cfg.projector_response {
+                patterns = patterns.precompensated(curve);
+            }
+            patterns.manifest(BitDepth::Eight)
         }
     };
     let mut devices = cfg.devices.clone();
@@ -295,9 +304,17 @@ impl DeviceScanConfig {
     /// calibration"): a [`Calibration`](sl_camera::Calibration) for one camera and the projector, a
     /// [`BinocularCalibration`] for two cameras.
     pub fn new(calibration: impl Into<ScanCalibration>) -> Self {
+        let calibration = calibration.into();
+        let projector_response = match &calibration {
+            ScanCalibration::Monocular(c) => c.projector_response.clone(),
+            ScanCalibration::Binocular(_) => None,
+        };
         Self {
-            calibration: calibration.into(),
-            capture: DeviceCaptureConfig::default(),
+            calibration,
+            capture: DeviceCaptureConfig {
+                projector_response,
+                ..DeviceCaptureConfig::default()
+            },
             placements: 1,
             session: SessionScanConfig::default(),
             placement: PlacementConfig::default(),
@@ -645,23 +662,6 @@ where
         ));
     }
     std::fs::create_dir_all(out).map_err(io(out))?;
-    // A calibration that holds the projector's response: the default patterns pre-compensate
-    // it (the fringes keep their full contrast; the decode's correction has nothing left).
-    let precompensated;
-    let cfg = match (&cfg.calibration, &cfg.capture.patterns) {
-        (ScanCalibration::Monocular(c), None) if c.projector_response.is_some() => {
-            let mut with = cfg.clone();
-            let (width, height) = projector.image_size();
-            let mut patterns = scan_patterns(ImageSize::new(width, height), SCAN_PERIOD_PX);
-            if let Some(curve) = &c.projector_response {
-                patterns = patterns.precompensated(curve);
-            }
-            with.capture.patterns = Some(patterns.manifest(BitDepth::Eight));
-            precompensated = with;
-            &precompensated
-        }
-        _ => cfg,
-    };
 
     // 1. Capture every placement's session.
     let t = Instant::now();
@@ -917,6 +917,57 @@ mod tests {
         );
         // On the true surface within a sixth of the quarter-resolution pixel's 1.25 mm
         // footprint (0.065 mm measured).
+        assert!(d.rms_mm < 0.2, "{d:?}");
+    }
+
+    /// A projector with a gamma of 2.2 whose response the calibration holds: the default
+    /// patterns the session captures pre-compensate it (the manifest says so, with the
+    /// calibration's curve), and the scan lies on the true surface as the linear projector's.
+    #[test]
+    fn a_calibration_with_a_response_precompensates_the_patterns() {
+        let (mut config, _, _) = setup(1);
+        config.render.illumination.gamma = 2.2;
+        let curve = config.render.illumination.response_curve().unwrap();
+        let rig = VirtualObjectRig::new(
+            VirtualRig::new(config.clone(), Scene::pebble().unwrap()).unwrap(),
+        );
+        let mut calibration = config.calibration();
+        calibration.projector_response = Some(curve.clone());
+        let mut cfg = DeviceScanConfig::new(calibration);
+        cfg.capture.views = VIEWS;
+        cfg.capture.display_latency = Duration::ZERO;
+        cfg.mesh_depth = None;
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("scan");
+        let (mut camera, mut projector, mut table) = rig.devices();
+        let mut operator = Recorder {
+            rig: rig.clone(),
+            said: Vec::new(),
+        };
+        let scan = scan_devices(
+            &cfg,
+            &out,
+            &mut camera,
+            &mut projector,
+            &mut table,
+            &mut operator,
+            |_| {},
+        )
+        .unwrap();
+        let plan = sl_rig::read_session_plan(&out.join("session")).unwrap();
+        let precompensated: Vec<Option<&sl_codec::ToneCurve>> = plan
+            .manifest
+            .blocks
+            .iter()
+            .map(|b| match &b.pattern {
+                sl_codec::Pattern::Hybrid(h) => h.precompensation.as_ref(),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(precompensated, [Some(&curve)]);
+        let truth = truth(&config, &Scene::pebble().unwrap());
+        let (_, d) = measure(&config, &cfg, &scan.merged, &truth);
+        // As the linear projector's scan (one_placement_lies_on_the_true_surface).
         assert!(d.rms_mm < 0.2, "{d:?}");
     }
 
