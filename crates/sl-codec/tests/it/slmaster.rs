@@ -134,16 +134,16 @@ fn the_two_captures_agree_with_each_other() {
 }
 
 /// The two real captures disagree by the 4-step ripple of SLMaster's uncompensated projector
-/// response (above). Decoded with a projector response (`DecodeConfig::projector_response`),
-/// the ripple shrinks: the disagreement's spread (RMS about the median) for a few gammas,
-/// printed; a display-standard gamma of 2.2 must take off at least a fifth of it. The set has
-/// no ramp, so the projector's true curve is not known: the sweep shows which gamma it is near.
+/// response (above). Decoded with a projector response (`DecodeConfig::projector_response`)
+/// near the projector's own, the ripple shrinks; with one far from it, it grows. The set has no
+/// grey ramp, so the curve is not known: a sweep of power laws shows the disagreement's spread
+/// (RMS about the median) fall from 0.664 px to 0.589 px at a gamma of about 1.5 and rise to
+/// 0.72 px at 2.2 and 0.88 px at 2.6 — a response is to be measured, not guessed.
 #[test]
 fn a_projector_response_takes_the_ripple_out_of_real_captures() {
     let spread = |gamma: f64| -> Option<(f64, usize)> {
         let config = DecodeConfig {
-            projector_response: (gamma != 1.0)
-                .then(|| sl_codec::ToneCurve::power(gamma).unwrap()),
+            projector_response: (gamma != 1.0).then(|| sl_codec::ToneCurve::power(gamma).unwrap()),
             ..DecodeConfig::default()
         };
         let h = decode_set("three_frequency_heterodyne", &config)?;
@@ -165,16 +165,28 @@ fn a_projector_response_takes_the_ripple_out_of_real_captures() {
         return;
     };
     let mut rows = vec![format!("gamma 1 (none): {raw:.4} px over {n} pixels")];
-    let mut at_2_2 = raw;
-    for gamma in [1.5, 1.8, 2.2, 2.6] {
+    let mut best = (1.0, raw);
+    let mut worst_guess = raw;
+    for gamma in [1.2, 1.3, 1.4, 1.5, 1.6, 1.8, 2.2, 2.6] {
         let (rms, n) = spread(gamma).unwrap();
         rows.push(format!("gamma {gamma}: {rms:.4} px over {n} pixels"));
-        if gamma == 2.2 {
-            at_2_2 = rms;
+        if rms < best.1 {
+            best = (gamma, rms);
+        }
+        if gamma == 2.6 {
+            worst_guess = rms;
         }
     }
-    eprintln!("SLMaster, the two captures' disagreement (RMS about the median):\n  {}", rows.join("\n  "));
-    assert!(at_2_2 < 0.8 * raw, "{at_2_2} vs {raw}");
+    eprintln!(
+        "SLMaster, the two captures' disagreement (RMS about the median):\n  {}",
+        rows.join("\n  ")
+    );
+    // The response-shaped part of the disagreement is there and the correction takes it out
+    // near the right curve (a tenth of the spread; the rest is noise and the Gray set's
+    // edges); a curve far from the projector's over-corrects.
+    assert!(best.1 < 0.9 * raw, "best {best:?} vs {raw}");
+    assert!((1.3..=1.6).contains(&best.0), "best {best:?}");
+    assert!(worst_guess > raw, "{worst_guess} vs {raw}");
 }
 
 /// The texture of a capture without a white frame (`capture_texture`, the fringe mean) on the
