@@ -51,7 +51,7 @@ pub struct CalibrationSummary {
     /// its board poses (`sl_calib::ProcamCalibration::predicted_error`); `None` when not
     /// estimated.
     pub predicted_error: Option<sl_calib::PredictedError>,
-    /// The projector's response, when measured ([`VirtualScanConfig::correct_response`]).
+    /// The projector's response, when measured ([`VirtualScanConfig::response_correction`]).
     pub response: Option<crate::ResponseSummary>,
 }
 
