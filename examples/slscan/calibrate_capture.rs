@@ -601,7 +601,7 @@ mod tests {
     #[test]
     #[cfg_attr(
         debug_assertions,
-        ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+        ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
     )]
     fn a_binocular_virtual_session_calibrates_both_cameras() {
         let tmp = tempfile::tempdir().unwrap();
@@ -667,7 +667,7 @@ mod tests {
     #[test]
     #[cfg_attr(
         debug_assertions,
-        ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+        ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
     )]
     fn virtual_auto_session_calibrates_to_the_truth() {
         let tmp = tempfile::tempdir().unwrap();

@@ -62,7 +62,7 @@ fn render_session(dir: &Path, poses: usize) -> SecondCamera {
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn calibrate_stereo_recovers_the_rigs_two_cameras() {
     let tmp = tempfile::tempdir().unwrap();

@@ -113,7 +113,7 @@ fn figures(out: &Path) -> serde_json::Value {
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn two_placements_on_devices_with_enter_between() {
     let mut keys: &[u8] = b"\n";
@@ -133,7 +133,7 @@ fn two_placements_on_devices_with_enter_between() {
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn two_placements_on_devices_with_placement_wait() {
     let mut keys: &[u8] = b"not read\n";

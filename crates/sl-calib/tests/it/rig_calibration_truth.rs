@@ -98,7 +98,7 @@ fn shape_error_mm(pairs: &[(Point3<f64>, Point3<f64>)]) -> f64 {
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn scan_calibration_reconstructs_the_true_board() {
     let (config, views, truth) = scan_views();

@@ -59,7 +59,7 @@ fn errors(captures: &[Capture], config: &DetectorConfig) -> (Vector2<f64>, f64) 
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn scan_calibration_corners_both_refiners() {
     let captures = scan_calibration_captures();

@@ -168,7 +168,7 @@ fn worst_errors(count: usize, seeds: &[u64], clean: bool) -> (ModelError, f64, f
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn two_rendered_cameras_calibrate_to_the_rigs_truth() {
     let (e, angle, shift, rms) = worst_errors(6, &[1, 2, 3], true);
@@ -184,7 +184,7 @@ fn two_rendered_cameras_calibrate_to_the_rigs_truth() {
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn two_noisy_cameras_calibrate_near_the_rigs_truth() {
     let (e, angle, shift, rms) = worst_errors(10, &[1, 2, 3], false);

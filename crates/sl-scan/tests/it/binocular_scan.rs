@@ -33,7 +33,7 @@ fn spacing(r: &ScanResult) -> f64 {
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn two_cameras_measure_the_dumbbell_and_ignore_a_drifting_projector() {
     let (bino, dir) = scan(true, 0.1);

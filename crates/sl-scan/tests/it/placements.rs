@@ -11,7 +11,7 @@ use sl_sim::{Mount, Scene};
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn two_placements_cover_the_pebble() {
     let out = tempfile::tempdir().unwrap();

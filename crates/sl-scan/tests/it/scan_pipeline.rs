@@ -9,7 +9,7 @@ use sl_scan::{ScanProgress, VirtualScanConfig, scan_virtual, write_summary_html}
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "a full simulation: run optimised by .ci/run (cargo test --release, step \"heavy simulations\")"
+    ignore = "a full simulation, minutes unoptimised: .ci/run runs it (step \"full simulations\")"
 )]
 fn a_small_virtual_scan_measures_the_dumbbell() {
     let out = tempfile::tempdir().unwrap();
