@@ -123,8 +123,9 @@ pub fn capture_ramp(
 /// # Errors
 /// [`ScanError::Session`] naming `ramp.json` when it is missing or malformed, or naming a
 /// capture it lists that does not exist; [`ScanError::Codec`] for a capture that cannot be
-/// read; [`ScanError::Calib`] for a measurement that fails (captures of different sizes,
-/// named by their level; nothing lit).
+/// read; [`ScanError::Step`] naming the folder around the measurement's error (levels that
+/// do not increase from 0 to 1, captures of different sizes named by their level, nothing
+/// lit).
 pub fn measure_ramp_folder(dir: &Path) -> Result<ResponseMeasurement, ScanError> {
     let path = dir.join(RAMP_FILE);
     let text = std::fs::read_to_string(&path).map_err(|e| ScanError::Session {
@@ -162,7 +163,10 @@ pub fn measure_ramp_folder(dir: &Path) -> Result<ResponseMeasurement, ScanError>
         }
         frames.push(read_image(&file)?);
     }
-    Ok(measure_response(&ramp.levels, &frames)?)
+    measure_response(&ramp.levels, &frames).map_err(|e| ScanError::Step {
+        what: format!("the ramp in {}", dir.display()),
+        source: Box::new(e.into()),
+    })
 }
 
 /// What a measured response does to phase-shift fringes, for reports: the largest phase error

@@ -54,6 +54,17 @@ fn a_broken_ramp_folder_is_named() {
     assert!(e.contains("level_02.png") && e.contains("missing"), "{e}");
     let ramp = dir.path().join(RAMP_FILE);
     let text = std::fs::read_to_string(&ramp).unwrap();
+    // Levels out of order: the measurement's error, with the folder named.
+    let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    value["files"][2] = serde_json::json!("level_01.png");
+    value["levels"][1] = serde_json::json!(0.9);
+    std::fs::write(&ramp, value.to_string()).unwrap();
+    let e = measure_ramp_folder(dir.path()).unwrap_err().to_string();
+    assert!(
+        e.contains(&dir.path().display().to_string()) && e.contains("increase"),
+        "{e}"
+    );
+    std::fs::write(&ramp, &text).unwrap();
     std::fs::write(&ramp, text.replace("sl-response-ramp", "something-else")).unwrap();
     let e = measure_ramp_folder(dir.path()).unwrap_err().to_string();
     assert!(
