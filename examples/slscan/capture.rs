@@ -19,6 +19,50 @@ use structured_light::scan::{
 use crate::common::{open_out_in_place, progress};
 use crate::values;
 
+/// The exposure options shared by `capture` and `scan`.
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct ExposureArgs {
+    /// Capture each view at several exposures and fuse them per pixel, for dark and shiny
+    /// objects: `auto` (chosen from a white and a black frame of the object at the first
+    /// view), or exposure times in milliseconds (`2,8,32`). Each exposure's frames go to
+    /// `view_NNN/exposure_<i>/`, the fused ones to `view_NNN/`. Default: one, the camera's own.
+    /// A real camera needs a manual exposure control (V4L2 `exposure_time_absolute`).
+    #[arg(long, value_parser = values::exposures)]
+    pub(crate) exposures: Option<structured_light::scan::Exposures>,
+    /// How several exposures are fused: `longest` (each pixel from its longest unsaturated
+    /// exposure; holds on cameras that are not linear) or `radiance` (every unsaturated
+    /// exposure averaged, scaled by its time: less noise, for linear cameras).
+    #[arg(long, value_enum, default_value_t = FusionArg::Longest)]
+    pub(crate) fusion: FusionArg,
+}
+
+impl ExposureArgs {
+    /// The exposures asked for (one, the camera's own, by default).
+    pub(crate) fn exposures(&self) -> structured_light::scan::Exposures {
+        self.exposures.clone().unwrap_or_default()
+    }
+
+    /// The fusion settings.
+    pub(crate) fn fusion(&self) -> sl_codec::FusionSettings {
+        sl_codec::FusionSettings {
+            method: match self.fusion {
+                FusionArg::Longest => sl_codec::FusionMethod::Longest,
+                FusionArg::Radiance => sl_codec::FusionMethod::Radiance,
+            },
+            ..sl_codec::FusionSettings::default()
+        }
+    }
+}
+
+/// `--fusion`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum FusionArg {
+    /// Each pixel from its longest unsaturated exposure.
+    Longest,
+    /// Every unsaturated exposure, scaled and averaged.
+    Radiance,
+}
+
 /// The hardware options shared by `capture` and `scan`.
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct HardwareArgs {
@@ -103,8 +147,35 @@ pub(crate) struct Args {
     /// (`calibration_true_pair.json`) beside the session. On devices, `--right-camera`.
     #[arg(long)]
     pub(crate) binocular: bool,
+    /// The virtual scene's surface: `matte` (plaster), `dark` (albedo 0.04) or `glossy` (a
+    /// plastic whose highlights saturate the camera).
+    #[arg(long, value_enum, default_value_t = FinishArg::Matte)]
+    pub(crate) finish: FinishArg,
+    #[command(flatten)]
+    pub(crate) exposure: ExposureArgs,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
+}
+
+/// `--finish`: the virtual object's surface ([`sl_sim::Finish`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum FinishArg {
+    /// Bright matte plaster.
+    Matte,
+    /// A black part (albedo 0.04).
+    Dark,
+    /// A glossy plastic with saturating highlights.
+    Glossy,
+}
+
+impl From<FinishArg> for sl_sim::Finish {
+    fn from(f: FinishArg) -> Self {
+        match f {
+            FinishArg::Matte => Self::Matte,
+            FinishArg::Dark => Self::Dark,
+            FinishArg::Glossy => Self::Glossy,
+        }
+    }
 }
 
 /// The pattern sequence in `dir`'s `manifest.json` (`--patterns`); `None` without a folder (the
@@ -156,6 +227,8 @@ where
         overwrite: args.overwrite,
         devices,
         calibration_file: args.calib.clone(),
+        exposures: args.exposure.exposures(),
+        fusion: args.exposure.fusion(),
     };
     let bar = progress(args.views as u64, "capture");
     let capture = match right {
@@ -211,7 +284,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         return run_hardware(args);
     }
     let config = scaled_rig_config(args.downscale);
-    let scene = scene(&args.scene)?;
+    let scene = scene(&args.scene)?.finished(args.finish.into());
     let second = config.default_second_camera();
     let rig =
         VirtualRig::new(config.clone(), scene.clone()).context("cannot build the virtual rig")?;

@@ -57,11 +57,35 @@ pub(crate) struct Args {
     /// calibrate response`); a calibration without one is refused.
     #[arg(long)]
     pub(crate) calib: Option<PathBuf>,
+    /// Fuse the capture's exposures first: its `exposures.json` lists the sub-folders of one
+    /// capture at several exposures (docs/capture-format.md); the fused frames (and the
+    /// manifest, when the folder has none) are written into the capture folder, then decoded.
+    #[arg(long)]
+    pub(crate) fuse: bool,
 }
 
 /// Runs `slscan decode`.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = Report::new("decode");
+    let fusion = if args.fuse {
+        let summary = structured_light::scan::fuse_exposure_folder(&args.capture)
+            .with_context(|| format!("cannot fuse the exposures of {}", args.capture.display()))?;
+        outln!(
+            "fused {} exposures ({} ms): pixels per exposure {:?}, {} saturated at every one",
+            summary.exposures_ms.len(),
+            summary
+                .exposures_ms
+                .iter()
+                .map(|t| format!("{t:.3}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            summary.pixels,
+            summary.saturated_everywhere
+        );
+        Some(summary)
+    } else {
+        None
+    };
     let manifest = manifest_file(&args.capture);
     let projector_response = match &args.calib {
         Some(path) => {
@@ -106,6 +130,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     }
     d.files = d.files.iter().map(|f| folder.final_path(f)).collect();
     d.record(&mut report);
+    if let Some(fusion) = &fusion {
+        report.figure("exposure_fusion", serde_json::to_value(fusion)?);
+    }
     report.write(folder.path())?;
     // No empty success, and no good decode replaced by an empty one: the maps and the report
     // are kept apart for the diagnosis, the exit code says it.

@@ -146,6 +146,13 @@ pub(crate) struct Args {
     /// the patterns.
     #[arg(long, value_parser = values::in_range(4.0..=480.0))]
     pub(crate) period: Option<f64>,
+    /// The virtual dumbbell's surface: `matte` (plaster), `dark` (albedo 0.04) or `glossy`
+    /// (a plastic whose highlights saturate the camera). With --exposures, the figures of one
+    /// exposure against several (docs/user-guide.md, "Difficult surfaces").
+    #[arg(long, value_enum, default_value_t = crate::capture::FinishArg::Matte)]
+    pub(crate) finish: crate::capture::FinishArg,
+    #[command(flatten)]
+    pub(crate) exposure: crate::capture::ExposureArgs,
     #[command(flatten)]
     pub(crate) hardware: HardwareArgs,
     #[command(flatten)]
@@ -203,8 +210,9 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
                 && args.phase_steps == structured_light::scan::SCAN_PHASE_STEPS
                 && args.projector_distortion.is_none()
                 && args.projector_drift == 0.0
-                && args.period.is_none(),
-            "--binocular, --projector-gamma, --projector-response, --correct-response, --phase-steps, --projector-distortion, --projector-drift and --period are options of the virtual rig's scan: on devices, a scan with two cameras names the second with --right-camera and takes the two-camera calibration (stereo.json) as --calib; the projector's response is the calibration's (slscan calibrate response); --patterns sets the patterns"
+                && args.period.is_none()
+                && args.finish == crate::capture::FinishArg::Matte,
+            "--binocular, --projector-gamma, --projector-response, --correct-response, --phase-steps, --projector-distortion, --projector-drift, --period and --finish are options of the virtual rig's scan: on devices, a scan with two cameras names the second with --right-camera and takes the two-camera calibration (stereo.json) as --calib; the projector's response is the calibration's (slscan calibrate response); --patterns sets the patterns"
         );
         return Ok(());
     }
@@ -294,6 +302,9 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         period_px: args
             .period
             .unwrap_or(structured_light::scan::SCAN_PERIOD_PX),
+        finish: args.finish.into(),
+        exposures: args.exposure.exposures(),
+        fusion: args.exposure.fusion(),
         ..VirtualScanConfig::default()
     }
 }

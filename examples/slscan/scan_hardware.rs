@@ -204,6 +204,8 @@ fn scan_config(args: &Args) -> anyhow::Result<DeviceScanConfig> {
         .map_or(DEFAULT_DISPLAY_LATENCY, Duration::from_millis);
     capture.measure_latency = args.rig.measure_latency.then(LatencyConfig::default);
     capture.overwrite = args.overwrite;
+    capture.exposures = args.exposure.exposures();
+    capture.fusion = args.exposure.fusion();
     cfg.session = SessionScanConfig {
         reconstruct: ReconstructConfig {
             edge_erosion_px: args.edge_erosion,

@@ -33,6 +33,14 @@ impl Frames {
         }
     }
 
+    /// The frames as grey images, at their depth.
+    pub fn into_images(self) -> Vec<GreyImage> {
+        match self {
+            Self::U8(f) => f.into_iter().map(GreyImage::U8).collect(),
+            Self::U16(f) => f.into_iter().map(GreyImage::U16).collect(),
+        }
+    }
+
     /// Number of frames.
     pub fn len(&self) -> usize {
         match self {

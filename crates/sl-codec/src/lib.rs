@@ -72,6 +72,7 @@ mod correspondence;
 mod decode;
 mod error;
 mod export;
+mod exposure;
 mod fast_math;
 mod frame;
 mod frame_check;
@@ -105,6 +106,12 @@ pub use error::CodecError;
 pub use export::{write_npy_f32, write_tiff_f32};
 #[cfg(feature = "image-files")]
 pub use export::{write_png_grey, write_png_grey8, write_png_grey16, write_png_rgb8};
+pub use exposure::{
+    AutoExposureConfig, EXPOSURES_FILE, EXPOSURES_FORMAT, EXPOSURES_VERSION, ExposureChoice,
+    ExposureFolder, ExposureFrames, ExposurePlan, ExposureRecord, FusedFrames, FusionConfig,
+    FusionMethod, FusionSettings, FusionSummary, MAX_EXPOSURES, SATURATED_EVERYWHERE,
+    choose_exposures, fuse_exposures,
+};
 pub use frame::{Frame, Frames, Sample};
 pub use frame_check::{FrameFault, FrameIssue, check_frames};
 pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIFT, decode_gray};

@@ -10,6 +10,29 @@ pub trait Camera {
 
     /// Captures one frame of what the camera sees now.
     fn capture(&mut self) -> Result<GreyImage, RigError>;
+
+    /// Sets the exposure time (milliseconds) of the frames captured from now on, with auto
+    /// exposure off. A driver that queues frames may still deliver a few exposed before the
+    /// change: the session drops them as it drops those of an earlier pattern
+    /// ([`SessionConfig::flush_frames`](crate::SessionConfig::flush_frames)).
+    ///
+    /// # Errors
+    /// [`RigError::Unsupported`] for a camera without an exposure control (the default), or
+    /// the driver's refusal.
+    fn set_exposure_ms(&mut self, exposure_ms: f64) -> Result<(), RigError> {
+        Err(RigError::Unsupported {
+            device: "camera".to_owned(),
+            what: format!(
+                "set its exposure (to {exposure_ms} ms): capturing at several exposures needs a camera with a manual exposure control"
+            ),
+        })
+    }
+
+    /// The exposure time (milliseconds) the camera captures at, when it knows it: the one
+    /// last set, or the one it was opened with. Default `None`.
+    fn exposure_ms(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// A projector that shows grey images full screen.

@@ -61,6 +61,15 @@ pub enum RigError {
         /// What went wrong.
         reason: String,
     },
+    /// A device cannot do what a setting needs (a camera without an exposure control asked
+    /// for several exposures).
+    #[error("{device} cannot {what}")]
+    Unsupported {
+        /// The device (`camera`, `camera /dev/video0`, …).
+        device: String,
+        /// What it was asked to do, and the option that asked for it.
+        what: String,
+    },
     /// A device was asked for whose driver this build lacks: rebuild with the named cargo
     /// feature of `sl-rig`.
     #[error(

@@ -272,4 +272,12 @@ impl<C: Camera> Camera for BufferedCamera<C> {
             reason: "empty frame queue".to_owned(),
         })
     }
+
+    fn set_exposure_ms(&mut self, exposure_ms: f64) -> Result<(), RigError> {
+        self.inner.set_exposure_ms(exposure_ms)
+    }
+
+    fn exposure_ms(&self) -> Option<f64> {
+        self.inner.exposure_ms()
+    }
 }

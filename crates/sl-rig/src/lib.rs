@@ -58,6 +58,7 @@ mod device;
 #[cfg(all(feature = "dynamixel", unix))]
 mod dynamixel;
 mod error;
+mod exposure;
 mod files;
 mod latency;
 mod open;
@@ -77,6 +78,7 @@ pub use dynamixel::{
     MX64_MODEL_NUMBER, MidMoveFault, Mx64Emulator, ServoStatus, TICKS_PER_TURN, dynamixel_crc16,
 };
 pub use error::RigError;
+pub use exposure::{MAX_EXPOSURE_MEASUREMENTS, MeasureTiming, measure_exposures};
 pub use files::write_capture_set;
 pub use latency::{BufferedCamera, Latency, LatencyConfig, MIN_FLASH_CONTRAST, measure_latency};
 pub use open::{
@@ -91,8 +93,9 @@ pub use projector_window::{
 };
 pub use session::{
     CaptureSession, DEFAULT_DISPLAY_LATENCY, RECAPTURE_ROUNDS, RIGHT_DIR, SESSION_FILE,
-    SESSION_FORMAT, SESSION_VERSION, SessionConfig, SessionDevices, SessionPlan, SessionSummary,
-    ViewOutcome, ViewState, read_session_plan, turntable_angles, view_dir_name,
+    SESSION_FORMAT, SESSION_VERSION, SessionConfig, SessionDevices, SessionExposures, SessionPlan,
+    SessionSummary, ViewOutcome, ViewState, exposure_dir_name, read_session_plan,
+    turntable_angles, view_dir_name,
 };
 /// The grey images the devices exchange (camera frames, projector images): the workspace's one
 /// grey image, defined in `sl-image` and re-exported so rig users need one import.

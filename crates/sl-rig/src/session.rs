@@ -20,8 +20,9 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 use sl_codec::{
-    CaptureSet, DecodeConfig, FrameIssue, Frames, MANIFEST_FILE, Manifest, check_frames, decode,
-    write_png_grey,
+    CaptureSet, DecodeConfig, EXPOSURES_FILE, ExposureFolder, ExposureFrames, ExposureRecord,
+    FrameIssue, Frames, FusionSettings, MANIFEST_FILE, Manifest, check_frames, decode,
+    fuse_exposures, write_png_grey,
 };
 
 use crate::{Camera, GreyImage, Projector, RigError, Turntable};
@@ -38,6 +39,54 @@ const PARTIAL_PREFIX: &str = ".partial-";
 
 /// Folder, inside a view's (or a calibration pose's) folder, of the second camera's capture set.
 pub const RIGHT_DIR: &str = "right";
+
+/// Folder name of exposure `index` (shortest first) inside a view folder captured at several
+/// exposures (`exposure_0`, `exposure_1`, …).
+pub fn exposure_dir_name(index: usize) -> String {
+    format!("exposure_{index}")
+}
+
+/// The exposures a session captures each view at ([`SessionPlan::exposures`]).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct SessionExposures {
+    /// Exposure times (milliseconds), shortest first. Empty (the default): one pass at the
+    /// camera's own exposure, frames straight into the view's folder. Otherwise each view
+    /// captures the whole sequence once per exposure into `exposure_<i>/`, and its folder
+    /// holds the frames fused from them ([`sl_codec::fuse_exposures`]) and `exposures.json`.
+    pub times_ms: Vec<f64>,
+    /// How the exposures are fused.
+    #[serde(default)]
+    pub fusion: FusionSettings,
+}
+
+impl SessionExposures {
+    /// Exposures `times_ms` (any order: they are sorted) fused with `fusion`.
+    ///
+    /// # Errors
+    /// [`RigError::InvalidParameter`] naming `exposures` when a time is not positive, appears
+    /// twice, or there are more than [`sl_codec::MAX_EXPOSURES`].
+    pub fn new(mut times_ms: Vec<f64>, fusion: FusionSettings) -> Result<Self, RigError> {
+        times_ms.sort_by(f64::total_cmp);
+        if times_ms.len() > sl_codec::MAX_EXPOSURES
+            || times_ms.iter().any(|t| !(t.is_finite() && *t > 0.0))
+            || times_ms.windows(2).any(|w| w[0] == w[1])
+        {
+            return Err(RigError::param(
+                "exposures",
+                format!(
+                    "{times_ms:?} ms: up to {} different positive exposure times",
+                    sl_codec::MAX_EXPOSURES
+                ),
+            ));
+        }
+        Ok(Self { times_ms, fusion })
+    }
+
+    /// Whether the views are captured once, at the camera's own exposure.
+    pub fn is_single(&self) -> bool {
+        self.times_ms.is_empty()
+    }
+}
 
 /// Folder name of view `index` inside a session folder (`view_000`, `view_001`, …).
 pub fn view_dir_name(index: usize) -> String {
@@ -77,6 +126,8 @@ pub struct SessionPlan {
     pub devices: SessionDevices,
     /// The calibration file the session is meant to be reconstructed with, for the record.
     pub calibration: Option<PathBuf>,
+    /// The exposures each view is captured at. Default: one, the camera's own.
+    pub exposures: SessionExposures,
 }
 
 /// How a session synchronises the projector and the camera, and whether it may overwrite.
@@ -178,6 +229,8 @@ struct SessionFile {
     devices: SessionDevices,
     calibration: Option<String>,
     views: Vec<String>,
+    #[serde(default, skip_serializing_if = "SessionExposures::is_single")]
+    exposures: SessionExposures,
 }
 
 /// A capture session in a folder: the plan, the synchronisation settings, and the views on
@@ -224,6 +277,7 @@ struct SessionFile {
 ///     manifest,
 ///     devices: Default::default(),
 ///     calibration: None,
+///     exposures: Default::default(),
 /// };
 /// let dir = tempfile::tempdir()?;
 /// let config = SessionConfig { display_latency: std::time::Duration::ZERO, ..Default::default() };
@@ -492,9 +546,10 @@ impl CaptureSession {
                     prepare_view_dir(&right_dir).map_err(at(None))?;
                 }
                 let reached = turntable.rotate_to(angle).map_err(at(None))?;
-                let (mut lefts, mut rights) = (Vec::new(), Vec::new());
-                // Show pattern `k`, capture it with each camera and write the frames.
+                // Show pattern `k`, capture it with each camera and write the frames into
+                // `dirs` (the first camera's folder, the second's).
                 let take = |k: usize,
+                            dirs: (&Path, &Path),
                             camera: &mut C,
                             right: Option<&mut R>,
                             projector: &mut P|
@@ -511,53 +566,112 @@ impl CaptureSession {
                         ),
                         None => None,
                     };
-                    let path = dir.join(&names[k]);
+                    let path = dirs.0.join(&names[k]);
                     write_atomically(&path, |tmp| Ok(write_png_grey(tmp, &frame)?))
                         .map_err(at(Some(k)))?;
                     if let Some(second) = &second {
-                        let path = right_dir.join(&names[k]);
+                        let path = dirs.1.join(&names[k]);
                         write_atomically(&path, |tmp| Ok(write_png_grey(tmp, second)?))
                             .map_err(at(Some(k)))?;
                     }
                     Ok((frame, second))
                 };
-                for k in 0..patterns.len() {
-                    let (frame, second) = take(k, camera, right.as_deref_mut(), projector)?;
-                    lefts.push(frame);
-                    rights.extend(second);
-                }
-                // Frames out of step captured again, after a longer wait.
+                // One pass of the sequence, or one per exposure into its own folders.
+                let exposures = &self.plan.exposures.times_ms;
+                let passes: Vec<Option<(usize, f64)>> = if exposures.is_empty() {
+                    vec![None]
+                } else {
+                    exposures.iter().copied().enumerate().map(Some).collect()
+                };
+                let restore = camera.exposure_ms();
+                let (mut left_stacks, mut right_stacks) = (Vec::new(), Vec::new());
                 let (mut recaptured, mut frame_issues) = (Vec::new(), Vec::new());
-                if self.config.check_frames {
-                    for round in 0..=RECAPTURE_ROUNDS {
-                        let mut issues = self.lying_frames(&lefts, &dir, &names);
-                        if !rights.is_empty() {
-                            issues.extend(self.lying_frames(&rights, &right_dir, &names));
+                for pass in passes {
+                    let (pass_dir, pass_right_dir) = match pass {
+                        None => (dir.clone(), right_dir.clone()),
+                        Some((i, ms)) => {
+                            let name = exposure_dir_name(i);
+                            let dirs = (dir.join(&name), right_dir.join(&name));
+                            prepare_view_dir(&dirs.0).map_err(at(None))?;
+                            camera.set_exposure_ms(ms).map_err(at(None))?;
+                            if let Some(r) = right.as_deref_mut() {
+                                prepare_view_dir(&dirs.1).map_err(at(None))?;
+                                r.set_exposure_ms(ms)
+                                    .map_err(|e| e.of_right_camera(right_name))
+                                    .map_err(at(None))?;
+                            }
+                            dirs
                         }
-                        if issues.is_empty() {
-                            break;
-                        }
-                        if round == RECAPTURE_ROUNDS {
-                            frame_issues = issues.iter().map(ToString::to_string).collect();
-                            break;
-                        }
-                        let settle = self.settle_longer();
-                        let mut again: Vec<usize> = issues.iter().map(|i| i.frame).collect();
-                        again.sort_unstable();
-                        again.dedup();
-                        for issue in &issues {
-                            recaptured.push(format!(
-                                "{issue}; captured again after {} ms",
-                                settle.as_millis()
-                            ));
-                        }
-                        for k in again {
-                            let (frame, second) = take(k, camera, right.as_deref_mut(), projector)?;
-                            lefts[k] = frame;
-                            if let (Some(second), Some(slot)) = (second, rights.get_mut(k)) {
-                                *slot = second;
+                    };
+                    let dirs = (pass_dir.as_path(), pass_right_dir.as_path());
+                    let (mut lefts, mut rights) = (Vec::new(), Vec::new());
+                    for k in 0..patterns.len() {
+                        let (frame, second) =
+                            take(k, dirs, camera, right.as_deref_mut(), projector)?;
+                        lefts.push(frame);
+                        rights.extend(second);
+                    }
+                    // Frames out of step captured again, after a longer wait.
+                    if self.config.check_frames {
+                        for round in 0..=RECAPTURE_ROUNDS {
+                            let mut issues = self.lying_frames(&lefts, dirs.0, &names);
+                            if !rights.is_empty() {
+                                issues.extend(self.lying_frames(&rights, dirs.1, &names));
+                            }
+                            if issues.is_empty() {
+                                break;
+                            }
+                            if round == RECAPTURE_ROUNDS {
+                                frame_issues.extend(issues.iter().map(ToString::to_string));
+                                break;
+                            }
+                            let settle = self.settle_longer();
+                            let mut again: Vec<usize> = issues.iter().map(|i| i.frame).collect();
+                            again.sort_unstable();
+                            again.dedup();
+                            for issue in &issues {
+                                recaptured.push(format!(
+                                    "{issue}; captured again after {} ms",
+                                    settle.as_millis()
+                                ));
+                            }
+                            for k in again {
+                                let (frame, second) =
+                                    take(k, dirs, camera, right.as_deref_mut(), projector)?;
+                                lefts[k] = frame;
+                                if let (Some(second), Some(slot)) = (second, rights.get_mut(k)) {
+                                    *slot = second;
+                                }
                             }
                         }
+                    }
+                    if let Some((_, ms)) = pass {
+                        // Each exposure's folder is a capture of its own.
+                        if right.is_some() {
+                            self.write_view_manifest(&pass_right_dir, index, angle, reached)
+                                .map_err(at(None))?;
+                        }
+                        self.write_view_manifest(&pass_dir, index, angle, reached)
+                            .map_err(at(None))?;
+                        left_stacks.push(ExposureFrames {
+                            exposure_ms: ms,
+                            frames: lefts,
+                        });
+                        right_stacks.push(ExposureFrames {
+                            exposure_ms: ms,
+                            frames: rights,
+                        });
+                    }
+                }
+                if let Some(ms) = restore.filter(|_| !exposures.is_empty()) {
+                    camera.set_exposure_ms(ms).map_err(at(None))?;
+                }
+                if !left_stacks.is_empty() {
+                    self.write_fused(&dir, &left_stacks, &names)
+                        .map_err(at(None))?;
+                    if right.is_some() {
+                        self.write_fused(&right_dir, &right_stacks, &names)
+                            .map_err(at(None))?;
                     }
                 }
                 // The second camera's manifest first: the view's own marks it complete.
@@ -665,6 +779,32 @@ impl CaptureSession {
         Ok(frame)
     }
 
+    /// Fuses the exposures of one camera's view (`stacks`, one per exposure) and writes the
+    /// fused frames and `exposures.json` into `dir`.
+    fn write_fused(
+        &self,
+        dir: &Path,
+        stacks: &[ExposureFrames],
+        names: &[String],
+    ) -> Result<(), RigError> {
+        let fusion = self.plan.exposures.fusion;
+        let fused = fuse_exposures(stacks, &fusion.config())?;
+        for (frame, name) in fused.frames.iter().zip(names) {
+            write_atomically(&dir.join(name), |tmp| Ok(write_png_grey(tmp, frame)?))?;
+        }
+        let folders = stacks
+            .iter()
+            .enumerate()
+            .map(|(i, s)| ExposureFolder {
+                dir: exposure_dir_name(i),
+                exposure_ms: s.exposure_ms,
+            })
+            .collect();
+        let mut record = ExposureRecord::new(folders, fusion);
+        record.summary = Some(fused.summary);
+        write_atomically(&dir.join(EXPOSURES_FILE), |tmp| Ok(record.save(tmp)?))
+    }
+
     fn write_view_manifest(
         &self,
         dir: &Path,
@@ -695,6 +835,7 @@ fn session_file(plan: &SessionPlan) -> SessionFile {
         devices: plan.devices.clone(),
         calibration: plan.calibration.as_ref().map(|p| p.display().to_string()),
         views: (0..plan.angles_deg.len()).map(view_dir_name).collect(),
+        exposures: plan.exposures.clone(),
     }
 }
 
@@ -708,11 +849,19 @@ pub fn read_session_plan(dir: &Path) -> Result<SessionPlan, RigError> {
     let file = read_session_file(&path)?;
     let text = file.patterns.to_string();
     let manifest = Manifest::from_json_str(&text, &path)?;
+    let exposures = SessionExposures::new(file.exposures.times_ms, file.exposures.fusion)
+        .map_err(|e| match e {
+            RigError::InvalidParameter { name, reason } => {
+                RigError::param(format!("{}: {name}", path.display()), reason)
+            }
+            other => other,
+        })?;
     Ok(SessionPlan {
         angles_deg: file.angles_deg,
         manifest,
         devices: file.devices,
         calibration: file.calibration.map(PathBuf::from),
+        exposures,
     })
 }
 
@@ -757,6 +906,12 @@ fn plan_difference(existing: &SessionFile, new: &SessionFile) -> Option<String> 
             "holds a session captured with {} camera(s), not {}; choose another folder or allow overwriting",
             cameras(existing),
             cameras(new)
+        ));
+    }
+    if existing.exposures != new.exposures {
+        return Some(format!(
+            "holds a session captured at exposures {:?} ms, not {:?} ms; choose another folder or allow overwriting",
+            existing.exposures.times_ms, new.exposures.times_ms
         ));
     }
     if existing.patterns != new.patterns {
@@ -922,6 +1077,7 @@ mod tests {
                 ..Default::default()
             },
             calibration: None,
+            exposures: Default::default(),
         }
     }
 

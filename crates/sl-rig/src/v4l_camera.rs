@@ -377,18 +377,24 @@ impl V4lCamera {
         self.layout
     }
 
+    /// Auto exposure off (and its frame-rate priority), then the exposure time `ms`.
+    fn apply_exposure(&mut self, controls: &[V4lControlInfo], ms: f64) -> Result<(), RigError> {
+        let has = |id: u32| controls.iter().any(|c| c.id == id);
+        let units = exposure_ms_to_v4l(ms)?;
+        if has(CID_EXPOSURE_AUTO) {
+            self.set_control_id(controls, CID_EXPOSURE_AUTO, EXPOSURE_MANUAL, "exposure_ms")?;
+        }
+        if has(CID_EXPOSURE_AUTO_PRIORITY) {
+            self.set_control_id(controls, CID_EXPOSURE_AUTO_PRIORITY, 0, "exposure_ms")?;
+        }
+        self.set_control_id(controls, CID_EXPOSURE_ABSOLUTE, units, "exposure_ms")
+    }
+
     fn apply_controls(&mut self) -> Result<(), RigError> {
         let controls = self.controls()?;
         let has = |id: u32| controls.iter().any(|c| c.id == id);
         if let Some(ms) = self.config.exposure_ms {
-            let units = exposure_ms_to_v4l(ms)?;
-            if has(CID_EXPOSURE_AUTO) {
-                self.set_control_id(&controls, CID_EXPOSURE_AUTO, EXPOSURE_MANUAL, "exposure_ms")?;
-            }
-            if has(CID_EXPOSURE_AUTO_PRIORITY) {
-                self.set_control_id(&controls, CID_EXPOSURE_AUTO_PRIORITY, 0, "exposure_ms")?;
-            }
-            self.set_control_id(&controls, CID_EXPOSURE_ABSOLUTE, units, "exposure_ms")?;
+            self.apply_exposure(&controls, ms)?;
         }
         if let Some(gain) = self.config.gain {
             if has(CID_AUTOGAIN) {
@@ -637,6 +643,18 @@ impl Camera for V4lCamera {
             self.flush()?;
         }
         self.next_frame()
+    }
+
+    /// Sets `exposure_time_absolute` (100 µs units) with auto exposure off.
+    fn set_exposure_ms(&mut self, exposure_ms: f64) -> Result<(), RigError> {
+        let controls = self.controls()?;
+        self.apply_exposure(&controls, exposure_ms)?;
+        self.config.exposure_ms = Some(exposure_ms);
+        Ok(())
+    }
+
+    fn exposure_ms(&self) -> Option<f64> {
+        self.config.exposure_ms
     }
 }
 

@@ -50,6 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .manifest(BitDepth::Eight),
         devices: rig.session_devices("virtual turntable"),
         calibration: Some(calib_path),
+        exposures: Default::default(),
     };
     let session_dir = out.join("session");
     let config = SessionConfig {

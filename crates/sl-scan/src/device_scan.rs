@@ -43,11 +43,13 @@ use sl_camera::{BinocularCalibration, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_codec::{BitDepth, ImageSize, Manifest};
 use sl_rig::{
-    Camera, DEFAULT_DISPLAY_LATENCY, Latency, LatencyConfig, Projector, SessionConfig,
-    SessionDevices, SessionPlan, SessionSummary, Turntable, measure_latency,
+    Camera, DEFAULT_DISPLAY_LATENCY, Latency, LatencyConfig, MeasureTiming, Projector,
+    SessionConfig, SessionDevices, SessionPlan, SessionSummary, Turntable, measure_exposures,
+    measure_latency,
 };
 
 use crate::error::{io, stage_err};
+use crate::exposures::{Exposures, session_exposures};
 #[cfg(feature = "mesh")]
 use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
@@ -57,6 +59,10 @@ use crate::{
     capture_session, check_placements, full_turn_motor_angles, load_scan_calibration,
     placement_dir_name, require_turntable_axis, scan_patterns, scan_placements, write_scan_cloud,
 };
+
+/// Where [`Exposures::Auto`] starts measuring on a camera that does not report its exposure
+/// (milliseconds): a usual exposure for a projector-lit scene.
+pub const AUTO_EXPOSURE_START_MS: f64 = 10.0;
 
 /// How one turntable session is captured on devices ([`capture_device_session`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -84,6 +90,12 @@ pub struct DeviceCaptureConfig {
     pub devices: SessionDevices,
     /// The calibration file the session is meant for, recorded in `session.json`.
     pub calibration_file: Option<PathBuf>,
+    /// The exposures each view is captured at (`--exposures`). Default
+    /// [`Exposures::Camera`]: one, the camera's own.
+    pub exposures: Exposures,
+    /// How several exposures are fused (`--fusion`). Default: the longest unsaturated
+    /// exposure of each pixel.
+    pub fusion: sl_codec::FusionSettings,
 }
 
 impl Default for DeviceCaptureConfig {
@@ -97,6 +109,8 @@ impl Default for DeviceCaptureConfig {
             overwrite: false,
             devices: SessionDevices::default(),
             calibration_file: None,
+            exposures: Exposures::Camera,
+            fusion: sl_codec::FusionSettings::default(),
         }
     }
 }
@@ -110,7 +124,11 @@ pub struct SessionCapture {
     pub latency: Option<Latency>,
     /// What the session did, view by view.
     pub summary: SessionSummary,
-    /// Wall time of `measure latency` (when measured) and `capture`.
+    /// The exposures chosen before the session (with [`Exposures::Auto`], unless the session
+    /// resumed with those it was started with).
+    pub exposures: Option<sl_codec::ExposurePlan>,
+    /// Wall time of `measure latency` (when measured), `choose exposures` (when chosen) and
+    /// `capture`.
     pub stages: Vec<StageTime>,
 }
 
@@ -237,6 +255,31 @@ where
             patterns.manifest(BitDepth::Eight)
         }
     };
+    let (exposures, exposure_plan) = session_exposures(
+        dir,
+        &cfg.exposures,
+        cfg.fusion,
+        cfg.overwrite,
+        |auto| {
+            let t = Instant::now();
+            let first = angles_deg.first().copied().unwrap_or_default();
+            turntable.rotate_to(first)?;
+            let timing = MeasureTiming {
+                settle: session.display_latency,
+                flush_frames: session.flush_frames,
+            };
+            let plan = measure_exposures(
+                camera,
+                projector,
+                auto,
+                timing,
+                AUTO_EXPOSURE_START_MS,
+                |_, _| {},
+            )?;
+            stages.push(StageTime::since("choose exposures", t));
+            Ok(plan)
+        },
+    )?;
     let mut devices = cfg.devices.clone();
     if right.is_some() {
         devices
@@ -248,6 +291,7 @@ where
         manifest,
         devices,
         calibration: cfg.calibration_file.clone(),
+        exposures,
     };
     let t = Instant::now();
     let summary = match right {
@@ -267,6 +311,7 @@ where
         session: dir.to_path_buf(),
         latency,
         summary,
+        exposures: exposure_plan,
         stages,
     })
 }

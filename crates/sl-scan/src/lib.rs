@@ -56,6 +56,7 @@ mod capture;
 mod capture_reconstruction;
 mod device_scan;
 mod error;
+mod exposures;
 #[cfg(feature = "sim")]
 mod measure;
 mod merge;
@@ -142,11 +143,12 @@ pub use capture_reconstruction::{
     reconstruct_capture,
 };
 pub use device_scan::{
-    DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig, ScanOperator,
+    AUTO_EXPOSURE_START_MS, DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig, ScanOperator,
     SessionCapture, capture_binocular_device_session, capture_device_session,
     scan_binocular_devices, scan_devices,
 };
 pub use error::ScanError;
+pub use exposures::{Exposures, fuse_exposure_folder};
 #[cfg(feature = "sim")]
 pub use measure::{
     Measurements, PLATE_SIZE_MM, PLATE_TILT_DEG, SELECT_MM, measure_scan, plate_pose, plate_scene,

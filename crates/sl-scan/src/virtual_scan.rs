@@ -15,11 +15,16 @@ use sl_camera::{BinocularCalibration, Calibration, ImageSize, Intrinsics};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::BitDepth;
 use sl_metrology::{Report, Truth};
-use sl_rig::{SessionConfig, SessionPlan, SessionSummary, turntable_angles, view_dir_name};
+use sl_codec::ExposurePlan;
+use sl_rig::{
+    MeasureTiming, SessionConfig, SessionExposures, SessionPlan, SessionSummary, Turntable,
+    measure_exposures, turntable_angles, view_dir_name,
+};
 use sl_sim::{RigConfig, Scene, SecondCamera, VirtualRig};
 use sl_tri::{Binocular, BinocularConfig, Triangulator};
 
 use crate::error::{io, stage_err};
+use crate::exposures::{Exposures, session_exposures};
 use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
 use crate::virtual_calibrate::{calibrate_virtual_binocular_stage, calibrate_virtual_stage};
 use crate::{
@@ -150,6 +155,14 @@ pub struct VirtualScanConfig {
     /// scan triangulates with the calibrated pose; a two-camera scan does not use it.
     /// Default 0.
     pub projector_drift_deg: f64,
+    /// The dumbbell's surface: matte plaster (the default), a black part, or a glossy
+    /// plastic whose highlights saturate the camera ([`sl_sim::Finish`]).
+    pub finish: sl_sim::Finish,
+    /// The exposures each view is captured at. Default [`Exposures::Camera`]: one, the
+    /// virtual camera's ([`sl_sim::VIRTUAL_EXPOSURE_MS`]).
+    pub exposures: Exposures,
+    /// How several exposures are fused. Default: the longest unsaturated one per pixel.
+    pub fusion: sl_codec::FusionSettings,
 }
 
 impl VirtualScanConfig {
@@ -193,6 +206,9 @@ impl Default for VirtualScanConfig {
             binocular_options: BinocularConfig::default(),
             projector_distortion: None,
             projector_drift_deg: 0.0,
+            finish: sl_sim::Finish::Matte,
+            exposures: Exposures::Camera,
+            fusion: sl_codec::FusionSettings::default(),
         }
     }
 }
@@ -287,6 +303,7 @@ fn virtual_session(
     turntable: &str,
     cfg: &VirtualScanConfig,
     calibration: &Path,
+    exposures: SessionExposures,
 ) -> (SessionPlan, SessionConfig) {
     let psize = rig.left.config().projector.size;
     let mut devices = rig.left.session_devices(turntable);
@@ -307,6 +324,7 @@ fn virtual_session(
         manifest: patterns.manifest(BitDepth::Eight),
         devices,
         calibration: Some(calibration.to_path_buf()),
+        exposures,
     };
     let config = SessionConfig {
         display_latency: Duration::ZERO,
@@ -328,8 +346,19 @@ pub(crate) fn check_virtual_sessions(
     out: &Path,
 ) -> Result<(), ScanError> {
     for (dir, angles) in dirs {
-        let (plan, config) =
-            virtual_session(rig, angles.clone(), "", cfg, &out.join("calibration.json"));
+        // Automatic exposures are those of the session already there (none is measured yet).
+        let (exposures, _) =
+            session_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite, |_| {
+                Ok(ExposurePlan::default())
+            })?;
+        let (plan, config) = virtual_session(
+            rig,
+            angles.clone(),
+            "",
+            cfg,
+            &out.join("calibration.json"),
+            exposures,
+        );
         sl_rig::CaptureSession::check(dir, &plan, &config)?;
     }
     Ok(())
@@ -348,7 +377,24 @@ pub(crate) fn capture_virtual(
     calibration: &Path,
     progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<SessionSummary, ScanError> {
-    let (plan, config) = virtual_session(rig, angles_deg, turntable, cfg, calibration);
+    // Automatic exposures: measured at the first view through the devices, as on a real rig.
+    let (exposures, _) = session_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite, |auto| {
+        let (mut camera, mut projector, mut table) = rig.left.devices();
+        table.rotate_to(angles_deg.first().copied().unwrap_or_default())?;
+        let timing = MeasureTiming {
+            settle: Duration::ZERO,
+            flush_frames: 0,
+        };
+        Ok(measure_exposures(
+            &mut camera,
+            &mut projector,
+            auto,
+            timing,
+            sl_sim::VIRTUAL_EXPOSURE_MS,
+            |_, _| {},
+        )?)
+    })?;
+    let (plan, config) = virtual_session(rig, angles_deg, turntable, cfg, calibration, exposures);
     match &rig.right {
         None => {
             let (mut camera, mut projector, mut table) = rig.left.devices();
@@ -475,7 +521,11 @@ pub fn scan_virtual(
     let response = measure_virtual_response(&config, cfg, out, &mut stages)?;
     // The second camera stands where the rig puts it, whatever the projector does later.
     let second = cfg.binocular.then(|| config.default_second_camera());
-    let calibration_rig = VirtualRigs::new(config.clone(), Scene::dumbbell(), second.as_ref())?;
+    let calibration_rig = VirtualRigs::new(
+        config.clone(),
+        Scene::dumbbell().finished(cfg.finish),
+        second.as_ref(),
+    )?;
     // The rig the scan captures with: the projector drifted after the calibration.
     let rig = if cfg.projector_drift_deg == 0.0 {
         calibration_rig.clone()
@@ -486,7 +536,7 @@ pub fn scan_virtual(
         );
         let mut drifted = config;
         drifted.t_cam_proj.rotation *= turn;
-        VirtualRigs::new(drifted, Scene::dumbbell(), second.as_ref())?
+        VirtualRigs::new(drifted, Scene::dumbbell().finished(cfg.finish), second.as_ref())?
     };
     let rig = VirtualRigs {
         precompensation: precompensation(cfg, response.as_ref()),

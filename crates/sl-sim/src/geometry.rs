@@ -134,7 +134,7 @@ pub struct ViewGeometry {
     /// Index `y · projector_width + x` of the projector pixel whose square contains the
     /// coordinate, or [`UNLIT`].
     pub(crate) proj_index: Vec<u32>,
-    /// `albedo · cos(angle to the projector)` (0 when unlit).
+    /// `(albedo + specular lobe) · cos(angle to the projector)` (0 when unlit).
     pub(crate) lit_weight: Vec<f32>,
     /// `albedo` (0 when the ray hits nothing).
     pub(crate) ambient_weight: Vec<f32>,
@@ -173,6 +173,9 @@ pub(crate) struct Sample {
     pub(crate) proj: Option<Point2<f64>>,
     /// `cos` of the angle between the normal and the direction to the projector (when lit).
     pub(crate) cos: f64,
+    /// The object's specular lobe toward the camera ([`crate::Gloss::lobe`]), 0 for a matte
+    /// object or an unlit point.
+    pub(crate) specular: f64,
 }
 
 /// The camera, the projector and the scene of one view.
@@ -191,6 +194,7 @@ impl<P: Lens> Caster<'_, P> {
             hit: None,
             proj: None,
             cos: 0.0,
+            specular: 0.0,
         };
         if !(nx.is_finite() && ny.is_finite()) {
             return none;
@@ -203,6 +207,7 @@ impl<P: Lens> Caster<'_, P> {
             hit: Some(hit),
             proj: None,
             cos: 0.0,
+            specular: 0.0,
         };
         let centre = Point3::from(self.t_cam_proj.translation.vector);
         let to_proj = centre - hit.point;
@@ -226,10 +231,18 @@ impl<P: Lens> Caster<'_, P> {
         if self.scene.occluded(&hit.point, &hit.normal, &centre) {
             return unlit;
         }
+        // The lobe about the half vector between the directions to the camera (-d) and to
+        // the projector (l).
+        let specular = self.scene.gloss(hit.object).map_or(0.0, |g| {
+            (l - d)
+                .try_normalize(0.0)
+                .map_or(0.0, |h| g.lobe(hit.normal.dot(&h)))
+        });
         Sample {
             hit: Some(hit),
             proj: Some(q),
             cos,
+            specular,
         }
     }
 
@@ -293,7 +306,7 @@ impl<P: Lens> Caster<'_, P> {
                         if let (Some(q), Some(l), Some(i), Some(c)) =
                             (smp.proj, lit.get_mut(k), idx.get_mut(k), xy.get_mut(k))
                         {
-                            *l = (albedo * smp.cos) as f32;
+                            *l = ((albedo + smp.specular) * smp.cos) as f32;
                             *c = [q.x as f32, q.y as f32];
                             // Nearest projector pixel: the square containing q.
                             let qx = ((q.x + 0.5).floor() as u32).min(pw.saturating_sub(1));

@@ -109,8 +109,9 @@ pub use placement::{PEBBLE_CUT_MM, PEBBLE_RADIUS_MM, pebble_mesh, pebble_object}
 pub use raycast::{Hit, PlacedScene};
 pub use render::{Illumination, ProjectorSampling, ResponseShape};
 pub use scene::{
-    AUTO_METRES_BELOW, DEFAULT_ALBEDO, DUMBBELL_CENTRE_DISTANCE_MM, MeshUnits, Mount, Scene,
-    SceneObject, Shape, Texture, upright_facing_camera,
+    AUTO_METRES_BELOW, DARK_ALBEDO, DEFAULT_ALBEDO, DUMBBELL_CENTRE_DISTANCE_MM, Finish,
+    GLOSSY_ALBEDO, GLOSSY_EXPONENT, GLOSSY_STRENGTH, Gloss, MeshUnits, Mount, Scene, SceneObject,
+    Shape, Texture, upright_facing_camera,
 };
 pub use sensor::{BitDepth, CameraEffects, Defocus, GlobalIllumination, NoiseKey, SensorConfig};
 pub use simulate::{
@@ -118,7 +119,8 @@ pub use simulate::{
 };
 pub use truth::{NO_OBJECT, ObjectPose, ViewTruth};
 pub use virtual_rig::{
-    DeviceFaults, View, VirtualCamera, VirtualProjector, VirtualRig, VirtualTurntable,
+    DeviceFaults, VIRTUAL_EXPOSURE_MS, VIRTUAL_MAX_EXPOSURE_MS, View, VirtualCamera,
+    VirtualProjector, VirtualRig, VirtualTurntable,
 };
 
 // The device layer the virtual devices implement, re-exported so that one import serves.

@@ -51,6 +51,7 @@ struct Placed {
     /// parry axis is `y`).
     t_cam_shape: Isometry3<f64>,
     texture: Texture,
+    gloss: Option<crate::Gloss>,
 }
 
 /// A scene at one turntable pose, placed in the camera frame, ready for ray casting.
@@ -111,6 +112,7 @@ impl PlacedScene {
                     t_cam_object,
                     t_cam_shape: t_cam_object * local,
                     texture: o.texture.clone(),
+                    gloss: o.gloss,
                 }
             })
             .collect();
@@ -164,6 +166,11 @@ impl PlacedScene {
             edge_y: o.t_cam_object.inverse_transform_vector(edge_y),
         };
         o.texture.albedo_over(&fp)
+    }
+
+    /// The specular lobe of object `k`, if it has one.
+    pub(crate) fn gloss(&self, k: usize) -> Option<crate::Gloss> {
+        self.objects.get(k).and_then(|o| o.gloss)
     }
 
     /// Whether object `k` has a texture that varies over its surface.

@@ -239,6 +239,115 @@ pub enum Mount {
     Camera,
 }
 
+/// A specular (Blinn–Phong) lobe on top of an object's Lambertian albedo: the projector's
+/// light mirrored toward the camera, as a glossy paint, a plastic or a polished metal shows
+/// it. Where the surface's normal halves the directions to the camera and to the projector,
+/// the object reflects `strength` times the light a white (albedo 1) Lambertian surface would
+/// there; away from that direction the lobe falls off as `(n · h)^exponent`. A highlight
+/// several times brighter than white paper saturates a camera exposed for the paper.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gloss {
+    /// The lobe's peak, in units of a white Lambertian surface's radiance.
+    pub strength: f64,
+    /// Its sharpness, the Blinn–Phong exponent (20: satin; 200: glossy plastic).
+    pub exponent: f64,
+}
+
+impl Gloss {
+    /// The lobe's weight `strength · (n · h)^exponent` for the unit normal `n` and the unit
+    /// half vector `h` between the directions to the camera and to the projector.
+    pub fn lobe(&self, n_dot_h: f64) -> f64 {
+        if n_dot_h <= 0.0 {
+            0.0
+        } else {
+            self.strength * n_dot_h.powf(self.exponent)
+        }
+    }
+
+    /// Checks that the strength is ≥ 0 and the exponent ≥ 1, both finite.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] naming `gloss.strength` or `gloss.exponent`.
+    pub fn validate(&self) -> Result<(), SimError> {
+        if !(self.strength.is_finite() && self.strength >= 0.0) {
+            return Err(SimError::param(
+                "gloss.strength",
+                format!("{} is not a strength ≥ 0", self.strength),
+            ));
+        }
+        if !(self.exponent.is_finite() && self.exponent >= 1.0) {
+            return Err(SimError::param(
+                "gloss.exponent",
+                format!("{} is not an exponent ≥ 1", self.exponent),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The surfaces the virtual rig scans, from the easy to the difficult ([`Scene::finished`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Finish {
+    /// Bright matte plaster: albedo [`DEFAULT_ALBEDO`], no gloss.
+    #[default]
+    Matte,
+    /// A black part: albedo [`DARK_ALBEDO`], no gloss. Exposed for white paper, its fringes
+    /// are a few grey levels deep.
+    Dark,
+    /// A glossy grey plastic: albedo [`GLOSSY_ALBEDO`] with a lobe of strength
+    /// [`GLOSSY_STRENGTH`] and exponent [`GLOSSY_EXPONENT`], whose highlights saturate a camera
+    /// exposed for white paper.
+    Glossy,
+}
+
+/// Albedo of [`Finish::Dark`]: black plastic or anodised aluminium reflect 3–5 %.
+pub const DARK_ALBEDO: f64 = 0.04;
+/// Albedo of [`Finish::Glossy`].
+pub const GLOSSY_ALBEDO: f64 = 0.4;
+/// Lobe strength of [`Finish::Glossy`]: the highlight is 6 times a white Lambertian surface.
+pub const GLOSSY_STRENGTH: f64 = 6.0;
+/// Lobe exponent of [`Finish::Glossy`]: a highlight ~15° wide, as on a glossy plastic.
+pub const GLOSSY_EXPONENT: f64 = 60.0;
+
+impl Finish {
+    /// The names `slscan scan --finish` takes.
+    pub const NAMES: [&str; 3] = ["matte", "dark", "glossy"];
+
+    /// The finish called `name` (one of [`Finish::NAMES`]).
+    pub fn named(name: &str) -> Option<Self> {
+        match name {
+            "matte" => Some(Self::Matte),
+            "dark" => Some(Self::Dark),
+            "glossy" => Some(Self::Glossy),
+            _ => None,
+        }
+    }
+
+    /// Its name, as [`Finish::named`] takes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Matte => "matte",
+            Self::Dark => "dark",
+            Self::Glossy => "glossy",
+        }
+    }
+
+    /// The texture and the gloss of the finish.
+    pub fn surface(self) -> (Texture, Option<Gloss>) {
+        match self {
+            Self::Matte => (Texture::Uniform(DEFAULT_ALBEDO), None),
+            Self::Dark => (Texture::Uniform(DARK_ALBEDO), None),
+            Self::Glossy => (
+                Texture::Uniform(GLOSSY_ALBEDO),
+                Some(Gloss {
+                    strength: GLOSSY_STRENGTH,
+                    exponent: GLOSSY_EXPONENT,
+                }),
+            ),
+        }
+    }
+}
+
 /// One object of a scene.
 #[derive(Debug, Clone)]
 pub struct SceneObject {
@@ -252,6 +361,9 @@ pub struct SceneObject {
     pub mount: Mount,
     /// Pose of the object frame in the mount frame: `T_table_object` or `T_cam_object`.
     pub pose: Isometry3<f64>,
+    /// A specular lobe over the albedo; `None` (the constructors' default) for a matte
+    /// object.
+    pub gloss: Option<Gloss>,
 }
 
 impl SceneObject {
@@ -268,6 +380,7 @@ impl SceneObject {
             texture,
             mount: Mount::Turntable,
             pose: t_table_object,
+            gloss: None,
         }
     }
 
@@ -284,6 +397,7 @@ impl SceneObject {
             texture,
             mount: Mount::Camera,
             pose: t_cam_object,
+            gloss: None,
         }
     }
 
@@ -301,6 +415,7 @@ impl SceneObject {
             texture: Texture::Board(board),
             mount,
             pose,
+            gloss: None,
         }
     }
 }
@@ -365,8 +480,25 @@ impl Scene {
         for o in &self.objects {
             o.shape.validate(&o.name)?;
             o.texture.validate(&o.name)?;
+            if let Some(g) = &o.gloss {
+                g.validate()?;
+            }
         }
         Ok(())
+    }
+
+    /// The scene with every object on the turntable given the surface `finish` (boards and
+    /// objects fixed to the camera keep theirs).
+    #[must_use]
+    pub fn finished(mut self, finish: Finish) -> Self {
+        for o in &mut self.objects {
+            if o.mount == Mount::Turntable && !matches!(o.texture, Texture::Board(_)) {
+                let (texture, gloss) = finish.surface();
+                o.texture = texture;
+                o.gloss = gloss;
+            }
+        }
+        self
     }
 
     /// The names [`Scene::named`] knows, in the order a help text lists them.

@@ -188,6 +188,7 @@ impl VirtualRig {
             rig: self.clone(),
             state: state.clone(),
             cache: Arc::new(Mutex::new(ViewCache::default())),
+            exposure_ms: VIRTUAL_EXPOSURE_MS,
         }
     }
 }
@@ -196,10 +197,22 @@ impl View {
     /// Renders the frame the camera captures while the projector shows `image`; `frame`
     /// keys the noise (the same frame index gives the same noise).
     pub fn capture(&self, image: &GreyImage, frame: u64) -> Result<GreyImage, SimError> {
+        self.capture_exposed(image, frame, 1.0)
+    }
+
+    /// [`View::capture`] with the sensor's exposure multiplied by `exposure_scale`: the
+    /// frame a camera captures with a longer (`> 1`) or shorter exposure time, photon noise
+    /// and saturation included.
+    pub fn capture_exposed(
+        &self,
+        image: &GreyImage,
+        frame: u64,
+        exposure_scale: f64,
+    ) -> Result<GreyImage, SimError> {
         let radiance = self
             .geometry
             .render_image(image, &self.render.illumination)?;
-        self.expose(radiance, frame)
+        self.expose_scaled(radiance, frame, exposure_scale)
     }
 
     /// Renders the frame the camera captures while the projector shows the pattern `pattern`
@@ -249,6 +262,17 @@ impl View {
     }
 
     fn expose(&self, radiance: Vec<f32>, frame: u64) -> Result<GreyImage, SimError> {
+        self.expose_scaled(radiance, frame, 1.0)
+    }
+
+    fn expose_scaled(
+        &self,
+        radiance: Vec<f32>,
+        frame: u64,
+        exposure_scale: f64,
+    ) -> Result<GreyImage, SimError> {
+        let mut effects = self.render.effects;
+        effects.sensor.exposure *= exposure_scale;
         let key = NoiseKey {
             seed: self.render.seed,
             view: self.index,
@@ -260,7 +284,7 @@ impl View {
             self.geometry.height as usize,
             &self.geometry.depth_mm,
             self.fx,
-            &self.render.effects,
+            &effects,
             key,
         )
     }
@@ -340,7 +364,18 @@ pub struct VirtualCamera {
     rig: VirtualRig,
     state: Arc<Mutex<DeviceState>>,
     cache: Arc<Mutex<ViewCache>>,
+    /// The exposure time ([`Camera::set_exposure_ms`]); the sensor's
+    /// [`exposure`](crate::SensorConfig::exposure) is that of [`VIRTUAL_EXPOSURE_MS`].
+    exposure_ms: f64,
 }
+
+/// The exposure time of the virtual camera's frames as the rig's sensor describes them
+/// ([`SensorConfig::exposure`](crate::SensorConfig::exposure)): a camera set to twice this
+/// collects twice the light. 10 ms, a typical exposure for a projector-lit scene.
+pub const VIRTUAL_EXPOSURE_MS: f64 = 10.0;
+
+/// The longest exposure the virtual camera takes (milliseconds).
+pub const VIRTUAL_MAX_EXPOSURE_MS: f64 = 10_000.0;
 
 /// The virtual rig's projector ([`Projector`]).
 #[derive(Debug, Clone)]
@@ -409,11 +444,19 @@ impl Camera for VirtualCamera {
             let previous = settling.and(st.previous.clone());
             (st.shown.clone(), previous, settling)
         };
+        let scale = self.exposure_ms / VIRTUAL_EXPOSURE_MS;
         let render = |img: Option<&GreyImage>| -> Result<GreyImage, RigError> {
             match img {
-                Some(img) => Ok(view.capture(img, frame)?),
+                Some(img) => Ok(view.capture_exposed(img, frame, scale)?),
                 // Nothing shown yet: the projector is dark.
-                None => Ok(view.capture_fn(|_, _| 0.0, ProjectorSampling::Nearest, frame)?),
+                None => {
+                    let radiance = view.geometry.render_fn(
+                        |_, _| 0.0,
+                        ProjectorSampling::Nearest,
+                        &view.render.illumination,
+                    );
+                    Ok(view.expose_scaled(radiance, frame, scale)?)
+                }
             }
         };
         let image = match settling {
@@ -430,6 +473,26 @@ impl Camera for VirtualCamera {
             lock(&self.cache).last = Some(image.clone());
         }
         Ok(image)
+    }
+
+    /// Scales the sensor's exposure by `exposure_ms /` [`VIRTUAL_EXPOSURE_MS`]: photon noise,
+    /// saturation and the black level follow.
+    fn set_exposure_ms(&mut self, exposure_ms: f64) -> Result<(), RigError> {
+        if !(exposure_ms.is_finite() && exposure_ms > 0.0 && exposure_ms <= VIRTUAL_MAX_EXPOSURE_MS)
+        {
+            return Err(RigError::InvalidParameter {
+                name: "exposure_ms".to_owned(),
+                reason: format!(
+                    "{exposure_ms} is not an exposure the virtual camera takes (0 to {VIRTUAL_MAX_EXPOSURE_MS} ms)"
+                ),
+            });
+        }
+        self.exposure_ms = exposure_ms;
+        Ok(())
+    }
+
+    fn exposure_ms(&self) -> Option<f64> {
+        Some(self.exposure_ms)
     }
 }
 

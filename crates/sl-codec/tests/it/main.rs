@@ -2,6 +2,7 @@
 //! module per subject; `cargo test -p sl-codec --test it MODULE` runs one of them.
 
 mod capture_files;
+mod exposure;
 mod export_formats;
 mod image_formats;
 mod opencv_graycode;

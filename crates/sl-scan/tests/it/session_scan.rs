@@ -85,6 +85,7 @@ fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
             right_camera: None,
         },
         calibration: Some(calib_path.clone()),
+        exposures: Default::default(),
     };
     let session_dir = tmp.path().join("session");
     let session = CaptureSession::open(
@@ -288,6 +289,7 @@ fn a_dense_session_with_an_approximate_axis_is_refined_onto_the_true_spheres() {
                 right_camera: None,
             },
             calibration: Some(calib_path),
+            exposures: Default::default(),
         },
         SessionConfig {
             display_latency: Duration::ZERO,
@@ -372,6 +374,7 @@ fn capture_dumbbell(
                 right_camera: None,
             },
             calibration: Some(calib_path),
+            exposures: Default::default(),
         },
         SessionConfig {
             display_latency: Duration::ZERO,
@@ -487,6 +490,7 @@ fn a_calibration_without_turntable_axis_is_refused_by_name() {
                 right_camera: None,
             },
             calibration: Some(path.clone()),
+            exposures: Default::default(),
         },
         SessionConfig::default(),
     )

@@ -54,6 +54,7 @@ fn plan(rig: &VirtualRig, views: usize) -> SessionPlan {
         manifest: sequence.manifest(BitDepth::Eight),
         devices: Default::default(),
         calibration: None,
+        exposures: Default::default(),
     }
 }
 

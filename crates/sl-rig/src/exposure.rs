@@ -1,0 +1,89 @@
+//! Choosing a scene's exposures on the devices: full white and black shown, captured, and
+//! measured ([`sl_codec::choose_exposures`]) until the frames tell.
+
+use std::time::Duration;
+
+use sl_codec::{AutoExposureConfig, ExposureChoice, ExposurePlan, choose_exposures};
+
+use crate::{Camera, GreyImage, Projector, RigError};
+
+/// Most white-and-black measurements [`measure_exposures`] makes: from 10 ms, six steps of 4
+/// reach 0.0025 ms or 41 s, past any camera's range.
+pub const MAX_EXPOSURE_MEASUREMENTS: usize = 8;
+
+/// How [`measure_exposures`] waits for the projector and the camera.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MeasureTiming {
+    /// The wait after showing an image ([`SessionConfig::display_latency`](crate::SessionConfig::display_latency)).
+    pub settle: Duration,
+    /// Frames dropped before each kept one (the driver's queue, and the frames exposed before
+    /// an exposure change).
+    pub flush_frames: usize,
+}
+
+/// Shows full white and full black, captures each at the camera's exposure, and lets
+/// [`choose_exposures`] decide; measures again at the exposure it asks for, until it chooses.
+/// Starts at the camera's current exposure, or `start_ms` when the camera does not say; leaves
+/// the camera at the shortest exposure chosen. `on_measure` hears each measurement's exposure
+/// and why another is needed.
+///
+/// # Errors
+/// [`RigError::Unsupported`] for a camera without an exposure control, the devices' errors,
+/// and [`RigError::Codec`] when the frames cannot tell after
+/// [`MAX_EXPOSURE_MEASUREMENTS`] measurements or [`choose_exposures`] refuses them (nothing
+/// lit at the longest exposure).
+pub fn measure_exposures<C, P>(
+    camera: &mut C,
+    projector: &mut P,
+    config: &AutoExposureConfig,
+    timing: MeasureTiming,
+    start_ms: f64,
+    mut on_measure: impl FnMut(f64, Option<&str>),
+) -> Result<ExposurePlan, RigError>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+{
+    let (w, h) = projector.image_size();
+    let (w, h) = (w as usize, h as usize);
+    let white = GreyImage::filled_u8(w, h, u8::MAX)?;
+    let black = GreyImage::filled_u8(w, h, 0)?;
+    let mut exposure = camera.exposure_ms().unwrap_or(start_ms);
+    let mut reasons = Vec::new();
+    for _ in 0..MAX_EXPOSURE_MEASUREMENTS {
+        camera.set_exposure_ms(exposure)?;
+        let mut grab = |image: &GreyImage| -> Result<GreyImage, RigError> {
+            projector.show(image)?;
+            if !timing.settle.is_zero() {
+                std::thread::sleep(timing.settle);
+            }
+            for _ in 0..timing.flush_frames {
+                camera.capture()?;
+            }
+            camera.capture()
+        };
+        let lit = grab(&white)?;
+        let dark = grab(&black)?;
+        match choose_exposures(&lit, &dark, exposure, config)? {
+            ExposureChoice::Chosen(plan) => {
+                on_measure(exposure, None);
+                if let Some(&first) = plan.exposures_ms.first() {
+                    camera.set_exposure_ms(first)?;
+                }
+                return Ok(plan);
+            }
+            ExposureChoice::MeasureAgain {
+                exposure_ms,
+                reason,
+            } => {
+                on_measure(exposure, Some(&reason));
+                reasons.push(reason);
+                exposure = exposure_ms;
+            }
+        }
+    }
+    Err(RigError::Codec(sl_codec::CodecError::Frames(format!(
+        "no exposure chosen after {MAX_EXPOSURE_MEASUREMENTS} measurements: {}",
+        reasons.join("; ")
+    ))))
+}
