@@ -23,8 +23,8 @@ pub struct MeasureTiming {
 
 /// Shows full white and full black, captures each at the camera's exposure, and lets
 /// [`choose_exposures`] decide; measures again at the exposure it asks for, until it chooses.
-/// Starts at the camera's current exposure, or `start_ms` when the camera does not say; leaves
-/// the camera at the shortest exposure chosen. `on_measure` hears each measurement's exposure
+/// Starts at the camera's current exposure, or `start_ms` when the camera does not say, and
+/// leaves the camera at that exposure (a session judges its frames at the pass nearest it). `on_measure` hears each measurement's exposure
 /// and why another is needed.
 ///
 /// # Errors
@@ -48,7 +48,8 @@ where
     let (w, h) = (w as usize, h as usize);
     let white = GreyImage::filled_u8(w, h, u8::MAX)?;
     let black = GreyImage::filled_u8(w, h, 0)?;
-    let mut exposure = camera.exposure_ms().unwrap_or(start_ms);
+    let own = camera.exposure_ms();
+    let mut exposure = own.unwrap_or(start_ms);
     let mut reasons = Vec::new();
     for _ in 0..MAX_EXPOSURE_MEASUREMENTS {
         camera.set_exposure_ms(exposure)?;
@@ -67,8 +68,8 @@ where
         match choose_exposures(&lit, &dark, exposure, config)? {
             ExposureChoice::Chosen(plan) => {
                 on_measure(exposure, None);
-                if let Some(&first) = plan.exposures_ms.first() {
-                    camera.set_exposure_ms(first)?;
+                if let Some(own) = own {
+                    camera.set_exposure_ms(own)?;
                 }
                 return Ok(plan);
             }

@@ -583,94 +583,118 @@ impl CaptureSession {
                 } else {
                     exposures.iter().copied().enumerate().map(Some).collect()
                 };
-                let restore = camera.exposure_ms();
-                let (mut left_stacks, mut right_stacks) = (Vec::new(), Vec::new());
-                let (mut recaptured, mut frame_issues) = (Vec::new(), Vec::new());
-                for pass in passes {
-                    let (pass_dir, pass_right_dir) = match pass {
-                        None => (dir.clone(), right_dir.clone()),
-                        Some((i, ms)) => {
-                            let name = exposure_dir_name(i);
-                            let dirs = (dir.join(&name), right_dir.join(&name));
-                            prepare_view_dir(&dirs.0).map_err(at(None))?;
-                            camera.set_exposure_ms(ms).map_err(at(None))?;
-                            if let Some(r) = right.as_deref_mut() {
-                                prepare_view_dir(&dirs.1).map_err(at(None))?;
-                                r.set_exposure_ms(ms)
-                                    .map_err(|e| e.of_right_camera(right_name))
-                                    .map_err(at(None))?;
-                            }
-                            dirs
+                let pass_dirs = |pass: Option<(usize, f64)>| match pass {
+                    None => (dir.clone(), right_dir.clone()),
+                    Some((i, _)) => {
+                        let name = exposure_dir_name(i);
+                        (dir.join(&name), right_dir.join(&name))
+                    }
+                };
+                // Both cameras at the pass's exposure (the camera's own for the one pass).
+                let expose = |pass: Option<(usize, f64)>,
+                              camera: &mut C,
+                              right: Option<&mut R>|
+                 -> Result<(), RigError> {
+                    if let Some((_, ms)) = pass {
+                        camera.set_exposure_ms(ms).map_err(at(None))?;
+                        if let Some(r) = right {
+                            r.set_exposure_ms(ms)
+                                .map_err(|e| e.of_right_camera(right_name))
+                                .map_err(at(None))?;
                         }
-                    };
-                    let dirs = (pass_dir.as_path(), pass_right_dir.as_path());
+                    }
+                    Ok(())
+                };
+                let restore = camera.exposure_ms();
+                let (mut lefts_of, mut rights_of) = (Vec::new(), Vec::new());
+                for &pass in &passes {
+                    let (l, r) = pass_dirs(pass);
+                    if pass.is_some() {
+                        prepare_view_dir(&l).map_err(at(None))?;
+                        if right.is_some() {
+                            prepare_view_dir(&r).map_err(at(None))?;
+                        }
+                    }
+                    expose(pass, camera, right.as_deref_mut())?;
                     let (mut lefts, mut rights) = (Vec::new(), Vec::new());
                     for k in 0..patterns.len() {
                         let (frame, second) =
-                            take(k, dirs, camera, right.as_deref_mut(), projector)?;
+                            take(k, (&l, &r), camera, right.as_deref_mut(), projector)?;
                         lefts.push(frame);
                         rights.extend(second);
                     }
-                    // Frames out of step captured again, after a longer wait.
-                    if self.config.check_frames {
-                        for round in 0..=RECAPTURE_ROUNDS {
-                            let mut issues = self.lying_frames(&lefts, dirs.0, &names);
-                            if !rights.is_empty() {
-                                issues.extend(self.lying_frames(&rights, dirs.1, &names));
-                            }
-                            if issues.is_empty() {
-                                break;
-                            }
-                            if round == RECAPTURE_ROUNDS {
-                                frame_issues.extend(issues.iter().map(ToString::to_string));
-                                break;
-                            }
-                            let settle = self.settle_longer();
-                            let mut again: Vec<usize> = issues.iter().map(|i| i.frame).collect();
-                            again.sort_unstable();
-                            again.dedup();
-                            for issue in &issues {
-                                recaptured.push(format!(
-                                    "{issue}; captured again after {} ms",
-                                    settle.as_millis()
-                                ));
-                            }
-                            for k in again {
+                    lefts_of.push(lefts);
+                    rights_of.push(rights);
+                }
+                // Frames out of step captured again (at every exposure), after a longer wait.
+                // With several exposures one pass is judged: the one nearest the camera's own
+                // exposure (the one it was set up with; without one, the middle exposure). The
+                // passes far from it are mostly saturated or mostly dark, where the checks
+                // took true frames for late ones on the virtual rig, and so would the fused
+                // frames, whose pixels differ in gain. Late projectors and dropped frames come
+                // from the devices' timing, which every pass shares, and the longer wait
+                // learned from the judged pass serves them all.
+                let judged = judged_pass(exposures, restore);
+                let (mut recaptured, mut frame_issues) = (Vec::new(), Vec::new());
+                if self.config.check_frames {
+                    let dirs: Vec<(PathBuf, PathBuf)> =
+                        passes.iter().map(|&p| pass_dirs(p)).collect();
+                    let left_dirs: Vec<PathBuf> = dirs.iter().map(|d| d.0.clone()).collect();
+                    let right_dirs: Vec<PathBuf> = dirs.iter().map(|d| d.1.clone()).collect();
+                    for round in 0..=RECAPTURE_ROUNDS {
+                        let mut issues = self.lying_pass(&lefts_of, &left_dirs, judged, &names);
+                        issues.extend(self.lying_pass(&rights_of, &right_dirs, judged, &names));
+                        if issues.is_empty() {
+                            break;
+                        }
+                        if round == RECAPTURE_ROUNDS {
+                            frame_issues = issues.iter().map(ToString::to_string).collect();
+                            break;
+                        }
+                        let settle = self.settle_longer();
+                        let mut again: Vec<usize> = issues.iter().map(|i| i.frame).collect();
+                        again.sort_unstable();
+                        again.dedup();
+                        for issue in &issues {
+                            recaptured.push(format!(
+                                "{issue}; captured again after {} ms",
+                                settle.as_millis()
+                            ));
+                        }
+                        for (p, &pass) in passes.iter().enumerate() {
+                            let (l, r) = pass_dirs(pass);
+                            expose(pass, camera, right.as_deref_mut())?;
+                            for &k in &again {
                                 let (frame, second) =
-                                    take(k, dirs, camera, right.as_deref_mut(), projector)?;
-                                lefts[k] = frame;
-                                if let (Some(second), Some(slot)) = (second, rights.get_mut(k)) {
+                                    take(k, (&l, &r), camera, right.as_deref_mut(), projector)?;
+                                lefts_of[p][k] = frame;
+                                if let (Some(second), Some(slot)) =
+                                    (second, rights_of[p].get_mut(k))
+                                {
                                     *slot = second;
                                 }
                             }
                         }
                     }
-                    if let Some((_, ms)) = pass {
-                        // Each exposure's folder is a capture of its own.
+                }
+                if !exposures.is_empty() {
+                    // Each exposure's folder is a capture of its own.
+                    for &pass in &passes {
+                        let (l, r) = pass_dirs(pass);
                         if right.is_some() {
-                            self.write_view_manifest(&pass_right_dir, index, angle, reached)
+                            self.write_view_manifest(&r, index, angle, reached)
                                 .map_err(at(None))?;
                         }
-                        self.write_view_manifest(&pass_dir, index, angle, reached)
+                        self.write_view_manifest(&l, index, angle, reached)
                             .map_err(at(None))?;
-                        left_stacks.push(ExposureFrames {
-                            exposure_ms: ms,
-                            frames: lefts,
-                        });
-                        right_stacks.push(ExposureFrames {
-                            exposure_ms: ms,
-                            frames: rights,
-                        });
                     }
-                }
-                if let Some(ms) = restore.filter(|_| !exposures.is_empty()) {
-                    camera.set_exposure_ms(ms).map_err(at(None))?;
-                }
-                if !left_stacks.is_empty() {
-                    self.write_fused(&dir, &left_stacks, &names)
+                    if let Some(ms) = restore {
+                        camera.set_exposure_ms(ms).map_err(at(None))?;
+                    }
+                    self.write_fused(&dir, &lefts_of, &names)
                         .map_err(at(None))?;
                     if right.is_some() {
-                        self.write_fused(&right_dir, &right_stacks, &names)
+                        self.write_fused(&right_dir, &rights_of, &names)
                             .map_err(at(None))?;
                     }
                 }
@@ -779,28 +803,63 @@ impl CaptureSession {
         Ok(frame)
     }
 
-    /// Fuses the exposures of one camera's view (`stacks`, one per exposure) and writes the
-    /// fused frames and `exposures.json` into `dir`.
+    /// One camera's frames of each exposure (in the plan's order) fused.
+    fn fuse_passes(&self, frames_of: &[Vec<GreyImage>]) -> Result<sl_codec::FusedFrames, RigError> {
+        let stacks: Vec<ExposureFrames> = self
+            .plan
+            .exposures
+            .times_ms
+            .iter()
+            .zip(frames_of)
+            .map(|(&exposure_ms, frames)| ExposureFrames {
+                exposure_ms,
+                frames: frames.clone(),
+            })
+            .collect();
+        Ok(fuse_exposures(&stacks, &self.plan.exposures.fusion.config())?)
+    }
+
+    /// The frames the checks name among one camera's passes (`dirs`: their folders): those of
+    /// pass `judged`, as a one-exposure capture's.
+    fn lying_pass(
+        &self,
+        frames_of: &[Vec<GreyImage>],
+        dirs: &[PathBuf],
+        judged: usize,
+        names: &[String],
+    ) -> Vec<FrameIssue> {
+        match (frames_of.get(judged), dirs.get(judged)) {
+            (Some(frames), Some(dir)) if !frames.is_empty() => {
+                self.lying_frames(frames, dir, names)
+            }
+            _ => Vec::new(),
+        }
+    }
+
+    /// Fuses one camera's frames of each exposure and writes the fused frames and
+    /// `exposures.json` into `dir`.
     fn write_fused(
         &self,
         dir: &Path,
-        stacks: &[ExposureFrames],
+        frames_of: &[Vec<GreyImage>],
         names: &[String],
     ) -> Result<(), RigError> {
-        let fusion = self.plan.exposures.fusion;
-        let fused = fuse_exposures(stacks, &fusion.config())?;
+        let fused = self.fuse_passes(frames_of)?;
         for (frame, name) in fused.frames.iter().zip(names) {
             write_atomically(&dir.join(name), |tmp| Ok(write_png_grey(tmp, frame)?))?;
         }
-        let folders = stacks
+        let folders = self
+            .plan
+            .exposures
+            .times_ms
             .iter()
             .enumerate()
-            .map(|(i, s)| ExposureFolder {
+            .map(|(i, &exposure_ms)| ExposureFolder {
                 dir: exposure_dir_name(i),
-                exposure_ms: s.exposure_ms,
+                exposure_ms,
             })
             .collect();
-        let mut record = ExposureRecord::new(folders, fusion);
+        let mut record = ExposureRecord::new(folders, self.plan.exposures.fusion);
         record.summary = Some(fused.summary);
         write_atomically(&dir.join(EXPOSURES_FILE), |tmp| Ok(record.save(tmp)?))
     }
@@ -948,6 +1007,22 @@ fn pattern_images(manifest: &Manifest, projector: (u32, u32)) -> Result<Vec<Grey
     (0..sequence.frame_count())
         .map(|k| Ok(sequence.render_image(k, manifest.bit_depth)?))
         .collect()
+}
+
+/// The pass of `exposures` (milliseconds, the plan's order) whose frames are checked: the one
+/// nearest (in ratio) `own`, the camera's own exposure, or else the middle one; 0 with none.
+fn judged_pass(exposures: &[f64], own: Option<f64>) -> usize {
+    let Some(reference) = own.or_else(|| {
+        let mut sorted = exposures.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        sorted.get(sorted.len() / 2).copied()
+    }) else {
+        return 0;
+    };
+    let distance = |t: f64| (t / reference).ln().abs();
+    (0..exposures.len())
+        .min_by(|&a, &b| distance(exposures[a]).total_cmp(&distance(exposures[b])))
+        .unwrap_or(0)
 }
 
 /// Makes `dir` ready for a fresh capture: removes its manifest first (so that the view reads as

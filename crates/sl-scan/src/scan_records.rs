@@ -76,6 +76,8 @@ impl ScanResult {
     /// Those of [`RunReport::figure_of`].
     pub fn record(&self, report: &mut RunReport, views: usize) -> Result<(), ScanError> {
         report.figure("scene", DUMBBELL_SCENE);
+        report.figure("finish", self.finish.name());
+        report.figure_of("exposures", &self.exposures)?;
         report.figure("views", views);
         report.figure("views_captured_this_run", self.views_captured);
         report.figure("view_points", self.view_points.clone());
@@ -112,6 +114,20 @@ impl ScanResult {
         )];
         if let Some(p) = &c.predicted_error {
             lines.push(format!("calibration: {}", p.sentence()));
+        }
+        if !self.exposures.is_single() {
+            let times: Vec<String> = self
+                .exposures
+                .times_ms
+                .iter()
+                .map(|t| format!("{t:.3}"))
+                .collect();
+            lines.push(format!(
+                "exposures: {} ms, fused per pixel ({}); the {} dumbbell",
+                times.join(", "),
+                self.exposures.fusion.method.name(),
+                self.finish.name()
+            ));
         }
         lines.push(format!(
             "{}: {} points merged from {views} views",

@@ -250,6 +250,11 @@ pub struct ScanResult {
     pub pair: Option<BinocularCalibration>,
     /// How good it is.
     pub calibration_summary: CalibrationSummary,
+    /// The dumbbell's surface ([`VirtualScanConfig::finish`]).
+    pub finish: sl_sim::Finish,
+    /// The exposures the session captured each view at (as `session.json` records them:
+    /// chosen, with [`Exposures::Auto`]), and how they were fused.
+    pub exposures: SessionExposures,
     /// Points triangulated in each view.
     pub view_points: Vec<usize>,
     /// Views captured in this run (the others came from an earlier, interrupted run).
@@ -730,10 +735,13 @@ pub fn scan_virtual(
             (c, Some(pair))
         }
     };
+    let exposures = sl_rig::read_session_plan(&session_dir)?.exposures;
     Ok(ScanResult {
         calibration,
         pair,
         calibration_summary,
+        finish: cfg.finish,
+        exposures,
         view_points: scan.view_points,
         views_captured: summary.captured,
         merged: scan.merged,

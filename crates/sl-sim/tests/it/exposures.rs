@@ -113,19 +113,23 @@ fn the_virtual_cameras_exposure_scales_the_light_it_collects() {
 #[test]
 fn a_glossy_object_saturates_where_a_matte_one_does_not_and_a_dark_one_is_faint() {
     let saturated = |f: &[u16]| f.iter().filter(|&&v| v >= 255).count();
-    let lit_mean = |f: &[u16]| {
-        let lit: Vec<f64> = f.iter().filter(|&&v| v > 8).map(|&v| f64::from(v)).collect();
-        lit.iter().sum::<f64>() / lit.len().max(1) as f64
-    };
     let matte = white_frame(&rig(Finish::Matte), VIRTUAL_EXPOSURE_MS);
     let glossy = white_frame(&rig(Finish::Glossy), VIRTUAL_EXPOSURE_MS);
     let dark = white_frame(&rig(Finish::Dark), VIRTUAL_EXPOSURE_MS);
     assert_eq!(saturated(&matte), 0);
-    // The highlights: at least a few hundred pixels of the 320x180 frame.
-    assert!(saturated(&glossy) > 200, "{}", saturated(&glossy));
-    // Black plastic under full white: ~20 times less light than plaster (0.04 against 0.8).
-    let (m, d) = (lit_mean(&matte), lit_mean(&dark));
-    assert!(d < m / 6.0, "dark {d}, matte {m}");
+    // The highlights: over a hundred pixels of the 320x180 frame.
+    assert!(saturated(&glossy) > 100, "{}", saturated(&glossy));
+    // Black plastic under full white: the light above the black level (5 levels) is the
+    // albedos' ratio, 0.04 / 0.8, on the pixels where the plaster is well exposed.
+    let (mut m, mut d) = (0.0, 0.0);
+    for (&a, &b) in matte.iter().zip(&dark) {
+        if a > 40 && a < 250 {
+            m += f64::from(a) - 5.0;
+            d += f64::from(b) - 5.0;
+        }
+    }
+    let ratio = d / m;
+    assert!((ratio - 0.05).abs() < 0.01, "{ratio}");
 }
 
 #[test]
@@ -141,6 +145,10 @@ fn a_session_at_several_exposures_keeps_each_and_decodes_more_from_the_fused_fra
         .unwrap();
     assert_eq!(summary.captured, 1);
     assert_eq!(session.view_state(0), ViewState::Complete);
+    // Devices that do not lie: nothing named, nothing captured again (the checks judge the
+    // fused frames, not a pass that is mostly saturated or mostly dark).
+    assert!(summary.views[0].recaptured.is_empty(), "{:?}", summary.views[0]);
+    assert!(summary.views[0].frame_issues.is_empty(), "{:?}", summary.views[0]);
     // The camera is back at its own exposure.
     assert_eq!(camera.exposure_ms(), Some(VIRTUAL_EXPOSURE_MS));
     let view = session.view_dir(0);
@@ -162,6 +170,33 @@ fn a_session_at_several_exposures_keeps_each_and_decodes_more_from_the_fused_fra
     let other = SessionExposures::new(vec![2.0, 8.0], FusionSettings::default()).unwrap();
     let e = CaptureSession::open(dir.path(), plan(&rig, other), quick()).unwrap_err();
     assert!(e.to_string().contains("exposures"), "{e}");
+}
+
+#[test]
+fn a_late_frame_in_one_exposure_is_captured_again() {
+    let rig = rig(Finish::Glossy);
+    let dir = tempfile::tempdir().unwrap();
+    let exposures = SessionExposures::new(vec![1.25, 5.0, 20.0], FusionSettings::default()).unwrap();
+    let session = CaptureSession::open(dir.path(), plan(&rig, exposures), quick()).unwrap();
+    let frames = session.plan().manifest.frame_count() as u64;
+    let (mut camera, mut projector, mut table) = rig.devices();
+    // Frame 8 of the 5 ms pass, the one the checks judge (nearest the camera's own 10 ms, with
+    // 20 ms as near: the first is taken): the projector is still showing frame 7's pattern
+    // when the camera exposes.
+    projector.set_faults(sl_sim::DeviceFaults {
+        late_shows: vec![frames + 8],
+        late_by: Duration::from_secs(5),
+        ..Default::default()
+    });
+    let summary = session
+        .run(&mut camera, &mut projector, &mut table, |_| {})
+        .unwrap();
+    let view = &summary.views[0];
+    assert!(
+        view.recaptured.iter().any(|r| r.contains("frame 8 ")),
+        "{view:?}"
+    );
+    assert!(view.frame_issues.is_empty(), "{view:?}");
 }
 
 /// A camera with no exposure control (the trait's default).
@@ -212,15 +247,15 @@ fn automatic_exposures_lengthen_for_a_dark_object_and_span_a_glossy_one() {
             |ms, why| measured.push((ms, why.map(str::to_owned))),
         )
         .unwrap();
-        // The camera is left at the shortest exposure chosen.
-        assert_eq!(camera.exposure_ms(), plan.exposures_ms.first().copied());
+        // The camera is left at its own exposure.
+        assert_eq!(camera.exposure_ms(), Some(VIRTUAL_EXPOSURE_MS));
         (plan, measured)
     };
     let (matte, _) = choose(Finish::Matte);
     let (dark, _) = choose(Finish::Dark);
     let (glossy, measured) = choose(Finish::Glossy);
-    // Plaster under the rig's own exposure fits one or two exposures near it.
-    assert!(matte.exposures_ms.len() <= 2, "{matte:?}");
+    // Plaster: the shortest exposure near the rig's own (its brightest pixels are at ~0.65 of
+    // full scale); longer ones only for the spheres' grazing rims.
     assert!(
         (0.5..=2.0).contains(&(matte.exposures_ms[0] / VIRTUAL_EXPOSURE_MS)),
         "{matte:?}"
@@ -240,4 +275,28 @@ fn automatic_exposures_lengthen_for_a_dark_object_and_span_a_glossy_one() {
     );
     assert!(glossy.exposures_ms.len() >= 2, "{glossy:?}");
     assert!(glossy.exposures_ms[0] < VIRTUAL_EXPOSURE_MS, "{glossy:?}");
+}
+
+/// Sessions of devices that do not lie name no frame, whatever the exposures: before the checks
+/// judged one pass (the one nearest the camera's own exposure), a pass mostly saturated or
+/// mostly dark had true frames taken for late ones, captured again with ever longer waits.
+#[test]
+fn devices_that_do_not_lie_have_no_frame_named_at_any_exposures() {
+    for finish in [Finish::Glossy, Finish::Matte, Finish::Dark] {
+        for times in [vec![1.25, 5.0, 20.0], vec![10.0, 40.0, 160.0]] {
+            let rig = rig(finish);
+            let dir = tempfile::tempdir().unwrap();
+            let exposures = SessionExposures::new(times.clone(), FusionSettings::default()).unwrap();
+            let session = CaptureSession::open(dir.path(), plan(&rig, exposures), quick()).unwrap();
+            let (mut camera, mut projector, mut table) = rig.devices();
+            let summary = session
+                .run(&mut camera, &mut projector, &mut table, |_| {})
+                .unwrap();
+            let view = &summary.views[0];
+            assert!(
+                view.recaptured.is_empty() && view.frame_issues.is_empty(),
+                "{finish:?} at {times:?} ms: {view:?}"
+            );
+        }
+    }
 }
