@@ -274,6 +274,10 @@ pub(crate) fn check(args: &Args) -> anyhow::Result<()> {
         !(args.binocular && args.hardware.any()),
         "--binocular is the virtual rig's second camera: on devices, name the second camera with --right-camera"
     );
+    anyhow::ensure!(
+        !(args.finish != FinishArg::Matte && args.hardware.any()),
+        "--finish is the virtual scene's surface: on devices, the object is what it is (--exposures serves dark and shiny ones)"
+    );
     Ok(())
 }
 
@@ -443,5 +447,64 @@ mod tests {
         ])
         .unwrap_err();
         assert!(format!("{err:#}").contains("--right-camera"), "{err:#}");
+    }
+
+    /// `slscan capture --finish dark --exposures auto` on the virtual rig, then `slscan decode
+    /// --fuse` of a view: the black dumbbell, which one exposure leaves undecoded, decodes to
+    /// the projector columns the rig's truth gives.
+    #[test]
+    fn a_dark_object_captured_at_chosen_exposures_decodes_against_the_truth() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("session");
+        let s = out.to_str().unwrap();
+        let args = ["capture", "--views", "2", "--downscale", "4", "--finish", "dark"];
+        crate::run_cli(&[&args[..], &["--out", s, "--exposures", "auto"]].concat()).unwrap();
+        let plan = sl_rig::read_session_plan(&out).unwrap();
+        assert_eq!(plan.exposures.times_ms.len(), 1, "{:?}", plan.exposures);
+        assert!(plan.exposures.times_ms[0] > 40.0, "{:?}", plan.exposures);
+        let view = out.join("view_001");
+        let decoded = tmp.path().join("decoded");
+        crate::run_cli(&[
+            "decode",
+            view.to_str().unwrap(),
+            "--fuse",
+            "--out",
+            decoded.to_str().unwrap(),
+        ])
+        .unwrap();
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(decoded.join("report.json")).unwrap())
+                .unwrap();
+        assert_eq!(
+            report["figures"]["exposure_fusion"]["exposures_ms"],
+            serde_json::json!(plan.exposures.times_ms)
+        );
+        let rig = VirtualRig::new(
+            scaled_rig_config(4),
+            Scene::dumbbell().finished(sl_sim::Finish::Dark),
+        )
+        .unwrap();
+        let truth = rig.view(plan.angles_deg[1], 0).unwrap().truth;
+        let decode_at = |dir: &std::path::Path| {
+            let set = CaptureSet::load(&dir.join(MANIFEST_FILE)).unwrap();
+            decode(&set, &DecodeConfig::default()).unwrap()
+        };
+        let map = decode_at(&view);
+        let mut errors: Vec<f64> = (0..map.col.len())
+            .filter(|&i| truth.lit(i) && map.col[i].is_finite())
+            .map(|i| (f64::from(map.col[i]) - truth.projector[i].x).abs())
+            .collect();
+        assert!(errors.len() > 200, "{} decoded lit pixels", errors.len());
+        errors.sort_by(f64::total_cmp);
+        let median = errors[errors.len() / 2];
+        assert!(median < 0.5, "median column error {median} projector px");
+        // The same view at the camera's own exposure decodes (almost) nothing of it.
+        let one = tmp.path().join("one");
+        crate::run_cli(&[&args[..], &["--out", one.to_str().unwrap()]].concat()).unwrap();
+        let alone = decode_at(&one.join("view_001"));
+        let lit_alone = (0..alone.col.len())
+            .filter(|&i| truth.lit(i) && alone.col[i].is_finite())
+            .count();
+        assert!(lit_alone * 10 < errors.len(), "{lit_alone} against {}", errors.len());
     }
 }

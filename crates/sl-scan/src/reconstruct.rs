@@ -386,7 +386,7 @@ fn reconstruct_views(
             return Err(stage_err(
                 "reconstruct",
                 format!(
-                    "view {k} ({}): no point triangulated (is the projector on, the object lit and in focus?)",
+                    "view {k} ({}): no point triangulated (is the projector on, the object lit and in focus? A dark object needs a longer exposure, or several: `--exposures auto`)",
                     dir.display()
                 ),
             ));
