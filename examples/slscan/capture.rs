@@ -457,7 +457,15 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let out = tmp.path().join("session");
         let s = out.to_str().unwrap();
-        let args = ["capture", "--views", "2", "--downscale", "4", "--finish", "dark"];
+        let args = [
+            "capture",
+            "--views",
+            "2",
+            "--downscale",
+            "4",
+            "--finish",
+            "dark",
+        ];
         crate::run_cli(&[&args[..], &["--out", s, "--exposures", "auto"]].concat()).unwrap();
         let plan = sl_rig::read_session_plan(&out).unwrap();
         assert_eq!(plan.exposures.times_ms.len(), 1, "{:?}", plan.exposures);
@@ -505,6 +513,10 @@ mod tests {
         let lit_alone = (0..alone.col.len())
             .filter(|&i| truth.lit(i) && alone.col[i].is_finite())
             .count();
-        assert!(lit_alone * 10 < errors.len(), "{lit_alone} against {}", errors.len());
+        assert!(
+            lit_alone * 10 < errors.len(),
+            "{lit_alone} against {}",
+            errors.len()
+        );
     }
 }

@@ -88,7 +88,8 @@ pub(crate) fn positive_or_inf(s: &str) -> Result<f64, String> {
 
 /// `--exposures`: `auto`, `camera`, or exposure times in milliseconds (`2,8,32`).
 pub(crate) fn exposures(s: &str) -> Result<structured_light::scan::Exposures, String> {
-    s.parse().map_err(|e: structured_light::scan::ScanError| e.to_string())
+    s.parse()
+        .map_err(|e: structured_light::scan::ScanError| e.to_string())
 }
 
 /// OpenCV's distortion coefficients, comma-separated: 4, 5, 8, 12 or 14 finite numbers (thin

@@ -3,6 +3,8 @@
 //! per pixel, and the radiance merge. The cost a several-exposure view adds before its decode.
 #![allow(missing_docs)]
 
+// The shared scene's projector and settings; its `render` (one exposure) is not used here.
+#[allow(dead_code)]
 mod common;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};

@@ -133,8 +133,14 @@ pub struct FusionSummary {
 /// Most exposures [`fuse_exposures`] combines.
 pub const MAX_EXPOSURES: usize = 16;
 
-/// Fuses the same pattern sequence captured at several exposures into one sequence (see the
-/// [module documentation](self)). The exposures may come in any order.
+/// Fuses the same pattern sequence captured at several exposures into one sequence. The
+/// exposures may come in any order.
+///
+/// Every frame of a pixel comes from one exposure, the longest at which none of the pixel's
+/// samples saturates: a per-pixel factor changes no phase and no Gray bit, and the decoder's
+/// thresholds see that exposure's own grey levels and noise ([`FusionMethod::Longest`], which
+/// holds on cameras that are not linear). [`FusionMethod::Radiance`] averages the shorter
+/// unsaturated exposures of the pixel in, scaled to it and weighted by `t²`.
 ///
 /// # Errors
 /// [`CodecError::Parameter`] naming `exposures` (none, more than [`MAX_EXPOSURES`], two of the
@@ -148,7 +154,11 @@ pub fn fuse_exposures(
 ) -> Result<FusedFrames, CodecError> {
     check_exposures(exposures, config)?;
     let mut order: Vec<usize> = (0..exposures.len()).collect();
-    order.sort_by(|&a, &b| exposures[a].exposure_ms.total_cmp(&exposures[b].exposure_ms));
+    order.sort_by(|&a, &b| {
+        exposures[a]
+            .exposure_ms
+            .total_cmp(&exposures[b].exposure_ms)
+    });
     let times: Vec<f64> = order.iter().map(|&i| exposures[i].exposure_ms).collect();
     let first = &exposures[0].frames[0];
     let size = (first.width(), first.height());
@@ -291,9 +301,9 @@ fn typed_stacks<'a, T: Sample>(
                 .frames
                 .iter()
                 .map(|f| {
-                    typed(f).map(Frame::data).ok_or_else(|| {
-                        CodecError::Frames(format!("exposure {i} mixes bit depths"))
-                    })
+                    typed(f)
+                        .map(Frame::data)
+                        .ok_or_else(|| CodecError::Frames(format!("exposure {i} mixes bit depths")))
                 })
                 .collect()
         })
@@ -481,7 +491,11 @@ pub struct ExposurePlan {
 }
 
 /// Chooses the exposures of a scene from a frame captured under full white and one under
-/// black, both at `exposure_ms` (see the [module documentation](self)).
+/// black, both at `exposure_ms`: the shortest keeps the brightest lit pixels below saturation
+/// ([`AutoExposureConfig::bright_level`]), the longest lifts the darkest lit ones to
+/// [`AutoExposureConfig::dark_level`], and the exposures in between are spaced by at most
+/// [`AutoExposureConfig::step`]. Too many lit pixels saturated, or none lit, asks for another
+/// measurement ([`ExposureChoice::MeasureAgain`]).
 ///
 /// # Errors
 /// [`CodecError::FrameSize`] when the frames differ in size, [`CodecError::Parameter`] naming
@@ -560,7 +574,10 @@ pub fn choose_exposures(
     // Light scales with the exposure; the black level does not.
     let shortest = (exposure_ms * (config.bright_level - pedestal).max(0.0) / bright)
         .clamp(config.min_exposure_ms, longest);
-    let most = shortest * config.step.powi(i32::try_from(config.max_exposures - 1).unwrap_or(0));
+    let most = shortest
+        * config
+            .step
+            .powi(i32::try_from(config.max_exposures - 1).unwrap_or(0));
     let long = (exposure_ms * (config.dark_level - pedestal).max(0.0) / dark)
         .min(most)
         .min(longest)
@@ -600,16 +617,28 @@ fn check_auto(config: &AutoExposureConfig, exposure_ms: f64) -> Result<(), Codec
         return Err(bad("exposure_ms", exposure_ms, "a positive exposure time"));
     }
     if !(config.min_lit.is_finite() && config.min_lit >= 0.0) {
-        return Err(bad("min_lit", f64::from(config.min_lit), "a grey level ≥ 0"));
+        return Err(bad(
+            "min_lit",
+            f64::from(config.min_lit),
+            "a grey level ≥ 0",
+        ));
     }
     if !share(config.bright_share) {
-        return Err(bad("bright_share", config.bright_share, "a share in [0, 0.5)"));
+        return Err(bad(
+            "bright_share",
+            config.bright_share,
+            "a share in [0, 0.5)",
+        ));
     }
     if !share(config.dark_share) {
         return Err(bad("dark_share", config.dark_share, "a share in [0, 0.5)"));
     }
     if !level(config.bright_level) {
-        return Err(bad("bright_level", config.bright_level, "a level in (0, 1]"));
+        return Err(bad(
+            "bright_level",
+            config.bright_level,
+            "a level in (0, 1]",
+        ));
     }
     if !level(config.dark_level) {
         return Err(bad("dark_level", config.dark_level, "a level in (0, 1]"));
@@ -776,10 +805,11 @@ impl ExposureRecord {
     /// # Errors
     /// [`CodecError::Io`].
     pub fn save(&self, path: &std::path::Path) -> Result<(), CodecError> {
-        let text = serde_json::to_string_pretty(self).map_err(|source| CodecError::ManifestJson {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text =
+            serde_json::to_string_pretty(self).map_err(|source| CodecError::ManifestJson {
+                path: path.to_path_buf(),
+                source,
+            })?;
         std::fs::write(path, text + "\n").map_err(|e| CodecError::io(path, "write", e))
     }
 }

@@ -816,7 +816,10 @@ impl CaptureSession {
                 frames: frames.clone(),
             })
             .collect();
-        Ok(fuse_exposures(&stacks, &self.plan.exposures.fusion.config())?)
+        Ok(fuse_exposures(
+            &stacks,
+            &self.plan.exposures.fusion.config(),
+        )?)
     }
 
     /// The frames the checks name among one camera's passes (`dirs`: their folders): those of
@@ -908,13 +911,14 @@ pub fn read_session_plan(dir: &Path) -> Result<SessionPlan, RigError> {
     let file = read_session_file(&path)?;
     let text = file.patterns.to_string();
     let manifest = Manifest::from_json_str(&text, &path)?;
-    let exposures = SessionExposures::new(file.exposures.times_ms, file.exposures.fusion)
-        .map_err(|e| match e {
+    let exposures = SessionExposures::new(file.exposures.times_ms, file.exposures.fusion).map_err(
+        |e| match e {
             RigError::InvalidParameter { name, reason } => {
                 RigError::param(format!("{}: {name}", path.display()), reason)
             }
             other => other,
-        })?;
+        },
+    )?;
     Ok(SessionPlan {
         angles_deg: file.angles_deg,
         manifest,

@@ -255,12 +255,8 @@ where
             patterns.manifest(BitDepth::Eight)
         }
     };
-    let (exposures, exposure_plan) = session_exposures(
-        dir,
-        &cfg.exposures,
-        cfg.fusion,
-        cfg.overwrite,
-        |auto| {
+    let (exposures, exposure_plan) =
+        session_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite, |auto| {
             let t = Instant::now();
             let first = angles_deg.first().copied().unwrap_or_default();
             turntable.rotate_to(first)?;
@@ -278,8 +274,7 @@ where
             )?;
             stages.push(StageTime::since("choose exposures", t));
             Ok(plan)
-        },
-    )?;
+        })?;
     let mut devices = cfg.devices.clone();
     if right.is_some() {
         devices

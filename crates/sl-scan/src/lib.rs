@@ -143,8 +143,8 @@ pub use capture_reconstruction::{
     reconstruct_capture,
 };
 pub use device_scan::{
-    AUTO_EXPOSURE_START_MS, DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig, ScanOperator,
-    SessionCapture, capture_binocular_device_session, capture_device_session,
+    AUTO_EXPOSURE_START_MS, DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig,
+    ScanOperator, SessionCapture, capture_binocular_device_session, capture_device_session,
     scan_binocular_devices, scan_devices,
 };
 pub use error::ScanError;

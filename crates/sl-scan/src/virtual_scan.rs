@@ -14,8 +14,8 @@ use serde::Serialize;
 use sl_camera::{BinocularCalibration, Calibration, ImageSize, Intrinsics};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::BitDepth;
-use sl_metrology::{Report, Truth};
 use sl_codec::ExposurePlan;
+use sl_metrology::{Report, Truth};
 use sl_rig::{
     MeasureTiming, SessionConfig, SessionExposures, SessionPlan, SessionSummary, Turntable,
     measure_exposures, turntable_angles, view_dir_name,
@@ -383,22 +383,23 @@ pub(crate) fn capture_virtual(
     progress: impl FnMut(ScanProgress<'_>),
 ) -> Result<SessionSummary, ScanError> {
     // Automatic exposures: measured at the first view through the devices, as on a real rig.
-    let (exposures, _) = session_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite, |auto| {
-        let (mut camera, mut projector, mut table) = rig.left.devices();
-        table.rotate_to(angles_deg.first().copied().unwrap_or_default())?;
-        let timing = MeasureTiming {
-            settle: Duration::ZERO,
-            flush_frames: 0,
-        };
-        Ok(measure_exposures(
-            &mut camera,
-            &mut projector,
-            auto,
-            timing,
-            sl_sim::VIRTUAL_EXPOSURE_MS,
-            |_, _| {},
-        )?)
-    })?;
+    let (exposures, _) =
+        session_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite, |auto| {
+            let (mut camera, mut projector, mut table) = rig.left.devices();
+            table.rotate_to(angles_deg.first().copied().unwrap_or_default())?;
+            let timing = MeasureTiming {
+                settle: Duration::ZERO,
+                flush_frames: 0,
+            };
+            Ok(measure_exposures(
+                &mut camera,
+                &mut projector,
+                auto,
+                timing,
+                sl_sim::VIRTUAL_EXPOSURE_MS,
+                |_, _| {},
+            )?)
+        })?;
     let (plan, config) = virtual_session(rig, angles_deg, turntable, cfg, calibration, exposures);
     match &rig.right {
         None => {
@@ -541,7 +542,11 @@ pub fn scan_virtual(
         );
         let mut drifted = config;
         drifted.t_cam_proj.rotation *= turn;
-        VirtualRigs::new(drifted, Scene::dumbbell().finished(cfg.finish), second.as_ref())?
+        VirtualRigs::new(
+            drifted,
+            Scene::dumbbell().finished(cfg.finish),
+            second.as_ref(),
+        )?
     };
     let rig = VirtualRigs {
         precompensation: precompensation(cfg, response.as_ref()),

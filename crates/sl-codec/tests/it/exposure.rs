@@ -202,7 +202,10 @@ fn fusion_refuses_what_cannot_be_fused_by_name() {
     assert!(err(&[ok(2.0, a.clone()), ok(2.0, a.clone())]).contains("both 2 ms"));
     let short = a[..a.len() - 1].to_vec();
     let e = err(&[ok(1.0, a.clone()), ok(4.0, short)]);
-    assert!(e.contains("exposure 1 (4 ms)") && e.contains("frames"), "{e}");
+    assert!(
+        e.contains("exposure 1 (4 ms)") && e.contains("frames"),
+        "{e}"
+    );
     let mut small = a.clone();
     small[3] = GreyImage::filled_u8(10, 10, 0).unwrap();
     let e = fuse_exposures(&[ok(1.0, a.clone()), ok(4.0, small)], &cfg).unwrap_err();
@@ -213,7 +216,10 @@ fn fusion_refuses_what_cannot_be_fused_by_name() {
     let mut deep = a.clone();
     deep[2] = GreyImage::U16(deep[2].clone().into_u16());
     let e = err(&[ok(1.0, a.clone()), ok(4.0, deep)]);
-    assert!(e.contains("frame #2 of exposure 1") && e.contains("16-bit"), "{e}");
+    assert!(
+        e.contains("frame #2 of exposure 1") && e.contains("16-bit"),
+        "{e}"
+    );
     let bad = FusionConfig {
         dark_level: 300.0,
         ..cfg
@@ -244,7 +250,10 @@ fn chosen_exposures_span_the_scene_from_its_white_frame() {
     // At ×16 the white parts saturate: measure again, shorter.
     let (w, b) = white_black(16.0);
     match choose_exposures(&w, &b, 80.0, &cfg).unwrap() {
-        ExposureChoice::MeasureAgain { exposure_ms, reason } => {
+        ExposureChoice::MeasureAgain {
+            exposure_ms,
+            reason,
+        } => {
             assert_eq!(exposure_ms, 20.0);
             assert!(reason.contains("saturate"), "{reason}");
         }
@@ -260,7 +269,10 @@ fn chosen_exposures_span_the_scene_from_its_white_frame() {
     let t = &plan.exposures_ms;
     assert!((t[0] / 5.0 - 2.2).abs() < 0.3, "{t:?}");
     assert!(t.len() >= 2 && t.len() <= cfg.max_exposures, "{t:?}");
-    assert!(t.windows(2).all(|p| p[1] / p[0] <= cfg.step + 1e-9), "{t:?}");
+    assert!(
+        t.windows(2).all(|p| p[1] / p[0] <= cfg.step + 1e-9),
+        "{t:?}"
+    );
     // The longest lifts the darkest lit pixels (a quantile of `dark_share`) to about half of
     // full scale, or stops at the most the steps allow.
     let most = t[0] * cfg.step.powi(cfg.max_exposures as i32 - 1);
@@ -275,8 +287,12 @@ fn chosen_exposures_span_the_scene_from_its_white_frame() {
         choose_exposures(&dark, &dark, 5.0, &cfg).unwrap(),
         ExposureChoice::MeasureAgain { exposure_ms, .. } if exposure_ms == 20.0
     ));
-    let e = choose_exposures(&dark, &dark, 1000.0, &cfg).unwrap_err().to_string();
+    let e = choose_exposures(&dark, &dark, 1000.0, &cfg)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("projector"), "{e}");
-    let e = choose_exposures(&w, &b, -1.0, &cfg).unwrap_err().to_string();
+    let e = choose_exposures(&w, &b, -1.0, &cfg)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("exposure_ms"), "{e}");
 }

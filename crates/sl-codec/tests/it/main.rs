@@ -2,8 +2,8 @@
 //! module per subject; `cargo test -p sl-codec --test it MODULE` runs one of them.
 
 mod capture_files;
-mod exposure;
 mod export_formats;
+mod exposure;
 mod image_formats;
 mod opencv_graycode;
 mod resolutions;

@@ -27,8 +27,11 @@ fn frames_of(dir: &Path) -> Vec<sl_codec::GreyImage> {
 #[test]
 fn automatic_exposures_are_chosen_once_and_a_folder_fuses_as_the_session_did() {
     let tmp = tempfile::tempdir().unwrap();
-    let rig = VirtualRig::new(scaled_rig_config(4), Scene::dumbbell().finished(Finish::Glossy))
-        .unwrap();
+    let rig = VirtualRig::new(
+        scaled_rig_config(4),
+        Scene::dumbbell().finished(Finish::Glossy),
+    )
+    .unwrap();
     let cfg = DeviceCaptureConfig {
         views: 2,
         display_latency: std::time::Duration::ZERO,
@@ -138,7 +141,10 @@ fn a_folder_that_cannot_be_fused_is_named() {
 
 #[test]
 fn exposures_are_read_as_a_user_types_them() {
-    assert_eq!("auto".parse::<Exposures>().unwrap(), Exposures::Auto(Default::default()));
+    assert_eq!(
+        "auto".parse::<Exposures>().unwrap(),
+        Exposures::Auto(Default::default())
+    );
     assert_eq!("camera".parse::<Exposures>().unwrap(), Exposures::Camera);
     assert_eq!(
         " 2, 8,32 ".parse::<Exposures>().unwrap(),

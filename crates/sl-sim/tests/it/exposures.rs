@@ -147,8 +147,16 @@ fn a_session_at_several_exposures_keeps_each_and_decodes_more_from_the_fused_fra
     assert_eq!(session.view_state(0), ViewState::Complete);
     // Devices that do not lie: nothing named, nothing captured again (the checks judge the
     // fused frames, not a pass that is mostly saturated or mostly dark).
-    assert!(summary.views[0].recaptured.is_empty(), "{:?}", summary.views[0]);
-    assert!(summary.views[0].frame_issues.is_empty(), "{:?}", summary.views[0]);
+    assert!(
+        summary.views[0].recaptured.is_empty(),
+        "{:?}",
+        summary.views[0]
+    );
+    assert!(
+        summary.views[0].frame_issues.is_empty(),
+        "{:?}",
+        summary.views[0]
+    );
     // The camera is back at its own exposure.
     assert_eq!(camera.exposure_ms(), Some(VIRTUAL_EXPOSURE_MS));
     let view = session.view_dir(0);
@@ -176,7 +184,8 @@ fn a_session_at_several_exposures_keeps_each_and_decodes_more_from_the_fused_fra
 fn a_late_frame_in_one_exposure_is_captured_again() {
     let rig = rig(Finish::Glossy);
     let dir = tempfile::tempdir().unwrap();
-    let exposures = SessionExposures::new(vec![1.25, 5.0, 20.0], FusionSettings::default()).unwrap();
+    let exposures =
+        SessionExposures::new(vec![1.25, 5.0, 20.0], FusionSettings::default()).unwrap();
     let session = CaptureSession::open(dir.path(), plan(&rig, exposures), quick()).unwrap();
     let frames = session.plan().manifest.frame_count() as u64;
     let (mut camera, mut projector, mut table) = rig.devices();
@@ -261,16 +270,13 @@ fn automatic_exposures_lengthen_for_a_dark_object_and_span_a_glossy_one() {
         "{matte:?}"
     );
     // Black plastic: every exposure several times the rig's own.
-    assert!(
-        dark.exposures_ms[0] > 4.0 * VIRTUAL_EXPOSURE_MS,
-        "{dark:?}"
-    );
+    assert!(dark.exposures_ms[0] > 4.0 * VIRTUAL_EXPOSURE_MS, "{dark:?}");
     // Gloss: measured again shorter first (the highlights saturate), then from below the rig's
     // own exposure up past it.
     assert!(
-        measured.first().is_some_and(|(_, why)| why
-            .as_deref()
-            .is_some_and(|w| w.contains("saturate"))),
+        measured
+            .first()
+            .is_some_and(|(_, why)| why.as_deref().is_some_and(|w| w.contains("saturate"))),
         "{measured:?}"
     );
     assert!(glossy.exposures_ms.len() >= 2, "{glossy:?}");
@@ -286,7 +292,8 @@ fn devices_that_do_not_lie_have_no_frame_named_at_any_exposures() {
         for times in [vec![1.25, 5.0, 20.0], vec![10.0, 40.0, 160.0]] {
             let rig = rig(finish);
             let dir = tempfile::tempdir().unwrap();
-            let exposures = SessionExposures::new(times.clone(), FusionSettings::default()).unwrap();
+            let exposures =
+                SessionExposures::new(times.clone(), FusionSettings::default()).unwrap();
             let session = CaptureSession::open(dir.path(), plan(&rig, exposures), quick()).unwrap();
             let (mut camera, mut projector, mut table) = rig.devices();
             let summary = session
