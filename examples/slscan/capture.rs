@@ -405,14 +405,8 @@ mod tests {
         )
         .unwrap();
         let truth = right.view(plan.angles_deg[1], 0).unwrap().truth;
-        let set = CaptureSet::load(&out.join("view_001/right").join(MANIFEST_FILE)).unwrap();
-        let map = decode(&set, &DecodeConfig::default()).unwrap();
-        let mut errors: Vec<f64> = (0..map.col.len())
-            .filter(|&i| truth.lit(i) && map.col[i].is_finite())
-            .map(|i| (f64::from(map.col[i]) - truth.projector[i].x).abs())
-            .collect();
+        let errors = column_errors(&out.join("view_001/right"), &truth);
         assert!(errors.len() > 200, "{} decoded lit pixels", errors.len());
-        errors.sort_by(f64::total_cmp);
         let median = errors[errors.len() / 2];
         assert!(median < 0.5, "median column error {median} projector px");
         // The pair's truth beside the session reconstructs the view.
@@ -493,30 +487,31 @@ mod tests {
         )
         .unwrap();
         let truth = rig.view(plan.angles_deg[1], 0).unwrap().truth;
-        let decode_at = |dir: &std::path::Path| {
-            let set = CaptureSet::load(&dir.join(MANIFEST_FILE)).unwrap();
-            decode(&set, &DecodeConfig::default()).unwrap()
-        };
-        let map = decode_at(&view);
-        let mut errors: Vec<f64> = (0..map.col.len())
-            .filter(|&i| truth.lit(i) && map.col[i].is_finite())
-            .map(|i| (f64::from(map.col[i]) - truth.projector[i].x).abs())
-            .collect();
+        let errors = column_errors(&view, &truth);
         assert!(errors.len() > 200, "{} decoded lit pixels", errors.len());
-        errors.sort_by(f64::total_cmp);
         let median = errors[errors.len() / 2];
         assert!(median < 0.5, "median column error {median} projector px");
         // The same view at the camera's own exposure decodes (almost) nothing of it.
         let one = tmp.path().join("one");
         crate::run_cli(&[&args[..], &["--out", one.to_str().unwrap()]].concat()).unwrap();
-        let alone = decode_at(&one.join("view_001"));
-        let lit_alone = (0..alone.col.len())
-            .filter(|&i| truth.lit(i) && alone.col[i].is_finite())
-            .count();
+        let alone = column_errors(&one.join("view_001"), &truth).len();
         assert!(
-            lit_alone * 10 < errors.len(),
-            "{lit_alone} against {}",
+            alone * 10 < errors.len(),
+            "{alone} against {}",
             errors.len()
         );
+    }
+
+    /// The capture in `dir` decoded: the column errors (projector px) of its decoded pixels
+    /// that `truth` says are lit, sorted.
+    fn column_errors(dir: &std::path::Path, truth: &sl_sim::ViewTruth) -> Vec<f64> {
+        let set = CaptureSet::load(&dir.join(MANIFEST_FILE)).unwrap();
+        let map = decode(&set, &DecodeConfig::default()).unwrap();
+        let mut errors: Vec<f64> = (0..map.col.len())
+            .filter(|&i| truth.lit(i) && map.col[i].is_finite())
+            .map(|i| (f64::from(map.col[i]) - truth.projector[i].x).abs())
+            .collect();
+        errors.sort_by(f64::total_cmp);
+        errors
     }
 }

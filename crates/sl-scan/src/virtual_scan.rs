@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use nalgebra::Isometry3;
 use serde::Serialize;
-use sl_camera::{BinocularCalibration, Calibration, ImageSize, Intrinsics};
+use sl_camera::{BinocularCalibration, Calibration, ImageSize};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::BitDepth;
 use sl_codec::ExposurePlan;
@@ -284,21 +284,7 @@ pub struct ScanResult {
 
 /// The default rig with its resolution divided by `d` (same field of view and geometry).
 pub fn scaled_rig_config(d: u32) -> RigConfig {
-    let mut c = RigConfig::default();
-    if d > 1 {
-        let f = f64::from(d);
-        for m in [&mut c.camera, &mut c.projector] {
-            let k = m.intrinsics;
-            m.intrinsics = Intrinsics::new(
-                k.fx / f,
-                k.fy / f,
-                (k.cx + 0.5) / f - 0.5,
-                (k.cy + 0.5) / f - 0.5,
-            );
-            m.size = ImageSize::new(m.size.width / d, m.size.height / d);
-        }
-    }
-    c
+    RigConfig::default().downscaled(d)
 }
 
 /// The plan and settings of [`capture_virtual`]'s session.

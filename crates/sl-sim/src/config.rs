@@ -153,6 +153,28 @@ impl Default for RigConfig {
 pub const MAX_SUPERSAMPLING: u32 = 8;
 
 impl RigConfig {
+    /// The rig with the camera's and the projector's images divided by `d` in each direction
+    /// (the same fields of view: focal lengths divided by `d`, pixel centres kept at the
+    /// centres of the larger pixels they replace); `d` ≤ 1 leaves it as it is. The quick rigs
+    /// of tests and `slscan --downscale`.
+    #[must_use]
+    pub fn downscaled(mut self, d: u32) -> Self {
+        if d > 1 {
+            let f = f64::from(d);
+            for m in [&mut self.camera, &mut self.projector] {
+                let k = m.intrinsics;
+                m.intrinsics = Intrinsics::new(
+                    k.fx / f,
+                    k.fy / f,
+                    (k.cx + 0.5) / f - 0.5,
+                    (k.cy + 0.5) / f - 0.5,
+                );
+                m.size = ImageSize::new(m.size.width / d, m.size.height / d);
+            }
+        }
+        self
+    }
+
     /// Checks both models, the poses, the turntable and the rendering options.
     pub fn validate(&self) -> Result<(), SimError> {
         self.camera

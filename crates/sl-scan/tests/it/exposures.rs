@@ -40,16 +40,19 @@ fn automatic_exposures_are_chosen_once_and_a_folder_fuses_as_the_session_did() {
     };
     let session = tmp.path().join("session");
     let (mut camera, mut projector, mut table) = rig.devices();
-    let capture = capture_device_session(
-        &cfg,
-        None,
-        &session,
-        &mut camera,
-        &mut projector,
-        &mut table,
-        |_| {},
-    )
-    .unwrap();
+    let mut capture_once = || {
+        capture_device_session(
+            &cfg,
+            None,
+            &session,
+            &mut camera,
+            &mut projector,
+            &mut table,
+            |_| {},
+        )
+        .unwrap()
+    };
+    let capture = capture_once();
     let chosen = capture.exposures.clone().unwrap();
     assert!(chosen.exposures_ms.len() >= 2, "{chosen:?}");
     assert!(
@@ -61,16 +64,7 @@ fn automatic_exposures_are_chosen_once_and_a_folder_fuses_as_the_session_did() {
     assert_eq!(plan.exposures.times_ms, chosen.exposures_ms);
 
     // Resumed: nothing measured again, nothing captured again.
-    let again = capture_device_session(
-        &cfg,
-        None,
-        &session,
-        &mut camera,
-        &mut projector,
-        &mut table,
-        |_| {},
-    )
-    .unwrap();
+    let again = capture_once();
     assert!(again.exposures.is_none());
     assert_eq!(again.summary.captured, 0);
 

@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::time::Duration;
 
-use sl_camera::{ImageSize, Intrinsics};
+use sl_camera::ImageSize;
 use sl_codec::{
     AutoExposureConfig, Axis, BitDepth, CaptureSet, DecodeConfig, EXPOSURES_FILE, ExposureRecord,
     FusionSettings, HybridSpec, MANIFEST_FILE, Pattern, PatternSequence, decode,
@@ -20,17 +20,7 @@ use sl_sim::{Finish, RigConfig, Scene, VIRTUAL_EXPOSURE_MS, VirtualRig};
 /// The default rig at a quarter of its resolution, with its noise, looking at the dumbbell of
 /// `finish`.
 fn rig(finish: Finish) -> VirtualRig {
-    let mut c = RigConfig::default();
-    for m in [&mut c.camera, &mut c.projector] {
-        let k = m.intrinsics;
-        m.intrinsics = Intrinsics::new(
-            k.fx / 4.0,
-            k.fy / 4.0,
-            (k.cx + 0.5) / 4.0 - 0.5,
-            (k.cy + 0.5) / 4.0 - 0.5,
-        );
-        m.size = ImageSize::new(m.size.width / 4, m.size.height / 4);
-    }
+    let mut c = RigConfig::default().downscaled(4);
     c.render.supersampling = 1;
     VirtualRig::new(c, Scene::dumbbell().finished(finish)).unwrap()
 }

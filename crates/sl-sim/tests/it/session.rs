@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Duration;
 
-use sl_camera::{ImageSize, Intrinsics};
+use sl_camera::ImageSize;
 use sl_codec::{Axis, BitDepth, HybridSpec, Pattern, PatternSequence};
 use sl_rig::{
     BufferedCamera, Camera, CaptureSession, GreyImage, LatencyConfig, RigError, SessionConfig,
@@ -21,17 +21,7 @@ use sl_sim::{RigConfig, Scene, VirtualRig};
 /// function of (turntable angle, pattern) — which is what byte-identity between an
 /// interrupted-and-resumed session and an uninterrupted one has to test.
 fn small_rig() -> VirtualRig {
-    let mut c = RigConfig::default();
-    for m in [&mut c.camera, &mut c.projector] {
-        let k = m.intrinsics;
-        m.intrinsics = Intrinsics::new(
-            k.fx / 4.0,
-            k.fy / 4.0,
-            (k.cx + 0.5) / 4.0 - 0.5,
-            (k.cy + 0.5) / 4.0 - 0.5,
-        );
-        m.size = ImageSize::new(m.size.width / 4, m.size.height / 4);
-    }
+    let mut c = RigConfig::default().downscaled(4);
     c.render.supersampling = 1;
     c.render.effects.sensor.photon_noise = false;
     c.render.effects.sensor.read_noise_electrons = 0.0;

@@ -1,24 +1,13 @@
 //! A simulated turntable scan written to disk, decoded by `sl-codec`, and compared with the
 //! ground truth written beside it.
 
-use sl_camera::{ImageSize, Intrinsics};
+use sl_camera::ImageSize;
 use sl_codec::{Axis, CaptureSet, DecodeConfig, GrayCodeSpec, Pattern, PatternSequence, decode};
 use sl_sim::{RigConfig, Scene, VirtualRig, simulate_scan};
 
 /// The default rig with both images scaled down by 4 (same fields of view).
 fn small_rig() -> RigConfig {
-    let mut c = RigConfig::default();
-    for m in [&mut c.camera, &mut c.projector] {
-        let k = m.intrinsics;
-        m.intrinsics = Intrinsics::new(
-            k.fx / 4.0,
-            k.fy / 4.0,
-            (k.cx + 0.5) / 4.0 - 0.5,
-            (k.cy + 0.5) / 4.0 - 0.5,
-        );
-        m.size = ImageSize::new(m.size.width / 4, m.size.height / 4);
-    }
-    c
+    RigConfig::default().downscaled(4)
 }
 
 #[test]
