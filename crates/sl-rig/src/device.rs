@@ -54,6 +54,53 @@ pub trait Turntable {
     fn angle_deg(&mut self) -> Result<f64, RigError>;
 }
 
+/// How a capture waits for what the projector shows to reach the camera.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CaptureTiming {
+    /// The wait after showing an image: the projector's display latency
+    /// ([`SessionConfig::display_latency`](crate::SessionConfig::display_latency)).
+    pub settle: std::time::Duration,
+    /// Frames captured and dropped before the one kept: those the camera's driver queued
+    /// before the change (and, after an exposure change, exposed with the old exposure).
+    pub flush_frames: usize,
+}
+
+/// Shows `image`, waits `timing.settle`, drops `timing.flush_frames` frames and captures one:
+/// a frame of what the projector shows now.
+///
+/// # Errors
+/// The devices' errors.
+pub fn show_and_capture<C, P>(
+    camera: &mut C,
+    projector: &mut P,
+    image: &GreyImage,
+    timing: CaptureTiming,
+) -> Result<GreyImage, RigError>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+{
+    projector.show(image)?;
+    if !timing.settle.is_zero() {
+        std::thread::sleep(timing.settle);
+    }
+    flush_and_capture(camera, timing.flush_frames)
+}
+
+/// Drops `flush_frames` frames and captures one.
+///
+/// # Errors
+/// The camera's errors.
+pub fn flush_and_capture<C: Camera + ?Sized>(
+    camera: &mut C,
+    flush_frames: usize,
+) -> Result<GreyImage, RigError> {
+    for _ in 0..flush_frames {
+        camera.capture()?;
+    }
+    camera.capture()
+}
+
 /// Shows each image of `patterns` in turn and captures one camera frame under each: the core of
 /// every structured-light capture, written once for every device.
 ///

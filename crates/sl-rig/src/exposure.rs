@@ -1,25 +1,13 @@
 //! Choosing a scene's exposures on the devices: full white and black shown, captured, and
 //! measured ([`sl_codec::choose_exposures`]) until the frames tell.
 
-use std::time::Duration;
-
 use sl_codec::{AutoExposureConfig, ExposureChoice, ExposurePlan, choose_exposures};
 
-use crate::{Camera, GreyImage, Projector, RigError};
+use crate::{Camera, CaptureTiming, GreyImage, Projector, RigError, show_and_capture};
 
 /// Most white-and-black measurements [`measure_exposures`] makes: from 10 ms, six steps of 4
 /// reach 0.0025 ms or 41 s, past any camera's range.
 pub const MAX_EXPOSURE_MEASUREMENTS: usize = 8;
-
-/// How [`measure_exposures`] waits for the projector and the camera.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct MeasureTiming {
-    /// The wait after showing an image ([`SessionConfig::display_latency`](crate::SessionConfig::display_latency)).
-    pub settle: Duration,
-    /// Frames dropped before each kept one (the driver's queue, and the frames exposed before
-    /// an exposure change).
-    pub flush_frames: usize,
-}
 
 /// Shows full white and full black, captures each at the camera's exposure, and lets
 /// [`choose_exposures`] decide; measures again at the exposure it asks for, until it chooses.
@@ -36,7 +24,7 @@ pub fn measure_exposures<C, P>(
     camera: &mut C,
     projector: &mut P,
     config: &AutoExposureConfig,
-    timing: MeasureTiming,
+    timing: CaptureTiming,
     start_ms: f64,
     mut on_measure: impl FnMut(f64, Option<&str>),
 ) -> Result<ExposurePlan, RigError>
@@ -53,18 +41,8 @@ where
     let mut reasons = Vec::new();
     for _ in 0..MAX_EXPOSURE_MEASUREMENTS {
         camera.set_exposure_ms(exposure)?;
-        let mut grab = |image: &GreyImage| -> Result<GreyImage, RigError> {
-            projector.show(image)?;
-            if !timing.settle.is_zero() {
-                std::thread::sleep(timing.settle);
-            }
-            for _ in 0..timing.flush_frames {
-                camera.capture()?;
-            }
-            camera.capture()
-        };
-        let lit = grab(&white)?;
-        let dark = grab(&black)?;
+        let lit = show_and_capture(camera, projector, &white, timing)?;
+        let dark = show_and_capture(camera, projector, &black, timing)?;
         match choose_exposures(&lit, &dark, exposure, config)? {
             ExposureChoice::Chosen(plan) => {
                 on_measure(exposure, None);

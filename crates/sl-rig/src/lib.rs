@@ -70,7 +70,10 @@ mod session;
 mod v4l_camera;
 mod v4l_camera_controls;
 
-pub use device::{Camera, Projector, Turntable, capture_sequence};
+pub use device::{
+    Camera, CaptureTiming, Projector, Turntable, capture_sequence, flush_and_capture,
+    show_and_capture,
+};
 #[cfg(all(feature = "dynamixel", unix))]
 pub use dynamixel::{
     DEG_PER_TICK, DynamixelConfig, DynamixelError, DynamixelTurntable,
@@ -78,7 +81,7 @@ pub use dynamixel::{
     MX64_MODEL_NUMBER, MidMoveFault, Mx64Emulator, ServoStatus, TICKS_PER_TURN, dynamixel_crc16,
 };
 pub use error::RigError;
-pub use exposure::{MAX_EXPOSURE_MEASUREMENTS, MeasureTiming, measure_exposures};
+pub use exposure::{MAX_EXPOSURE_MEASUREMENTS, measure_exposures};
 pub use files::write_capture_set;
 pub use latency::{BufferedCamera, Latency, LatencyConfig, MIN_FLASH_CONTRAST, measure_latency};
 pub use open::{

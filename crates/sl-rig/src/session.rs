@@ -25,7 +25,7 @@ use sl_codec::{
     fuse_exposures, write_png_grey,
 };
 
-use crate::{Camera, GreyImage, Projector, RigError, Turntable};
+use crate::{Camera, GreyImage, Projector, RigError, Turntable, flush_and_capture};
 
 /// Name of the plan file at the root of a session folder.
 pub const SESSION_FILE: &str = "session.json";
@@ -785,10 +785,7 @@ impl CaptureSession {
 
     /// Flush → capture, the frame's size checked against the camera's.
     fn grab<C: Camera + ?Sized>(&self, camera: &mut C, what: &str) -> Result<GreyImage, RigError> {
-        for _ in 0..self.config.flush_frames {
-            camera.capture()?;
-        }
-        let frame = camera.capture()?;
+        let frame = flush_and_capture(camera, self.config.flush_frames)?;
         let expected = camera.frame_size();
         let size = frame.size();
         if (size.width, size.height) != expected {

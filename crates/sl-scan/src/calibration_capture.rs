@@ -455,14 +455,11 @@ impl CalibrationCapture {
         C: Camera + ?Sized,
         P: Projector + ?Sized,
     {
-        projector.show(image)?;
-        if !self.config.display_latency.is_zero() {
-            std::thread::sleep(self.config.display_latency);
-        }
-        for _ in 0..self.config.flush_frames {
-            camera.capture()?;
-        }
-        Ok(camera.capture()?)
+        let timing = sl_rig::CaptureTiming {
+            settle: self.config.display_latency,
+            flush_frames: self.config.flush_frames,
+        };
+        Ok(sl_rig::show_and_capture(camera, projector, image, timing)?)
     }
 
     /// Takes the pose `check` was made of: refused (nothing written) unless its verdict is
@@ -585,10 +582,7 @@ impl CalibrationCapture {
         for pattern in &self.patterns {
             left_frames.push(self.show_and_capture(camera, projector, pattern)?);
             if let Some(r) = right.as_deref_mut() {
-                for _ in 0..self.config.flush_frames {
-                    r.capture()?;
-                }
-                right_frames.push(r.capture()?);
+                right_frames.push(sl_rig::flush_and_capture(r, self.config.flush_frames)?);
             }
         }
         Ok((left_frames, right_frames))

@@ -43,7 +43,7 @@ use sl_camera::{BinocularCalibration, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_codec::{BitDepth, ImageSize, Manifest};
 use sl_rig::{
-    Camera, DEFAULT_DISPLAY_LATENCY, Latency, LatencyConfig, MeasureTiming, Projector,
+    Camera, CaptureTiming, DEFAULT_DISPLAY_LATENCY, Latency, LatencyConfig, Projector,
     SessionConfig, SessionDevices, SessionPlan, SessionSummary, Turntable, measure_exposures,
     measure_latency,
 };
@@ -260,7 +260,7 @@ where
             let t = Instant::now();
             let first = angles_deg.first().copied().unwrap_or_default();
             turntable.rotate_to(first)?;
-            let timing = MeasureTiming {
+            let timing = CaptureTiming {
                 settle: session.display_latency,
                 flush_frames: session.flush_frames,
             };

@@ -93,12 +93,12 @@ pub fn capture_ramp(
         };
         let image = GreyImage::filled_u8(w as usize, h as usize, value)
             .map_err(sl_codec::CodecError::from)?;
-        projector.show(&image).map_err(level_err)?;
-        std::thread::sleep(config.display_latency);
-        for _ in 0..config.flush_frames {
-            camera.capture().map_err(level_err)?;
-        }
-        let frame = camera.capture().map_err(level_err)?;
+        let timing = sl_rig::CaptureTiming {
+            settle: config.display_latency,
+            flush_frames: config.flush_frames,
+        };
+        let frame =
+            sl_rig::show_and_capture(camera, projector, &image, timing).map_err(level_err)?;
         let name = format!("level_{i:02}.png");
         write_png_grey(&dir.join(&name), &frame)?;
         levels.push(f64::from(value) / 255.0);

@@ -17,7 +17,7 @@ use sl_codec::BitDepth;
 use sl_codec::ExposurePlan;
 use sl_metrology::{Report, Truth};
 use sl_rig::{
-    MeasureTiming, SessionConfig, SessionExposures, SessionPlan, SessionSummary, Turntable,
+    CaptureTiming, SessionConfig, SessionExposures, SessionPlan, SessionSummary, Turntable,
     measure_exposures, turntable_angles, view_dir_name,
 };
 use sl_sim::{RigConfig, Scene, SecondCamera, VirtualRig};
@@ -373,7 +373,7 @@ pub(crate) fn capture_virtual(
         session_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite, |auto| {
             let (mut camera, mut projector, mut table) = rig.left.devices();
             table.rotate_to(angles_deg.first().copied().unwrap_or_default())?;
-            let timing = MeasureTiming {
+            let timing = CaptureTiming {
                 settle: Duration::ZERO,
                 flush_frames: 0,
             };

@@ -12,7 +12,7 @@ use sl_codec::{
     FusionSettings, HybridSpec, MANIFEST_FILE, Pattern, PatternSequence, decode,
 };
 use sl_rig::{
-    Camera, CaptureSession, GreyImage, MeasureTiming, Projector, RigError, SessionConfig,
+    Camera, CaptureSession, CaptureTiming, GreyImage, Projector, RigError, SessionConfig,
     SessionExposures, SessionPlan, Turntable, ViewState, measure_exposures,
 };
 use sl_sim::{Finish, RigConfig, Scene, VIRTUAL_EXPOSURE_MS, VirtualRig};
@@ -238,7 +238,7 @@ fn automatic_exposures_lengthen_for_a_dark_object_and_span_a_glossy_one() {
             &mut camera,
             &mut projector,
             &cfg,
-            MeasureTiming {
+            CaptureTiming {
                 settle: Duration::ZERO,
                 flush_frames: 0,
             },
