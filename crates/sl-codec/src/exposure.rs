@@ -322,10 +322,12 @@ fn fuse_typed<T: Sample>(
 ) -> Result<(Vec<GreyImage>, Vec<u8>), CodecError> {
     let (n_frames, n_pixels) = (stacks[0].len(), stacks[0][0].len());
     let saturation = config.saturation_level * T::SCALE_FROM_8BIT;
-    // The longest exposure at which every sample of the pixel is below saturation.
-    let mut source = vec![SATURATED_EVERYWHERE; n_pixels];
+    // Per pixel, the exposures at which every sample is below saturation (bit `e` for
+    // exposure `e`, shortest first), in one pass over the frames; the pixel's source is the
+    // longest of them.
+    let mut usable = vec![0u16; n_pixels];
     let chunk = PIXELS_PER_TASK;
-    source
+    usable
         .par_chunks_mut(chunk)
         .enumerate()
         .for_each(|(c, out)| {
@@ -338,13 +340,21 @@ fn fuse_typed<T: Sample>(
                         *p = p.max(v.to_f32());
                     }
                 }
-                for (s, &p) in out.iter_mut().zip(&peak) {
+                for (m, &p) in out.iter_mut().zip(&peak) {
                     if p < saturation {
-                        *s = e as u8;
+                        *m |= 1 << e;
                     }
                 }
             }
         });
+    let source: Vec<u8> = usable
+        .iter()
+        .map(|&m| match m {
+            0 => SATURATED_EVERYWHERE,
+            // The highest bit set: below 16, so it fits.
+            _ => (15 - m.leading_zeros()) as u8,
+        })
+        .collect();
     let frames = match config.method {
         FusionMethod::Longest => (0..n_frames)
             .map(|k| {
@@ -364,16 +374,6 @@ fn fuse_typed<T: Sample>(
             })
             .collect::<Result<_, CodecError>>()?,
         FusionMethod::Radiance => {
-            // Which exposures each pixel's chosen one combines with: those at which it is
-            // unsaturated too (a bit mask, shortest first).
-            let mut usable = vec![0u16; n_pixels];
-            for (e, stack) in stacks.iter().enumerate() {
-                usable.par_iter_mut().enumerate().for_each(|(p, m)| {
-                    if stack.iter().all(|f| f[p].to_f32() < saturation) {
-                        *m |= 1 << e;
-                    }
-                });
-            }
             let scale = 65535.0 / T::MAX_VALUE.to_f32();
             let dark = config.dark_level * T::SCALE_FROM_8BIT;
             (0..n_frames)
@@ -616,32 +616,42 @@ fn check_auto(config: &AutoExposureConfig, exposure_ms: f64) -> Result<(), Codec
     if !(exposure_ms.is_finite() && exposure_ms > 0.0) {
         return Err(bad("exposure_ms", exposure_ms, "a positive exposure time"));
     }
-    if !(config.min_lit.is_finite() && config.min_lit >= 0.0) {
-        return Err(bad(
+    let min_lit = f64::from(config.min_lit);
+    for (name, value, ok, what) in [
+        (
             "min_lit",
-            f64::from(config.min_lit),
+            min_lit,
+            min_lit.is_finite() && min_lit >= 0.0,
             "a grey level ≥ 0",
-        ));
-    }
-    if !share(config.bright_share) {
-        return Err(bad(
+        ),
+        (
             "bright_share",
             config.bright_share,
+            share(config.bright_share),
             "a share in [0, 0.5)",
-        ));
-    }
-    if !share(config.dark_share) {
-        return Err(bad("dark_share", config.dark_share, "a share in [0, 0.5)"));
-    }
-    if !level(config.bright_level) {
-        return Err(bad(
+        ),
+        (
+            "dark_share",
+            config.dark_share,
+            share(config.dark_share),
+            "a share in [0, 0.5)",
+        ),
+        (
             "bright_level",
             config.bright_level,
+            level(config.bright_level),
             "a level in (0, 1]",
-        ));
-    }
-    if !level(config.dark_level) {
-        return Err(bad("dark_level", config.dark_level, "a level in (0, 1]"));
+        ),
+        (
+            "dark_level",
+            config.dark_level,
+            level(config.dark_level),
+            "a level in (0, 1]",
+        ),
+    ] {
+        if !ok {
+            return Err(bad(name, value, what));
+        }
     }
     if !(config.step.is_finite() && config.step > 1.0) {
         return Err(bad("step", config.step, "a ratio above 1"));

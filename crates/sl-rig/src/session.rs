@@ -691,10 +691,9 @@ impl CaptureSession {
                     if let Some(ms) = restore {
                         camera.set_exposure_ms(ms).map_err(at(None))?;
                     }
-                    self.write_fused(&dir, &lefts_of, &names)
-                        .map_err(at(None))?;
+                    self.write_fused(&dir, lefts_of, &names).map_err(at(None))?;
                     if right.is_some() {
-                        self.write_fused(&right_dir, &rights_of, &names)
+                        self.write_fused(&right_dir, rights_of, &names)
                             .map_err(at(None))?;
                     }
                 }
@@ -800,25 +799,6 @@ impl CaptureSession {
         Ok(frame)
     }
 
-    /// One camera's frames of each exposure (in the plan's order) fused.
-    fn fuse_passes(&self, frames_of: &[Vec<GreyImage>]) -> Result<sl_codec::FusedFrames, RigError> {
-        let stacks: Vec<ExposureFrames> = self
-            .plan
-            .exposures
-            .times_ms
-            .iter()
-            .zip(frames_of)
-            .map(|(&exposure_ms, frames)| ExposureFrames {
-                exposure_ms,
-                frames: frames.clone(),
-            })
-            .collect();
-        Ok(fuse_exposures(
-            &stacks,
-            &self.plan.exposures.fusion.config(),
-        )?)
-    }
-
     /// The frames the checks name among one camera's passes (`dirs`: their folders): those of
     /// pass `judged`, as a one-exposure capture's.
     fn lying_pass(
@@ -836,15 +816,26 @@ impl CaptureSession {
         }
     }
 
-    /// Fuses one camera's frames of each exposure and writes the fused frames and
-    /// `exposures.json` into `dir`.
+    /// Fuses one camera's frames of each exposure (in the plan's order) and writes the fused
+    /// frames and `exposures.json` into `dir`.
     fn write_fused(
         &self,
         dir: &Path,
-        frames_of: &[Vec<GreyImage>],
+        frames_of: Vec<Vec<GreyImage>>,
         names: &[String],
     ) -> Result<(), RigError> {
-        let fused = self.fuse_passes(frames_of)?;
+        let stacks: Vec<ExposureFrames> = self
+            .plan
+            .exposures
+            .times_ms
+            .iter()
+            .zip(frames_of)
+            .map(|(&exposure_ms, frames)| ExposureFrames {
+                exposure_ms,
+                frames,
+            })
+            .collect();
+        let fused = fuse_exposures(&stacks, &self.plan.exposures.fusion.config())?;
         for (frame, name) in fused.frames.iter().zip(names) {
             write_atomically(&dir.join(name), |tmp| Ok(write_png_grey(tmp, frame)?))?;
         }

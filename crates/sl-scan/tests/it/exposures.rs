@@ -109,27 +109,22 @@ fn a_folder_that_cannot_be_fused_is_named() {
     // No exposures.json.
     let e = fuse_exposure_folder(tmp.path()).unwrap_err().to_string();
     assert!(e.contains(EXPOSURES_FILE), "{e}");
-    // A folder that climbs out of the capture.
-    let record = ExposureRecord::new(
-        vec![ExposureFolder {
-            dir: "../elsewhere".to_owned(),
+    // The error of a capture whose `exposures.json` lists one folder, `dir`.
+    let fused_with = |dir: &str| {
+        let folder = ExposureFolder {
+            dir: dir.to_owned(),
             exposure_ms: 4.0,
-        }],
-        FusionSettings::default(),
-    );
-    record.save(&tmp.path().join(EXPOSURES_FILE)).unwrap();
-    let e = fuse_exposure_folder(tmp.path()).unwrap_err().to_string();
+        };
+        ExposureRecord::new(vec![folder], FusionSettings::default())
+            .save(&tmp.path().join(EXPOSURES_FILE))
+            .unwrap();
+        fuse_exposure_folder(tmp.path()).unwrap_err().to_string()
+    };
+    // A folder that climbs out of the capture.
+    let e = fused_with("../elsewhere");
     assert!(e.contains("exposures[0].dir"), "{e}");
     // A listed folder with no frames: the manifest it needs is named.
-    let record = ExposureRecord::new(
-        vec![ExposureFolder {
-            dir: "short".to_owned(),
-            exposure_ms: 4.0,
-        }],
-        FusionSettings::default(),
-    );
-    record.save(&tmp.path().join(EXPOSURES_FILE)).unwrap();
-    let e = fuse_exposure_folder(tmp.path()).unwrap_err().to_string();
+    let e = fused_with("short");
     assert!(e.contains("short") && e.contains(MANIFEST_FILE), "{e}");
 }
 

@@ -6,10 +6,9 @@
 use std::path::Path;
 use std::time::Duration;
 
-use sl_camera::ImageSize;
 use sl_codec::{
-    AutoExposureConfig, Axis, BitDepth, CaptureSet, DecodeConfig, EXPOSURES_FILE, ExposureRecord,
-    FusionSettings, HybridSpec, MANIFEST_FILE, Pattern, PatternSequence, decode,
+    AutoExposureConfig, CaptureSet, DecodeConfig, EXPOSURES_FILE, ExposureRecord, FusionSettings,
+    MANIFEST_FILE, decode,
 };
 use sl_rig::{
     Camera, CaptureSession, CaptureTiming, GreyImage, Projector, RigError, SessionConfig,
@@ -25,31 +24,16 @@ fn rig(finish: Finish) -> VirtualRig {
     VirtualRig::new(c, Scene::dumbbell().finished(finish)).unwrap()
 }
 
+/// One view, at angle 0, at `exposures`.
 fn plan(rig: &VirtualRig, exposures: SessionExposures) -> SessionPlan {
-    let s = rig.config().projector.size;
-    let p = ImageSize::new(s.width, s.height);
-    let sequence = PatternSequence::new(p).with(Pattern::Hybrid(HybridSpec::complementary(
-        Axis::Column,
-        p,
-        4,
-        12.0,
-    )));
     SessionPlan {
-        angles_deg: vec![0.0],
-        manifest: sequence.manifest(BitDepth::Eight),
-        devices: Default::default(),
-        calibration: None,
         exposures,
+        ..super::session::plan(rig, 1)
     }
 }
 
 fn quick() -> SessionConfig {
-    SessionConfig {
-        display_latency: Duration::ZERO,
-        flush_frames: 0,
-        overwrite: false,
-        check_frames: true,
-    }
+    super::session::quick(false, 0)
 }
 
 /// The frame under full white at the camera's exposure.

@@ -28,7 +28,8 @@ fn small_rig() -> VirtualRig {
     VirtualRig::new(c, Scene::dumbbell()).unwrap()
 }
 
-fn plan(rig: &VirtualRig, views: usize) -> SessionPlan {
+/// The plan of `views` views a full turn apart with a column hybrid code for `rig`'s projector.
+pub(crate) fn plan(rig: &VirtualRig, views: usize) -> SessionPlan {
     let s = rig.config().projector.size;
     let p = ImageSize::new(s.width, s.height);
     let sequence = PatternSequence::new(p).with(Pattern::Hybrid(HybridSpec::complementary(
@@ -48,7 +49,8 @@ fn plan(rig: &VirtualRig, views: usize) -> SessionPlan {
     }
 }
 
-fn quick(overwrite: bool, flush_frames: usize) -> SessionConfig {
+/// No display latency (the virtual devices have none).
+pub(crate) fn quick(overwrite: bool, flush_frames: usize) -> SessionConfig {
     SessionConfig {
         display_latency: Duration::ZERO,
         flush_frames,

@@ -5,7 +5,7 @@
 
 use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
-use sl_camera::{CameraModel, ImageSize, Intrinsics};
+use sl_camera::{CameraModel, ImageSize};
 use sl_rig::capture_sequence;
 use sl_sim::{
     Camera, GreyImage, NO_OBJECT, Projector, ProjectorSampling, RigConfig, Scene, SceneObject,
@@ -15,18 +15,7 @@ use sl_sim::{
 /// The default rig with both images scaled down by 4 (same fields of view, same distortion),
 /// so that the tests run in a fraction of a second.
 fn small_rig() -> RigConfig {
-    let mut c = RigConfig::default();
-    for (m, f) in [(&mut c.camera, 4.0), (&mut c.projector, 4.0)] {
-        let k = m.intrinsics;
-        m.intrinsics = Intrinsics::new(
-            k.fx / f,
-            k.fy / f,
-            (k.cx + 0.5) / f - 0.5,
-            (k.cy + 0.5) / f - 0.5,
-        );
-        m.size = ImageSize::new(m.size.width / 4, m.size.height / 4);
-    }
-    c
+    RigConfig::default().downscaled(4)
 }
 
 fn plane_scene(t_cam_plane: Isometry3<f64>) -> Scene {
