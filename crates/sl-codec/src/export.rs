@@ -165,6 +165,21 @@ pub fn write_png_rgb8(
 }
 
 #[cfg(feature = "image-files")]
+/// Writes a colour image as an 8-bit RGB PNG.
+///
+/// # Errors
+/// [`CodecError::Image`] naming the file.
+pub fn write_png_colour(path: &Path, image: &sl_image::ColourImage) -> Result<(), CodecError> {
+    save(
+        path,
+        image.width(),
+        image.height(),
+        image.data().as_flattened(),
+        image::ExtendedColorType::Rgb8,
+    )
+}
+
+#[cfg(feature = "image-files")]
 fn save(
     path: &Path,
     width: usize,

@@ -30,6 +30,7 @@ use std::path::{Path, PathBuf};
 use image::{DynamicImage, ImageFormat};
 
 use crate::{CodecError, Frame, GreyImage};
+use sl_image::ColourImage;
 
 /// File extensions (lower case, without the dot) of the image files this crate reads; a
 /// folder listing filters on them (case-insensitively) with [`is_image_file`].
@@ -294,6 +295,56 @@ fn reader(
 /// As [`read_image`].
 pub fn read_grey8(path: &Path) -> Result<Frame<u8>, CodecError> {
     Ok(read_image(path)?.into_u8())
+}
+
+/// Reads an image file in colour, 8-bit RGB: grey files give the same value in the three
+/// channels; 16-bit and float files are rounded to 8 bits (`round(v / 257)`, floats through
+/// 16 bits as [`read_image`] reads them); alpha is ignored. The colour of a scan comes from
+/// such a frame under full white.
+///
+/// # Errors
+/// [`CodecError::Image`] naming the file when it cannot be opened or decoded;
+/// [`CodecError::EmptyImage`] for an image of no pixels.
+///
+/// ```
+/// # fn main() -> Result<(), sl_codec::CodecError> {
+/// let dir = tempfile::tempdir().unwrap();
+/// let path = dir.path().join("red.png");
+/// image::save_buffer(&path, &[255, 0, 0, 255, 255, 255], 2, 1, image::ExtendedColorType::Rgb8)
+///     .unwrap();
+/// let colour = sl_codec::read_colour_image(&path)?;
+/// assert_eq!(colour.data(), &[[255, 0, 0], [255, 255, 255]]);
+/// # Ok(()) }
+/// ```
+pub fn read_colour_image(path: &Path) -> Result<ColourImage, CodecError> {
+    let reader = reader(path)?;
+    if reader.format() == Some(ImageFormat::Tiff)
+        && let Some(grey) = read_float_grey_tiff(path)?
+    {
+        return Ok(ColourImage::from_grey(&grey));
+    }
+    let img = reader.decode().map_err(decode_err(path))?;
+    if img.width() == 0 || img.height() == 0 {
+        return Err(CodecError::EmptyImage {
+            path: path.to_path_buf(),
+        });
+    }
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let data = match img {
+        DynamicImage::ImageLuma8(_) | DynamicImage::ImageLumaA8(_) => {
+            img.to_luma8().into_raw().into_iter().map(|g| [g; 3]).collect()
+        }
+        DynamicImage::ImageRgb8(b) => b.pixels().map(|p| p.0).collect(),
+        DynamicImage::ImageRgba8(b) => b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]).collect(),
+        // 16-bit and float images: through 16-bit RGB (floats clamped to [0, 1]), then
+        // `round(v / 257)`, the inverse of the 8 → 16 widening.
+        other => other
+            .to_rgb16()
+            .pixels()
+            .map(|p| p.0.map(|v| ((u32::from(v) + 128) / 257) as u8))
+            .collect(),
+    };
+    Ok(ColourImage::new(w, h, data)?)
 }
 
 /// Grey of a decoded image (see the module docs).

@@ -105,7 +105,7 @@ pub use decode::{decode, decode_frames, decode_frames_into, decode_into};
 pub use error::CodecError;
 pub use export::{write_npy_f32, write_tiff_f32};
 #[cfg(feature = "image-files")]
-pub use export::{write_png_grey, write_png_grey8, write_png_grey16, write_png_rgb8};
+pub use export::{write_png_colour, write_png_grey, write_png_grey8, write_png_grey16, write_png_rgb8};
 pub use exposure::{
     AutoExposureConfig, EXPOSURES_FILE, EXPOSURES_FORMAT, EXPOSURES_VERSION, ExposureChoice,
     ExposureFolder, ExposureFrames, ExposurePlan, ExposureRecord, FusedFrames, FusionConfig,
@@ -118,8 +118,8 @@ pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIF
 pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, decode_hybrid};
 #[cfg(feature = "image-files")]
 pub use image_file::{
-    IMAGE_EXTENSIONS, find_image_file, is_image_file, not_a_regular_file, read_grey8, read_image,
-    read_image_size,
+    IMAGE_EXTENSIONS, find_image_file, is_image_file, not_a_regular_file, read_colour_image,
+    read_grey8, read_image, read_image_size,
 };
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
 pub use pattern::{Axis, BitDepth, ImageSize, Pattern};
@@ -133,6 +133,9 @@ pub use pictures::{INVALID_PALETTE, MapFormat, OutputFiles, false_color, invalid
 pub use ramps::ramp_stair_codes;
 pub use response::PhaseCorrection;
 pub use sequence::{PatternSequence, render_pattern};
+/// An 8-bit RGB image, as [`read_colour_image`] returns it (the colour of a scan), from
+/// `sl-image`.
+pub use sl_image::ColourImage;
 /// A grey image at either depth, as [`read_image`] returns it: the workspace's one grey image,
 /// defined in `sl-image` and re-exported here.
 pub use sl_image::GreyImage;

@@ -45,6 +45,10 @@ pub struct Manifest {
     pub frames_dir: Option<PathBuf>,
     /// Free text: where the capture comes from.
     pub description: Option<String>,
+    /// A frame of the object under full white in colour (relative to the frames folder, as the
+    /// blocks' frames): the colour of the scan. Not part of the pattern sequence; `None`
+    /// (key `colour` absent): the colour comes from the blocks' frames.
+    pub colour: Option<String>,
     /// The blocks in projection order.
     pub blocks: Vec<ManifestBlock>,
 }
@@ -101,6 +105,9 @@ impl Manifest {
         root.insert("bit_depth".into(), json!(self.bit_depth.bits()));
         if let Some(d) = &self.frames_dir {
             root.insert("frames_dir".into(), json!(d.to_string_lossy()));
+        }
+        if let Some(c) = &self.colour {
+            root.insert("colour".into(), json!(c));
         }
         let blocks: Vec<Value> = self
             .blocks
@@ -186,6 +193,7 @@ const ROOT_KEYS: &[&str] = &[
     "projector",
     "bit_depth",
     "frames_dir",
+    "colour",
     "blocks",
     "metadata",
 ];
@@ -384,6 +392,10 @@ impl Parser<'_> {
         };
         let frames_dir = self.str_opt(&root, "frames_dir")?.map(PathBuf::from);
         let description = self.str_opt(&root, "description")?.map(str::to_string);
+        let colour = self.str_opt(&root, "colour")?.map(str::to_string);
+        if colour.as_deref() == Some("") {
+            return Err(self.err("colour", "must name a frame file, got \"\""));
+        }
         let bv = self
             .get(&root, "blocks")
             .ok_or_else(|| self.err("blocks", "is required"))?;
@@ -402,6 +414,7 @@ impl Parser<'_> {
             bit_depth,
             frames_dir,
             description,
+            colour,
             blocks,
         };
         manifest.sequence().validate().map_err(|e| match e {

@@ -191,6 +191,7 @@ impl PatternSequence {
             bit_depth,
             frames_dir: None,
             description: None,
+            colour: None,
             blocks,
         }
     }

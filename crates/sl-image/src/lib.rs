@@ -1,6 +1,6 @@
 //! The image types the structured-light crates share, and nothing else: an [`ImageSize`], a
 //! grey [`Frame`] of 8- or 16-bit samples, a [`GreyImage`] holding a frame of either
-//! depth, and the [`ToneCurve`] of a projector's response. Cameras, projectors, pattern sequences, decoders, the simulator and the rig all
+//! depth, an 8-bit RGB [`ColourImage`] (the colour of a scan), and the [`ToneCurve`] of a projector's response. Cameras, projectors, pattern sequences, decoders, the simulator and the rig all
 //! speak these types, so any project can take one crate (or write its own on top of these)
 //! without converting images between them. The crate needs only `serde` and `thiserror`.
 //!
@@ -26,12 +26,14 @@
 //! - Depths: 8 → 16 bits by `v * 257`, 16 → 8 bits by `round(v / 257)`.
 #![deny(missing_docs)]
 
+mod colour;
 mod error;
 mod frame;
 mod grey;
 mod size;
 mod tone;
 
+pub use colour::{ColourImage, luma};
 pub use error::ImageError;
 pub use frame::{Frame, Sample};
 pub use grey::GreyImage;

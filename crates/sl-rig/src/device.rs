@@ -1,7 +1,7 @@
 //! The device traits that every driver implements, and capture code written once against
 //! them.
 
-use crate::{GreyImage, RigError};
+use crate::{ColourImage, GreyImage, RigError};
 
 /// A camera that captures grey frames.
 pub trait Camera {
@@ -32,6 +32,18 @@ pub trait Camera {
     /// last set, or the one it was opened with. Default `None`.
     fn exposure_ms(&self) -> Option<f64> {
         None
+    }
+
+    /// Captures one frame in colour (8-bit RGB) of what the camera sees now: the colour of a
+    /// scan, taken under full white. Patterns are captured grey ([`Camera::capture`]).
+    ///
+    /// # Errors
+    /// [`RigError::Unsupported`] for a grey camera (the default), or the driver's failure.
+    fn capture_colour(&mut self) -> Result<ColourImage, RigError> {
+        Err(RigError::Unsupported {
+            device: "camera".to_owned(),
+            what: "capture in colour: a colour scan needs a colour camera".to_owned(),
+        })
     }
 }
 

@@ -102,7 +102,7 @@ pub use session::{
 };
 /// The grey images the devices exchange (camera frames, projector images): the workspace's one
 /// grey image, defined in `sl-image` and re-exported so rig users need one import.
-pub use sl_image::GreyImage;
+pub use sl_image::{ColourImage, GreyImage};
 #[cfg(feature = "v4l")]
 pub use v4l_camera::{
     DEFAULT_FRAME_TIMEOUT, DEFAULT_IN_FLIGHT_FRAMES, DEFAULT_V4L_BUFFERS, V4lCamera,
