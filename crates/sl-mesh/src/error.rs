@@ -80,6 +80,31 @@ pub enum MeshError {
     /// A mesh handed to a function is inconsistent (a triangle index out of range).
     #[error("invalid mesh: {0}")]
     InvalidMesh(String),
+    /// A per-vertex or per-triangle attribute does not have one value per vertex (triangle).
+    #[error("{found} {attribute} for {expected} {of}")]
+    AttributeLength {
+        /// The attribute (`"colours"`, `"texture coordinates"`).
+        attribute: &'static str,
+        /// Values given.
+        found: usize,
+        /// Values needed.
+        expected: usize,
+        /// What they are counted against (`"vertices"`, `"triangles"`).
+        of: &'static str,
+    },
+    /// An image of the image layer could not be built (a texture atlas of no texel).
+    #[error(transparent)]
+    Image(#[from] sl_image::ImageError),
+    /// A texture image could not be encoded as PNG.
+    #[cfg(feature = "image-files")]
+    #[error("{path}: PNG encoding failed: {source}")]
+    Png {
+        /// The file we were writing.
+        path: PathBuf,
+        /// The encoder's error.
+        #[source]
+        source: image::ImageError,
+    },
 }
 
 impl MeshError {

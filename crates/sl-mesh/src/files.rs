@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 use sl_cloud::TriangleMesh;
 
 use crate::MeshError;
@@ -22,7 +22,7 @@ const STL_HEADER: usize = 80;
 /// Bytes of one binary STL triangle: normal and three corners (12 `f32`), attribute `u16`.
 const STL_TRIANGLE: usize = 50;
 
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), MeshError> {
+pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), MeshError> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -366,21 +366,77 @@ fn parse_obj(bytes: &[u8], file: &str) -> Result<TriangleMesh, MeshError> {
 /// Open3D, MeshLab and `sl_cloud::read_ply_mesh` read it.
 ///
 /// # Errors
-/// [`MeshError::InvalidMesh`] when a triangle index is out of range or the normals are not one
-/// per vertex.
+/// [`MeshError::InvalidMesh`] when a triangle index is out of range,
+/// [`MeshError::AttributeLength`] when the normals are not one per vertex.
 pub fn ply_mesh_to_bytes(
     mesh: &TriangleMesh,
-    normals: Option<&[nalgebra::Vector3<f64>]>,
+    normals: Option<&[Vector3<f64>]>,
+) -> Result<Vec<u8>, MeshError> {
+    ply_bytes(mesh, normals, None)
+}
+
+/// The binary little-endian PLY of `mesh` with a colour per vertex: as [`ply_mesh_to_bytes`],
+/// plus the `uchar` properties `red green blue` after the position (and normal) of each vertex,
+/// the names MeshLab, Open3D, CloudCompare and `sl_cloud::read_ply` read as vertex colours.
+///
+/// # Errors
+/// [`MeshError::AttributeLength`] when `colours` (or `normals`) is not one per vertex,
+/// [`MeshError::InvalidMesh`] when a triangle index is out of range.
+///
+/// ```
+/// use nalgebra::Point3;
+/// use sl_cloud::TriangleMesh;
+/// let mesh = TriangleMesh {
+///     vertices: vec![Point3::origin(), Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 1.0, 0.0)],
+///     triangles: vec![[0, 1, 2]],
+/// };
+/// let colours = [[255, 0, 0], [0, 255, 0], [0, 0, 255]];
+/// let bytes = sl_mesh::ply_mesh_to_bytes_coloured(&mesh, None, &colours)?;
+/// let cloud = sl_cloud::read_ply_from_bytes(&bytes)?;
+/// assert_eq!(cloud.colors(), Some(&colours[..]));
+/// assert_eq!(sl_cloud::read_ply_mesh_from_bytes(&bytes)?, mesh);
+/// // One colour short: refused, naming what is wrong.
+/// let err = sl_mesh::ply_mesh_to_bytes_coloured(&mesh, None, &colours[1..]).unwrap_err();
+/// assert_eq!(err.to_string(), "2 colours for 3 vertices");
+/// # Ok::<(), sl_mesh::MeshError>(())
+/// ```
+pub fn ply_mesh_to_bytes_coloured(
+    mesh: &TriangleMesh,
+    normals: Option<&[Vector3<f64>]>,
+    colours: &[[u8; 3]],
+) -> Result<Vec<u8>, MeshError> {
+    ply_bytes(mesh, normals, Some(colours))
+}
+
+/// `Ok` when `values` holds one value per vertex of `mesh`.
+pub(crate) fn check_per_vertex<T>(
+    mesh: &TriangleMesh,
+    values: &[T],
+    attribute: &'static str,
+) -> Result<(), MeshError> {
+    if values.len() == mesh.vertices.len() {
+        Ok(())
+    } else {
+        Err(MeshError::AttributeLength {
+            attribute,
+            found: values.len(),
+            expected: mesh.vertices.len(),
+            of: "vertices",
+        })
+    }
+}
+
+fn ply_bytes(
+    mesh: &TriangleMesh,
+    normals: Option<&[Vector3<f64>]>,
+    colours: Option<&[[u8; 3]]>,
 ) -> Result<Vec<u8>, MeshError> {
     check_indices(mesh)?;
-    if let Some(n) = normals
-        && n.len() != mesh.vertices.len()
-    {
-        return Err(MeshError::InvalidMesh(format!(
-            "{} normals for {} vertices",
-            n.len(),
-            mesh.vertices.len()
-        )));
+    if let Some(n) = normals {
+        check_per_vertex(mesh, n, "normals")?;
+    }
+    if let Some(c) = colours {
+        check_per_vertex(mesh, c, "colours")?;
     }
     let mut header = String::from(
         "ply\nformat binary_little_endian 1.0\ncomment written by sl-mesh (structured-light)\n",
@@ -390,10 +446,13 @@ pub fn ply_mesh_to_bytes(
     if normals.is_some() {
         header.push_str("property float nx\nproperty float ny\nproperty float nz\n");
     }
+    if colours.is_some() {
+        header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    }
     let _ = writeln!(header, "element face {}", mesh.triangles.len());
     header.push_str("property list uchar int vertex_indices\nend_header\n");
     let mut out = header.into_bytes();
-    out.reserve(mesh.vertices.len() * 36 + mesh.triangles.len() * 13);
+    out.reserve(mesh.vertices.len() * 39 + mesh.triangles.len() * 13);
     for (i, p) in mesh.vertices.iter().enumerate() {
         for c in [p.x, p.y, p.z] {
             out.extend_from_slice(&c.to_le_bytes());
@@ -402,6 +461,9 @@ pub fn ply_mesh_to_bytes(
             for c in [n[i].x, n[i].y, n[i].z] {
                 out.extend_from_slice(&(c as f32).to_le_bytes());
             }
+        }
+        if let Some(c) = colours {
+            out.extend_from_slice(&c[i]);
         }
     }
     for t in &mesh.triangles {
@@ -420,6 +482,40 @@ pub fn ply_mesh_to_bytes(
 pub fn write_ply_mesh(path: &Path, mesh: &TriangleMesh) -> Result<(), MeshError> {
     let normals = vertex_normals(mesh);
     write_atomically(path, &ply_mesh_to_bytes(mesh, Some(&normals))?)
+}
+
+/// Writes `mesh` with per-vertex normals and the colour `colours[i]` of vertex `i` as a PLY
+/// file. See [`ply_mesh_to_bytes_coloured`]; `sl_cloud::read_ply` reads the colours back as
+/// the cloud's, [`read_mesh`] the mesh.
+///
+/// # Errors
+/// [`MeshError::AttributeLength`] when `colours` is not one per vertex (nothing is written),
+/// [`MeshError::Io`] naming the file, [`MeshError::InvalidMesh`].
+///
+/// ```
+/// use nalgebra::Point3;
+/// use sl_cloud::TriangleMesh;
+/// let mesh = TriangleMesh {
+///     vertices: vec![Point3::origin(), Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 1.0, 0.0)],
+///     triangles: vec![[0, 1, 2]],
+/// };
+/// let path = std::env::temp_dir().join(format!("sl-mesh-doc-{}.ply", std::process::id()));
+/// sl_mesh::write_ply_mesh_coloured(&path, &mesh, &[[200, 30, 30]; 3])?;
+/// let cloud = sl_cloud::read_ply(&path)?;
+/// assert_eq!(cloud.colors(), Some(&[[200, 30, 30]; 3][..]));
+/// # std::fs::remove_file(&path).ok();
+/// # Ok::<(), sl_mesh::MeshError>(())
+/// ```
+pub fn write_ply_mesh_coloured(
+    path: &Path,
+    mesh: &TriangleMesh,
+    colours: &[[u8; 3]],
+) -> Result<(), MeshError> {
+    let normals = vertex_normals(mesh);
+    write_atomically(
+        path,
+        &ply_mesh_to_bytes_coloured(mesh, Some(&normals), colours)?,
+    )
 }
 
 /// Reads a mesh file by its extension: `.stl`, `.obj`, or `.ply` (through
@@ -448,7 +544,6 @@ pub fn read_mesh(path: &Path) -> Result<TriangleMesh, MeshError> {
 mod tests {
     use super::*;
     use crate::{PoissonConfig, check_topology, poisson_reconstruct};
-    use nalgebra::Vector3;
     use sl_cloud::PointCloud;
 
     /// A closed mesh of a sphere of radius 10 (Poisson at depth 5).
@@ -519,6 +614,35 @@ mod tests {
         for (n, m) in normals.iter().zip(vertex_normals(&mesh)) {
             assert!((n - m).norm() < 1e-6);
         }
+    }
+
+    /// Coloured PLY: `sl_cloud::read_ply` gives back every vertex's colour, position and
+    /// normal in order, `read_mesh` the mesh; a colour array of the wrong length is refused
+    /// before anything is written.
+    #[test]
+    fn coloured_ply_round_trip() {
+        let mesh = ball();
+        let colours: Vec<[u8; 3]> = (0..mesh.vertices.len())
+            .map(|i| [(i % 256) as u8, (i * 7 % 256) as u8, (i * 13 % 251) as u8])
+            .collect();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ball.ply");
+        write_ply_mesh_coloured(&path, &mesh, &colours).unwrap();
+        assert_eq!(read_mesh(&path).unwrap(), mesh);
+        let cloud = sl_cloud::read_ply(&path).unwrap();
+        assert_eq!(cloud.colors().unwrap(), &colours[..]);
+        assert_eq!(cloud.positions(), &mesh.vertices[..]);
+        for (n, m) in cloud.normals().unwrap().iter().zip(vertex_normals(&mesh)) {
+            assert!((n - m).norm() < 1e-6);
+        }
+        let bad = dir.path().join("bad.ply");
+        let e = write_ply_mesh_coloured(&bad, &mesh, &colours[1..]).unwrap_err();
+        assert!(
+            matches!(e, MeshError::AttributeLength { attribute: "colours", found, expected, .. }
+                if found + 1 == expected && expected == mesh.vertices.len()),
+            "{e}"
+        );
+        assert!(!bad.exists());
     }
 
     #[test]

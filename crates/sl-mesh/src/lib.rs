@@ -88,8 +88,9 @@ pub use decimate::{Decimation, decimate};
 pub use error::MeshError;
 pub use fair::{FairConfig, Fairing, fair_unsupported};
 pub use files::{
-    obj_to_string, ply_mesh_to_bytes, read_mesh, read_obj, read_obj_from_bytes, read_stl,
-    read_stl_from_bytes, stl_to_bytes, write_obj, write_ply_mesh, write_stl,
+    obj_to_string, ply_mesh_to_bytes, ply_mesh_to_bytes_coloured, read_mesh, read_obj,
+    read_obj_from_bytes, read_stl, read_stl_from_bytes, stl_to_bytes, write_obj, write_ply_mesh,
+    write_ply_mesh_coloured, write_stl,
 };
 pub use holes::{HoleFilling, fill_holes};
 pub use measure::{signed_volume, surface_area, vertex_normals};
