@@ -63,15 +63,7 @@ impl CaptureSet {
             manifest_path.to_path_buf()
         };
         let manifest = Manifest::load(&manifest_path)?;
-        let base_dir = manifest_path
-            .parent()
-            .map(Path::to_path_buf)
-            .unwrap_or_default();
-        let dir: PathBuf = match (frames_dir, &manifest.frames_dir) {
-            (Some(d), _) => d.to_path_buf(),
-            (None, Some(d)) => base_dir.join(d),
-            (None, None) => base_dir,
-        };
+        let dir = resolve_frames_dir(&manifest_path, &manifest, frames_dir);
         let mut paths = Vec::with_capacity(manifest.frame_count());
         for (b, block) in manifest.blocks.iter().enumerate() {
             for (i, file) in block.frames.iter().enumerate() {
@@ -129,6 +121,25 @@ impl CaptureSet {
             frames,
             frame_names,
         })
+    }
+}
+
+#[cfg(feature = "image-files")]
+/// The folder a manifest's frame names are relative to: `frames_dir` when given, else the
+/// manifest's `frames_dir` (relative to the manifest's folder), else the manifest's folder.
+pub(crate) fn resolve_frames_dir(
+    manifest_path: &Path,
+    manifest: &Manifest,
+    frames_dir: Option<&Path>,
+) -> PathBuf {
+    let base_dir = manifest_path
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    match (frames_dir, &manifest.frames_dir) {
+        (Some(d), _) => d.to_path_buf(),
+        (None, Some(d)) => base_dir.join(d),
+        (None, None) => base_dir,
     }
 }
 

@@ -67,6 +67,8 @@
 
 mod bits;
 mod capture;
+#[cfg(feature = "image-files")]
+mod colour;
 mod config;
 mod correspondence;
 mod decode;
@@ -96,6 +98,8 @@ mod unwrap;
 pub use capture::CaptureSet;
 #[cfg(feature = "image-files")]
 pub use capture::load_frame;
+#[cfg(feature = "image-files")]
+pub use colour::{CaptureColour, ColourSource, read_capture_colour};
 pub use config::{
     DEFAULT_DIRECT_GLOBAL_BITS, DEFAULT_MIN_CONTRAST, DEFAULT_MIN_DIRECT, DEFAULT_MIN_MODULATION,
     DEFAULT_ROWS_PER_TASK, DEFAULT_SATURATION_LEVEL, DEFAULT_UNWRAP_TOLERANCE, DecodeConfig,
@@ -105,7 +109,9 @@ pub use decode::{decode, decode_frames, decode_frames_into, decode_into};
 pub use error::CodecError;
 pub use export::{write_npy_f32, write_tiff_f32};
 #[cfg(feature = "image-files")]
-pub use export::{write_png_colour, write_png_grey, write_png_grey8, write_png_grey16, write_png_rgb8};
+pub use export::{
+    write_png_colour, write_png_grey, write_png_grey8, write_png_grey16, write_png_rgb8,
+};
 pub use exposure::{
     AutoExposureConfig, EXPOSURES_FILE, EXPOSURES_FORMAT, EXPOSURES_VERSION, ExposureChoice,
     ExposureFolder, ExposureFrames, ExposurePlan, ExposureRecord, FusedFrames, FusionConfig,
