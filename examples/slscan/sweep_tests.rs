@@ -16,7 +16,8 @@
 //! 2. the bounds the option's parser enforces, found by bisection on clap's parse alone
 //!    (between neighbours of a ladder of values that one accepts and one refuses), and the
 //!    value on each side of every bound;
-//! 3. a few values from a seeded generator (`Pcg64`, seed [`SEED`]): a random sign times
+//! 3. a few values from a seeded generator (`Pcg64`, seed [`SEED`] plus the option's index, so
+//!    the options can be swept in parallel and each still gets the same values): a random sign times
 //!    10^u, u uniform in −12..12 (floats), or 10^u, u in 0..20 (whole numbers).
 //!
 //! A value refused by clap is checked at once (its message). Of the values clap accepts, the
@@ -41,6 +42,7 @@ use clap::CommandFactory;
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
+use rayon::prelude::*;
 use sl_calib::BoardSize;
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::ImageSize;
@@ -648,6 +650,106 @@ fn bad_outputs(out: &Path, must_vary: &[&str]) -> Option<String> {
     None
 }
 
+/// What sweeping one option found.
+struct OptionSweep {
+    failures: Vec<String>,
+    runs: usize,
+    parsed: usize,
+    seconds: f64,
+}
+
+/// Sweeps option `o` (the `index`-th: its generator's seed and its output folders) over every
+/// base invocation of its command.
+fn sweep_option(fx: &Fixtures, o: &NumericOption, index: usize) -> OptionSweep {
+    let t0 = Instant::now();
+    let mut rng = Pcg64::seed_from_u64(SEED.wrapping_add(index as u64));
+    let mut sweep = OptionSweep {
+        failures: Vec::new(),
+        runs: 0,
+        parsed: 0,
+        seconds: 0.0,
+    };
+    let mut counter = 0usize;
+    let mut fresh_out = || {
+        counter += 1;
+        fx.dir.path().join(format!("out_{index}_{counter}"))
+    };
+    let flag = format!("--{}", o.long);
+    let bases = fx.bases(&o.command).unwrap_or_default();
+    for base in bases {
+        let base_args = match &base {
+            Base::Run { args, .. } | Base::Validate(args) => args.clone(),
+        };
+        let mut values = bounds(&base_args, &o.long, o.kind);
+        values.extend(hostile(o.kind, o.list));
+        values.extend(random_values(&mut rng, o.kind));
+        let mut seen = std::collections::HashSet::new();
+        values.retain(|v| seen.insert(v.clone()));
+        let mut accepted_runs = 0;
+        for value in values {
+            let out = fresh_out();
+            let mut args = with_out(&base_args, &out);
+            args.push(format!("{flag}={value}"));
+            let argv: Vec<String> = std::iter::once("slscan".to_owned())
+                .chain(args.iter().cloned())
+                .collect();
+            sweep.parsed += 1;
+            let command = match <crate::Cli as clap::Parser>::try_parse_from(&argv) {
+                Ok(cli) => cli.command,
+                Err(e) => {
+                    let text = e.to_string();
+                    if !text.contains(&flag) {
+                        sweep
+                            .failures
+                            .push(format!("{args:?}: clap's message: {text}"));
+                    }
+                    continue;
+                }
+            };
+            match &base {
+                Base::Validate(_) => match crate::validate(&command) {
+                    Err(e) => {
+                        let text = format!("{e:#}");
+                        if !text.contains(&flag) {
+                            sweep.failures.push(format!("{args:?}: {text}"));
+                        }
+                    }
+                    Ok(()) => {
+                        let finite = value
+                            .split([',', 'x'])
+                            .all(|x| x.parse::<f64>().ok().is_none_or(f64::is_finite));
+                        if !finite {
+                            sweep.failures.push(format!("{args:?}: accepted"));
+                        }
+                    }
+                },
+                Base::Run { must_vary, .. } => {
+                    if accepted_runs >= MAX_RUNS_PER_OPTION {
+                        continue;
+                    }
+                    accepted_runs += 1;
+                    sweep.runs += 1;
+                    match run(&args) {
+                        Ok(()) => {
+                            if let Some(why) = bad_outputs(&out, must_vary) {
+                                sweep.failures.push(format!("{args:?}: exit 0 but {why}"));
+                            }
+                        }
+                        Err(e) => {
+                            let text = format!("{e:#}");
+                            if !text.contains(&flag) {
+                                sweep.failures.push(format!("{args:?}: {text}"));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    sweep.seconds = t0.elapsed().as_secs_f64();
+    sweep
+}
+
 /// Every numeric option of every subcommand: a run that succeeds wrote a non-empty, finite
 /// result; one that fails named the option (module documentation).
 #[test]
@@ -660,109 +762,37 @@ fn every_numeric_option_is_checked_where_it_is_given() {
         "only {} numeric options found",
         options.len()
     );
-    let mut rng = Pcg64::seed_from_u64(SEED);
-    let mut failures: Vec<String> = Vec::new();
-    let mut runs = 0usize;
-    let mut parsed = 0usize;
-    let mut counter = 0usize;
-    let mut fresh_out = || {
-        counter += 1;
-        fx.dir.path().join(format!("out_{counter}"))
-    };
     // The base invocations succeed as they are.
     let mut commands: Vec<Vec<String>> = options.iter().map(|o| o.command.clone()).collect();
     commands.dedup();
-    for command in &commands {
+    for (c, command) in commands.iter().enumerate() {
         let bases = fx
             .bases(command)
             .unwrap_or_else(|| panic!("no base invocation for `slscan {}`", command.join(" ")));
-        for base in bases {
+        for (b, base) in bases.into_iter().enumerate() {
             if let Base::Run { args, must_vary } = base {
-                let out = fresh_out();
+                let out = fx.dir.path().join(format!("base_{c}_{b}"));
                 let r = run(&with_out(&args, &out));
                 assert!(r.is_ok(), "base {args:?}: {r:?}");
                 assert_eq!(bad_outputs(&out, must_vary), None, "base {args:?}");
             }
         }
     }
-    let mut timings: Vec<(String, f64)> = Vec::new();
-    for o in &options {
-        let t0 = Instant::now();
-        let flag = format!("--{}", o.long);
-        let bases = fx.bases(&o.command).unwrap_or_default();
-        for base in bases {
-            let base_args = match &base {
-                Base::Run { args, .. } | Base::Validate(args) => args.clone(),
-            };
-            let mut values = bounds(&base_args, &o.long, o.kind);
-            values.extend(hostile(o.kind, o.list));
-            values.extend(random_values(&mut rng, o.kind));
-            let mut seen = std::collections::HashSet::new();
-            values.retain(|v| seen.insert(v.clone()));
-            let mut accepted_runs = 0;
-            for value in values {
-                let out = fresh_out();
-                let mut args = with_out(&base_args, &out);
-                args.push(format!("{flag}={value}"));
-                let argv: Vec<String> = std::iter::once("slscan".to_owned())
-                    .chain(args.iter().cloned())
-                    .collect();
-                parsed += 1;
-                let command = match <crate::Cli as clap::Parser>::try_parse_from(&argv) {
-                    Ok(cli) => cli.command,
-                    Err(e) => {
-                        let text = e.to_string();
-                        if !text.contains(&flag) {
-                            failures.push(format!("{args:?}: clap's message: {text}"));
-                        }
-                        continue;
-                    }
-                };
-                match &base {
-                    Base::Validate(_) => match crate::validate(&command) {
-                        Err(e) => {
-                            let text = format!("{e:#}");
-                            if !text.contains(&flag) {
-                                failures.push(format!("{args:?}: {text}"));
-                            }
-                        }
-                        Ok(()) => {
-                            let finite = value
-                                .split([',', 'x'])
-                                .all(|x| x.parse::<f64>().ok().is_none_or(f64::is_finite));
-                            if !finite {
-                                failures.push(format!("{args:?}: accepted"));
-                            }
-                        }
-                    },
-                    Base::Run { must_vary, .. } => {
-                        if accepted_runs >= MAX_RUNS_PER_OPTION {
-                            continue;
-                        }
-                        accepted_runs += 1;
-                        runs += 1;
-                        match run(&args) {
-                            Ok(()) => {
-                                if let Some(why) = bad_outputs(&out, must_vary) {
-                                    failures.push(format!("{args:?}: exit 0 but {why}"));
-                                }
-                            }
-                            Err(e) => {
-                                let text = format!("{e:#}");
-                                if !text.contains(&flag) {
-                                    failures.push(format!("{args:?}: {text}"));
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        timings.push((
-            format!("{} {}", o.command.join(" "), flag),
-            t0.elapsed().as_secs_f64(),
-        ));
-    }
+    // The options in parallel (the runs are independent: each writes its own folder), each
+    // with its own seeded generator so the values do not depend on the order they run in.
+    let swept: Vec<OptionSweep> = options
+        .par_iter()
+        .enumerate()
+        .map(|(i, o)| sweep_option(&fx, o, i))
+        .collect();
+    let failures: Vec<String> = swept.iter().flat_map(|s| s.failures.clone()).collect();
+    let runs: usize = swept.iter().map(|s| s.runs).sum();
+    let parsed: usize = swept.iter().map(|s| s.parsed).sum();
+    let mut timings: Vec<(String, f64)> = options
+        .iter()
+        .zip(&swept)
+        .map(|(o, s)| (format!("{} --{}", o.command.join(" "), o.long), s.seconds))
+        .collect();
     timings.sort_by(|a, b| b.1.total_cmp(&a.1));
     eprintln!(
         "{} options, {parsed} values parsed, {runs} runs, {:.1} s; slowest: {:?}",

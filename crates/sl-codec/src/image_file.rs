@@ -331,9 +331,12 @@ pub fn read_colour_image(path: &Path) -> Result<ColourImage, CodecError> {
     }
     let (w, h) = (img.width() as usize, img.height() as usize);
     let data = match img {
-        DynamicImage::ImageLuma8(_) | DynamicImage::ImageLumaA8(_) => {
-            img.to_luma8().into_raw().into_iter().map(|g| [g; 3]).collect()
-        }
+        DynamicImage::ImageLuma8(_) | DynamicImage::ImageLumaA8(_) => img
+            .to_luma8()
+            .into_raw()
+            .into_iter()
+            .map(|g| [g; 3])
+            .collect(),
         DynamicImage::ImageRgb8(b) => b.pixels().map(|p| p.0).collect(),
         DynamicImage::ImageRgba8(b) => b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]).collect(),
         // 16-bit and float images: through 16-bit RGB (floats clamped to [0, 1]), then

@@ -54,6 +54,7 @@ mod calibrate;
 mod calibration_layout;
 mod capture;
 mod capture_reconstruction;
+mod colour;
 mod device_scan;
 mod error;
 mod exposures;
@@ -142,6 +143,7 @@ pub use capture_reconstruction::{
     CaptureDecoding, CaptureReconstruction, CaptureReconstructionConfig, decode_capture,
     reconstruct_capture,
 };
+pub use colour::{ColourConfig, ColourMode, ColourView, ScanColours, UNSEEN_COLOUR};
 pub use device_scan::{
     AUTO_EXPOSURE_START_MS, DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig,
     ScanOperator, SessionCapture, capture_binocular_device_session, capture_device_session,
@@ -174,8 +176,8 @@ pub use placements::{
 pub use progress::{ScanProgress, StageTime};
 pub use reconstruct::{
     ReconstructConfig, ReconstructedViews, drop_grazing, reconstruct_binocular_session,
-    reconstruct_binocular_view, reconstruct_decoded, reconstruct_session, reconstruct_view,
-    reconstruct_view_eroded,
+    reconstruct_binocular_view, reconstruct_decoded, reconstruct_decoded_coloured,
+    reconstruct_session, reconstruct_view, reconstruct_view_coloured, reconstruct_view_eroded,
 };
 #[cfg(feature = "sim")]
 pub use report::write_summary_html;

@@ -172,6 +172,9 @@ pub struct MergedViews {
     pub alignment: Option<ViewAlignment>,
     /// Where each view's pose came from.
     pub report: MergeReport,
+    /// `T_world_view` of each view (world: the camera frame of view 0), the poses the views
+    /// were merged with.
+    pub poses: Vec<Isometry3<f64>>,
 }
 
 /// Merges the reconstructed views into one cloud in the camera frame of view 0, reporting the
@@ -204,6 +207,7 @@ pub fn merge_scan(
         MergedViews {
             cloud: m.cloud,
             report: MergeReport::from_alignment(&m.alignment),
+            poses: m.alignment.poses.clone(),
             alignment: Some(m.alignment),
         }
     } else {
@@ -211,6 +215,7 @@ pub fn merge_scan(
             cloud: merge_aligned(&views.clouds, &initial, &config.merge)?,
             alignment: None,
             report: MergeReport::given(initial.len(), given),
+            poses: initial,
         }
     };
     progress(ScanProgress {

@@ -4,17 +4,18 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 use sl_camera::{BinocularCalibration, Calibration, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_codec::{
-    CaptureSet, CorrespondenceMap, DecodeConfig, MANIFEST_FILE, SmoothConfig, decode,
-    ramp_stair_codes, smooth_correspondences,
+    CaptureSet, ColourImage, ColourSource, CorrespondenceMap, DecodeConfig, MANIFEST_FILE,
+    SmoothConfig, decode, ramp_stair_codes, read_capture_colour, smooth_correspondences,
 };
 use sl_rig::{RIGHT_DIR, read_session_plan, view_dir_name};
-use sl_tri::{Binocular, BinocularConfig, TriConfig, Triangulator};
+use sl_tri::{Binocular, BinocularConfig, Texture, TriConfig, Triangulator};
 
 use crate::calibrate::require_turntable_axis;
+use crate::colour::{ColourMode, ColourView};
 use crate::error::stage_err;
 use crate::{ScanError, ScanProgress};
 
@@ -42,6 +43,9 @@ pub struct ReconstructConfig {
     /// reconstructed with a calibration that holds the projector's response decodes with it
     /// ([`Self::for_calibration`]).
     pub decode: DecodeConfig,
+    /// Whether the views' clouds carry colour ([`ColourMode`]). Default
+    /// [`ColourMode::Auto`]: when the capture holds colour.
+    pub colour: ColourMode,
 }
 
 impl Default for ReconstructConfig {
@@ -51,6 +55,7 @@ impl Default for ReconstructConfig {
             max_view_angle_deg: 90.0,
             smoothing: Some(SmoothConfig::default()),
             decode: DecodeConfig::default(),
+            colour: ColourMode::Auto,
         }
     }
 }
@@ -63,6 +68,7 @@ impl ReconstructConfig {
             max_view_angle_deg: 90.0,
             smoothing: None,
             decode: DecodeConfig::default(),
+            colour: ColourMode::Auto,
         }
     }
 
@@ -92,6 +98,9 @@ pub struct ReconstructedViews {
     pub axis: TurntableAxis,
     /// One cloud per view (mm, camera frame), in the session's order.
     pub clouds: Vec<PointCloud>,
+    /// Each view's colour image and depth map when it has colour ([`ColourMode`]), its pose
+    /// still the identity: [`merge_scan`](crate::merge_scan) places them.
+    pub colours: Vec<Option<ColourView>>,
 }
 
 /// Decodes and triangulates one capture set (folder with `manifest.json`): each pixel's own
@@ -108,10 +117,70 @@ pub fn reconstruct_view_eroded(
     triangulator: &Triangulator,
     config: &ReconstructConfig,
 ) -> Result<PointCloud, ScanError> {
-    let set = CaptureSet::load(&dir.join(MANIFEST_FILE))?;
+    Ok(reconstruct_view_coloured(dir, triangulator, config)?.0)
+}
+
+/// [`reconstruct_view_eroded`] with the view's colour ([`ReconstructConfig::colour`]): the
+/// cloud's points coloured from the capture's colour image
+/// ([`sl_codec::read_capture_colour`]), and the image with the view's depth map (its pose the
+/// identity), `None` without colour.
+///
+/// # Errors
+/// As [`reconstruct_view_eroded`]; [`ScanError::Stage`] naming the colour file when its size
+/// is not the frames'.
+pub fn reconstruct_view_coloured(
+    dir: &Path,
+    triangulator: &Triangulator,
+    config: &ReconstructConfig,
+) -> Result<(PointCloud, Option<ColourView>), ScanError> {
+    let manifest = dir.join(MANIFEST_FILE);
+    let set = CaptureSet::load(&manifest)?;
+    let colour = match config.colour {
+        ColourMode::Never => None,
+        mode => {
+            let c = read_capture_colour(&manifest)?;
+            let keep = mode == ColourMode::Always
+                || c.source == ColourSource::ColourFrame
+                || c.has_chroma();
+            keep.then_some(c)
+        }
+    };
     let map = decode(&set, &config.decode)?;
     drop(set);
-    reconstruct_decoded(&map, triangulator, &TriConfig::default(), config)
+    if let Some(c) = &colour
+        && (c.image.width(), c.image.height()) != (map.width, map.height)
+    {
+        return Err(stage_err(
+            "reconstruct",
+            format!(
+                "the colour image {} is {}x{}, the frames {}x{}",
+                c.files
+                    .first()
+                    .map(|f| f.display().to_string())
+                    .unwrap_or_default(),
+                c.image.width(),
+                c.image.height(),
+                map.width,
+                map.height
+            ),
+        ));
+    }
+    let (cloud, depth_mm) = reconstruct_decoded_coloured(
+        &map,
+        triangulator,
+        &TriConfig::default(),
+        config,
+        colour.as_ref().map(|c| &c.image),
+    )?;
+    Ok((
+        cloud,
+        colour.map(|c| ColourView {
+            t_world_view: Isometry3::identity(),
+            image: c.image,
+            depth_mm,
+            source: c.source,
+        }),
+    ))
 }
 
 /// Triangulates a decoded map as a scan does: the coordinates smoothed
@@ -124,6 +193,22 @@ pub fn reconstruct_decoded(
     options: &TriConfig,
     config: &ReconstructConfig,
 ) -> Result<PointCloud, ScanError> {
+    Ok(reconstruct_decoded_coloured(map, triangulator, options, config, None)?.0)
+}
+
+/// [`reconstruct_decoded`] with the points coloured from `colour` (camera-sized), and the
+/// depth map of every triangulated point (mm, camera z; NaN where none), before the edges are
+/// eroded.
+///
+/// # Errors
+/// As [`reconstruct_decoded`]; [`ScanError::Tri`] when `colour` is not the map's size.
+pub fn reconstruct_decoded_coloured(
+    map: &CorrespondenceMap,
+    triangulator: &Triangulator,
+    options: &TriConfig,
+    config: &ReconstructConfig,
+    colour: Option<&ColourImage>,
+) -> Result<(PointCloud, Vec<f32>), ScanError> {
     let edge_erosion_px = config.edge_erosion_px;
     let smoothed;
     let map = match &config.smoothing {
@@ -133,9 +218,15 @@ pub fn reconstruct_decoded(
         }
         None => map,
     };
-    let tri = triangulator.triangulate(map, options)?;
+    let texture = colour.map(|c| Texture::Rgb8(c.data()));
+    let tri = triangulator.triangulate_textured(map, texture, options)?;
+    let depth_mm = if colour.is_some() {
+        tri.depth_map()
+    } else {
+        Vec::new()
+    };
     if edge_erosion_px == 0 {
-        return Ok(tri.cloud);
+        return Ok((tri.cloud, depth_mm));
     }
     let mut valid: Vec<bool> = tri
         .status
@@ -150,7 +241,7 @@ pub fn reconstruct_decoded(
         .filter(|(_, px)| valid.get(**px as usize).copied().unwrap_or(false))
         .map(|(i, _)| i)
         .collect();
-    Ok(tri.cloud.select(&keep)?)
+    Ok((tri.cloud.select(&keep)?, depth_mm))
 }
 
 /// Erodes the `w × h` mask `valid` by `steps` 4-connected steps: a pixel stays valid only when
@@ -290,7 +381,7 @@ pub fn reconstruct_session(
         axis,
         grazing,
         progress,
-        |dir| reconstruct_view_eroded(dir, &triangulator, config),
+        |dir| reconstruct_view_coloured(dir, &triangulator, config),
     )
 }
 
@@ -332,7 +423,12 @@ pub fn reconstruct_binocular_session(
         axis,
         grazing,
         progress,
-        |dir| reconstruct_binocular_view(dir, &rectified, config, options),
+        |dir| {
+            Ok((
+                reconstruct_binocular_view(dir, &rectified, config, options)?,
+                None,
+            ))
+        },
     )
 }
 
@@ -346,7 +442,7 @@ fn reconstruct_views(
     axis: TurntableAxis,
     grazing: (Point3<f64>, f64),
     mut progress: impl FnMut(ScanProgress<'_>),
-    mut view: impl FnMut(&Path) -> Result<PointCloud, ScanError>,
+    mut view: impl FnMut(&Path) -> Result<(PointCloud, Option<ColourView>), ScanError>,
 ) -> Result<ReconstructedViews, ScanError> {
     if angles.len() < 2 {
         return Err(stage_err(
@@ -360,6 +456,7 @@ fn reconstruct_views(
     }
     let total = angles.len();
     let mut clouds = Vec::with_capacity(total);
+    let mut colours = Vec::with_capacity(total);
     for k in 0..total {
         let dir = session_dir.join(view_dir_name(k));
         let resume = "resume the capture with the same command (finished views are kept)";
@@ -372,7 +469,7 @@ fn reconstruct_views(
                 ),
             ));
         }
-        let cloud = view(&dir).map_err(|e| {
+        let (cloud, colour) = view(&dir).map_err(|e| {
             stage_err(
                 "reconstruct",
                 format!(
@@ -392,6 +489,7 @@ fn reconstruct_views(
             ));
         }
         clouds.push(cloud);
+        colours.push(colour);
         progress(ScanProgress {
             stage: "reconstruct",
             done: k + 1,
@@ -403,5 +501,6 @@ fn reconstruct_views(
         motor_angles_deg: angles,
         axis,
         clouds,
+        colours,
     })
 }

@@ -23,13 +23,14 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use nalgebra::Isometry3;
-use sl_camera::{BinocularCalibration, Calibration, TurntableAxis};
+use sl_camera::{BinocularCalibration, Calibration, CameraModel, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_tri::BinocularConfig;
 
 use crate::{
-    MergeReport, MergeStageConfig, ReconstructConfig, ReconstructedViews, ScanError, ScanProgress,
-    StageTime, merge_scan, reconstruct_binocular_session, reconstruct_session,
+    ColourConfig, ColourView, MergeReport, MergeStageConfig, ReconstructConfig, ReconstructedViews,
+    ScanColours, ScanError, ScanProgress, StageTime, merge_scan, reconstruct_binocular_session,
+    reconstruct_session,
 };
 
 /// Options of [`scan_session`].
@@ -45,6 +46,8 @@ pub struct SessionScanConfig {
     /// The matching between the two cameras of a session captured with two
     /// ([`ScanCalibration::Binocular`]); unused with one camera.
     pub binocular: BinocularConfig,
+    /// How the views' colours are blended on the surface.
+    pub colour: ColourConfig,
 }
 
 /// The calibration a turntable scan reconstructs with: one camera and the projector
@@ -122,6 +125,9 @@ pub struct SessionScan {
     pub merge: MergeReport,
     /// Wall time per stage (`reconstruct`, `merge`).
     pub stages: Vec<StageTime>,
+    /// The views' colours placed by the merge's poses, when the views have colour
+    /// ([`crate::ColourMode`]): what colours the mesh.
+    pub colours: Option<ScanColours>,
 }
 
 /// Reconstructs every view of the capture session in `session_dir` with `calibration`, then
@@ -137,7 +143,7 @@ pub fn scan_session(
 ) -> Result<SessionScan, ScanError> {
     let t = Instant::now();
     let views = reconstruct_session(session_dir, calibration, &config.reconstruct, &mut progress)?;
-    merge_views(views, t, config, progress)
+    merge_views(views, Some(&calibration.camera), t, config, progress)
 }
 
 /// [`scan_session`] for a session captured with two cameras: each view matched and
@@ -162,12 +168,14 @@ pub fn scan_binocular_session(
         &config.binocular,
         &mut progress,
     )?;
-    merge_views(views, t, config, progress)
+    merge_views(views, None, t, config, progress)
 }
 
-/// The merge stage of both scans, `t` the start of their reconstruction.
+/// The merge stage of both scans, `t` the start of their reconstruction; `camera` took the
+/// views' colours.
 fn merge_views(
     views: ReconstructedViews,
+    camera: Option<&CameraModel>,
     t: Instant,
     config: &SessionScanConfig,
     mut progress: impl FnMut(ScanProgress<'_>),
@@ -181,6 +189,24 @@ fn merge_views(
         &mut progress,
     )?;
     stages.push(StageTime::since("merge", t));
+    let colours = camera.and_then(|camera| {
+        let placed: Vec<ColourView> = views
+            .colours
+            .into_iter()
+            .zip(&merged.poses)
+            .filter_map(|(c, pose)| {
+                c.map(|c| ColourView {
+                    t_world_view: *pose,
+                    ..c
+                })
+            })
+            .collect();
+        (!placed.is_empty()).then(|| ScanColours {
+            camera: camera.clone(),
+            views: placed,
+            config: config.colour,
+        })
+    });
     Ok(SessionScan {
         session: views.session,
         platter_angles_deg: views
@@ -194,5 +220,6 @@ fn merge_views(
         merged: merged.cloud,
         merge: merged.report,
         stages,
+        colours,
     })
 }

@@ -225,6 +225,7 @@ pub fn scan_virtual_placements(
         merge: MergeStageConfig::scan(cfg.average_overlaps, cfg.smoothing_neighbours, true),
         poses: None,
         binocular: BinocularConfig::default(),
+        colour: crate::ColourConfig::default(),
     };
     let mut placement_cfg = PlacementConfig::default();
     placement_cfg.merge.average_overlaps = cfg.average_overlaps;

@@ -173,6 +173,7 @@ impl VirtualScanConfig {
             max_view_angle_deg: self.max_view_angle_deg,
             smoothing: self.smoothing,
             decode: sl_codec::DecodeConfig::default(),
+            colour: crate::ColourMode::Auto,
         }
     }
 }
@@ -612,6 +613,7 @@ pub fn scan_virtual(
         ),
         poses,
         binocular: cfg.binocular_options,
+        colour: crate::ColourConfig::default(),
     };
     let scan = calibration.scan_session(&session_dir, &scan_config, &mut progress)?;
     stages.extend(scan.stages.iter().cloned());
