@@ -227,6 +227,50 @@ impl ScanColours {
     }
 }
 
+/// The views' colours of several placements (each placement's [`crate::SessionScan::colours`])
+/// in the first placement's frame: placement `k`'s views moved by `alignments[k - 1].pose` (`T_first_this`); `None` when no view has colour.
+///
+/// # Errors
+/// [`ScanError::Stage`] for an alignment pose that is not a rigid motion, or fewer alignments
+/// than placements after the first.
+pub fn placed_colours<'a>(
+    placements: impl IntoIterator<Item = Option<&'a ScanColours>>,
+    alignments: &[crate::PlacementAlignment],
+) -> Result<Option<ScanColours>, ScanError> {
+    let mut out: Option<ScanColours> = None;
+    for (k, colours) in placements.into_iter().enumerate() {
+        let Some(colours) = colours else {
+            continue;
+        };
+        let t_first_this = match k {
+            0 => Isometry3::identity(),
+            _ => {
+                let a = alignments.get(k - 1).ok_or_else(|| {
+                    stage_err("colour", format!("placement {} has no alignment", k + 1))
+                })?;
+                sl_camera::pose_from_matrix(&a.pose).map_err(|e| {
+                    stage_err("colour", format!("placement {}'s alignment: {e}", k + 1))
+                })?
+            }
+        };
+        let moved = colours.views.iter().map(|v| ColourView {
+            t_world_view: t_first_this * v.t_world_view,
+            ..v.clone()
+        });
+        match &mut out {
+            Some(all) => all.views.extend(moved),
+            None => {
+                out = Some(ScanColours {
+                    camera: colours.camera.clone(),
+                    views: moved.collect(),
+                    config: colours.config,
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// The colour given to surface no view sees (the unseen bottom a second placement did not
 /// cover): mid grey.
 pub const UNSEEN_COLOUR: [u8; 3] = [128, 128, 128];

@@ -3,7 +3,8 @@
 //! latency first when asked), re-place the object between two placements through a
 //! [`ScanOperator`], reconstruct and merge each session ([`scan_session`]), align and merge the
 //! placements ([`scan_placements`]), write the merged cloud and its previews
-//! ([`write_scan_cloud`]) and mesh it ([`mesh_stage_with`], without a truth). The counterpart of
+//! ([`write_scan_cloud`]) and mesh it ([`mesh_stage_coloured`], without a truth, in colour when
+//! the views have colour). The counterpart of
 //! [`scan_virtual`](crate::scan_virtual) and [`scan_virtual_placements`](crate::scan_virtual_placements)
 //! for real devices: `slscan scan --camera … --projector-monitor … --turntable …` is a thin
 //! wrapper around [`scan_devices`], with `sl_rig::with_devices` opening the devices and the
@@ -48,10 +49,12 @@ use sl_rig::{
     measure_latency,
 };
 
+#[cfg(feature = "mesh")]
+use crate::colour::placed_colours;
 use crate::error::{io, stage_err};
 use crate::exposures::{Exposures, session_exposures};
 #[cfg(feature = "mesh")]
-use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
+use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_coloured, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::{
     PLACEMENT_SESSION_DIR, SCAN_PERIOD_PX, ScanCalibration, ScanError, ScanProgress, SessionScan,
@@ -783,7 +786,21 @@ where
         let t = Instant::now();
         let poisson =
             scan_poisson_config(&merged, cfg.session.merge.merge.output_voxel_size, depth);
-        let meshed = mesh_stage_with(&merged, None, None, &poisson, &cfg.mesh, out);
+        let colours = placed_colours(
+            placements.iter().map(|p| p.scan.colours.as_ref()),
+            &alignments,
+        );
+        let meshed = colours.and_then(|colours| {
+            mesh_stage_coloured(
+                &merged,
+                None,
+                None,
+                &poisson,
+                &cfg.mesh,
+                colours.as_ref(),
+                out,
+            )
+        });
         stages.push(StageTime::since("mesh", t));
         meshed
     });

@@ -143,7 +143,9 @@ pub use capture_reconstruction::{
     CaptureDecoding, CaptureReconstruction, CaptureReconstructionConfig, decode_capture,
     reconstruct_capture,
 };
-pub use colour::{ColourConfig, ColourMode, ColourView, ScanColours, UNSEEN_COLOUR};
+pub use colour::{
+    ColourConfig, ColourMode, ColourView, ScanColours, UNSEEN_COLOUR, placed_colours,
+};
 pub use device_scan::{
     AUTO_EXPOSURE_START_MS, DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig,
     ScanOperator, SessionCapture, capture_binocular_device_session, capture_device_session,
@@ -162,8 +164,8 @@ pub use merge::{
 };
 #[cfg(feature = "mesh")]
 pub use mesh::{
-    MESH_CELL_PER_SPACING, MeshConfig, MeshFiles, MeshOutputs, MeshSummary, mesh_stage,
-    mesh_stage_with, scan_poisson_config, write_mesh_pictures,
+    MESH_CELL_PER_SPACING, MeshColourSummary, MeshConfig, MeshFiles, MeshOutputs, MeshSummary,
+    mesh_stage, mesh_stage_coloured, mesh_stage_with, scan_poisson_config, write_mesh_pictures,
 };
 #[cfg(feature = "mesh")]
 pub use mesh_chain::{FarPointsDropped, MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};

@@ -11,14 +11,15 @@ use serde::Serialize;
 use sl_cloud::{PointCloud, PreviewConfig};
 use sl_codec::write_png_rgb8;
 use sl_mesh::{
-    FairConfig, MeshColoring, PoissonConfig, SimplifyConfig, TriangleMesh, ViewerConfig,
-    ViewerLayer, render_mesh, viewer_html, write_ply_mesh, write_stl,
+    FairConfig, MeshColoring, PoissonConfig, SimplifyConfig, TextureConfig, TriangleMesh,
+    ViewerConfig, ViewerLayer, bake_texture, render_mesh, vertex_normals, viewer_html,
+    write_obj_textured, write_ply_mesh, write_ply_mesh_coloured, write_stl,
 };
 use sl_metrology::{EvaluateConfig, MeshSampling, Report, Truth, evaluate_mesh};
 
 use crate::error::io;
 use crate::run_report::write_atomically;
-use crate::{MeshChainConfig, ScanError, mesh_chain};
+use crate::{MeshChainConfig, ScanColours, ScanError, UNSEEN_COLOUR, mesh_chain};
 
 /// What the mesh stage made and measured.
 #[derive(Debug, Clone, Serialize)]
@@ -52,6 +53,25 @@ pub struct MeshSummary {
     pub accuracy_vertices: Option<Report>,
     /// The mesh measured against the truth over area-weighted samples.
     pub accuracy_area: Option<Report>,
+    /// The mesh's colour, when the views had colour ([`mesh_stage_coloured`]).
+    pub colour: Option<MeshColourSummary>,
+}
+
+/// How the mesh was coloured ([`mesh_stage_coloured`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshColourSummary {
+    /// Views with a colour image.
+    pub views: usize,
+    /// Vertices no view sees (given [`crate::UNSEEN_COLOUR`]).
+    pub unseen_vertices: usize,
+    /// Width and height of the texture (texels).
+    pub texture_size: [usize; 2],
+    /// Texels of the texture no view sees (filled from their triangle's seen texels).
+    pub unseen_texels: usize,
+    /// Wall time of the vertex colours and of the texture (ms).
+    pub vertex_ms: f64,
+    /// See `vertex_ms`.
+    pub texture_ms: f64,
 }
 
 /// The files of the mesh stage, relative to the output folder.
@@ -65,6 +85,10 @@ pub struct MeshFiles {
     pub preview: String,
     /// The interactive 3-D page of the merged cloud and the mesh.
     pub view3d: String,
+    /// The textured mesh as OBJ (its `.mtl` and `.png` beside it), when coloured.
+    pub obj: Option<String>,
+    /// The texture image of `obj`.
+    pub texture: Option<String>,
 }
 
 /// Largest finest-cell edge of a scan's mesh as a fraction of the merged cloud's sample
@@ -176,6 +200,24 @@ pub fn mesh_stage_with(
     options: &MeshConfig,
     out: &Path,
 ) -> Result<(MeshSummary, MeshFiles), ScanError> {
+    mesh_stage_coloured(merged, merged_errors_mm, truth, cfg, options, None, out)
+}
+
+/// [`mesh_stage_with`], the mesh coloured from the views' `colours` when given: `mesh.ply`
+/// with vertex colours, `mesh.obj` with its texture (`mesh.mtl`, `mesh.png`, baked by
+/// `sl_mesh::bake_texture` from [`ScanColours::colour_at`]) and the 3-D page in colour.
+///
+/// # Errors
+/// As [`mesh_stage_with`].
+pub fn mesh_stage_coloured(
+    merged: &PointCloud,
+    merged_errors_mm: Option<&[f32]>,
+    truth: Option<&Truth>,
+    cfg: &PoissonConfig,
+    options: &MeshConfig,
+    colours: Option<&ScanColours>,
+    out: &Path,
+) -> Result<(MeshSummary, MeshFiles), ScanError> {
     // The chain of `slscan mesh` with this stage's steps: the reconstruction, then the
     // simplification and the fairing of the surface that closes the unseen part (on the
     // simplified mesh: few vertices there, so the bi-Laplacian system is small).
@@ -195,13 +237,24 @@ pub fn mesh_stage_with(
         (chain.vertices_extracted, chain.triangles_extracted);
     let mesh = &chain.mesh;
     let topo = &chain.topology;
-    let files = MeshFiles {
+    let mut files = MeshFiles {
         ply: "mesh.ply".into(),
         stl: "mesh.stl".into(),
         preview: "mesh_preview.png".into(),
         view3d: "view3d.html".into(),
+        obj: None,
+        texture: None,
     };
-    write_ply_mesh(&out.join(&files.ply), mesh)?;
+    let coloured = match colours {
+        Some(c) => Some(colour_mesh(mesh, c, out, &mut files)?),
+        None => None,
+    };
+    match &coloured {
+        Some((_, vertex_colours)) => {
+            write_ply_mesh_coloured(&out.join(&files.ply), mesh, vertex_colours)?;
+        }
+        None => write_ply_mesh(&out.join(&files.ply), mesh)?,
+    }
     write_stl(&out.join(&files.stl), mesh)?;
     let (accuracy_vertices, accuracy_area) = match truth {
         Some(t) => {
@@ -259,8 +312,59 @@ pub fn mesh_stage_with(
             contour_ms: chain.contour_ms,
             accuracy_vertices,
             accuracy_area,
+            colour: coloured.map(|(summary, _)| summary),
         },
         files,
+    ))
+}
+
+/// The mesh's vertex colours and its textured OBJ (`mesh.obj`, `mesh.mtl`, `mesh.png` in
+/// `out`, named in `files`) from the views' `colours`.
+fn colour_mesh(
+    mesh: &TriangleMesh,
+    colours: &ScanColours,
+    out: &Path,
+    files: &mut MeshFiles,
+) -> Result<(MeshColourSummary, Vec<[u8; 3]>), ScanError> {
+    colours.config.validate()?;
+    let t = std::time::Instant::now();
+    let normals = vertex_normals(mesh);
+    let seen: Vec<Option<[u8; 3]>> = {
+        use rayon::prelude::*;
+        mesh.vertices
+            .par_iter()
+            .zip(&normals)
+            .map(|(p, n)| colours.colour_at(p, n))
+            .collect()
+    };
+    let unseen_vertices = seen.iter().filter(|c| c.is_none()).count();
+    let vertex_colours: Vec<[u8; 3]> = seen
+        .into_iter()
+        .map(|c| c.unwrap_or(UNSEEN_COLOUR))
+        .collect();
+    let vertex_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = std::time::Instant::now();
+    let atlas = bake_texture(mesh, &TextureConfig::default(), |p, n| {
+        colours.colour_at(p, n)
+    })?;
+    let obj = "mesh.obj";
+    let written = write_obj_textured(&out.join(obj), mesh, &atlas)?;
+    files.obj = Some(obj.to_owned());
+    files.texture = written
+        .png
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned());
+    let texture_ms = t.elapsed().as_secs_f64() * 1e3;
+    Ok((
+        MeshColourSummary {
+            views: colours.views.len(),
+            unseen_vertices,
+            texture_size: [atlas.image.width(), atlas.image.height()],
+            unseen_texels: atlas.unknown_texels,
+            vertex_ms,
+            texture_ms,
+        },
+        vertex_colours,
     ))
 }
 
