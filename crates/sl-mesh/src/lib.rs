@@ -60,6 +60,7 @@
 #![deny(missing_docs)]
 
 mod adjacency;
+mod atlas;
 mod bilateral;
 mod contour;
 mod curvature;
@@ -79,10 +80,12 @@ mod simplify;
 mod taubin;
 #[cfg(test)]
 mod test_shapes;
+mod textured_obj;
 mod topology;
 mod trim;
 mod viewer;
 
+pub use atlas::{TextureAtlas, TextureConfig, UNKNOWN_COLOUR, bake_texture};
 pub use bilateral::{BilateralConfig, smooth_bilateral};
 pub use decimate::{Decimation, decimate};
 pub use error::MeshError;
@@ -101,7 +104,11 @@ pub use render::{MeshColoring, render_mesh};
 pub use simplify::{Simplification, SimplifyConfig, simplify};
 pub use sl_cloud::sample_surface;
 pub use sl_cloud::{TriangleMesh, read_ply_mesh};
+pub use sl_image::ColourImage;
 pub use taubin::{TaubinConfig, smooth_taubin};
+#[cfg(feature = "image-files")]
+pub use textured_obj::write_obj_textured;
+pub use textured_obj::{TexturedObjFiles, TexturedObjText, textured_obj_to_strings};
 pub use topology::{
     Topology, check_topology, compact_vertices, largest_piece, remove_small_components,
 };
