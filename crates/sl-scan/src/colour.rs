@@ -271,6 +271,100 @@ pub fn placed_colours<'a>(
     Ok(out)
 }
 
+/// A scan's colours against the true albedo of the surface they were measured on.
+///
+/// The camera's levels are the albedo times the light: the projector's irradiance, the
+/// exposure and the camera's gain per channel. One gain per channel is fitted (least squares,
+/// the white balance and exposure a user sets once), and what remains is the error: the
+/// shading the white frame carries (the projector's angle and distance to each point), the
+/// noise, and the blur at the patches' edges. The angle between the measured and the true RGB
+/// vectors (after the gains) is blind to the shading, which scales all three channels alike:
+/// it measures the hue and saturation alone.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ColourAccuracy {
+    /// Points compared (those with a true colour).
+    pub points: usize,
+    /// Fitted gain per channel (levels per unit albedo).
+    pub gain: [f64; 3],
+    /// RMS over points and channels of the measured level minus the gain times the albedo
+    /// (8-bit levels).
+    pub rms_levels: f64,
+    /// `rms_levels` over the mean measured level.
+    pub rms_relative: f64,
+    /// Median angle between the measured and the true colour (degrees, after the gains).
+    pub angle_median_deg: f64,
+    /// 95th percentile of that angle (degrees).
+    pub angle_p95_deg: f64,
+}
+
+/// Compares `colours` (8-bit) of `points` with `truth`, the true RGB albedo in `[0, 1]` at a
+/// point (`None`: no surface near it, the point is left out). `None` when no point has a
+/// truth or the truth is black everywhere.
+pub fn colour_accuracy(
+    points: &[Point3<f64>],
+    colours: &[[u8; 3]],
+    truth: impl Fn(&Point3<f64>) -> Option<[f64; 3]> + Sync,
+) -> Option<ColourAccuracy> {
+    use rayon::prelude::*;
+    let pairs: Vec<([f64; 3], [f64; 3])> = points
+        .par_iter()
+        .zip(colours)
+        .filter_map(|(p, c)| truth(p).map(|a| (c.map(f64::from), a)))
+        .collect();
+    if pairs.is_empty() {
+        return None;
+    }
+    let mut gain = [0.0; 3];
+    for (k, g) in gain.iter_mut().enumerate() {
+        let (ca, aa) = pairs.iter().fold((0.0, 0.0), |(ca, aa), (c, a)| {
+            (ca + c[k] * a[k], aa + a[k] * a[k])
+        });
+        if aa <= 0.0 {
+            return None;
+        }
+        *g = ca / aa;
+    }
+    let n = pairs.len() as f64;
+    let sq: f64 = pairs
+        .iter()
+        .map(|(c, a)| (0..3).map(|k| (c[k] - gain[k] * a[k]).powi(2)).sum::<f64>())
+        .sum();
+    let rms_levels = (sq / (3.0 * n)).sqrt();
+    let mean_level = pairs
+        .iter()
+        .map(|(c, _)| c.iter().sum::<f64>())
+        .sum::<f64>()
+        / (3.0 * n);
+    let mut angles: Vec<f64> = pairs
+        .iter()
+        .map(|(c, a)| {
+            let t: [f64; 3] = std::array::from_fn(|k| gain[k] * a[k]);
+            let dot: f64 = (0..3).map(|k| c[k] * t[k]).sum();
+            let norms = c.iter().map(|v| v * v).sum::<f64>().sqrt()
+                * t.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if norms > 0.0 {
+                (dot / norms).clamp(-1.0, 1.0).acos().to_degrees()
+            } else {
+                90.0
+            }
+        })
+        .collect();
+    angles.sort_by(f64::total_cmp);
+    let at = |q: f64| angles[((angles.len() - 1) as f64 * q).round() as usize];
+    Some(ColourAccuracy {
+        points: pairs.len(),
+        gain,
+        rms_levels,
+        rms_relative: if mean_level > 0.0 {
+            rms_levels / mean_level
+        } else {
+            f64::NAN
+        },
+        angle_median_deg: at(0.5),
+        angle_p95_deg: at(0.95),
+    })
+}
+
 /// The colour given to surface no view sees (the unseen bottom a second placement did not
 /// cover): mid grey.
 pub const UNSEEN_COLOUR: [u8; 3] = [128, 128, 128];
@@ -377,6 +471,47 @@ mod tests {
         // Red 200 · 1 / 1.25 = 160, blue 200 · 0.25 / 1.25 = 40.
         assert!((i32::from(c[0]) - 160).abs() <= 1, "{c:?}");
         assert!((i32::from(c[2]) - 40).abs() <= 1, "{c:?}");
+    }
+
+    #[test]
+    fn colour_accuracy_fits_the_gains_and_measures_what_remains() {
+        let points: Vec<Point3<f64>> = (0..4)
+            .map(|i| Point3::new(f64::from(i), 0.0, 0.0))
+            .collect();
+        let albedo = |p: &Point3<f64>| -> Option<[f64; 3]> {
+            match p.x as i32 {
+                0 | 1 => Some([0.8, 0.1, 0.1]),
+                2 => Some([0.1, 0.7, 0.2]),
+                _ => None,
+            }
+        };
+        // Exact: gains (250, 200, 150), no error, no angle.
+        let exact: Vec<[u8; 3]> = points
+            .iter()
+            .map(|p| {
+                let a = albedo(p).unwrap_or([1.0; 3]);
+                [250.0 * a[0], 200.0 * a[1], 150.0 * a[2]].map(|v| v.round() as u8)
+            })
+            .collect();
+        let acc = colour_accuracy(&points, &exact, albedo).unwrap();
+        assert_eq!(acc.points, 3);
+        assert!(
+            (acc.gain[0] - 250.0).abs() < 0.5 && (acc.gain[2] - 150.0).abs() < 2.0,
+            "{acc:?}"
+        );
+        assert!(acc.rms_levels < 0.6 && acc.angle_p95_deg < 1.0, "{acc:?}");
+        // A shading of one point (half as bright) leaves the angles small (the gains the fit
+        // moves a little, channel by channel: 2.5° here) but not the levels.
+        let mut shaded = exact.clone();
+        shaded[1] = shaded[1].map(|v| v / 2);
+        let acc = colour_accuracy(&points, &shaded, albedo).unwrap();
+        assert!(acc.rms_levels > 10.0 && acc.angle_p95_deg < 5.0, "{acc:?}");
+        // A wrong hue shows in the angle: the red patch measured green.
+        let mut wrong = exact;
+        wrong[0] = [20, 160, 20];
+        let acc = colour_accuracy(&points, &wrong, albedo).unwrap();
+        assert!(acc.angle_p95_deg > 30.0, "{acc:?}");
+        assert!(colour_accuracy(&points[3..], &shaded[3..], albedo).is_none());
     }
 
     #[test]

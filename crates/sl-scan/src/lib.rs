@@ -144,7 +144,8 @@ pub use capture_reconstruction::{
     reconstruct_capture,
 };
 pub use colour::{
-    ColourConfig, ColourMode, ColourView, ScanColours, UNSEEN_COLOUR, placed_colours,
+    ColourAccuracy, ColourConfig, ColourMode, ColourView, ScanColours, UNSEEN_COLOUR,
+    colour_accuracy, placed_colours,
 };
 pub use device_scan::{
     AUTO_EXPOSURE_START_MS, DeviceCaptureConfig, DevicePlacement, DeviceScan, DeviceScanConfig,

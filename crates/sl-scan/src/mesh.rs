@@ -281,6 +281,7 @@ pub fn mesh_stage_coloured(
                 errors_mm: accuracy_vertices
                     .as_ref()
                     .map(|r| r.signed_distances_mm.as_slice()),
+                colours: coloured.as_ref().map(|(_, c)| c.as_slice()),
             },
             ViewerLayer::Cloud {
                 name: "merged cloud",
@@ -391,6 +392,7 @@ pub fn write_mesh_pictures(
             name: "mesh",
             mesh,
             errors_mm,
+            colours: None,
         }],
         &ViewerConfig {
             title,
