@@ -9,8 +9,8 @@ use serde::Serialize;
 use sl_camera::Calibration;
 use sl_cloud::{PlyFormat, PreviewColoring, PreviewConfig, render_preview, write_ply};
 use sl_codec::{
-    CaptureSet, DecodeConfig, Frames, InvalidReason, MANIFEST_FILE, MapFormat, check_frames,
-    decode, load_frame, write_outputs, write_png_rgb8,
+    CaptureSet, DecodeConfig, InvalidReason, MANIFEST_FILE, MapFormat, check_frames, decode,
+    read_capture_colour, read_colour_image, write_outputs, write_png_rgb8,
 };
 use sl_tri::{
     DEPTH_PNG_SCALE_MM, PointStatus, Texture, TriConfig, Triangulator, check_depth_png_scale,
@@ -26,8 +26,9 @@ use crate::{RunReport, ScanError, ScanProgress, StageTime};
 pub struct CaptureReconstructionConfig {
     /// The triangulation (method, quality and depth bounds, ...).
     pub tri: TriConfig,
-    /// An image of the object under full light for the colours; `None`: the per-pixel maximum
-    /// over the capture's frames (the fully lit image for complementary patterns).
+    /// An image of the object under full light for the colours (grey or colour); `None`: the
+    /// capture's own colour (`sl_codec::read_capture_colour`: its colour frame, white frame,
+    /// fringe mean or brightest frames).
     pub texture: Option<PathBuf>,
     /// Millimetres per unit of the 16-bit depth PNG.
     pub depth_png_scale_mm: f64,
@@ -67,6 +68,9 @@ pub struct CaptureReconstruction {
     pub preview_left_out_points: usize,
     /// What the preview left out, in words, when it left something out.
     pub preview_note: Option<String>,
+    /// Where the points' colours came from: `texture` (the given image), or the capture's
+    /// `colour_frame`, `white_frame`, `fringe_mean` or `brightest` frames.
+    pub colour_source: &'static str,
     /// Pixels per status of the triangulation (`valid`, `out_of_depth_range`, ...).
     pub pixels_by_status: Vec<(&'static str, usize)>,
     /// Corners of the cloud's bounding box (mm), when it has a point.
@@ -88,23 +92,6 @@ fn via_temporary<E: Into<ScanError>>(
     let tmp = path.with_extension(format!("partial.{ext}"));
     write(&tmp).map_err(Into::into)?;
     std::fs::rename(&tmp, path).map_err(io(path))
-}
-
-/// Per-pixel maximum over all frames, as 8-bit grey (16-bit values by their high byte).
-fn max_image(frames: &Frames) -> Vec<u8> {
-    fn max_of<T: sl_codec::Sample + Ord>(frames: &[sl_codec::Frame<T>]) -> Vec<T> {
-        let mut out = vec![T::default(); frames.first().map_or(0, |f| f.data().len())];
-        for frame in frames {
-            for (o, v) in out.iter_mut().zip(frame.data()) {
-                *o = (*o).max(*v);
-            }
-        }
-        out
-    }
-    match frames {
-        Frames::U8(f) => max_of(f),
-        Frames::U16(f) => max_of(f).into_iter().map(|v| (v >> 8) as u8).collect(),
-    }
 }
 
 /// Why a triangulation gave no point: the pixel statuses that took them, largest first, with
@@ -163,13 +150,16 @@ pub fn reconstruct_capture(
     let tri = timed(&mut stages, "precompute rays", || {
         Triangulator::new(&calibration)
     })?;
-    let texture = match &cfg.texture {
-        Some(path) => max_image(&load_frame(path)?),
-        None => max_image(&set.frames),
+    let (texture, colour_source) = match &cfg.texture {
+        Some(path) => (read_colour_image(path)?, "texture"),
+        None => {
+            let c = read_capture_colour(&capture.join(MANIFEST_FILE))?;
+            (c.image, c.source.name())
+        }
     };
     let method = cfg.tri.method;
     let result = timed(&mut stages, "triangulate", || {
-        tri.triangulate_textured(&map, Some(Texture::Grey8(&texture)), &cfg.tri)
+        tri.triangulate_textured(&map, Some(Texture::Rgb8(texture.data())), &cfg.tri)
     })
     .map_err(|e| ScanError::Step {
         what: format!("cannot triangulate {}", capture.display()),
@@ -229,6 +219,7 @@ pub fn reconstruct_capture(
         depth_png_scale_mm: cfg.depth_png_scale_mm,
         preview_left_out_points: left_out,
         preview_note: note,
+        colour_source,
         pixels_by_status: PointStatus::ALL
             .iter()
             .map(|s| (s.name(), result.status.iter().filter(|x| *x == s).count()))
@@ -274,6 +265,7 @@ impl CaptureReconstruction {
         report.figure("depth_png_scale_mm", self.depth_png_scale_mm);
         report.figure("preview_left_out_points", self.preview_left_out_points);
         report.figure("pixels_by_status", counts_by_name(&self.pixels_by_status));
+        report.figure("colour_source", self.colour_source);
         if let Some((min, max)) = self.bbox_mm {
             report.figure("bbox_min_mm", min.to_vec());
             report.figure("bbox_max_mm", max.to_vec());
