@@ -21,9 +21,14 @@
 //! - Files: binary STL, OBJ and PLY with faces ([`write_stl`], [`read_stl`], [`write_obj`],
 //!   [`read_obj`], [`write_ply_mesh`], [`read_mesh`]; PLY reading is
 //!   [`sl_cloud::read_ply_mesh`]).
+//! - Colour: PLY vertex colours ([`write_ply_mesh_coloured`], read back by
+//!   [`sl_cloud::read_ply`]); a texture atlas baked from any colour lookup by a trivial
+//!   per-triangle parametrisation ([`bake_texture`]) and the textured OBJ with its MTL and PNG
+//!   (`write_obj_textured`, feature `image-files`; [`textured_obj_to_strings`]).
 //!
 //! - [`viewer_html`]: a self-contained interactive 3-D page (WebGL, script inline, works from
-//!   `file://`) of meshes and clouds, coloured by their error against a truth.
+//!   `file://`) of meshes and clouds, in grey, in their scan colours or coloured by their error
+//!   against a truth.
 //!
 //! The mesh type is [`TriangleMesh`] of `sl-cloud` (re-exported), where the PLY mesh reader
 //! lives: one type from the PLY file to the STL.
@@ -56,6 +61,9 @@
 //! - Triangles wind counter-clockwise seen from outside: normals (right-hand rule) point out of
 //!   the solid, as STL requires.
 //! - Heavy loops run on the global rayon pool.
+//! - Colours are 8-bit RGB ([`ColourImage`] of `sl-image`, `[u8; 3]` per vertex). Texture
+//!   coordinates follow OBJ: `u` from the image's left edge (0) to its right edge (1), `v` from
+//!   its bottom edge (0) to its top edge (1); image row 0 is the top.
 
 #![deny(missing_docs)]
 

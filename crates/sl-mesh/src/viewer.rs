@@ -5,7 +5,11 @@
 //!
 //! The geometry is embedded as base64 of little-endian `f32` positions and normals and `u32`
 //! indices, relative to the centre of the models' box (so `f32` keeps 10 µm on a metre-sized
-//! scene).
+//! scene), scan colours as `u8` RGB.
+//!
+//! The colour button cycles through the colourings the layers have: shaded (grey), scan colour
+//! (the mesh's vertex colours, the cloud's point colours) and error; `?colour=scan` or
+//! `?colour=error` after the page's address opens it in that colouring.
 
 use std::fmt::Write as _;
 
@@ -14,11 +18,18 @@ use sl_cloud::{PointCloud, TriangleMesh, colormap};
 
 use crate::MeshError;
 use crate::adjacency::check_indices;
+use crate::files::check_per_vertex;
 use crate::measure::vertex_normals;
 
 /// Colour-map stops the page uses, sampled from `sl_cloud::colormap` so the page and the PNG
 /// error maps read the same.
 const LEGEND_STOPS: usize = 9;
+
+/// Weight of the shading on a mesh drawn in its scan colours: a texel of the brightest lit
+/// side shows its colour as is, the darkest side at 1 − 0.8 × this (60 %). Scan colours carry
+/// the light of the scene already; half the page's shading keeps the shape readable without
+/// darkening them past recognition.
+const SCAN_SHADING: f32 = 0.5;
 
 /// One layer of the page: a mesh (triangles) or a cloud (points).
 #[derive(Debug, Clone, Copy)]
@@ -31,8 +42,11 @@ pub enum ViewerLayer<'a> {
         mesh: &'a TriangleMesh,
         /// Signed error per vertex (mm; NaN: no error known), for the error colouring.
         errors_mm: Option<&'a [f32]>,
+        /// Colour per vertex (the scan's colour, RGB), for the scan colouring.
+        colours: Option<&'a [[u8; 3]]>,
     },
-    /// A point cloud, drawn as points.
+    /// A point cloud, drawn as points; its colours (`PointCloud::colors`), when it has them,
+    /// for the scan colouring.
     Cloud {
         /// Name shown on its button.
         name: &'a str,
@@ -86,6 +100,19 @@ fn base64(bytes: &[u8]) -> String {
     out
 }
 
+/// What the page holds of one layer, before encoding.
+struct LayerData<'a> {
+    name: &'a str,
+    /// `"mesh"` or `"cloud"`.
+    kind: &'static str,
+    pts: Vec<Point3<f64>>,
+    normals: Vec<nalgebra::Vector3<f64>>,
+    errors: Option<Vec<f32>>,
+    colours: Option<Vec<[u8; 3]>>,
+    /// Triangle corners (meshes).
+    index: Vec<u32>,
+}
+
 fn f32_bytes(values: impl Iterator<Item = f32>) -> Vec<u8> {
     values.flat_map(f32::to_le_bytes).collect()
 }
@@ -94,14 +121,18 @@ fn f32_bytes(values: impl Iterator<Item = f32>) -> Vec<u8> {
 ///
 /// # Errors
 /// [`MeshError::InvalidMesh`] for a triangle index out of range or an error array that is not
-/// one value per vertex (point); [`MeshError::InvalidParameter`] without any layer or for a
-/// non-positive range.
+/// one value per vertex (point); [`MeshError::AttributeLength`] for colours that are not one
+/// per vertex; [`MeshError::InvalidParameter`] without any layer or for a non-positive range.
 ///
 /// ```
 /// use sl_mesh::{ViewerConfig, ViewerLayer, viewer_html};
 /// # let mesh = sl_cloud::TriangleMesh { vertices: vec![nalgebra::Point3::origin(); 3], triangles: vec![[0, 1, 2]] };
-/// let html = viewer_html(&[ViewerLayer::Mesh { name: "mesh", mesh: &mesh, errors_mm: None }], &ViewerConfig::default())?;
+/// let html = viewer_html(&[ViewerLayer::Mesh { name: "mesh", mesh: &mesh, errors_mm: None, colours: None }], &ViewerConfig::default())?;
 /// assert!(html.starts_with("<!DOCTYPE html>") && !html.contains("http"));
+/// // With the scan's colours: the page offers "colour: scan" (`?colour=scan` opens it so).
+/// let colours = [[200, 40, 40]; 3];
+/// let layer = ViewerLayer::Mesh { name: "mesh", mesh: &mesh, errors_mm: None, colours: Some(&colours) };
+/// assert!(viewer_html(&[layer], &ViewerConfig::default())?.contains("col:\""));
 /// # Ok::<(), sl_mesh::MeshError>(())
 /// ```
 pub fn viewer_html(layers: &[ViewerLayer<'_>], cfg: &ViewerConfig) -> Result<String, MeshError> {
@@ -147,18 +178,20 @@ pub fn viewer_html(layers: &[ViewerLayer<'_>], cfg: &ViewerConfig) -> Result<Str
     };
     let mut js_layers = String::from("[");
     for layer in layers {
-        let (name, kind, pts, normals, errors, index): (
-            _,
-            _,
-            Vec<Point3<f64>>,
-            Vec<_>,
-            _,
-            Vec<u32>,
-        ) = match layer {
+        let LayerData {
+            name,
+            kind,
+            pts,
+            normals,
+            errors,
+            colours,
+            index,
+        } = match layer {
             ViewerLayer::Mesh {
                 name,
                 mesh,
                 errors_mm,
+                colours,
             } => {
                 check_indices(mesh)?;
                 if let Some(e) = errors_mm
@@ -170,14 +203,18 @@ pub fn viewer_html(layers: &[ViewerLayer<'_>], cfg: &ViewerConfig) -> Result<Str
                         mesh.vertices.len()
                     )));
                 }
-                (
-                    *name,
-                    "mesh",
-                    mesh.vertices.clone(),
-                    vertex_normals(mesh),
-                    errors_mm.map(<[f32]>::to_vec),
-                    mesh.triangles.iter().flatten().copied().collect(),
-                )
+                if let Some(c) = colours {
+                    check_per_vertex(mesh, c, "colours")?;
+                }
+                LayerData {
+                    name,
+                    kind: "mesh",
+                    pts: mesh.vertices.clone(),
+                    normals: vertex_normals(mesh),
+                    errors: errors_mm.map(<[f32]>::to_vec),
+                    colours: colours.map(<[[u8; 3]]>::to_vec),
+                    index: mesh.triangles.iter().flatten().copied().collect(),
+                }
             }
             ViewerLayer::Cloud {
                 name,
@@ -202,14 +239,15 @@ pub fn viewer_html(layers: &[ViewerLayer<'_>], cfg: &ViewerConfig) -> Result<Str
                     .iter()
                     .map(|&i| cloud.normals().map_or(nalgebra::Vector3::zeros(), |n| n[i]))
                     .collect();
-                (
-                    *name,
-                    "cloud",
-                    keep.iter().map(|&i| cloud.positions()[i]).collect(),
-                    nrm,
-                    errors_mm.map(|e| keep.iter().map(|&i| e[i]).collect()),
-                    Vec::new(),
-                )
+                LayerData {
+                    name,
+                    kind: "cloud",
+                    pts: keep.iter().map(|&i| cloud.positions()[i]).collect(),
+                    normals: nrm,
+                    errors: errors_mm.map(|e| keep.iter().map(|&i| e[i]).collect()),
+                    colours: cloud.colors().map(|c| keep.iter().map(|&i| c[i]).collect()),
+                    index: Vec::new(),
+                }
             }
         };
         let pos = f32_bytes(
@@ -222,6 +260,7 @@ pub fn viewer_html(layers: &[ViewerLayer<'_>], cfg: &ViewerConfig) -> Result<Str
                 .flat_map(|n| [n.x as f32, n.y as f32, n.z as f32]),
         );
         let err = errors.map(|e| f32_bytes(e.into_iter()));
+        let col = colours.map(|c| c.concat());
         let idx: Vec<u8> = index.iter().flat_map(|i| i.to_le_bytes()).collect();
         let name_json: String = name
             .chars()
@@ -229,10 +268,11 @@ pub fn viewer_html(layers: &[ViewerLayer<'_>], cfg: &ViewerConfig) -> Result<Str
             .collect();
         let _ = write!(
             js_layers,
-            "{{name:\"{name_json}\",kind:\"{kind}\",pos:\"{}\",nrm:\"{}\",err:{},idx:\"{}\"}},",
+            "{{name:\"{name_json}\",kind:\"{kind}\",pos:\"{}\",nrm:\"{}\",err:{},col:{},idx:\"{}\"}},",
             base64(&pos),
             base64(&nrm),
             err.map_or("null".to_owned(), |e| format!("\"{}\"", base64(&e))),
+            col.map_or("null".to_owned(), |c| format!("\"{}\"", base64(&c))),
             base64(&idx)
         );
     }
@@ -253,7 +293,8 @@ pub fn viewer_html(layers: &[ViewerLayer<'_>], cfg: &ViewerConfig) -> Result<Str
         .replace("__LAYERS__", &js_layers)
         .replace("__STOPS__", &format!("[{}]", stops.join(",")))
         .replace("__RANGE__", &format!("{}", cfg.error_range_mm))
-        .replace("__RADIUS__", &format!("{radius}")))
+        .replace("__RADIUS__", &format!("{radius}"))
+        .replace("__SCAN_LIT__", &format!("{SCAN_SHADING}")))
 }
 
 /// The page; `__NAME__` placeholders are filled by [`viewer_html`].
@@ -279,12 +320,12 @@ html,body{margin:0;height:100%;background:#1e1e22;color:#ddd;font:14px sans-seri
 <div id="msg">WebGL is not available in this browser.</div>
 <script>
 "use strict";
-const LAYERS=__LAYERS__, STOPS=__STOPS__, RANGE=__RANGE__, RADIUS=__RADIUS__;
+const LAYERS=__LAYERS__, STOPS=__STOPS__, RANGE=__RANGE__, RADIUS=__RADIUS__, SCAN_LIT=__SCAN_LIT__;
 function dec(s,T){if(!s)return null;const b=atob(s),u=new Uint8Array(b.length);for(let i=0;i<b.length;i++)u[i]=b.charCodeAt(i);return new T(u.buffer);}
 function cmap(t){t=Math.min(1,Math.max(0,t))*(STOPS.length-1);const i=Math.min(STOPS.length-2,Math.floor(t)),f=t-i,a=STOPS[i],b=STOPS[i+1];return [0,1,2].map(k=>(a[k]+f*(b[k]-a[k]))/255);}
 const cv=document.getElementById("c");
 const gl=cv.getContext("webgl",{antialias:true,preserveDrawingBuffer:true});
-let byErr=false;
+let mode="shaded";
 if(!gl){document.getElementById("msg").style.display="block";}
 else{
 const ext=gl.getExtension("OES_element_index_uint");
@@ -296,15 +337,18 @@ function sh(t,s){const o=gl.createShader(t);gl.shaderSource(o,s);gl.compileShade
 const prog=gl.createProgram();gl.attachShader(prog,sh(gl.VERTEX_SHADER,vs));gl.attachShader(prog,sh(gl.FRAGMENT_SHADER,fs));gl.linkProgram(prog);gl.useProgram(prog);
 const loc={p:gl.getAttribLocation(prog,"p"),n:gl.getAttribLocation(prog,"n"),c:gl.getAttribLocation(prog,"c"),mv:gl.getUniformLocation(prog,"mv"),pr:gl.getUniformLocation(prog,"pr"),ps:gl.getUniformLocation(prog,"ps"),lit:gl.getUniformLocation(prog,"lit")};
 function buf(d,t){const b=gl.createBuffer();gl.bindBuffer(t||gl.ARRAY_BUFFER,b);gl.bufferData(t||gl.ARRAY_BUFFER,d,gl.STATIC_DRAW);return b;}
-const layers=LAYERS.map((L,k)=>{const pos=dec(L.pos,Float32Array),nrm=dec(L.nrm,Float32Array),err=dec(L.err,Float32Array),idx=dec(L.idx,Uint32Array);const n=pos.length/3;
- const grey=new Float32Array(n*3).fill(.82),ec=new Float32Array(n*3);
+const layers=LAYERS.map((L,k)=>{const pos=dec(L.pos,Float32Array),nrm=dec(L.nrm,Float32Array),err=dec(L.err,Float32Array),col=dec(L.col,Uint8Array),idx=dec(L.idx,Uint32Array);const n=pos.length/3;
+ const grey=new Float32Array(n*3).fill(.82),ec=new Float32Array(n*3),sc=col?new Float32Array(n*3):null;
  for(let i=0;i<n;i++){const e=err?err[i]:NaN;const c=isNaN(e)?[.82,.82,.82]:cmap((e/RANGE+1)/2);ec.set(c,3*i);}
- return {name:L.name,kind:L.kind,n:n,hasErr:!!err,on:k===0,p:buf(pos),nr:buf(nrm),grey:buf(grey),ec:buf(ec),idx:idx&&idx.length?buf(idx,gl.ELEMENT_ARRAY_BUFFER):null,count:idx?idx.length:0};});
+ if(col)for(let i=0;i<n*3;i++)sc[i]=col[i]/255;
+ return {name:L.name,kind:L.kind,n:n,hasErr:!!err,hasCol:!!col,on:k===0,p:buf(pos),nr:buf(nrm),grey:buf(grey),ec:buf(ec),sc:col?buf(sc):null,idx:idx&&idx.length?buf(idx,gl.ELEMENT_ARRAY_BUFFER):null,count:idx?idx.length:0};});
 const span=document.getElementById("layers");
 layers.forEach(L=>{const b=document.createElement("button");b.textContent=L.name;b.className=L.on?"on":"";b.onclick=()=>{L.on=!L.on;b.className=L.on?"on":"";draw();};span.appendChild(b);});
-const anyErr=layers.some(L=>L.hasErr);const colB=document.getElementById("col");
-if(!anyErr)colB.style.display="none";
-colB.onclick=()=>{byErr=!byErr;colB.textContent=byErr?"colour: error":"colour: shaded";document.getElementById("legend").style.display=byErr?"block":"none";draw();};
+const modes=["shaded"];if(layers.some(L=>L.hasCol))modes.push("scan");if(layers.some(L=>L.hasErr))modes.push("error");
+const colB=document.getElementById("col");
+if(modes.length<2)colB.style.display="none";
+function setMode(m){mode=m;colB.textContent="colour: "+m;document.getElementById("legend").style.display=m==="error"?"block":"none";draw();}
+colB.onclick=()=>setMode(modes[(modes.indexOf(mode)+1)%modes.length]);
 const bar=document.getElementById("bar").getContext("2d");for(let x=0;x<240;x++){const c=cmap(x/239);bar.fillStyle=`rgb(${c.map(v=>Math.round(v*255)).join(",")})`;bar.fillRect(x,0,1,14);}
 document.getElementById("lmin").textContent="-"+RANGE;document.getElementById("lmax").textContent="+"+RANGE;
 let yaw=0,pitch=0.35,dist=3*RADIUS,panX=0,panY=0;
@@ -324,8 +368,10 @@ function draw(){const w=cv.clientWidth,h=cv.clientHeight;if(cv.width!==w||cv.hei
  for(const L of layers){if(!L.on)continue;
   gl.bindBuffer(gl.ARRAY_BUFFER,L.p);gl.enableVertexAttribArray(loc.p);gl.vertexAttribPointer(loc.p,3,gl.FLOAT,false,0,0);
   gl.bindBuffer(gl.ARRAY_BUFFER,L.nr);gl.enableVertexAttribArray(loc.n);gl.vertexAttribPointer(loc.n,3,gl.FLOAT,false,0,0);
-  gl.bindBuffer(gl.ARRAY_BUFFER,byErr&&L.hasErr?L.ec:L.grey);gl.enableVertexAttribArray(loc.c);gl.vertexAttribPointer(loc.c,3,gl.FLOAT,false,0,0);
-  gl.uniform1f(loc.lit,L.kind==="mesh"||!byErr?1:0.6);gl.uniform1f(loc.ps,Math.max(1.5,Math.min(4,h/500*2)));
+  const scan=mode==="scan"&&L.hasCol;
+  gl.bindBuffer(gl.ARRAY_BUFFER,mode==="error"&&L.hasErr?L.ec:scan?L.sc:L.grey);gl.enableVertexAttribArray(loc.c);gl.vertexAttribPointer(loc.c,3,gl.FLOAT,false,0,0);
+  // Scan colours already hold the scene's light: half the shading keeps the shape readable.
+  gl.uniform1f(loc.lit,L.kind==="mesh"?(scan?SCAN_LIT:1):mode==="shaded"?1:0.6);gl.uniform1f(loc.ps,Math.max(1.5,Math.min(4,h/500*2)));
   if(L.kind==="mesh"&&L.idx&&ext){gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER,L.idx);gl.drawElements(gl.TRIANGLES,L.count,gl.UNSIGNED_INT,0);}
   else gl.drawArrays(gl.POINTS,0,L.n);}
  document.body.dataset.drawn=String(Date.now());}
@@ -336,7 +382,7 @@ window.onmousemove=e=>{if(!drag)return;const dx=e.clientX-drag.x,dy=e.clientY-dr
  if(drag.pan){panX+=dx*dist/cv.clientHeight;panY-=dy*dist/cv.clientHeight;}else{yaw+=dx*0.01;pitch=Math.max(-1.5,Math.min(1.5,pitch+dy*0.01));}draw();};
 cv.addEventListener("wheel",e=>{e.preventDefault();dist*=Math.exp(e.deltaY*0.001);dist=Math.max(RADIUS*0.2,Math.min(RADIUS*50,dist));draw();},{passive:false});
 window.onresize=draw;
-const q=new URLSearchParams(location.search);if(q.get("colour")==="error"&&anyErr)colB.onclick();
+const q=new URLSearchParams(location.search);if(modes.includes(q.get("colour")))setMode(q.get("colour"));
 draw();
 }
 </script></body></html>
@@ -367,6 +413,7 @@ mod tests {
                 name: "mesh",
                 mesh: &mesh,
                 errors_mm: Some(&errs),
+                colours: None,
             }],
             &ViewerConfig::default(),
         )
@@ -385,10 +432,68 @@ mod tests {
                 name: "mesh",
                 mesh: &mesh,
                 errors_mm: Some(&errs[1..]),
+                colours: None,
             }],
             &ViewerConfig::default(),
         );
         assert!(bad.is_err());
         assert!(viewer_html(&[], &ViewerConfig::default()).is_err());
+    }
+
+    /// Scan colours reach the page as base64 of their bytes (the mesh's all, the cloud's those
+    /// of the points kept); colours not one per vertex are refused.
+    #[test]
+    fn scan_colours_are_embedded() {
+        let mesh = sphere_mesh(5.0, 4);
+        let colours: Vec<[u8; 3]> = (0..mesh.vertices.len())
+            .map(|i| [(i % 256) as u8, 7, 200])
+            .collect();
+        let cloud = PointCloud::from_positions(vec![Point3::origin(), Point3::new(1.0, 0.0, 0.0)])
+            .with_colors(vec![[1, 2, 3], [4, 5, 6]])
+            .unwrap();
+        let cfg = ViewerConfig {
+            max_cloud_points: 1,
+            ..ViewerConfig::default()
+        };
+        let html = viewer_html(
+            &[
+                ViewerLayer::Mesh {
+                    name: "mesh",
+                    mesh: &mesh,
+                    errors_mm: None,
+                    colours: Some(&colours),
+                },
+                ViewerLayer::Cloud {
+                    name: "cloud",
+                    cloud: &cloud,
+                    errors_mm: None,
+                },
+            ],
+            &cfg,
+        )
+        .unwrap();
+        assert!(html.contains(&format!("col:\"{}\"", base64(&colours.concat()))));
+        // One point of two kept: its colour only.
+        assert!(html.contains(&format!("col:\"{}\"", base64(&[1, 2, 3]))));
+        let e = viewer_html(
+            &[ViewerLayer::Mesh {
+                name: "mesh",
+                mesh: &mesh,
+                errors_mm: None,
+                colours: Some(&colours[2..]),
+            }],
+            &cfg,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                MeshError::AttributeLength {
+                    attribute: "colours",
+                    ..
+                }
+            ),
+            "{e}"
+        );
     }
 }
