@@ -140,6 +140,10 @@ pub struct ViewGeometry {
     pub(crate) ambient_weight: Vec<f32>,
     /// Depth at pixel centres (mm; NaN where nothing was hit), for the defocus blur.
     pub(crate) depth_mm: Vec<f32>,
+    /// For a scene with colour textures, per sub-sample the RGB albedo and the cosine toward
+    /// the projector (0 when unlit): a channel's weights are `lit + (albedo_c − albedo) · cos`
+    /// and `albedo_c`. Empty for a grey scene, whose channels all take the grey weights.
+    pub(crate) colour: Vec<[f32; 4]>,
 }
 
 impl ViewGeometry {
@@ -246,27 +250,32 @@ impl<P: Lens> Caster<'_, P> {
         }
     }
 
-    /// The albedo of `hit` averaged over the footprint of its sub-sample (`k`-th of camera row
-    /// `y`, whose normalised ray is `ray`): the parallelogram that the sub-sample's square
-    /// covers on the tangent plane at the hit ([`crate::footprint`]). The point albedo for
-    /// untextured surfaces, rays grazing the surface, and sub-samples without neighbours.
-    fn footprint_albedo(&self, hit: &crate::Hit, ray: &[f32; 2], y: usize, k: usize) -> f64 {
+    /// The edges (camera frame, mm) of the footprint of `hit`'s sub-sample (`k`-th of camera
+    /// row `y`, whose normalised ray is `ray`): the parallelogram that the sub-sample's square
+    /// covers on the tangent plane at the hit ([`crate::footprint`]). `None` for untextured
+    /// surfaces, rays grazing the surface, and sub-samples without neighbours, where the
+    /// point albedo is kept.
+    fn footprint_edges(
+        &self,
+        hit: &crate::Hit,
+        ray: &[f32; 2],
+        y: usize,
+        k: usize,
+    ) -> Option<(Vector3<f64>, Vector3<f64>)> {
         if !self.scene.is_textured(hit.object) {
-            return hit.albedo;
+            return None;
         }
         let s = self.rays.supersampling as usize;
         let per_pixel = s * s;
         let (x, sub) = (k / per_pixel, k % per_pixel);
         let gx = (x * s + sub % s) as i64;
         let gy = (y * s + sub / s) as i64;
-        let Some((dx, dy)) = self.rays.differentials(gx, gy) else {
-            return hit.albedo;
-        };
+        let (dx, dy) = self.rays.differentials(gx, gy)?;
         let r = Vector3::new(f64::from(ray[0]), f64::from(ray[1]), 1.0);
         let n = hit.normal;
         let nr = n.dot(&r);
         if nr.abs() < GRAZING_COS * r.norm() {
-            return hit.albedo;
+            return None;
         }
         // A ray r' meets the tangent plane n·X = n·p at X = r' (n·p)/(n·r'); its change for a
         // change δ of the ray is ((n·r) δ − r (n·δ)) (n·p)/(n·r)².
@@ -275,7 +284,30 @@ impl<P: Lens> Caster<'_, P> {
             let delta = Vector3::new(d[0], d[1], 0.0);
             (delta * nr - r * n.dot(&delta)) * c
         };
-        self.scene.albedo_over(hit, &edge(dx), &edge(dy))
+        Some((edge(dx), edge(dy)))
+    }
+
+    /// The albedo of `hit` averaged over the footprint of its sub-sample
+    /// ([`Caster::footprint_edges`]), or its point albedo.
+    fn footprint_albedo(&self, hit: &crate::Hit, ray: &[f32; 2], y: usize, k: usize) -> f64 {
+        match self.footprint_edges(hit, ray, y, k) {
+            Some((ex, ey)) => self.scene.albedo_over(hit, &ex, &ey),
+            None => hit.albedo,
+        }
+    }
+
+    /// The RGB albedo of `hit` averaged over the footprint of its sub-sample, or at its point.
+    fn footprint_albedo_rgb(
+        &self,
+        hit: &crate::Hit,
+        ray: &[f32; 2],
+        y: usize,
+        k: usize,
+    ) -> [f64; 3] {
+        match self.footprint_edges(hit, ray, y, k) {
+            Some((ex, ey)) => self.scene.albedo_rgb_over(hit, &ex, &ey),
+            None => self.scene.albedo_rgb_at(hit),
+        }
     }
 
     /// Casts every sub-sample of the view.
@@ -290,19 +322,35 @@ impl<P: Lens> Caster<'_, P> {
         let mut lit_weight = vec![0.0f32; n];
         let mut ambient_weight = vec![0.0f32; n];
         let row_len = (w as usize * per_pixel).max(1);
+        let coloured = self.scene.has_colour();
+        let mut colour = vec![[0.0f32; 4]; if coloured { n } else { 0 }];
+        // A grey scene's empty colour buffer still zips with every row: an empty slice each.
+        let mut colour_rows: Vec<&mut [[f32; 4]]> = if coloured {
+            colour.chunks_mut(row_len).collect()
+        } else {
+            (0..self.rays.height.max(1) as usize)
+                .map(|_| &mut [][..])
+                .collect()
+        };
         proj_xy
             .par_chunks_mut(row_len)
             .zip(proj_index.par_chunks_mut(row_len))
             .zip(lit_weight.par_chunks_mut(row_len))
             .zip(ambient_weight.par_chunks_mut(row_len))
             .zip(self.rays.sub.par_chunks(row_len))
+            .zip(colour_rows.par_iter_mut())
             .enumerate()
-            .for_each(|(y, ((((xy, idx), lit), amb), rays))| {
+            .for_each(|(y, (((((xy, idx), lit), amb), rays), rgb))| {
                 for (k, r) in rays.iter().enumerate() {
                     let smp = self.sample(f64::from(r[0]), f64::from(r[1]));
                     if let (Some(hit), Some(a)) = (smp.hit, amb.get_mut(k)) {
                         let albedo = self.footprint_albedo(&hit, r, y, k);
                         *a = albedo as f32;
+                        if let Some(c) = rgb.get_mut(k) {
+                            let [cr, cg, cb] = self.footprint_albedo_rgb(&hit, r, y, k);
+                            let cos = if smp.proj.is_some() { smp.cos } else { 0.0 };
+                            *c = [cr as f32, cg as f32, cb as f32, cos as f32];
+                        }
                         if let (Some(q), Some(l), Some(i), Some(c)) =
                             (smp.proj, lit.get_mut(k), idx.get_mut(k), xy.get_mut(k))
                         {
@@ -327,6 +375,7 @@ impl<P: Lens> Caster<'_, P> {
             lit_weight,
             ambient_weight,
             depth_mm: Vec::new(),
+            colour,
         }
     }
 }

@@ -109,15 +109,16 @@ pub use placement::{PEBBLE_CUT_MM, PEBBLE_RADIUS_MM, pebble_mesh, pebble_object}
 pub use raycast::{Hit, PlacedScene};
 pub use render::{Illumination, ProjectorSampling, ResponseShape};
 pub use scene::{
-    AUTO_METRES_BELOW, DARK_ALBEDO, DEFAULT_ALBEDO, DUMBBELL_CENTRE_DISTANCE_MM, Finish,
-    GLOSSY_ALBEDO, GLOSSY_EXPONENT, GLOSSY_STRENGTH, Gloss, MeshUnits, Mount, Scene, SceneObject,
-    Shape, Texture, upright_facing_camera,
+    AUTO_METRES_BELOW, COLOURED_ALBEDOS, COLOURED_CELL_MM, DARK_ALBEDO, DEFAULT_ALBEDO,
+    DUMBBELL_CENTRE_DISTANCE_MM, Finish, GLOSSY_ALBEDO, GLOSSY_EXPONENT, GLOSSY_STRENGTH, Gloss,
+    LUMA_WEIGHTS, MeshUnits, Mount, Scene, SceneObject, Shape, Texture, luma_of,
+    upright_facing_camera,
 };
 pub use sensor::{BitDepth, CameraEffects, Defocus, GlobalIllumination, NoiseKey, SensorConfig};
 pub use simulate::{
     CalibrationSession, SimulatedCapture, projector_images, simulate_calibration, simulate_scan,
 };
-pub use truth::{NO_OBJECT, ObjectPose, ViewTruth};
+pub use truth::{NO_OBJECT, ObjectPose, TrueColour, ViewTruth};
 pub use virtual_rig::{
     DeviceFaults, VIRTUAL_EXPOSURE_MS, VIRTUAL_MAX_EXPOSURE_MS, View, VirtualCamera,
     VirtualProjector, VirtualRig, VirtualTurntable,
@@ -125,7 +126,8 @@ pub use virtual_rig::{
 
 // The device layer the virtual devices implement, re-exported so that one import serves.
 pub use sl_rig::{
-    Camera, GreyImage, Projector, RigError, Turntable, turntable_angles, write_capture_set,
+    Camera, ColourImage, GreyImage, Projector, RigError, Turntable, turntable_angles,
+    write_capture_set,
 };
 
 /// The README's example, compiled and run by `cargo test --doc`.

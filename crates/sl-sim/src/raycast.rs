@@ -173,6 +173,53 @@ impl PlacedScene {
         self.objects.get(k).and_then(|o| o.gloss)
     }
 
+    /// The RGB albedo of `hit`'s surface averaged over the parallelogram of
+    /// [`PlacedScene::albedo_over`].
+    pub(crate) fn albedo_rgb_over(
+        &self,
+        hit: &Hit,
+        edge_x: &Vector3<f64>,
+        edge_y: &Vector3<f64>,
+    ) -> [f64; 3] {
+        let Some(o) = self.objects.get(hit.object) else {
+            return [hit.albedo; 3];
+        };
+        let fp = Footprint {
+            centre: o.t_cam_object.inverse_transform_point(&hit.point),
+            edge_x: o.t_cam_object.inverse_transform_vector(edge_x),
+            edge_y: o.t_cam_object.inverse_transform_vector(edge_y),
+        };
+        o.texture.albedo_rgb_over(&fp)
+    }
+
+    /// The RGB albedo at `hit`'s point.
+    pub(crate) fn albedo_rgb_at(&self, hit: &Hit) -> [f64; 3] {
+        self.objects.get(hit.object).map_or([hit.albedo; 3], |o| {
+            o.texture
+                .albedo_rgb_at(&o.t_cam_object.inverse_transform_point(&hit.point))
+        })
+    }
+
+    /// Whether any object has a colour texture ([`Texture::is_colour`]).
+    pub(crate) fn has_colour(&self) -> bool {
+        self.objects.iter().any(|o| o.texture.is_colour())
+    }
+
+    /// The surface point nearest `p` (camera frame, mm) over every object: the object's index,
+    /// the point in the object's frame (where its texture lives) and the distance (mm).
+    /// `None` for an empty scene.
+    pub(crate) fn nearest_surface(&self, p: &Point3<f64>) -> Option<(usize, Point3<f64>, f64)> {
+        self.objects
+            .iter()
+            .enumerate()
+            .filter_map(|(k, o)| {
+                let local = o.nearest_surface(p)?;
+                let d = (o.t_cam_object.transform_point(&local) - p).norm();
+                d.is_finite().then_some((k, local, d))
+            })
+            .min_by(|a, b| a.2.total_cmp(&b.2))
+    }
+
     /// Whether object `k` has a texture that varies over its surface.
     pub(crate) fn is_textured(&self, k: usize) -> bool {
         self.objects.get(k).is_some_and(|o| !o.texture.is_uniform())
@@ -198,6 +245,37 @@ impl PlacedScene {
 }
 
 impl Placed {
+    /// The point of the object's surface nearest `p` (camera frame, mm), in the object's
+    /// frame: by parry's point projection onto the boundary (not the interior: a point inside
+    /// a solid projects onto its surface), in closed form for rectangles (exactly on their
+    /// `z = 0`, so that a texture's cells are read without rounding across that plane).
+    fn nearest_surface(&self, p: &Point3<f64>) -> Option<Point3<f64>> {
+        use parry3d_f64::query::PointQuery;
+        let on_boundary = |proj: parry3d_f64::query::PointProjection| {
+            Some(self.t_cam_object.inverse_transform_point(&proj.point))
+        };
+        match &self.solid {
+            Solid::Rectangle {
+                x_min,
+                y_min,
+                x_max,
+                y_max,
+            } => {
+                let local = self.t_cam_object.inverse_transform_point(p);
+                let q = Point3::new(
+                    local.x.clamp(*x_min, *x_max),
+                    local.y.clamp(*y_min, *y_max),
+                    0.0,
+                );
+                Some(q)
+            }
+            Solid::Ball(s) => on_boundary(s.project_point(&self.t_cam_shape, p, false)),
+            Solid::Cuboid(s) => on_boundary(s.project_point(&self.t_cam_shape, p, false)),
+            Solid::Cylinder(s) => on_boundary(s.project_point(&self.t_cam_shape, p, false)),
+            Solid::Mesh(s) => on_boundary(s.project_point(&self.t_cam_shape, p, false)),
+        }
+    }
+
     /// Distance and unit normal (camera frame, orientation as parry gives it) of the first hit.
     fn cast(&self, ray: &Ray, max: f64) -> Option<(f64, Vector3<f64>)> {
         match &self.solid {

@@ -318,6 +318,22 @@ impl ViewGeometry {
         image: &GreyImage,
         light: &Illumination,
     ) -> Result<Vec<f32>, SimError> {
+        let weights = [Weights {
+            lit: &self.lit_weight,
+            ambient: &self.ambient_weight,
+        }];
+        let mut images = self.render_image_weighted(image, light, &weights)?;
+        Ok(images.pop().unwrap_or_default())
+    }
+
+    /// The direct images under the projector image `image`, one per set of `weights` (the
+    /// grey weights, or a colour channel's), the projector's light computed once.
+    pub(crate) fn render_image_weighted(
+        &self,
+        image: &GreyImage,
+        light: &Illumination,
+        weights: &[Weights<'_>],
+    ) -> Result<Vec<Vec<f32>>, SimError> {
         let size = image.size();
         if (size.width, size.height) != (self.projector_width, self.projector_height) {
             return Err(RigError::ImageSize {
@@ -348,30 +364,36 @@ impl ViewGeometry {
                     })
                 }
             };
-            return Ok(self.render_light(&field, light));
+            return Ok(weights
+                .iter()
+                .map(|wt| self.render_light(&field, light, wt))
+                .collect());
         }
-        Ok(match image {
-            GreyImage::U8(f) => {
-                let p = f.data();
-                let lut = output_lut(light, u8::MAX.into());
-                self.lookup(light, |i| {
-                    p.get(i)
-                        .and_then(|&v| lut.get(usize::from(v)))
-                        .copied()
-                        .unwrap_or(0.0)
-                })
-            }
-            GreyImage::U16(f) => {
-                let p = f.data();
-                let lut = output_lut(light, u16::MAX.into());
-                self.lookup(light, |i| {
-                    p.get(i)
-                        .and_then(|&v| lut.get(usize::from(v)))
-                        .copied()
-                        .unwrap_or(0.0)
-                })
-            }
-        })
+        Ok(weights
+            .iter()
+            .map(|wt| match image {
+                GreyImage::U8(f) => {
+                    let p = f.data();
+                    let lut = output_lut(light, u8::MAX.into());
+                    self.lookup(light, wt, |i| {
+                        p.get(i)
+                            .and_then(|&v| lut.get(usize::from(v)))
+                            .copied()
+                            .unwrap_or(0.0)
+                    })
+                }
+                GreyImage::U16(f) => {
+                    let p = f.data();
+                    let lut = output_lut(light, u16::MAX.into());
+                    self.lookup(light, wt, |i| {
+                        p.get(i)
+                            .and_then(|&v| lut.get(usize::from(v)))
+                            .copied()
+                            .unwrap_or(0.0)
+                    })
+                }
+            })
+            .collect())
     }
 
     /// The direct image under a pattern given as a function of the projector coordinate
@@ -403,7 +425,11 @@ impl ViewGeometry {
                 light.spread(),
                 |v| v,
             );
-            return self.render_light(&field, light);
+            let weights = Weights {
+                lit: &self.lit_weight,
+                ambient: &self.ambient_weight,
+            };
+            return self.render_light(&field, light, &weights);
         }
         let per_pixel = (self.supersampling * self.supersampling) as usize;
         let ambient = light.ambient as f32;
@@ -441,7 +467,12 @@ impl ViewGeometry {
 
     /// The direct image under the projector's light `field` (units of full white, after the
     /// lens): the light reaching each sub-sample is read at its continuous projector coordinate.
-    fn render_light(&self, field: &LightField, light: &Illumination) -> Vec<f32> {
+    fn render_light(
+        &self,
+        field: &LightField,
+        light: &Illumination,
+        weights: &Weights<'_>,
+    ) -> Vec<f32> {
         let per_pixel = (self.supersampling * self.supersampling) as usize;
         let ambient = light.ambient as f32;
         let inv = 1.0 / per_pixel as f32;
@@ -449,8 +480,8 @@ impl ViewGeometry {
         let row_samples = (self.width as usize * per_pixel).max(1);
         img.par_chunks_mut(self.width.max(1) as usize)
             .zip(self.proj_xy.par_chunks(row_samples))
-            .zip(self.lit_weight.par_chunks(row_samples))
-            .zip(self.ambient_weight.par_chunks(row_samples))
+            .zip(weights.lit.par_chunks(row_samples))
+            .zip(weights.ambient.par_chunks(row_samples))
             .for_each(|(((row, xy), lit), amb)| {
                 for (((o, xy), lit), amb) in row
                     .iter_mut()
@@ -472,7 +503,7 @@ impl ViewGeometry {
     }
 
     /// Averages `ambient · albedo + value(projector pixel) · albedo · cos` over the sub-samples.
-    fn lookup<V>(&self, light: &Illumination, value: V) -> Vec<f32>
+    fn lookup<V>(&self, light: &Illumination, weights: &Weights<'_>, value: V) -> Vec<f32>
     where
         V: Fn(usize) -> f32 + Sync,
     {
@@ -483,8 +514,8 @@ impl ViewGeometry {
         let row_samples = self.width as usize * per_pixel;
         out.par_chunks_mut(self.width.max(1) as usize)
             .zip(self.proj_index.par_chunks(row_samples.max(1)))
-            .zip(self.lit_weight.par_chunks(row_samples.max(1)))
-            .zip(self.ambient_weight.par_chunks(row_samples.max(1)))
+            .zip(weights.lit.par_chunks(row_samples.max(1)))
+            .zip(weights.ambient.par_chunks(row_samples.max(1)))
             .for_each(|(((row, idx), lit), amb)| {
                 for (((o, idx), lit), amb) in row
                     .iter_mut()
@@ -504,6 +535,14 @@ impl ViewGeometry {
             });
         out
     }
+}
+
+/// The per-sub-sample weights of one rendered image ([`ViewGeometry`]'s layout): the weight of
+/// the projector's light (`(albedo + specular lobe) · cos`) and of the ambient light
+/// (`albedo`), for the grey albedo or one colour channel's.
+pub(crate) struct Weights<'a> {
+    pub(crate) lit: &'a [f32],
+    pub(crate) ambient: &'a [f32],
 }
 
 /// `P(v)` for every value of a `max + 1`-level image.

@@ -144,12 +144,38 @@ pub enum Texture {
     /// A printed checkerboard in the object's `z = 0` plane (the object frame is the board
     /// frame).
     Board(Checkerboard),
+    /// The same colour everywhere: an RGB albedo, each channel in `[0, 1]`.
+    Colour([f64; 3]),
+    /// Solid 3-D colour patches in the object frame: cubes of side `cell_mm` centred on the
+    /// points `(i, j, k) · cell_mm` (so the origin is a patch's centre, and a plane through
+    /// it crosses the middle of its patches), cube `(i, j, k)` of colour
+    /// `colours[(i + j + k) mod n]`. Two cubes that share a face differ by one in
+    /// `i + j + k`, so with two colours or more they never share a colour.
+    ColourCells {
+        /// Side of a cube (mm).
+        cell_mm: f64,
+        /// The RGB albedos (each channel in `[0, 1]`), at least one.
+        colours: Vec<[f64; 3]>,
+    },
+}
+
+/// Weights of the red, green and blue albedos in the grey albedo of a colour texture
+/// ([`Texture::albedo_at`]): ITU-R BT.601's luma, the weights of OpenCV's `COLOR_RGB2GRAY`
+/// that the decoders read colour frames with, so that a grey render is the luma of the colour
+/// render.
+pub const LUMA_WEIGHTS: [f64; 3] = [0.299, 0.587, 0.114];
+
+/// The grey albedo of an RGB albedo: its luma ([`LUMA_WEIGHTS`]).
+pub fn luma_of(rgb: &[f64; 3]) -> f64 {
+    LUMA_WEIGHTS[0] * rgb[0] + LUMA_WEIGHTS[1] * rgb[1] + LUMA_WEIGHTS[2] * rgb[2]
 }
 
 impl Texture {
-    /// The albedo at `p`, a point of the surface in the object frame (mm).
+    /// The (grey) albedo at `p`, a point of the surface in the object frame (mm): the luma
+    /// ([`luma_of`]) of the colour textures' RGB albedo, which the grey renders use.
     pub fn albedo_at(&self, p: &Point3<f64>) -> f64 {
         match self {
+            Self::Colour(_) | Self::ColourCells { .. } => luma_of(&self.albedo_rgb_at(p)),
             Self::Uniform(a) => *a,
             Self::Checker3d {
                 period_mm,
@@ -166,6 +192,48 @@ impl Texture {
                 }
             }
             Self::Board(b) => b.albedo_at(p.x, p.y),
+        }
+    }
+
+    /// The RGB albedo at `p`, a point of the surface in the object frame (mm): `[a, a, a]`
+    /// for the grey textures (albedo `a`).
+    ///
+    /// ```
+    /// use nalgebra::Point3;
+    /// use sl_sim::Texture;
+    /// let red = Texture::Colour([0.8, 0.2, 0.1]);
+    /// assert_eq!(red.albedo_rgb_at(&Point3::origin()), [0.8, 0.2, 0.1]);
+    /// // Its grey albedo is its luma: 0.299 · 0.8 + 0.587 · 0.2 + 0.114 · 0.1.
+    /// assert!((red.albedo_at(&Point3::origin()) - 0.368).abs() < 1e-12);
+    /// assert_eq!(Texture::Uniform(0.5).albedo_rgb_at(&Point3::origin()), [0.5; 3]);
+    /// ```
+    pub fn albedo_rgb_at(&self, p: &Point3<f64>) -> [f64; 3] {
+        match self {
+            Self::Colour(rgb) => *rgb,
+            Self::ColourCells { cell_mm, colours } => {
+                let n = colours.len().max(1) as f64;
+                let cell = |v: f64| (v / cell_mm + 0.5).floor();
+                let s = cell(p.x) + cell(p.y) + cell(p.z);
+                let k = s.rem_euclid(n);
+                let k = if k.is_finite() { k as usize } else { 0 };
+                colours.get(k).copied().unwrap_or([0.0; 3])
+            }
+            Self::Uniform(_) | Self::Checker3d { .. } | Self::Board(_) => [self.albedo_at(p); 3],
+        }
+    }
+
+    /// Whether the texture has colour (its RGB albedo is not grey everywhere by construction).
+    pub fn is_colour(&self) -> bool {
+        matches!(self, Self::Colour(_) | Self::ColourCells { .. })
+    }
+
+    /// The RGB albedo averaged over a camera sub-sample's footprint, as
+    /// [`Texture::albedo_over`] averages the grey one (`[a, a, a]` for the grey textures).
+    pub(crate) fn albedo_rgb_over(&self, fp: &Footprint) -> [f64; 3] {
+        match self {
+            Self::Colour(rgb) => *rgb,
+            Self::ColourCells { cell_mm, colours } => cells_over(fp, *cell_mm, colours),
+            Self::Uniform(_) | Self::Checker3d { .. } | Self::Board(_) => [self.albedo_over(fp); 3],
         }
     }
 
@@ -187,12 +255,13 @@ impl Texture {
                 light + (dark - light) * (0.5 * (1.0 + product)).clamp(0.0, 1.0)
             }
             Self::Board(b) => b.albedo_over(fp),
+            Self::Colour(_) | Self::ColourCells { .. } => luma_of(&self.albedo_rgb_over(fp)),
         }
     }
 
     /// Whether the albedo varies over the surface (so that a footprint matters).
     pub(crate) fn is_uniform(&self) -> bool {
-        matches!(self, Self::Uniform(_))
+        matches!(self, Self::Uniform(_) | Self::Colour(_))
     }
 
     fn validate(&self, name: &str) -> Result<(), SimError> {
@@ -225,9 +294,82 @@ impl Texture {
             Self::Board(b) => b
                 .validate()
                 .map_err(|e| SimError::scene(name, e.to_string())),
+            Self::Colour(rgb) => rgb.iter().try_for_each(|&a| check(a)),
+            Self::ColourCells { cell_mm, colours } => {
+                if !(cell_mm.is_finite() && *cell_mm > 0.0) {
+                    return Err(SimError::scene(
+                        name,
+                        format!("colour cell side {cell_mm} is not positive"),
+                    ));
+                }
+                if colours.is_empty() {
+                    return Err(SimError::scene(
+                        name,
+                        "colour cells need at least one colour",
+                    ));
+                }
+                colours.iter().flatten().try_for_each(|&a| check(a))
+            }
         }
     }
 }
+
+/// [`Texture::ColourCells`] averaged over the footprint `fp`: along each axis the share of the
+/// footprint in each cell (exact, [`crate::footprint`]'s trapezoid law), the three axes taken
+/// as independent (as [`Texture::Checker3d`]'s product of square waves is: exact wherever one
+/// cell boundary crosses the footprint), the shares of the colour indices `(i + j + k) mod n`
+/// convolved from the axes' shares. A footprint across more than [`MAX_CELLS_ACROSS`] cells
+/// along an axis (a grazing view) takes that axis as uniform over the indices.
+fn cells_over(fp: &Footprint, cell_mm: f64, colours: &[[f64; 3]]) -> [f64; 3] {
+    let n = colours.len();
+    if n == 0 || !(cell_mm.is_finite() && cell_mm > 0.0) {
+        return [0.0; 3];
+    }
+    let mut shares = vec![0.0f64; n];
+    if let Some(first) = shares.first_mut() {
+        *first = 1.0;
+    }
+    for axis in 0..3 {
+        let spread = fp.axis(axis);
+        let reach = spread.half_a + spread.half_b;
+        let mut axis_shares = vec![0.0f64; n];
+        if reach > MAX_CELLS_ACROSS * cell_mm || !spread.centre.is_finite() {
+            axis_shares.iter_mut().for_each(|s| *s = 1.0 / n as f64);
+        } else {
+            let first = ((spread.centre - reach) / cell_mm + 0.5).floor() as i64;
+            let last = ((spread.centre + reach) / cell_mm + 0.5).floor() as i64;
+            for cell in first..=last {
+                let lo = (cell as f64 - 0.5) * cell_mm;
+                let share = spread.mean_box(lo, lo + cell_mm);
+                if let Some(s) = axis_shares.get_mut(cell.rem_euclid(n as i64) as usize) {
+                    *s += share;
+                }
+            }
+        }
+        let mut next = vec![0.0f64; n];
+        for (a, &sa) in shares.iter().enumerate() {
+            for (b, &sb) in axis_shares.iter().enumerate() {
+                if let Some(o) = next.get_mut((a + b) % n) {
+                    *o += sa * sb;
+                }
+            }
+        }
+        shares = next;
+    }
+    let total: f64 = shares.iter().sum();
+    let mut rgb = [0.0; 3];
+    for (share, colour) in shares.iter().zip(colours) {
+        for (o, c) in rgb.iter_mut().zip(colour) {
+            *o += share * c / total.max(f64::MIN_POSITIVE);
+        }
+    }
+    rgb
+}
+
+/// Cells a footprint may cross along one axis before [`Texture::ColourCells`] takes the axis
+/// as uniform: as the square waves' `MAX_STRIPES`, a view so grazing that no detector
+/// resolves the cells.
+const MAX_CELLS_ACROSS: f64 = 32.0;
 
 /// What an object is fixed to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -298,7 +440,28 @@ pub enum Finish {
     /// [`GLOSSY_STRENGTH`] and exponent [`GLOSSY_EXPONENT`], whose highlights saturate a camera
     /// exposed for white paper.
     Glossy,
+    /// Matte colour patches: [`Texture::ColourCells`] of [`COLOURED_CELL_MM`] cubes in the
+    /// colours [`COLOURED_ALBEDOS`] (red, green, blue, yellow; lumas 0.42–0.68, so the
+    /// fringes decode as on bright plaster), no gloss. For colour scans.
+    Coloured,
 }
+
+/// Side (mm) of the colour patches of [`Finish::Coloured`]: 25 mm, several on any preset
+/// object, each wide enough (some 70 camera pixels at the working distance) for its colour to
+/// be judged away from its edges. With the patches centred on the object's origin no flat
+/// face of a preset lies on a patch boundary, where rounding would pick either colour: the
+/// plane's `z = 0` and a mesh's cut bottom are mid-patch, the box's faces at ±50 mm (2 cells)
+/// and the cylinder's caps at ±60 mm (2.4 cells) too.
+pub const COLOURED_CELL_MM: f64 = 25.0;
+
+/// RGB albedos of [`Finish::Coloured`]'s patches: a red, a green, a blue and a yellow paint,
+/// none darker in luma than 0.42 (the blue) so that the geometry decodes as on plaster.
+pub const COLOURED_ALBEDOS: [[f64; 3]; 4] = [
+    [0.85, 0.25, 0.2],
+    [0.3, 0.75, 0.3],
+    [0.35, 0.45, 0.9],
+    [0.85, 0.8, 0.25],
+];
 
 /// Albedo of [`Finish::Dark`]: black plastic or anodised aluminium reflect 3–5 %.
 pub const DARK_ALBEDO: f64 = 0.04;
@@ -311,7 +474,7 @@ pub const GLOSSY_EXPONENT: f64 = 60.0;
 
 impl Finish {
     /// The names `slscan scan --finish` takes.
-    pub const NAMES: [&str; 3] = ["matte", "dark", "glossy"];
+    pub const NAMES: [&str; 4] = ["matte", "dark", "glossy", "coloured"];
 
     /// The finish called `name` (one of [`Finish::NAMES`]).
     pub fn named(name: &str) -> Option<Self> {
@@ -319,6 +482,7 @@ impl Finish {
             "matte" => Some(Self::Matte),
             "dark" => Some(Self::Dark),
             "glossy" => Some(Self::Glossy),
+            "coloured" | "colored" => Some(Self::Coloured),
             _ => None,
         }
     }
@@ -329,6 +493,7 @@ impl Finish {
             Self::Matte => "matte",
             Self::Dark => "dark",
             Self::Glossy => "glossy",
+            Self::Coloured => "coloured",
         }
     }
 
@@ -343,6 +508,13 @@ impl Finish {
                     strength: GLOSSY_STRENGTH,
                     exponent: GLOSSY_EXPONENT,
                 }),
+            ),
+            Self::Coloured => (
+                Texture::ColourCells {
+                    cell_mm: COLOURED_CELL_MM,
+                    colours: COLOURED_ALBEDOS.to_vec(),
+                },
+                None,
             ),
         }
     }
@@ -743,6 +915,134 @@ mod tests {
             .validate()
             .unwrap();
         assert!(Scene::new().validate().is_err());
+    }
+
+    /// The grey albedo of a colour texture is its luma by BT.601's weights (summing to 1:
+    /// white stays white), at every point; the coloured finish's patches are all brighter
+    /// than 0.4 in luma and never share a colour with a face neighbour.
+    #[test]
+    fn colour_textures_are_grey_by_their_luma() {
+        assert!((LUMA_WEIGHTS.iter().sum::<f64>() - 1.0).abs() < 1e-15);
+        let (texture, gloss) = Finish::Coloured.surface();
+        assert!(gloss.is_none() && texture.is_colour());
+        for rgb in COLOURED_ALBEDOS {
+            let luma = 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2];
+            assert!(luma > 0.4, "{rgb:?}: luma {luma}");
+        }
+        let c = COLOURED_CELL_MM;
+        for k in 0..200 {
+            let t = f64::from(k);
+            let p = Point3::new(37.1 * t.sin() * 3.0, 11.3 * t - 900.0, 53.0 * t.cos() * 2.0);
+            let rgb = texture.albedo_rgb_at(&p);
+            let want = 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2];
+            assert!((texture.albedo_at(&p) - want).abs() < 1e-15);
+            // A face neighbour's patch has another colour.
+            for axis in 0..3 {
+                let mut q = p;
+                q[axis] += c;
+                assert_ne!(texture.albedo_rgb_at(&q), rgb);
+            }
+        }
+        // Patches are centred on the origin: ±0.49 cell is the origin's patch.
+        let origin = texture.albedo_rgb_at(&Point3::origin());
+        assert_eq!(origin, COLOURED_ALBEDOS[0]);
+        assert_eq!(
+            texture.albedo_rgb_at(&Point3::new(0.49 * c, -0.49 * c, 0.0)),
+            origin
+        );
+        assert_eq!(
+            texture.albedo_rgb_at(&Point3::new(0.51 * c, 0.0, 0.0)),
+            COLOURED_ALBEDOS[1]
+        );
+        assert_eq!(
+            Texture::Uniform(0.3).albedo_rgb_at(&Point3::origin()),
+            [0.3; 3]
+        );
+        // Out-of-range colours are refused, naming the object.
+        let bad = Texture::ColourCells {
+            cell_mm: 10.0,
+            colours: vec![[0.5, 1.2, 0.0]],
+        };
+        let err = bad.validate("vase").unwrap_err().to_string();
+        assert!(err.contains("vase") && err.contains("1.2"), "{err}");
+        assert!(
+            Texture::ColourCells {
+                cell_mm: 10.0,
+                colours: vec![]
+            }
+            .validate("v")
+            .is_err()
+        );
+        assert!(Texture::Colour([0.1, -0.1, 0.0]).validate("v").is_err());
+        assert_eq!(Finish::named("coloured"), Some(Finish::Coloured));
+        assert_eq!(Finish::Coloured.name(), "coloured");
+    }
+
+    /// The footprint average of colour patches equals a dense average of the point colours
+    /// over the parallelogram where one patch boundary crosses it (exact there), and within
+    /// a few percent of the colour difference where a corner does (the axes are averaged as
+    /// independent).
+    #[test]
+    fn colour_patches_average_over_a_footprint() {
+        let (texture, _) = Finish::Coloured.surface();
+        let c = COLOURED_CELL_MM;
+        let dense = |fp: &Footprint| -> [f64; 3] {
+            let m = 300;
+            let mut acc = [0.0; 3];
+            for i in 0..m {
+                for j in 0..m {
+                    let t = (f64::from(i) + 0.5) / f64::from(m) - 0.5;
+                    let u = (f64::from(j) + 0.5) / f64::from(m) - 0.5;
+                    let p = fp.centre + fp.edge_x * t + fp.edge_y * u;
+                    let rgb = texture.albedo_rgb_at(&p);
+                    for k in 0..3 {
+                        acc[k] += rgb[k] / f64::from(m * m);
+                    }
+                }
+            }
+            acc
+        };
+        // Across the boundary x = c/2 only (y and z mid-patch), tilted edges.
+        for (dx, ex, ey) in [
+            (
+                0.3,
+                Vector3::new(1.0, 0.4, 0.0),
+                Vector3::new(0.5, -1.0, 0.2),
+            ),
+            (
+                -0.7,
+                Vector3::new(2.0, 0.0, 0.3),
+                Vector3::new(0.0, 1.5, 0.0),
+            ),
+            (
+                0.05,
+                Vector3::new(0.2, 0.1, 0.0),
+                Vector3::new(-0.3, 0.9, 0.1),
+            ),
+        ] {
+            let fp = Footprint {
+                centre: Point3::new(0.5 * c + dx, 0.1 * c, -0.2 * c),
+                edge_x: ex,
+                edge_y: ey,
+            };
+            let got = texture.albedo_rgb_over(&fp);
+            let want = dense(&fp);
+            for k in 0..3 {
+                // A 300 × 300 grid resolves the boundary to 1/300 of the footprint.
+                assert!((got[k] - want[k]).abs() < 0.004, "{got:?} vs {want:?}");
+            }
+            assert!((texture.albedo_over(&fp) - luma_of(&got)).abs() < 1e-15);
+        }
+        // At a corner of four patches.
+        let fp = Footprint {
+            centre: Point3::new(0.5 * c + 0.2, 0.5 * c - 0.3, 0.0),
+            edge_x: Vector3::new(1.5, 0.3, 0.0),
+            edge_y: Vector3::new(-0.2, 1.2, 0.0),
+        };
+        let (got, want) = (texture.albedo_rgb_over(&fp), dense(&fp));
+        for k in 0..3 {
+            assert!((got[k] - want[k]).abs() < 0.03, "{got:?} vs {want:?}");
+        }
     }
 
     #[test]

@@ -133,3 +133,19 @@ impl<P: Lens> Caster<'_, P> {
         t
     }
 }
+
+/// The true colour of the scene's surface nearest a point ([`VirtualRig::true_colour`]).
+///
+/// [`VirtualRig::true_colour`]: crate::VirtualRig::true_colour
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrueColour {
+    /// The RGB albedo there, each channel in `[0, 1]` ([`Texture::albedo_rgb_at`]; a grey
+    /// texture's albedo in the three channels).
+    ///
+    /// [`Texture::albedo_rgb_at`]: crate::Texture::albedo_rgb_at
+    pub rgb: [f64; 3],
+    /// Distance (mm) from the point asked about to the nearest surface point.
+    pub distance_mm: f64,
+    /// The name of the object whose surface it is.
+    pub object: String,
+}

@@ -3,14 +3,17 @@
 
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
+use nalgebra::Point3;
+
 use sl_image::Frame;
 
 use crate::geometry::{CameraRays, Caster};
-use crate::sensor::{NoiseKey, expose};
-use crate::truth::ObjectPose;
+use crate::render::Weights;
+use crate::sensor::{BitDepth, NoiseKey, expose};
+use crate::truth::{ObjectPose, TrueColour};
 use crate::{
-    Camera, GreyImage, Mount, PlacedScene, Projector, ProjectorSampling, RenderConfig, RigConfig,
-    RigError, Scene, SimError, Turntable, ViewGeometry, ViewTruth,
+    Camera, ColourImage, GreyImage, Mount, PlacedScene, Projector, ProjectorSampling, RenderConfig,
+    RigConfig, RigError, Scene, SimError, Turntable, ViewGeometry, ViewTruth,
 };
 
 /// A virtual structured-light rig looking at a scene.
@@ -120,6 +123,43 @@ impl VirtualRig {
         })
     }
 
+    /// The true colour of the scene's surface nearest `p_cam`, a point in the camera frame of
+    /// the view with the turntable motor at `motor_deg` (objects on the turntable are at
+    /// `t_cam_table_at(motor_deg) · pose`, objects fixed to the camera at their pose): the
+    /// RGB albedo of the texture at the nearest surface point and the distance to it. Judges
+    /// a scan's colours: a reconstructed point with its colour is compared with the albedo
+    /// of the surface it lies on (a fraction of a millimetre away).
+    ///
+    /// `None` when `p_cam` or `motor_deg` is not finite, or when the nearest point is not
+    /// defined (`p_cam` at a sphere's centre).
+    ///
+    /// ```
+    /// use nalgebra::Point3;
+    /// use sl_sim::{Finish, RigConfig, Scene, VirtualRig};
+    /// # fn main() -> Result<(), sl_sim::SimError> {
+    /// let rig = VirtualRig::new(RigConfig::default(), Scene::sphere().finished(Finish::Dark))?;
+    /// // The sphere (radius 50 mm) stands on the table's axis, its centre 50 mm up: a point
+    /// // 80 mm from the axis on the camera's side (table y < 0) is 30 mm from its surface.
+    /// let p = rig.config().t_cam_table_at(0.0) * Point3::new(0.0, -80.0, 50.0);
+    /// let truth = rig.true_colour(0.0, &p).unwrap();
+    /// assert!((truth.distance_mm - 30.0).abs() < 1e-6);
+    /// assert_eq!(truth.rgb, [sl_sim::DARK_ALBEDO; 3]);
+    /// # Ok(()) }
+    /// ```
+    pub fn true_colour(&self, motor_deg: f64, p_cam: &Point3<f64>) -> Option<TrueColour> {
+        if !(motor_deg.is_finite() && p_cam.coords.iter().all(|c| c.is_finite())) {
+            return None;
+        }
+        let placed = PlacedScene::new(&self.scene, &self.config.t_cam_table_at(motor_deg));
+        let (k, local, distance_mm) = placed.nearest_surface(p_cam)?;
+        let object = self.scene.objects.get(k)?;
+        Some(TrueColour {
+            rgb: object.texture.albedo_rgb_at(&local),
+            distance_mm,
+            object: object.name.clone(),
+        })
+    }
+
     /// How a capture session names this rig's devices: `virtual camera WxH`, `virtual
     /// projector WxH` and the given `turntable`.
     #[must_use]
@@ -215,6 +255,84 @@ impl View {
         self.expose_scaled(radiance, frame, exposure_scale)
     }
 
+    /// Renders the frame a colour camera captures while the projector shows `projected`; `frame`
+    /// keys the noise, as in [`View::capture`].
+    ///
+    /// The projector's light is white: each channel is rendered with that channel's albedo
+    /// ([`Texture::albedo_rgb_at`](crate::Texture::albedo_rgb_at), the grey albedo in every
+    /// channel for grey textures) through the same optics and sensor as a grey frame (lens and
+    /// projector blur, global illumination, defocus, exposure, saturation), its photon and
+    /// read noise drawn independently of the other channels' and of the grey frames', and
+    /// quantised to 8 bits whatever the sensor's bit depth. Since the grey albedo of a colour
+    /// texture is its luma, the luma of a colour frame ([`ColourImage::to_grey`]) is the grey
+    /// frame of an 8-bit sensor, within the noise.
+    ///
+    /// # Errors
+    /// [`SimError::Rig`] when `projected` does not have the projector's size.
+    pub fn capture_colour(
+        &self,
+        projected: &GreyImage,
+        frame: u64,
+    ) -> Result<ColourImage, SimError> {
+        self.capture_colour_exposed(projected, frame, 1.0)
+    }
+
+    /// [`View::capture_colour`] with the sensor's exposure multiplied by `exposure_scale`, as
+    /// [`View::capture_exposed`].
+    ///
+    /// # Errors
+    /// As [`View::capture_colour`].
+    pub fn capture_colour_exposed(
+        &self,
+        projected: &GreyImage,
+        frame: u64,
+        exposure_scale: f64,
+    ) -> Result<ColourImage, SimError> {
+        let g = &self.geometry;
+        let light = &self.render.illumination;
+        let radiances = if g.colour.is_empty() {
+            // A grey scene: the three channels see the grey albedo.
+            let r = g.render_image(projected, light)?;
+            vec![r.clone(), r.clone(), r]
+        } else {
+            let channel = |c: usize| -> (Vec<f32>, Vec<f32>) {
+                g.colour
+                    .iter()
+                    .zip(g.lit_weight.iter().zip(&g.ambient_weight))
+                    .map(|(rgb, (&lit, &amb))| {
+                        let a = rgb.get(c).copied().unwrap_or(0.0);
+                        (lit + (a - amb) * rgb[3], a)
+                    })
+                    .unzip()
+            };
+            let weights: Vec<(Vec<f32>, Vec<f32>)> = (0..3).map(channel).collect();
+            let weights: Vec<Weights<'_>> = weights
+                .iter()
+                .map(|(lit, ambient)| Weights { lit, ambient })
+                .collect();
+            g.render_image_weighted(projected, light, &weights)?
+        };
+        let mut effects = self.render.effects;
+        effects.sensor.exposure *= exposure_scale;
+        effects.sensor.bit_depth = BitDepth::Eight;
+        let (w, h) = (g.width as usize, g.height as usize);
+        let mut data = vec![[0u8; 3]; w * h];
+        for (c, (radiance, salt)) in radiances.into_iter().zip(COLOUR_NOISE_SALTS).enumerate() {
+            let key = NoiseKey {
+                seed: self.render.seed ^ salt,
+                view: self.index,
+                frame,
+            };
+            let channel = expose(radiance, w, h, &g.depth_mm, self.fx, &effects, key)?.into_u8();
+            for (o, &v) in data.iter_mut().zip(channel.data()) {
+                if let Some(slot) = o.get_mut(c) {
+                    *slot = v;
+                }
+            }
+        }
+        Ok(ColourImage::new(w, h, data)?)
+    }
+
     /// Renders the frame the camera captures while the projector shows the pattern `pattern`
     /// (a function of the projector coordinate returning a value in `[0, 1]`).
     ///
@@ -289,6 +407,16 @@ impl View {
         )
     }
 }
+
+/// Mixed into the rig's seed for the noise of a colour frame's red, green and blue channels:
+/// three streams unrelated to each other and to the grey frames' (the noise key's mix has full
+/// avalanche, so any three distinct non-zero constants do; these are the first 64 bits of the
+/// fractional parts of √2, √3 and √5).
+const COLOUR_NOISE_SALTS: [u64; 3] = [
+    0x6A09_E667_F3BC_C908,
+    0xBB67_AE85_84CA_A73B,
+    0x3C6E_F372_FE94_F82B,
+];
 
 /// Frames that lie, on demand: the virtual devices told to be late, caught mid-update or to
 /// deliver a stale frame, as real projectors and cameras are ([`VirtualProjector::set_faults`]).
@@ -473,6 +601,39 @@ impl Camera for VirtualCamera {
             lock(&self.cache).last = Some(image.clone());
         }
         Ok(image)
+    }
+
+    /// The colour frame of what the projector shows now ([`View::capture_colour`] at the
+    /// camera's exposure), counted as a capture as [`Camera::capture`] counts them. A show
+    /// still settling ([`DeviceFaults`]: late or mixed) is seen as the previous image whole.
+    fn capture_colour(&mut self) -> Result<ColourImage, RigError> {
+        let view = self.current_view()?;
+        let frame = {
+            let mut cache = lock(&self.cache);
+            let frame = cache.frames_in_view;
+            cache.frames_in_view += 1;
+            cache.captures += 1;
+            frame
+        };
+        let shown = {
+            let st = lock(&self.state);
+            if st.settling().is_some() {
+                st.previous.clone()
+            } else {
+                st.shown.clone()
+            }
+        };
+        // Nothing shown yet: the projector is dark.
+        let image = match shown {
+            Some(image) => image,
+            None => GreyImage::filled_u8(
+                view.geometry.projector_width as usize,
+                view.geometry.projector_height as usize,
+                0,
+            )?,
+        };
+        let scale = self.exposure_ms / VIRTUAL_EXPOSURE_MS;
+        Ok(view.capture_colour_exposed(&image, frame, scale)?)
     }
 
     /// Scales the sensor's exposure by `exposure_ms /` [`VIRTUAL_EXPOSURE_MS`]: photon noise,
