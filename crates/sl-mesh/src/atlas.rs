@@ -27,7 +27,10 @@
 //! triangle (itself when inside) and mapped to 3-D by barycentric coordinates, where the colour
 //! is sampled. The gutter is so filled by the colours of the triangle's rim, the dilation of the
 //! triangle. Texels whose sample is unknown take the colour of the nearest texel of the same
-//! triangle whose sample is known, or [`UNKNOWN_COLOUR`] when the triangle has none.
+//! triangle whose sample is known (nearest in steps of one texel, diagonals included), or
+//! [`UNKNOWN_COLOUR`] when the triangle has none.
+
+use std::collections::VecDeque;
 
 use nalgebra::{Point2, Point3, Vector2, Vector3};
 use rayon::prelude::*;
@@ -42,6 +45,10 @@ use crate::measure::{triangle_normal, vertex_normals};
 /// (the first triangle starts at 1.5, the second ends at `s − 0.5`) plus a diagonal gap of two
 /// texels (along x) between the two hypotenuses. See the module's layout.
 const CELL_MARGIN: u32 = 4;
+
+/// Largest [`TextureConfig::max_side`]: 16384 texels is the largest texture today's graphics
+/// cards take (and 805 MB of RGB).
+pub const MAX_TEXTURE_SIDE: u32 = 16384;
 
 /// Colour of texels no sample of their triangle knows: mid grey, the colour that reads as
 /// "no data" without looking like a measured dark or bright surface.
@@ -108,6 +115,13 @@ impl Layout {
                 "TextureConfig::texels_per_edge",
                 0,
                 "must be at least 1",
+            ));
+        }
+        if cfg.max_side > MAX_TEXTURE_SIDE {
+            return Err(MeshError::invalid(
+                "TextureConfig::max_side",
+                cfg.max_side,
+                "at most 16384: no graphics card takes larger textures",
             ));
         }
         if triangles == 0 {
@@ -275,25 +289,24 @@ pub fn bake_texture(
         .enumerate()
         .map(|(row, band)| {
             let mut unknown = 0;
-            let mut texels: Vec<Texel> = Vec::new();
+            let mut grid: Vec<Option<[u8; 3]>> = vec![None; cell * cell];
+            let mut queue = VecDeque::new();
             for col in 0..layout.cols as usize {
                 for half in 0..2 {
                     let t = 2 * (row * layout.cols as usize + col) + half;
                     let Some(tri) = mesh.triangles.get(t) else {
                         continue;
                     };
+                    let owns = |i: usize, j: usize| (i + j <= cell) == (half == 0);
                     let local = layout.corners(half);
                     let r = first[t];
                     let corner = |k: usize| tri[(r + k) % 3] as usize;
                     let p = [0, 1, 2].map(|k| mesh.vertices[corner(k)]);
                     let n = [0, 1, 2].map(|k| normals[corner(k)]);
                     let face = triangle_normal(&mesh.vertices, tri);
-                    texels.clear();
+                    let mut missing = 0;
                     for j in 0..cell {
-                        for i in 0..cell {
-                            if (i + j <= cell) != (half == 0) {
-                                continue;
-                            }
+                        for i in (0..cell).filter(|&i| owns(i, j)) {
                             let q = Point2::new(i as f64 + 0.5, j as f64 + 0.5);
                             let b = nearest_barycentric(&local, &q);
                             let point = Point3::from(
@@ -307,15 +320,39 @@ pub fn bake_texture(
                             } else {
                                 normal
                             };
-                            texels.push(((i, j), sample(&point, &normal)));
+                            let colour = sample(&point, &normal);
+                            grid[j * cell + i] = colour;
+                            if colour.is_some() {
+                                queue.push_back((i, j));
+                            } else {
+                                missing += 1;
+                            }
                         }
                     }
-                    for (k, &((i, j), colour)) in texels.iter().enumerate() {
-                        let colour = colour.unwrap_or_else(|| {
-                            unknown += 1;
-                            nearest_known(&texels, k).unwrap_or(UNKNOWN_COLOUR)
-                        });
-                        band[j * width + col * cell + i] = colour;
+                    // Unknown texels take the colour of the nearest known one, in steps of one
+                    // texel (diagonals included): a breadth-first flood from all known texels,
+                    // linear in the texels of the triangle.
+                    while let Some((i, j)) = queue.pop_front() {
+                        let colour = grid[j * cell + i];
+                        for (di, dj) in NEIGHBOURS {
+                            let (Some(a), Some(b)) =
+                                (i.checked_add_signed(di), j.checked_add_signed(dj))
+                            else {
+                                continue;
+                            };
+                            if a < cell && b < cell && owns(a, b) && grid[b * cell + a].is_none() {
+                                grid[b * cell + a] = colour;
+                                queue.push_back((a, b));
+                            }
+                        }
+                    }
+                    unknown += missing;
+                    for j in 0..cell {
+                        for i in (0..cell).filter(|&i| owns(i, j)) {
+                            let texel = &mut grid[j * cell + i];
+                            band[j * width + col * cell + i] =
+                                texel.take().unwrap_or(UNKNOWN_COLOUR);
+                        }
                     }
                 }
             }
@@ -330,18 +367,17 @@ pub fn bake_texture(
     })
 }
 
-/// A texel of a cell, `(i, j)`, and its sampled colour.
-type Texel = ((usize, usize), Option<[u8; 3]>);
-
-/// The known colour nearest to texel `k` among `texels` (one triangle's).
-fn nearest_known(texels: &[Texel], k: usize) -> Option<[u8; 3]> {
-    let (i, j) = texels[k].0;
-    texels
-        .iter()
-        .filter_map(|&((a, b), c)| Some((a.abs_diff(i).pow(2) + b.abs_diff(j).pow(2), c?)))
-        .min_by_key(|&(d, _)| d)
-        .map(|(_, c)| c)
-}
+/// The eight neighbours of a texel.
+const NEIGHBOURS: [(isize, isize); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
 
 #[cfg(test)]
 pub(crate) mod tests {
@@ -592,6 +628,39 @@ pub(crate) mod tests {
         assert!(e.to_string().contains("texels_per_edge"), "{e}");
         let e = bake_texture(&TriangleMesh::default(), &cfg, |_, _| None).unwrap_err();
         assert!(matches!(e, MeshError::InvalidMesh(_)), "{e}");
+        let huge = TextureConfig {
+            texels_per_edge: 8,
+            max_side: MAX_TEXTURE_SIDE + 1,
+        };
+        let e = bake_texture(&mesh, &huge, |_, _| None).unwrap_err();
+        assert!(e.to_string().contains("16384"), "{e}");
+        // One big triangle known on a corner only (a few texels of 2 million): the flood fills
+        // it all with that corner's colour, in linear time.
+        let one = TriangleMesh {
+            vertices: vec![
+                Point3::origin(),
+                Point3::new(1.0, 0.0, 0.0),
+                Point3::new(0.0, 1.0, 0.0),
+            ],
+            triangles: vec![[0, 1, 2]],
+        };
+        let big = TextureConfig {
+            texels_per_edge: 2000,
+            max_side: 4096,
+        };
+        let atlas = bake_texture(&one, &big, |p, _| {
+            (p.coords.norm() < 1e-3).then_some([10, 20, 30])
+        })
+        .unwrap();
+        assert_eq!(atlas.texels_per_edge, 2000);
+        for _ in 0..100 {
+            let (_, uv) = random_point(&one, &atlas, 0, &mut rng);
+            let got = bilinear(&atlas.image, uv);
+            assert!(
+                (0..3).all(|k| (got[k] - [10.0, 20.0, 30.0][k]).abs() < 1e-9),
+                "{got:?}"
+            );
+        }
     }
 
     /// The normal handed to the sampler is the interpolated vertex normal: on a sphere centred

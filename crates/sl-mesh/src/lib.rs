@@ -93,7 +93,7 @@ mod topology;
 mod trim;
 mod viewer;
 
-pub use atlas::{TextureAtlas, TextureConfig, UNKNOWN_COLOUR, bake_texture};
+pub use atlas::{MAX_TEXTURE_SIDE, TextureAtlas, TextureConfig, UNKNOWN_COLOUR, bake_texture};
 pub use bilateral::{BilateralConfig, smooth_bilateral};
 pub use decimate::{Decimation, decimate};
 pub use error::MeshError;
