@@ -88,7 +88,7 @@ pub use open::{
     BoxedCamera, BoxedTurntable, DeviceDescription, open_camera, open_turntable, serial_ports,
     with_binocular_devices, with_camera_and_projector, with_described_devices, with_devices,
 };
-pub use pixel_format::{FrameLayout, PixelFormat, convert_frame};
+pub use pixel_format::{FrameLayout, PixelFormat, convert_frame, convert_frame_colour};
 #[cfg(feature = "window")]
 pub use projector_window::{
     DEFAULT_PRESENT_TIMEOUT, MonitorInfo, PROJECTOR_WINDOW_TITLE, ProjectorWindow,

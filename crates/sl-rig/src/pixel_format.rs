@@ -1,11 +1,12 @@
-//! Camera pixel formats and their conversion to grey frames.
+//! Camera pixel formats and their conversion to grey frames ([`convert_frame`]) and to colour
+//! ones ([`convert_frame_colour`]).
 //!
 //! Plain functions, compiled with or without the `v4l` feature, so that every conversion a real
 //! camera needs is unit-tested on machines without a camera.
 
 use sl_image::Frame;
 
-use crate::{GreyImage, RigError};
+use crate::{ColourImage, GreyImage, RigError};
 
 /// A pixel format a camera delivers, as V4L2 names it (its four-character code).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -19,12 +20,23 @@ pub enum PixelFormat {
     Yuyv,
     /// `MJPG`: one JPEG image per frame (USB webcams at high resolutions).
     Mjpg,
+    /// `RGB3`: 8-bit red, green, blue, three bytes per pixel (V4L2's `RGB24`).
+    Rgb3,
+    /// `BGR3`: 8-bit blue, green, red, three bytes per pixel (V4L2's `BGR24`).
+    Bgr3,
 }
 
 impl PixelFormat {
     /// Every format this crate converts, in order of preference for structured light
     /// (uncompressed grey first, JPEG last: its compression blurs stripe edges).
-    pub const ALL: [Self; 4] = [Self::Grey, Self::Y16, Self::Yuyv, Self::Mjpg];
+    pub const ALL: [Self; 6] = [
+        Self::Grey,
+        Self::Y16,
+        Self::Yuyv,
+        Self::Rgb3,
+        Self::Bgr3,
+        Self::Mjpg,
+    ];
 
     /// The V4L2 four-character code.
     pub fn fourcc(self) -> [u8; 4] {
@@ -33,6 +45,8 @@ impl PixelFormat {
             Self::Y16 => *b"Y16 ",
             Self::Yuyv => *b"YUYV",
             Self::Mjpg => *b"MJPG",
+            Self::Rgb3 => *b"RGB3",
+            Self::Bgr3 => *b"BGR3",
         }
     }
 
@@ -44,12 +58,14 @@ impl PixelFormat {
             b"Y16 " => Some(Self::Y16),
             b"YUYV" => Some(Self::Yuyv),
             b"MJPG" | b"JPEG" => Some(Self::Mjpg),
+            b"RGB3" => Some(Self::Rgb3),
+            b"BGR3" => Some(Self::Bgr3),
             _ => None,
         }
     }
 
     /// The format named `name` (its four-character code, case-insensitive, trailing spaces
-    /// optional: `grey`, `y16`, `yuyv`, `mjpg`).
+    /// optional: `grey`, `y16`, `yuyv`, `mjpg`, `rgb3`, `bgr3`).
     pub fn from_name(name: &str) -> Result<Self, RigError> {
         let upper = name.trim().to_ascii_uppercase();
         Self::ALL
@@ -59,7 +75,7 @@ impl PixelFormat {
             .ok_or_else(|| {
                 RigError::param(
                     "pixel_format",
-                    format!("`{name}` is not one of GREY, Y16, YUYV, MJPG"),
+                    format!("`{name}` is not one of GREY, Y16, YUYV, RGB3, BGR3, MJPG"),
                 )
             })
     }
@@ -71,6 +87,8 @@ impl PixelFormat {
             Self::Y16 => "Y16",
             Self::Yuyv => "YUYV",
             Self::Mjpg => "MJPG",
+            Self::Rgb3 => "RGB3",
+            Self::Bgr3 => "BGR3",
         }
     }
 
@@ -79,6 +97,7 @@ impl PixelFormat {
         match self {
             Self::Grey => Some(1),
             Self::Y16 | Self::Yuyv => Some(2),
+            Self::Rgb3 | Self::Bgr3 => Some(3),
             Self::Mjpg => None,
         }
     }
@@ -116,8 +135,9 @@ impl FrameLayout {
     }
 }
 
-/// Converts one raw camera frame to a grey image: 8-bit for `GREY`, `YUYV` (the luma `Y`) and
-/// `MJPG` (decoded, then its luma), 16-bit for `Y16`.
+/// Converts one raw camera frame to a grey image: 8-bit for `GREY`, `YUYV` (the luma `Y`),
+/// `MJPG` (decoded, then its luma) and `RGB3` / `BGR3` (their luma by OpenCV's
+/// `COLOR_RGB2GRAY` rule, [`sl_image::luma`]), 16-bit for `Y16`.
 ///
 /// `frame` is the part of the driver's buffer that holds the frame (V4L2's `bytesused`
 /// bytes); padding at the end of rows (`stride`) is dropped. `what` names the frame in errors
@@ -179,7 +199,132 @@ pub fn convert_frame(
             grey(layout.width, layout.height, luma)
         }
         PixelFormat::Mjpg => decode_mjpg(frame, layout, what),
+        PixelFormat::Rgb3 | PixelFormat::Bgr3 => {
+            let rgb = rgb_pixels(frame, layout, what)?;
+            grey(
+                layout.width,
+                layout.height,
+                rgb.into_iter().map(sl_image::luma).collect(),
+            )
+        }
     }
+}
+
+/// Converts one raw camera frame to an 8-bit RGB image: the colour of a scan.
+///
+/// - `YUYV`: ITU-R BT.601 limited range (`Y` in 16–235, chroma in 16–240) to RGB, as OpenCV's
+///   `COLOR_YUV2RGB_YUYV` does it, in its fixed point: with `y = max(Y − 16, 0)`,
+///   `u = U − 128`, `v = V − 128` (the pair of pixels sharing `U` and `V`),
+///   `R = (1.164 y + 1.596 v)`, `G = (1.164 y − 0.391 u − 0.813 v)`, `B = (1.164 y + 2.018 u)`,
+///   each rounded and clamped to 0–255 (coefficients scaled by 2²⁰ as OpenCV's
+///   `ITUR_BT_601_*`);
+/// - `MJPG`: decoded to RGB (the JPEG's own YCbCr, full range, converted by the decoder);
+/// - `RGB3` / `BGR3`: the bytes, reordered for `BGR3`;
+/// - `GREY`: the grey value in the three channels; `Y16`: rounded to 8 bits (`round(v / 257)`,
+///   as `sl_codec::read_colour_image` reads 16-bit files).
+///
+/// # Errors
+/// As [`convert_frame`].
+///
+/// ```
+/// use sl_rig::{FrameLayout, PixelFormat, convert_frame_colour};
+/// # fn main() -> Result<(), sl_rig::RigError> {
+/// // Two YUYV pixels of BT.601's limited range: white (Y = 235) and black (Y = 16).
+/// let layout = FrameLayout::packed(PixelFormat::Yuyv, 2, 1);
+/// let rgb = convert_frame_colour(&[235, 128, 16, 128], &layout, "frame 0")?;
+/// assert_eq!(rgb.data(), &[[255, 255, 255], [0, 0, 0]]);
+/// # Ok(())
+/// # }
+/// ```
+pub fn convert_frame_colour(
+    frame: &[u8],
+    layout: &FrameLayout,
+    what: &str,
+) -> Result<ColourImage, RigError> {
+    if layout.width == 0 || layout.height == 0 {
+        return Err(RigError::param(
+            "frame size",
+            format!("{what}: {}x{} has no pixel", layout.width, layout.height),
+        ));
+    }
+    let data: Vec<[u8; 3]> = match layout.format {
+        PixelFormat::Grey => packed_rows(frame, layout, 1, what)?
+            .into_iter()
+            .map(|g| [g; 3])
+            .collect(),
+        PixelFormat::Y16 => packed_rows(frame, layout, 2, what)?
+            .chunks_exact(2)
+            .map(|b| {
+                let v = u32::from(u16::from_le_bytes([b[0], b[1]]));
+                [((v + 128) / 257) as u8; 3]
+            })
+            .collect(),
+        PixelFormat::Yuyv => {
+            if !layout.width.is_multiple_of(2) {
+                return Err(RigError::param(
+                    "frame size",
+                    format!(
+                        "{what}: YUYV needs an even width (pixels come in pairs), got {}",
+                        layout.width
+                    ),
+                ));
+            }
+            packed_rows(frame, layout, 2, what)?
+                .chunks_exact(4)
+                .flat_map(|q| {
+                    let (y0, u, y1, v) = (q[0], q[1], q[2], q[3]);
+                    [yuv_to_rgb(y0, u, v), yuv_to_rgb(y1, u, v)]
+                })
+                .collect()
+        }
+        PixelFormat::Rgb3 | PixelFormat::Bgr3 => rgb_pixels(frame, layout, what)?,
+        PixelFormat::Mjpg => decode_mjpg_rgb(frame, layout, what)?,
+    };
+    Ok(ColourImage::new(
+        layout.width as usize,
+        layout.height as usize,
+        data,
+    )?)
+}
+
+/// BT.601's coefficients scaled by 2²⁰ as OpenCV's `ITUR_BT_601_*` constants
+/// (`color_yuv.simd.hpp`): 1.164 (`CY`, 255/219), 1.596 (`CVR`), −0.813 (`CVG`), −0.391
+/// (`CUG`) and 2.018 (`CUB`).
+const BT601_CY: i32 = 1_220_542;
+const BT601_CVR: i32 = 1_673_527;
+const BT601_CVG: i32 = -852_492;
+const BT601_CUG: i32 = -409_993;
+const BT601_CUB: i32 = 2_116_026;
+/// The scale of the coefficients: 2²⁰.
+const BT601_SHIFT: u32 = 20;
+
+/// One limited-range BT.601 pixel to RGB, in OpenCV's fixed point (`yuv2rgb` of
+/// `color_yuv.simd.hpp`: half of the last bit added before the shift, so the result rounds).
+fn yuv_to_rgb(y: u8, u: u8, v: u8) -> [u8; 3] {
+    let luma = (i32::from(y) - 16).max(0) * BT601_CY;
+    let (u, v) = (i32::from(u) - 128, i32::from(v) - 128);
+    let half = 1 << (BT601_SHIFT - 1);
+    let channel = |chroma: i32| ((luma + half + chroma) >> BT601_SHIFT).clamp(0, 255) as u8;
+    [
+        channel(BT601_CVR * v),
+        channel(BT601_CVG * v + BT601_CUG * u),
+        channel(BT601_CUB * u),
+    ]
+}
+
+/// The RGB pixels of an `RGB3` or `BGR3` frame (reordered to RGB), padding removed.
+fn rgb_pixels(frame: &[u8], layout: &FrameLayout, what: &str) -> Result<Vec<[u8; 3]>, RigError> {
+    let bgr = layout.format == PixelFormat::Bgr3;
+    Ok(packed_rows(frame, layout, 3, what)?
+        .chunks_exact(3)
+        .map(|p| {
+            if bgr {
+                [p[2], p[1], p[0]]
+            } else {
+                [p[0], p[1], p[2]]
+            }
+        })
+        .collect())
 }
 
 /// The rows of an uncompressed frame, padding removed: `height` rows of
@@ -241,8 +386,12 @@ fn packed_rows(
     Ok(out)
 }
 
-/// Decodes a JPEG frame to 8-bit luma.
-fn decode_mjpg(frame: &[u8], layout: &FrameLayout, what: &str) -> Result<GreyImage, RigError> {
+/// Decodes a JPEG frame, checking its size against the layout.
+fn decode_jpeg(
+    frame: &[u8],
+    layout: &FrameLayout,
+    what: &str,
+) -> Result<::image::DynamicImage, RigError> {
     use ::image::ImageDecoder as _;
     let bad = |reason: String| RigError::FrameData {
         what: what.to_owned(),
@@ -262,11 +411,26 @@ fn decode_mjpg(frame: &[u8], layout: &FrameLayout, what: &str) -> Result<GreyIma
             layout.width, layout.height
         )));
     }
-    let decoded = ::image::DynamicImage::from_decoder(decoder)
-        .map_err(|e| bad(format!("MJPG frame does not decode: {e}")))?;
+    ::image::DynamicImage::from_decoder(decoder)
+        .map_err(|e| bad(format!("MJPG frame does not decode: {e}")))
+}
+
+/// Decodes a JPEG frame to 8-bit luma.
+fn decode_mjpg(frame: &[u8], layout: &FrameLayout, what: &str) -> Result<GreyImage, RigError> {
+    let decoded = decode_jpeg(frame, layout, what)?;
     // Rec. 601 luma, as the JPEG's own Y channel (image's `to_luma8`).
     let luma = decoded.into_luma8();
-    grey(width, height, luma.into_raw())
+    grey(layout.width, layout.height, luma.into_raw())
+}
+
+/// Decodes a JPEG frame to 8-bit RGB.
+fn decode_mjpg_rgb(
+    frame: &[u8],
+    layout: &FrameLayout,
+    what: &str,
+) -> Result<Vec<[u8; 3]>, RigError> {
+    let decoded = decode_jpeg(frame, layout, what)?;
+    Ok(decoded.into_rgb8().pixels().map(|p| p.0).collect())
 }
 
 /// The grey image of `width × height` values (8- or 16-bit).
@@ -292,9 +456,9 @@ mod tests {
         }
         assert_eq!(PixelFormat::from_fourcc(*b"JPEG"), Some(PixelFormat::Mjpg));
         assert_eq!(PixelFormat::from_fourcc(*b"NV12"), None);
-        let err = PixelFormat::from_name("rgb3").unwrap_err().to_string();
+        let err = PixelFormat::from_name("nv12").unwrap_err().to_string();
         assert!(
-            err.contains("pixel_format") && err.contains("rgb3"),
+            err.contains("pixel_format") && err.contains("nv12"),
             "{err}"
         );
     }
@@ -412,6 +576,176 @@ mod tests {
         for (i, (&a, &b)) in got.data().iter().zip(&pixels).enumerate() {
             assert!(a.abs_diff(b) <= 3, "pixel {i}: {a} vs {b}");
         }
+    }
+
+    /// BT.601 limited range in floating point, the formula OpenCV's fixed point rounds:
+    /// within one level of it (the fixed point's coefficients are rounded to 2⁻²⁰).
+    fn bt601(y: u8, u: u8, v: u8) -> [f64; 3] {
+        let yy = 1.164 * (f64::from(y) - 16.0).max(0.0);
+        let (u, v) = (f64::from(u) - 128.0, f64::from(v) - 128.0);
+        [yy + 1.596 * v, yy - 0.391 * u - 0.813 * v, yy + 2.018 * u]
+            .map(|c| c.round().clamp(0.0, 255.0))
+    }
+
+    #[test]
+    fn yuyv_to_colour_is_bt601_limited_range() {
+        // Known values: limited-range white, black, mid grey (1.164 · 112 = 130.4), and the
+        // BT.601 codes of saturated red, green and blue (Y, U, V of 255·(1,0,0) etc.).
+        let cases: [([u8; 3], [u8; 3]); 6] = [
+            ([235, 128, 128], [255, 255, 255]),
+            ([16, 128, 128], [0, 0, 0]),
+            ([128, 128, 128], [130, 130, 130]),
+            ([81, 90, 240], [255, 0, 0]),
+            ([145, 54, 34], [0, 255, 0]),
+            ([41, 240, 110], [0, 0, 255]),
+        ];
+        for ([y, u, v], want) in cases {
+            // Both pixels of the pair share U and V; give them the same Y.
+            let layout = FrameLayout::packed(PixelFormat::Yuyv, 2, 1);
+            let got = convert_frame_colour(&[y, u, y, v], &layout, "f").unwrap();
+            for (p, c) in got.data()[0].iter().zip(want) {
+                assert!(
+                    p.abs_diff(c) <= 1,
+                    "YUV {y} {u} {v}: {:?} vs {want:?}",
+                    got.data()[0]
+                );
+            }
+            assert_eq!(got.data()[0], got.data()[1]);
+        }
+        // A sweep of the whole cube against the floating-point formula, the pair's two
+        // pixels with different Y: the chroma is shared, the luma each pixel's own.
+        let mut frame = Vec::new();
+        let mut want = Vec::new();
+        for y in (0..=255u8).step_by(17) {
+            for u in (0..=255u8).step_by(15) {
+                for v in (0..=255u8).step_by(15) {
+                    let y1 = 255 - y;
+                    frame.extend_from_slice(&[y, u, y1, v]);
+                    want.push(bt601(y, u, v));
+                    want.push(bt601(y1, u, v));
+                }
+            }
+        }
+        let width = want.len() as u32;
+        let img = convert_frame_colour(
+            &frame,
+            &FrameLayout::packed(PixelFormat::Yuyv, width, 1),
+            "f",
+        )
+        .unwrap();
+        for (i, (got, want)) in img.data().iter().zip(&want).enumerate() {
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (f64::from(*g) - w).abs() <= 1.0,
+                    "pixel {i}: {got:?} vs {want:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn rgb_bgr_grey_and_y16_to_colour() {
+        // 2x2 RGB3 with 2 bytes of padding per line (the last line's missing).
+        let rgb = [1, 2, 3, 4, 5, 6, 0xEE, 0xEE, 7, 8, 9, 10, 11, 12];
+        let layout = FrameLayout {
+            format: PixelFormat::Rgb3,
+            width: 2,
+            height: 2,
+            stride: 8,
+        };
+        let img = convert_frame_colour(&rgb, &layout, "f").unwrap();
+        assert_eq!(img.data(), &[[1, 2, 3], [4, 5, 6], [7, 8, 9], [10, 11, 12]]);
+        let img = convert_frame_colour(
+            &rgb,
+            &FrameLayout {
+                format: PixelFormat::Bgr3,
+                ..layout
+            },
+            "f",
+        )
+        .unwrap();
+        assert_eq!(img.data(), &[[3, 2, 1], [6, 5, 4], [9, 8, 7], [12, 11, 10]]);
+        // RGB3 in grey: OpenCV's RGB2GRAY, pure red 76, pure green 150, pure blue 29.
+        let grey = convert_frame(
+            &[255, 0, 0, 0, 255, 0, 0, 0, 255],
+            &FrameLayout::packed(PixelFormat::Rgb3, 3, 1),
+            "f",
+        )
+        .unwrap();
+        assert_eq!(
+            grey,
+            GreyImage::U8(Frame::new(3, 1, vec![76, 150, 29]).unwrap())
+        );
+        let img = convert_frame_colour(
+            &[0, 9, 255],
+            &FrameLayout::packed(PixelFormat::Grey, 3, 1),
+            "f",
+        )
+        .unwrap();
+        assert_eq!(img.data(), &[[0; 3], [9; 3], [255; 3]]);
+        // Y16 rounded to 8 bits: 4660 / 257 = 18.1, 128 / 257 = 0.498, 129 / 257 = 0.502.
+        let y16: Vec<u8> = [0x1234u16, 128, 129, 65535]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let img =
+            convert_frame_colour(&y16, &FrameLayout::packed(PixelFormat::Y16, 4, 1), "f").unwrap();
+        assert_eq!(img.data(), &[[18; 3], [0; 3], [1; 3], [255; 3]]);
+        // Short buffers and odd YUYV widths are refused, naming the frame.
+        for format in [PixelFormat::Rgb3, PixelFormat::Bgr3, PixelFormat::Yuyv] {
+            let layout = FrameLayout::packed(format, 4, 2);
+            let needed = 8 * format.bytes_per_pixel().unwrap();
+            let err = convert_frame_colour(&vec![0; needed - 1], &layout, "frame 5").unwrap_err();
+            assert!(matches!(err, RigError::FrameData { .. }), "{err}");
+            assert!(err.to_string().contains("frame 5"), "{err}");
+        }
+        let err =
+            convert_frame_colour(&[0; 64], &FrameLayout::packed(PixelFormat::Yuyv, 3, 2), "f")
+                .unwrap_err();
+        assert!(matches!(err, RigError::InvalidParameter { .. }), "{err}");
+        assert!(
+            convert_frame_colour(&[], &FrameLayout::packed(PixelFormat::Rgb3, 0, 1), "f").is_err()
+        );
+    }
+
+    #[test]
+    fn mjpg_decodes_to_colour() {
+        // A smooth colour ramp, encoded by the `image` crate (an independent producer of
+        // webcam frames) at quality 100: its chroma subsampling and rounding cost a smooth
+        // ramp a few levels per channel at most.
+        let (w, h) = (32u32, 16u32);
+        let pixels: Vec<u8> = (0..h)
+            .flat_map(|y| {
+                (0..w).flat_map(move |x| {
+                    [
+                        (40 + 5 * x) as u8,
+                        (200 - 6 * y) as u8,
+                        (60 + 2 * x + 3 * y) as u8,
+                    ]
+                })
+            })
+            .collect();
+        let mut out = Vec::new();
+        ::image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 100)
+            .encode(&pixels, w, h, ::image::ExtendedColorType::Rgb8)
+            .unwrap();
+        let img =
+            convert_frame_colour(&out, &FrameLayout::packed(PixelFormat::Mjpg, w, h), "f").unwrap();
+        let mut worst = 0u8;
+        for (got, want) in img.data().iter().zip(pixels.chunks_exact(3)) {
+            for (g, w) in got.iter().zip(want) {
+                worst = worst.max(g.abs_diff(*w));
+            }
+        }
+        assert!(worst <= 6, "worst channel difference {worst}");
+        // A frame of another size than the layout is refused, naming both.
+        let err = convert_frame_colour(
+            &out,
+            &FrameLayout::packed(PixelFormat::Mjpg, 8, 8),
+            "frame 2",
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("32x16"), "{err}");
     }
 
     #[test]

@@ -18,7 +18,10 @@ use crate::v4l_camera_controls::{
     CID_EXPOSURE_AUTO_PRIORITY, CID_GAIN, CID_WHITE_BALANCE_TEMPERATURE, ControlKey,
     EXPOSURE_MANUAL, exposure_ms_to_v4l,
 };
-use crate::{Camera, FrameLayout, GreyImage, PixelFormat, RigError, convert_frame};
+use crate::{
+    Camera, ColourImage, FrameLayout, GreyImage, PixelFormat, RigError, convert_frame,
+    convert_frame_colour,
+};
 
 /// Default number of driver buffers. Two is the fewest that streams without dropping frames,
 /// and the fewer buffers, the fewer stale frames a flush has to drain.
@@ -607,6 +610,24 @@ impl V4lCamera {
     /// [`RigError::Device`] when the driver fails or times out; [`RigError::FrameData`] when
     /// the frame's bytes do not convert.
     pub fn next_frame(&mut self) -> Result<GreyImage, RigError> {
+        self.next_converted(convert_frame)
+    }
+
+    /// The next frame the driver delivers, converted to colour ([`convert_frame_colour`]:
+    /// YUYV by BT.601's limited range as OpenCV does, MJPG decoded, RGB3/BGR3 as they are, a
+    /// grey format grey in the three channels), without flushing.
+    ///
+    /// # Errors
+    /// As [`V4lCamera::next_frame`].
+    pub fn next_colour_frame(&mut self) -> Result<ColourImage, RigError> {
+        self.next_converted(convert_frame_colour)
+    }
+
+    /// The next frame the driver delivers, converted by `convert`.
+    fn next_converted<T>(
+        &mut self,
+        convert: impl FnOnce(&[u8], &FrameLayout, &str) -> Result<T, RigError>,
+    ) -> Result<T, RigError> {
         let what = format!("{} frame {}", self.config.path.display(), self.frames);
         let layout = self.layout;
         let path = self.config.path.clone();
@@ -618,7 +639,7 @@ impl V4lCamera {
         self.frames += 1;
         let used = usize::try_from(meta.bytesused).unwrap_or(usize::MAX);
         let bytes = data.get(..used).unwrap_or(data);
-        convert_frame(bytes, &layout, &what)
+        convert(bytes, &layout, &what)
     }
 
     fn next_raw(&mut self) -> Result<(), RigError> {
@@ -643,6 +664,17 @@ impl Camera for V4lCamera {
             self.flush()?;
         }
         self.next_frame()
+    }
+
+    /// Flushes (when [`V4lCameraConfig::flush_before_capture`]) and returns the next frame in
+    /// colour ([`V4lCamera::next_colour_frame`]). A camera opened in a grey format (`GREY`,
+    /// `Y16`) gives grey colour frames: open it in `YUYV`, `MJPG`, `RGB3` or `BGR3` for
+    /// colour.
+    fn capture_colour(&mut self) -> Result<ColourImage, RigError> {
+        if self.config.flush_before_capture {
+            self.flush()?;
+        }
+        self.next_colour_frame()
     }
 
     /// Sets `exposure_time_absolute` (100 µs units) with auto exposure off.
