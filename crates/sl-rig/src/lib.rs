@@ -95,10 +95,10 @@ pub use projector_window::{
     ProjectorWindowConfig, list_monitors, run_projector,
 };
 pub use session::{
-    CaptureSession, DEFAULT_DISPLAY_LATENCY, RECAPTURE_ROUNDS, RIGHT_DIR, SESSION_FILE,
-    SESSION_FORMAT, SESSION_VERSION, SessionConfig, SessionDevices, SessionExposures, SessionPlan,
-    SessionSummary, ViewOutcome, ViewState, exposure_dir_name, read_session_plan, turntable_angles,
-    view_dir_name,
+    COLOUR_FILE, CaptureSession, DEFAULT_DISPLAY_LATENCY, RECAPTURE_ROUNDS, RIGHT_DIR,
+    SESSION_FILE, SESSION_FORMAT, SESSION_VERSION, SessionConfig, SessionDevices, SessionExposures,
+    SessionPlan, SessionSummary, ViewOutcome, ViewState, exposure_dir_name, read_session_plan,
+    turntable_angles, view_dir_name,
 };
 /// The grey images the devices exchange (camera frames, projector images): the workspace's one
 /// grey image, defined in `sl-image` and re-exported so rig users need one import.

@@ -7,6 +7,10 @@
 //! written under a temporary name and renamed into place, and the view's `manifest.json` is
 //! written last — its presence marks the view complete. `SESSION/session.json` holds the plan.
 //!
+//! With [`SessionPlan::colour`] each view then shows full white and captures one colour frame
+//! ([`Camera::capture_colour`]) into `view_NNN/colour.png` ([`COLOUR_FILE`]), named by the
+//! view manifest's `colour` key.
+//!
 //! With a second camera ([`CaptureSession::run_binocular`]; the plan names it in
 //! [`SessionDevices::right_camera`]) each view also holds `view_NNN/right/`, the second
 //! camera's capture set of the same patterns, written before the view's own manifest. The two
@@ -22,7 +26,7 @@ use serde::{Deserialize, Serialize};
 use sl_codec::{
     CaptureSet, DecodeConfig, EXPOSURES_FILE, ExposureFolder, ExposureFrames, ExposureRecord,
     FrameIssue, Frames, FusionSettings, MANIFEST_FILE, Manifest, check_frames, decode,
-    fuse_exposures, write_png_grey,
+    fuse_exposures, write_png_colour, write_png_grey,
 };
 
 use crate::{Camera, GreyImage, Projector, RigError, Turntable, flush_and_capture};
@@ -36,6 +40,11 @@ pub const SESSION_VERSION: u32 = 1;
 /// Prefix of the temporary names files are written under before being renamed into place;
 /// [`CaptureSession::run`] deletes leftovers with this prefix when it redoes a view.
 const PARTIAL_PREFIX: &str = ".partial-";
+
+/// File, inside a view's folder, of the colour frame of a session with
+/// [`SessionPlan::colour`]: the object under full white, 8-bit RGB PNG, named by the view
+/// manifest's `colour` key.
+pub const COLOUR_FILE: &str = "colour.png";
 
 /// Folder, inside a view's (or a calibration pose's) folder, of the second camera's capture set.
 pub const RIGHT_DIR: &str = "right";
@@ -128,6 +137,13 @@ pub struct SessionPlan {
     pub calibration: Option<PathBuf>,
     /// The exposures each view is captured at. Default: one, the camera's own.
     pub exposures: SessionExposures,
+    /// Capture each view's colour: after the patterns (and the exposures' passes, at the
+    /// camera's own exposure), show full white and capture one colour frame
+    /// ([`Camera::capture_colour`]) into the view's [`COLOUR_FILE`], which its manifest names
+    /// (`colour` key). The first camera's only. A camera that cannot capture colour fails the
+    /// view with [`RigError::Unsupported`] naming this option. `session.json`'s `colour`
+    /// (absent: `false`).
+    pub colour: bool,
 }
 
 /// How a session synchronises the projector and the camera, and whether it may overwrite.
@@ -231,6 +247,15 @@ struct SessionFile {
     views: Vec<String>,
     #[serde(default, skip_serializing_if = "SessionExposures::is_single")]
     exposures: SessionExposures,
+    /// Written only when `true`, so that sessions without colour keep their `session.json`.
+    #[serde(default, skip_serializing_if = "is_false")]
+    colour: bool,
+}
+
+/// Whether `b` is `false` (serde's `skip_serializing_if` takes a function).
+#[allow(clippy::trivially_copy_pass_by_ref)]
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 /// A capture session in a folder: the plan, the synchronisation settings, and the views on
@@ -278,6 +303,7 @@ struct SessionFile {
 ///     devices: Default::default(),
 ///     calibration: None,
 ///     exposures: Default::default(),
+///     colour: false,
 /// };
 /// let dir = tempfile::tempdir()?;
 /// let config = SessionConfig { display_latency: std::time::Duration::ZERO, ..Default::default() };
@@ -402,6 +428,7 @@ impl CaptureSession {
             return ViewState::Missing;
         }
         let complete = self.capture_set_complete(&dir)
+            && (!self.plan.colour || colour_complete(&dir))
             && (self.plan.devices.right_camera.is_none()
                 || self.capture_set_complete(&dir.join(RIGHT_DIR)));
         if complete {
@@ -682,10 +709,10 @@ impl CaptureSession {
                     for &pass in &passes {
                         let (l, r) = pass_dirs(pass);
                         if right.is_some() {
-                            self.write_view_manifest(&r, index, angle, reached)
+                            self.write_view_manifest(&r, index, angle, reached, None)
                                 .map_err(at(None))?;
                         }
-                        self.write_view_manifest(&l, index, angle, reached)
+                        self.write_view_manifest(&l, index, angle, reached, None)
                             .map_err(at(None))?;
                     }
                     if let Some(ms) = restore {
@@ -697,12 +724,20 @@ impl CaptureSession {
                             .map_err(at(None))?;
                     }
                 }
+                // The colour under full white, at the camera's own exposure (restored above).
+                let colour = if self.plan.colour {
+                    self.capture_colour(camera, projector, &dir)
+                        .map_err(at(None))?;
+                    Some(COLOUR_FILE)
+                } else {
+                    None
+                };
                 // The second camera's manifest first: the view's own marks it complete.
                 if right.is_some() {
-                    self.write_view_manifest(&right_dir, index, angle, reached)
+                    self.write_view_manifest(&right_dir, index, angle, reached, None)
                         .map_err(at(None))?;
                 }
-                self.write_view_manifest(&dir, index, angle, reached)
+                self.write_view_manifest(&dir, index, angle, reached, colour)
                     .map_err(at(None))?;
                 ViewOutcome {
                     index,
@@ -855,15 +890,71 @@ impl CaptureSession {
         write_atomically(&dir.join(EXPOSURES_FILE), |tmp| Ok(record.save(tmp)?))
     }
 
+    /// Shows full white (the plan's bit depth, the projector's size), waits for the display,
+    /// flushes, captures one colour frame and writes it into `dir`'s [`COLOUR_FILE`]. A camera
+    /// that cannot capture colour is [`RigError::Unsupported`] naming the plan's option.
+    fn capture_colour<C, P>(
+        &self,
+        camera: &mut C,
+        projector: &mut P,
+        dir: &Path,
+    ) -> Result<(), RigError>
+    where
+        C: Camera + ?Sized,
+        P: Projector + ?Sized,
+    {
+        let (w, h) = projector.image_size();
+        let (w, h) = (w as usize, h as usize);
+        let white = match self.plan.manifest.bit_depth {
+            sl_codec::BitDepth::Eight => GreyImage::filled_u8(w, h, u8::MAX)?,
+            sl_codec::BitDepth::Sixteen => sl_image::Frame::filled(w, h, u16::MAX)?.into(),
+        };
+        projector.show(&white)?;
+        let settle = self.settle();
+        if !settle.is_zero() {
+            std::thread::sleep(settle);
+        }
+        for _ in 0..self.config.flush_frames {
+            camera.capture()?;
+        }
+        let colour = camera.capture_colour().map_err(|e| match e {
+            RigError::Unsupported { device, what } => RigError::Unsupported {
+                device,
+                what: format!(
+                    "{what} (the session plan's `colour` option, `colour: true` in {SESSION_FILE})"
+                ),
+            },
+            other => other,
+        })?;
+        let expected = camera.frame_size();
+        let size = colour.size();
+        if (size.width, size.height) != expected {
+            return Err(RigError::ImageSize {
+                what: "camera colour frame".to_owned(),
+                expected_width: expected.0,
+                expected_height: expected.1,
+                width: size.width,
+                height: size.height,
+            });
+        }
+        write_atomically(&dir.join(COLOUR_FILE), |tmp| {
+            Ok(write_png_colour(tmp, &colour)?)
+        })
+    }
+
+    /// Writes the manifest of a capture set into `dir` (last: it marks the set complete),
+    /// naming `colour` as its colour frame when there is one.
     fn write_view_manifest(
         &self,
         dir: &Path,
         index: usize,
         angle: f64,
         reached: f64,
+        colour: Option<&str>,
     ) -> Result<(), RigError> {
         let mut m = self.plan.manifest.clone();
         m.frames_dir = None;
+        m.colour = colour.map(str::to_owned);
         m.description = Some(format!(
             "capture session view {index}: turntable motor at {angle} degrees (reported {reached} degrees)"
         ));
@@ -886,6 +977,7 @@ fn session_file(plan: &SessionPlan) -> SessionFile {
         calibration: plan.calibration.as_ref().map(|p| p.display().to_string()),
         views: (0..plan.angles_deg.len()).map(view_dir_name).collect(),
         exposures: plan.exposures.clone(),
+        colour: plan.colour,
     }
 }
 
@@ -913,6 +1005,7 @@ pub fn read_session_plan(dir: &Path) -> Result<SessionPlan, RigError> {
         devices: file.devices,
         calibration: file.calibration.map(PathBuf::from),
         exposures,
+        colour: file.colour,
     })
 }
 
@@ -965,6 +1058,14 @@ fn plan_difference(existing: &SessionFile, new: &SessionFile) -> Option<String> 
             existing.exposures.times_ms, new.exposures.times_ms
         ));
     }
+    if existing.colour != new.colour {
+        let with = |c: bool| if c { "with" } else { "without" };
+        return Some(format!(
+            "holds a session captured {} colour, not {}; choose another folder or allow overwriting",
+            with(existing.colour),
+            with(new.colour)
+        ));
+    }
     if existing.patterns != new.patterns {
         return Some(
             "holds a session with other patterns; choose another folder or allow overwriting"
@@ -972,6 +1073,13 @@ fn plan_difference(existing: &SessionFile, new: &SessionFile) -> Option<String> 
         );
     }
     None
+}
+
+/// Whether the view folder `dir` holds its colour frame and its manifest names it.
+fn colour_complete(dir: &Path) -> bool {
+    dir.join(COLOUR_FILE).is_file()
+        && Manifest::load(&dir.join(MANIFEST_FILE))
+            .is_ok_and(|m| m.colour.as_deref() == Some(COLOUR_FILE))
 }
 
 /// The file names of every frame of `manifest`, in projection order.
@@ -1145,7 +1253,109 @@ mod tests {
             },
             calibration: None,
             exposures: Default::default(),
+            colour: false,
         }
+    }
+
+    /// A colour camera seeing what the projector shows, tinted: red at full, green at half,
+    /// blue at a quarter of the grey value.
+    struct ColourMirror(Mirror);
+
+    impl Camera for ColourMirror {
+        fn frame_size(&self) -> (u32, u32) {
+            self.0.frame_size()
+        }
+        fn capture(&mut self) -> Result<GreyImage, RigError> {
+            self.0.capture()
+        }
+        fn capture_colour(&mut self) -> Result<crate::ColourImage, RigError> {
+            let grey = self.0.capture()?.into_u8();
+            let data = grey.data().iter().map(|&g| [g, g / 2, g / 4]).collect();
+            Ok(crate::ColourImage::new(grey.width(), grey.height(), data)?)
+        }
+    }
+
+    fn colour_plan() -> SessionPlan {
+        SessionPlan {
+            colour: true,
+            ..plan(None)
+        }
+    }
+
+    #[test]
+    fn a_colour_session_writes_each_views_colour_under_white() -> Result<(), RigError> {
+        let dir = tempfile::tempdir().map_err(|e| RigError::io("tempdir", e))?;
+        let config = SessionConfig {
+            display_latency: Duration::ZERO,
+            ..Default::default()
+        };
+        let session = CaptureSession::open(dir.path(), colour_plan(), config)?;
+        let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)?));
+        let mut camera = ColourMirror(Mirror(screen.clone()));
+        let summary = session.run(&mut camera, &mut Mirror(screen), &mut Table(0.0), |_| {})?;
+        assert_eq!(summary.captured, 2);
+        for k in 0..2 {
+            let view = session.view_dir(k);
+            // The camera saw full white (255) when it captured the colour: tinted 255, 127, 63.
+            let colour = sl_codec::read_colour_image(&view.join(COLOUR_FILE))?;
+            assert_eq!((colour.width(), colour.height()), (64, 36));
+            assert!(colour.data().iter().all(|&p| p == [255, 127, 63]));
+            let manifest = Manifest::load(&view.join(MANIFEST_FILE))?;
+            assert_eq!(manifest.colour.as_deref(), Some(COLOUR_FILE));
+            assert_eq!(session.view_state(k), ViewState::Complete);
+        }
+        // session.json keeps the option; a view without its colour frame is not complete.
+        assert!(read_session_plan(dir.path())?.colour);
+        std::fs::remove_file(session.view_dir(1).join(COLOUR_FILE))
+            .map_err(|e| RigError::io("colour.png", e))?;
+        assert_eq!(session.view_state(1), ViewState::Partial);
+        // The same folder without colour is another plan.
+        let err = CaptureSession::open(dir.path(), plan(None), config).unwrap_err();
+        assert!(matches!(err, RigError::SessionMismatch { .. }), "{err}");
+        assert!(err.to_string().contains("colour"), "{err}");
+        Ok(())
+    }
+
+    #[test]
+    fn a_grey_camera_fails_a_colour_session_naming_the_option() -> Result<(), RigError> {
+        let dir = tempfile::tempdir().map_err(|e| RigError::io("tempdir", e))?;
+        let config = SessionConfig {
+            display_latency: Duration::ZERO,
+            ..Default::default()
+        };
+        let session = CaptureSession::open(dir.path(), colour_plan(), config)?;
+        let screen = Rc::new(RefCell::new(GreyImage::filled_u8(64, 36, 0)?));
+        let err = session
+            .run(
+                &mut Mirror(screen.clone()),
+                &mut Mirror(screen),
+                &mut Table(0.0),
+                |_| {},
+            )
+            .unwrap_err();
+        let RigError::Session {
+            view: 0, source, ..
+        } = &err
+        else {
+            panic!("not a session error of view 0: {err}");
+        };
+        assert!(matches!(**source, RigError::Unsupported { .. }), "{err}");
+        let message = err.to_string();
+        assert!(message.contains("`colour`"), "{message}");
+        assert_ne!(session.view_state(0), ViewState::Complete);
+        Ok(())
+    }
+
+    #[test]
+    fn sessions_without_colour_read_as_before() -> Result<(), RigError> {
+        let dir = tempfile::tempdir().map_err(|e| RigError::io("tempdir", e))?;
+        CaptureSession::open(dir.path(), plan(None), SessionConfig::default())?;
+        // The key is absent when false (older sessions have none) and reads as false.
+        let text = std::fs::read_to_string(dir.path().join(SESSION_FILE))
+            .map_err(|e| RigError::io(SESSION_FILE, e))?;
+        assert!(!text.contains("colour"), "{text}");
+        assert!(!read_session_plan(dir.path())?.colour);
+        Ok(())
     }
 
     #[test]

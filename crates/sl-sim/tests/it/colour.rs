@@ -235,3 +235,84 @@ fn the_virtual_camera_captures_colour() {
     assert!(err.to_string().contains("projector image"), "{err}");
     let _ = Mount::Camera;
 }
+
+/// A capture session with the colour option on the virtual devices: each view's
+/// `colour.png`, named by its manifest, shows the patches in their colours where the truth
+/// says they are (a pixel on a red patch is red, on a green one green), and the grey frames
+/// decode as before.
+#[test]
+fn a_colour_session_on_the_virtual_rig_writes_the_views_colours() {
+    use sl_rig::{COLOUR_FILE, CaptureSession, SessionPlan, ViewState};
+    let mut config = small_config();
+    config.render.supersampling = 1;
+    let dark = config.render.effects.sensor.dark_level_dn;
+    let rig = VirtualRig::new(config, Scene::cuboid().finished(Finish::Coloured)).unwrap();
+    let plan = SessionPlan {
+        colour: true,
+        ..super::session::plan(&rig, 2)
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let session = CaptureSession::open(dir.path(), plan, super::session::quick(false, 0)).unwrap();
+    let (mut camera, mut projector, mut table) = rig.devices();
+    session
+        .run(&mut camera, &mut projector, &mut table, |_| {})
+        .unwrap();
+    for (k, motor) in [0.0, 180.0].into_iter().enumerate() {
+        assert_eq!(session.view_state(k), ViewState::Complete);
+        let view_dir = session.view_dir(k);
+        let manifest = sl_codec::Manifest::load(&view_dir.join("manifest.json")).unwrap();
+        assert_eq!(manifest.colour.as_deref(), Some(COLOUR_FILE));
+        let colour = sl_codec::read_colour_image(&view_dir.join(COLOUR_FILE)).unwrap();
+        let truth = rig.view(motor, 0).unwrap().truth;
+        let w = colour.width();
+        // Pixels whose 5x5 neighbourhood lies on one patch, by the truth.
+        let patch_of = |i: usize| -> Option<usize> {
+            if !truth.lit(i) {
+                return None;
+            }
+            let rgb = rig.true_colour(motor, &truth.points_cam[i])?.rgb;
+            COLOURED_ALBEDOS.iter().position(|c| *c == rgb)
+        };
+        let (mut red, mut green) = (0, 0);
+        for y in 2..colour.height() - 2 {
+            for x in 2..w - 2 {
+                let i = y * w + x;
+                let Some(p) = patch_of(i) else { continue };
+                let uniform = (y - 2..=y + 2)
+                    .all(|yy| (x - 2..=x + 2).all(|xx| patch_of(yy * w + xx) == Some(p)));
+                if !uniform {
+                    continue;
+                }
+                // Above the black level; judged where the patch is well lit (a face seen at a
+                // grazing angle is dim and tinted by the global light of its neighbours).
+                let [r, g, b] = colour.data()[i].map(|v| f64::from(v) - dark);
+                if r.max(g).max(b) < 60.0 {
+                    continue;
+                }
+                // The albedo ratios are 3.4 and 4.25 (red), 2.5 and 2.5 (green); the global
+                // light of the other patches lowers them a little.
+                match p {
+                    0 => {
+                        assert!(
+                            r > 2.0 * g && r > 2.0 * b,
+                            "red patch at ({x}, {y}): {r} {g} {b}"
+                        );
+                        red += 1;
+                    }
+                    1 => {
+                        assert!(
+                            g > 1.7 * r && g > 1.7 * b,
+                            "green patch at ({x}, {y}): {r} {g} {b}"
+                        );
+                        green += 1;
+                    }
+                    _ => {}
+                }
+            }
+        }
+        assert!(
+            red > 50 && green > 50,
+            "view {k}: {red} red and {green} green pixels"
+        );
+    }
+}

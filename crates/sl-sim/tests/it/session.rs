@@ -46,6 +46,7 @@ pub(crate) fn plan(rig: &VirtualRig, views: usize) -> SessionPlan {
         devices: Default::default(),
         calibration: None,
         exposures: Default::default(),
+        colour: false,
     }
 }
 
