@@ -8,14 +8,16 @@
 //!   against them ([`capture_sequence`], [`write_capture_set`]);
 //! - **capture sessions** ([`CaptureSession`]): a turntable scan through the device traits,
 //!   written view by view and atomically so that an interrupted scan resumes, with the
-//!   display latency measured by flashing ([`measure_latency`]);
+//!   display latency measured by flashing ([`measure_latency`]), and optionally each view's
+//!   colour under full white ([`SessionPlan::colour`]);
 //! - the **turntable hardware** (feature `dynamixel`, on by default): `DynamixelTurntable`
 //!   drives a Dynamixel MX-64 over Protocol 2.0 and `Mx64Emulator` answers for it on a
 //!   pseudo-terminal, so the driver is tested without hardware (`docs/hardware-turntable.md`).
 //! - the **camera and projector hardware**: `V4lCamera` (feature `v4l`, Linux V4L2:
 //!   enumeration, format, manual exposure/gain/white balance, memory-mapped streaming and the
-//!   flush of stale frames) with its pixel-format conversions ([`convert_frame`]) compiled and
-//!   tested always, and `run_projector` / `ProjectorWindow` (feature `window`: a full-screen
+//!   flush of stale frames) with its pixel-format conversions to grey ([`convert_frame`]) and
+//!   to colour ([`convert_frame_colour`], for [`Camera::capture_colour`]) compiled and tested
+//!   always, and `run_projector` / `ProjectorWindow` (feature `window`: a full-screen
 //!   window on a chosen monitor, pixel for pixel) — see `docs/hardware-camera-projector.md`;
 //! - **opening the real devices from a description** ([`DeviceDescription`], [`with_devices`],
 //!   [`open_camera`], [`open_turntable`]): the description builds without any feature, and a
@@ -49,7 +51,8 @@
 //!
 //! # Conventions
 //! - Pixel `(0, 0)` is the centre of the top-left pixel; images are row-major, pixel `(x, y)`
-//!   at index `y · width + x`; camera frames and projector images are 8- or 16-bit grey.
+//!   at index `y · width + x`; camera frames and projector images are 8- or 16-bit grey, colour
+//!   frames ([`ColourImage`]) 8-bit RGB.
 //! - Angles in degrees at the API surface; a turntable's angle is its motor reading, in its
 //!   own zero.
 #![deny(missing_docs)]

@@ -7,8 +7,9 @@
 //! - **scenes** ([`Scene`]): planes, spheres, boxes, cylinders, two spheres at a known
 //!   distance, triangle meshes (the [`Scene::pebble`], whose flat bottom one turntable
 //!   placement never sees; [`Scene::laid_on_side`] re-places it) and printed checkerboards ([`Checkerboard`]), with uniform or
-//!   textured Lambertian albedo ([`Texture`]), standing on the turntable or fixed in front of
-//!   the camera ([`Mount`]);
+//!   textured Lambertian albedo ([`Texture`], grey or in colour: [`Texture::albedo_rgb_at`],
+//!   [`Finish::Coloured`]), standing on the turntable or fixed in front of the camera
+//!   ([`Mount`]);
 //! - the **virtual rig** ([`VirtualRig`], configured by [`RigConfig`]): `sl-camera` models for
 //!   the camera and the projector (intrinsics, distortion, pose), rays cast with `parry3d-f64`
 //!   once per view into a geometry cache ([`ViewGeometry`]) so that each projected image
@@ -19,7 +20,11 @@
 //!   [`VirtualRig::devices`]) that implement `sl-rig`'s device traits [`Camera`],
 //!   [`Projector`] and [`Turntable`], so that code written for real hardware (`sl-rig`'s
 //!   capture sessions, `sl-scan`'s pipeline) runs unchanged on the virtual rig;
-//! - **ground truth** ([`ViewTruth`], [`BoardTruth`]): depth, 3-D points, the exact projector
+//! - **colour frames** ([`View::capture_colour`], the virtual camera's
+//!   [`Camera::capture_colour`]): each channel rendered with its albedo through the same optics
+//!   and sensor, so that the luma of a colour frame is the grey frame;
+//! - **ground truth** ([`ViewTruth`], [`BoardTruth`], the true colour of the surface nearest a
+//!   point, [`VirtualRig::true_colour`]): depth, 3-D points, the exact projector
 //!   coordinate of every camera pixel, masks and poses, the rig's exact calibration
 //!   ([`RigConfig::calibration`]), and calibration captures ([`capture_board`],
 //!   [`capture_board_on_table`], [`simulate_calibration`]; a session's captures one at a
@@ -69,7 +74,9 @@
 //!   corner, `x` along the first row, `y` along the columns, `z` into the board.
 //! - Maps are row-major, pixel `(x, y)` at index `y · width + x`, NaN where there is no value.
 //! - Radiance is in units of the projector's full white at normal incidence; camera frames
-//!   are 8- or 16-bit grey.
+//!   are 8- or 16-bit grey, colour frames 8-bit RGB. Albedos are fractions in `[0, 1]`, RGB
+//!   albedos `[red, green, blue]`; a colour texture's grey albedo is its luma
+//!   ([`LUMA_WEIGHTS`]).
 #![deny(missing_docs)]
 
 mod blur;

@@ -441,7 +441,7 @@ pub enum Finish {
     /// exposed for white paper.
     Glossy,
     /// Matte colour patches: [`Texture::ColourCells`] of [`COLOURED_CELL_MM`] cubes in the
-    /// colours [`COLOURED_ALBEDOS`] (red, green, blue, yellow; lumas 0.42–0.68, so the
+    /// colours [`COLOURED_ALBEDOS`] (red, green, blue, yellow; lumas 0.42–0.75, so the
     /// fringes decode as on bright plaster), no gloss. For colour scans.
     Coloured,
 }
@@ -455,7 +455,8 @@ pub enum Finish {
 pub const COLOURED_CELL_MM: f64 = 25.0;
 
 /// RGB albedos of [`Finish::Coloured`]'s patches: a red, a green, a blue and a yellow paint,
-/// none darker in luma than 0.42 (the blue) so that the geometry decodes as on plaster.
+/// none darker in luma than 0.42 (the red; the blue 0.47) so that the geometry decodes as on
+/// plaster.
 pub const COLOURED_ALBEDOS: [[f64; 3]; 4] = [
     [0.85, 0.25, 0.2],
     [0.3, 0.75, 0.3],
