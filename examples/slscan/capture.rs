@@ -34,6 +34,12 @@ pub(crate) struct ExposureArgs {
     /// exposure averaged, scaled by its time: less noise, for linear cameras).
     #[arg(long, value_enum, default_value_t = FusionArg::Longest)]
     pub(crate) fusion: FusionArg,
+    /// Capture each view's colour too: a colour frame under full white after the patterns
+    /// (`view_NNN/colour.png`); the clouds, the mesh (vertex colours, a textured `mesh.obj`)
+    /// and the 3-D page are then in colour. A real camera must capture in colour (YUYV,
+    /// MJPEG, RGB). On the virtual rig `--finish coloured` implies it.
+    #[arg(long)]
+    pub(crate) colour: bool,
 }
 
 impl ExposureArgs {
@@ -147,8 +153,9 @@ pub(crate) struct Args {
     /// (`calibration_true_pair.json`) beside the session. On devices, `--right-camera`.
     #[arg(long)]
     pub(crate) binocular: bool,
-    /// The virtual scene's surface: `matte` (plaster), `dark` (albedo 0.04) or `glossy` (a
-    /// plastic whose highlights saturate the camera).
+    /// The virtual scene's surface: `matte` (plaster), `dark` (albedo 0.04), `glossy` (a
+    /// plastic whose highlights saturate the camera) or `coloured` (patches of four colours,
+    /// captured in colour).
     #[arg(long, value_enum, default_value_t = FinishArg::Matte)]
     pub(crate) finish: FinishArg,
     #[command(flatten)]
@@ -166,6 +173,9 @@ pub(crate) enum FinishArg {
     Dark,
     /// A glossy plastic with saturating highlights.
     Glossy,
+    /// Matte paint in patches of four colours (with `--colour`: a colour scan against the
+    /// true albedo).
+    Coloured,
 }
 
 impl From<FinishArg> for sl_sim::Finish {
@@ -174,6 +184,7 @@ impl From<FinishArg> for sl_sim::Finish {
             FinishArg::Matte => Self::Matte,
             FinishArg::Dark => Self::Dark,
             FinishArg::Glossy => Self::Glossy,
+            FinishArg::Coloured => Self::Coloured,
         }
     }
 }
@@ -229,6 +240,7 @@ where
         calibration_file: args.calib.clone(),
         exposures: args.exposure.exposures(),
         fusion: args.exposure.fusion(),
+        colour: args.exposure.colour || args.finish == FinishArg::Coloured,
     };
     let bar = progress(args.views as u64, "capture");
     let capture = match right {

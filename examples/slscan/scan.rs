@@ -146,9 +146,10 @@ pub(crate) struct Args {
     /// the patterns.
     #[arg(long, value_parser = values::in_range(4.0..=480.0))]
     pub(crate) period: Option<f64>,
-    /// The virtual dumbbell's surface: `matte` (plaster), `dark` (albedo 0.04) or `glossy`
-    /// (a plastic whose highlights saturate the camera). With --exposures, the figures of one
-    /// exposure against several (docs/user-guide.md, "Difficult surfaces").
+    /// The virtual dumbbell's surface: `matte` (plaster), `dark` (albedo 0.04), `glossy`
+    /// (a plastic whose highlights saturate the camera) or `coloured` (patches of four
+    /// colours, scanned in colour and measured against the true albedo). With --exposures, the
+    /// figures of one exposure against several (docs/user-guide.md, "Difficult surfaces").
     #[arg(long, value_enum, default_value_t = crate::capture::FinishArg::Matte)]
     pub(crate) finish: crate::capture::FinishArg,
     #[command(flatten)]
@@ -305,6 +306,7 @@ fn virtual_config(args: &Args) -> VirtualScanConfig {
         finish: args.finish.into(),
         exposures: args.exposure.exposures(),
         fusion: args.exposure.fusion(),
+        colour: args.exposure.colour || args.finish == crate::capture::FinishArg::Coloured,
         ..VirtualScanConfig::default()
     }
 }

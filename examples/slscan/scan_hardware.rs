@@ -206,6 +206,7 @@ fn scan_config(args: &Args) -> anyhow::Result<DeviceScanConfig> {
     capture.overwrite = args.overwrite;
     capture.exposures = args.exposure.exposures();
     capture.fusion = args.exposure.fusion();
+    capture.colour = args.exposure.colour;
     cfg.session = SessionScanConfig {
         reconstruct: ReconstructConfig {
             edge_erosion_px: args.edge_erosion,

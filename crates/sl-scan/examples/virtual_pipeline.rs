@@ -51,6 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         devices: rig.session_devices("virtual turntable"),
         calibration: Some(calib_path),
         exposures: Default::default(),
+        colour: false,
     };
     let session_dir = out.join("session");
     let config = SessionConfig {

@@ -99,6 +99,9 @@ pub struct DeviceCaptureConfig {
     /// How several exposures are fused (`--fusion`). Default: the longest unsaturated
     /// exposure of each pixel.
     pub fusion: sl_codec::FusionSettings,
+    /// Capture each view's colour under full white (`--colour`, `sl_rig::SessionPlan::colour`;
+    /// the camera must capture in colour). Default `false`.
+    pub colour: bool,
 }
 
 impl Default for DeviceCaptureConfig {
@@ -114,6 +117,7 @@ impl Default for DeviceCaptureConfig {
             calibration_file: None,
             exposures: Exposures::Camera,
             fusion: sl_codec::FusionSettings::default(),
+            colour: false,
         }
     }
 }
@@ -290,6 +294,7 @@ where
         devices,
         calibration: cfg.calibration_file.clone(),
         exposures,
+        colour: cfg.colour,
     };
     let t = Instant::now();
     let summary = match right {

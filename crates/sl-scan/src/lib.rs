@@ -211,8 +211,8 @@ pub use virtual_placements::{
 };
 #[cfg(feature = "sim")]
 pub use virtual_scan::{
-    PhaseError, ResponseCorrection, ScanFiles, ScanResult, VirtualScanConfig, scaled_rig_config,
-    scan_virtual,
+    COLOUR_TRUTH_DISTANCE_MM, PhaseError, ResponseCorrection, ScanColourReport, ScanFiles,
+    ScanResult, VirtualScanConfig, scaled_rig_config, scan_virtual,
 };
 
 /// The README's example, compiled and run by `cargo test --doc`.

@@ -88,6 +88,7 @@ impl ScanResult {
         report.figure_of("plate_phase", &self.plate_phase)?;
         report.figure_of("first_view", &self.first_view)?;
         report.figure_of("mesh", &self.mesh)?;
+        report.figure_of("colour", &self.colour)?;
         report.figure_of("merge", &self.merge)?;
         report.figure_of("files", &self.files)?;
         report.add_stages(&self.stages);
@@ -176,6 +177,25 @@ impl ScanResult {
                 r.equivalent_gamma,
                 errors.join(", ")
             ));
+        }
+        if let Some(c) = &self.colour {
+            for (what, acc) in [("merged cloud", &c.cloud), ("mesh vertices", &c.mesh)] {
+                if let Some(a) = acc {
+                    lines.push(format!(
+                        "  colour ({} views, {}): {what} against the true albedo over {} points: RMS {:.1} levels ({:.1} %) after gains {:.0}/{:.0}/{:.0}; hue angle median {:.2} deg, 95 % within {:.2} deg",
+                        c.views,
+                        c.source,
+                        a.points,
+                        a.rms_levels,
+                        100.0 * a.rms_relative,
+                        a.gain[0],
+                        a.gain[1],
+                        a.gain[2],
+                        a.angle_median_deg,
+                        a.angle_p95_deg
+                    ));
+                }
+            }
         }
         lines.extend(stage_lines(&self.stages));
         lines

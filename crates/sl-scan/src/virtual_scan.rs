@@ -25,7 +25,7 @@ use sl_tri::{Binocular, BinocularConfig, Triangulator};
 
 use crate::error::{io, stage_err};
 use crate::exposures::{Exposures, session_exposures};
-use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
+use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_coloured, scan_poisson_config};
 use crate::virtual_calibrate::{calibrate_virtual_binocular_stage, calibrate_virtual_stage};
 use crate::{
     CalibrationSummary, MergeReport, MergeStageConfig, ReconstructConfig, SCAN_PERIOD_PX,
@@ -163,6 +163,10 @@ pub struct VirtualScanConfig {
     pub exposures: Exposures,
     /// How several exposures are fused. Default: the longest unsaturated one per pixel.
     pub fusion: sl_codec::FusionSettings,
+    /// Capture each view's colour under full white (the virtual camera renders it in colour):
+    /// the clouds, the mesh (vertex colours, a textured OBJ) and the 3-D page in colour,
+    /// measured against the scene's true albedo ([`ScanResult::colour`]). Default `false`.
+    pub colour: bool,
 }
 
 impl VirtualScanConfig {
@@ -210,6 +214,7 @@ impl Default for VirtualScanConfig {
             finish: sl_sim::Finish::Matte,
             exposures: Exposures::Camera,
             fusion: sl_codec::FusionSettings::default(),
+            colour: false,
         }
     }
 }
@@ -275,12 +280,66 @@ pub struct ScanResult {
     pub plate_phase: Option<PhaseError>,
     /// The mesh of the merged cloud: size, topology, accuracy.
     pub mesh: Option<MeshSummary>,
+    /// The scan's colours against the scene's true albedo, when scanned in colour
+    /// ([`VirtualScanConfig::colour`]).
+    pub colour: Option<ScanColourReport>,
     /// Where each view's pose came from in the merge.
     pub merge: MergeReport,
     /// Wall time per stage, in order.
     pub stages: Vec<StageTime>,
     /// The files written.
     pub files: ScanFiles,
+}
+
+/// A colour scan's colours against the virtual scene's true albedo ([`colour_accuracy`]:
+/// one gain per channel fitted, then the RMS of the levels and the angle between measured
+/// and true colours).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ScanColourReport {
+    /// Views with a colour image.
+    pub views: usize,
+    /// Where the views' colour came from (`colour_frame`, …).
+    pub source: &'static str,
+    /// The merged cloud's points within [`COLOUR_TRUTH_DISTANCE_MM`] of the true surface.
+    pub cloud: Option<crate::ColourAccuracy>,
+    /// The mesh's vertices (as `mesh.ply` holds them) that a view sees (the others are
+    /// [`crate::UNSEEN_COLOUR`]) within that distance.
+    pub mesh: Option<crate::ColourAccuracy>,
+}
+
+/// Points further than this (mm) from the true surface are left out of the colour figures:
+/// the colour of a stray point belongs to no surface.
+pub const COLOUR_TRUTH_DISTANCE_MM: f64 = 1.0;
+
+/// The vertices of `mesh` (as read from its PLY, with normals and colours) that a view of
+/// `colours` sees: the others hold [`crate::UNSEEN_COLOUR`], no measurement.
+fn seen_vertices(mesh: &PointCloud, colours: &crate::ScanColours) -> PointCloud {
+    let Some(normals) = mesh.normals() else {
+        return mesh.clone();
+    };
+    let keep: Vec<usize> = (0..mesh.len())
+        .filter(|&i| {
+            colours
+                .colour_at(&mesh.positions()[i], &normals[i].normalize())
+                .is_some()
+        })
+        .collect();
+    mesh.select(&keep).unwrap_or_else(|_| mesh.clone())
+}
+
+/// The colours of `cloud` against `rig`'s true albedo (views at motor angle `motor_deg` frame
+/// the cloud).
+fn cloud_colour_accuracy(
+    rig: &sl_sim::VirtualRig,
+    motor_deg: f64,
+    cloud: &PointCloud,
+) -> Option<crate::ColourAccuracy> {
+    let colours = cloud.colors()?;
+    crate::colour_accuracy(cloud.positions(), colours, |p| {
+        rig.true_colour(motor_deg, p)
+            .filter(|t| t.distance_mm <= COLOUR_TRUTH_DISTANCE_MM)
+            .map(|t| t.rgb)
+    })
 }
 
 /// The default rig with its resolution divided by `d` (same field of view and geometry).
@@ -317,6 +376,7 @@ fn virtual_session(
         devices,
         calibration: Some(calibration.to_path_buf()),
         exposures,
+        colour: cfg.colour,
     };
     let config = SessionConfig {
         display_latency: Duration::ZERO,
@@ -706,18 +766,39 @@ pub fn scan_virtual(
                 scan_config.merge.merge.output_voxel_size,
                 depth,
             );
-            let (summary, files) = mesh_stage_with(
+            let (summary, files) = mesh_stage_coloured(
                 &scan.merged,
                 Some(&measured.accuracy.signed_distances_mm),
                 Some(&truth),
                 &poisson,
                 &cfg.mesh_options,
+                scan.colours.as_ref(),
                 out,
             )?;
             stages.push(StageTime::since("mesh", t));
             (Some(summary), Some(files))
         }
         None => (None, None),
+    };
+
+    // 8. The colours against the true albedo.
+    let angle0 = angles.first().copied().unwrap_or(0.0);
+    let colour = match &scan.colours {
+        Some(c) => {
+            let mesh_cloud = match &mesh_files {
+                Some(f) => Some(sl_cloud::read_ply(&out.join(&f.ply))?),
+                None => None,
+            };
+            Some(ScanColourReport {
+                views: c.views.len(),
+                source: c.views.first().map_or("none", |v| v.source.name()),
+                cloud: cloud_colour_accuracy(&rig.left, angle0, &scan.merged),
+                mesh: mesh_cloud
+                    .map(|m| seen_vertices(&m, c))
+                    .and_then(|m| cloud_colour_accuracy(&rig.left, angle0, &m)),
+            })
+        }
+        None => None,
     };
 
     let (calibration, pair) = match calibration {
@@ -745,6 +826,7 @@ pub fn scan_virtual(
         flatness: measured.flatness,
         plate_phase,
         mesh,
+        colour,
         stages,
         files: ScanFiles {
             calibration: "calibration.json".to_owned(),

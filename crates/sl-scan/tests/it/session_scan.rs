@@ -86,6 +86,7 @@ fn a_captured_session_is_reconstructed_and_merged_onto_the_true_spheres() {
         },
         calibration: Some(calib_path.clone()),
         exposures: Default::default(),
+        colour: false,
     };
     let session_dir = tmp.path().join("session");
     let session = CaptureSession::open(
@@ -290,6 +291,7 @@ fn a_dense_session_with_an_approximate_axis_is_refined_onto_the_true_spheres() {
             },
             calibration: Some(calib_path),
             exposures: Default::default(),
+            colour: false,
         },
         SessionConfig {
             display_latency: Duration::ZERO,
@@ -375,6 +377,7 @@ fn capture_dumbbell(
             },
             calibration: Some(calib_path),
             exposures: Default::default(),
+            colour: false,
         },
         SessionConfig {
             display_latency: Duration::ZERO,
@@ -491,6 +494,7 @@ fn a_calibration_without_turntable_axis_is_refused_by_name() {
             },
             calibration: Some(path.clone()),
             exposures: Default::default(),
+            colour: false,
         },
         SessionConfig::default(),
     )
