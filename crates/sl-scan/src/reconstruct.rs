@@ -196,9 +196,9 @@ pub fn reconstruct_decoded(
     Ok(reconstruct_decoded_coloured(map, triangulator, options, config, None)?.0)
 }
 
-/// [`reconstruct_decoded`] with the points coloured from `colour` (camera-sized), and the
-/// depth map of every triangulated point (mm, camera z; NaN where none), before the edges are
-/// eroded.
+/// [`reconstruct_decoded`] with the points coloured from `colour` (camera-sized), and (with
+/// a colour) the depth map of the points kept (mm, camera z; NaN at the other pixels, the
+/// eroded rim included); without a colour the depth map is empty.
 ///
 /// # Errors
 /// As [`reconstruct_decoded`]; [`ScanError::Tri`] when `colour` is not the map's size.
@@ -220,11 +220,17 @@ pub fn reconstruct_decoded_coloured(
     };
     let texture = colour.map(|c| Texture::Rgb8(c.data()));
     let tri = triangulator.triangulate_textured(map, texture, options)?;
-    let depth_mm = if colour.is_some() {
-        tri.depth_map()
-    } else {
-        Vec::new()
-    };
+    // The depth of the pixels that give a point (the others NaN): what the view saw, for the
+    // colour's visibility test; the eroded rim is cleared below with the points.
+    let mut depth_mm = Vec::new();
+    if colour.is_some() {
+        depth_mm = tri.depth_map();
+        for (d, s) in depth_mm.iter_mut().zip(&tri.status) {
+            if *s != sl_tri::PointStatus::Valid {
+                *d = f32::NAN;
+            }
+        }
+    }
     if edge_erosion_px == 0 {
         return Ok((tri.cloud, depth_mm));
     }
@@ -234,6 +240,12 @@ pub fn reconstruct_decoded_coloured(
         .map(|s| *s == sl_tri::PointStatus::Valid)
         .collect();
     erode(&mut valid, tri.width, tri.height, edge_erosion_px);
+    // A pixel of the rim mixes the surface with what lies beside it, in colour as in depth.
+    for (d, v) in depth_mm.iter_mut().zip(&valid) {
+        if !v {
+            *d = f32::NAN;
+        }
+    }
     let keep: Vec<usize> = tri
         .cloud_pixels
         .iter()
