@@ -4,6 +4,7 @@
 mod binocular_scan;
 mod binocular_sdk;
 mod calibration_capture;
+mod colour;
 mod exposures;
 mod frame_checks;
 mod placements;
