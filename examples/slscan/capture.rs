@@ -514,6 +514,59 @@ mod tests {
         );
     }
 
+    /// `slscan capture --finish coloured` on the virtual rig (colour implied), then `slscan
+    /// reconstruct` of a view with the rig's calibration: the cloud takes its colours from the
+    /// view's colour frame, and they are the patches' (against the rig's true albedo).
+    /// `--finish` is refused on devices and `--colour` needs nothing else.
+    #[test]
+    fn a_coloured_capture_reconstructs_in_its_colours() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("session");
+        let s = out.to_str().unwrap();
+        let args = [
+            "capture",
+            "--views",
+            "2",
+            "--downscale",
+            "4",
+            "--finish",
+            "coloured",
+        ];
+        crate::run_cli(&[&args[..], &["--out", s]].concat()).unwrap();
+        assert!(sl_rig::read_session_plan(&out).unwrap().colour);
+        let view = out.join("view_001");
+        assert!(view.join(sl_rig::COLOUR_FILE).is_file());
+        let rec = tmp.path().join("rec");
+        crate::run_cli(&[
+            "reconstruct",
+            view.to_str().unwrap(),
+            "--calib",
+            out.join("calibration_true.json").to_str().unwrap(),
+            "--out",
+            rec.to_str().unwrap(),
+        ])
+        .unwrap();
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(rec.join("report.json")).unwrap())
+                .unwrap();
+        assert_eq!(report["figures"]["colour_source"], "colour_frame");
+        let cloud = sl_cloud::read_ply(&rec.join("cloud.ply")).unwrap();
+        let rig = VirtualRig::new(
+            scaled_rig_config(4),
+            Scene::dumbbell().finished(sl_sim::Finish::Coloured),
+        )
+        .unwrap();
+        let angle = sl_rig::read_session_plan(&out).unwrap().angles_deg[1];
+        let acc = sl_scan::colour_accuracy(cloud.positions(), cloud.colors().unwrap(), |p| {
+            rig.true_colour(angle, p)
+                .filter(|t| t.distance_mm <= 1.0)
+                .map(|t| t.rgb)
+        })
+        .unwrap();
+        assert!(acc.points > cloud.len() / 2, "{acc:?}");
+        assert!(acc.angle_median_deg < 8.0, "{acc:?}");
+    }
+
     /// The capture in `dir` decoded: the column errors (projector px) of its decoded pixels
     /// that `truth` says are lit, sorted.
     fn column_errors(dir: &std::path::Path, truth: &sl_sim::ViewTruth) -> Vec<f64> {
