@@ -65,7 +65,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                     "global registration",
                     sl_icp::MIN_GLOBAL_POINTS,
                 )?;
-                check_voxel("--voxel", args.voxel, &[&c], &[p])?;
+                check_voxel("--voxel", args.voxel, args.scale, &[&c], &[p])?;
                 Ok(c)
             })
             .collect::<anyhow::Result<_>>()

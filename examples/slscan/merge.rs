@@ -234,7 +234,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
                     ("--registration-voxel", args.registration_voxel),
                     ("--voxel", args.voxel),
                 ] {
-                    check_voxel(flag, voxel, &[&c], &[&path])?;
+                    check_voxel(flag, voxel, args.scale, &[&c], &[&path])?;
                 }
                 Ok(c)
             })

@@ -120,19 +120,27 @@ pub(crate) fn read_scaled(path: &Path, scale: f64) -> anyhow::Result<PointCloud>
 const MAX_VOXEL_OF_EXTENT: f64 = 0.1;
 
 /// Refuses a voxel (`flag`, mm; 0 = none) larger than [`MAX_VOXEL_OF_EXTENT`] of the extent of
-/// any of `clouds` (named by `paths`): it would leave a handful of points.
+/// any of `clouds` (named by `paths`, read with `--scale scale`): it would leave a handful of
+/// points.
 pub(crate) fn check_voxel(
     flag: &str,
     voxel: f64,
+    scale: f64,
     clouds: &[&PointCloud],
     paths: &[&Path],
 ) -> anyhow::Result<()> {
+    // The extent depends on the scale too: a wrong --scale is as likely the cause.
+    let scaled = if scale == 1.0 {
+        String::new()
+    } else {
+        format!(" once read with --scale {scale}")
+    };
     for (c, p) in clouds.iter().zip(paths) {
         let extent = c.bounding_box().map_or(0.0, |b| b.extent().norm());
         anyhow::ensure!(
             voxel <= MAX_VOXEL_OF_EXTENT * extent,
             "{flag} {voxel}: a voxel must be at most a tenth of each cloud's extent; {} spans \
-             {extent:.3} mm (the diagonal of its box), so at most {:.3} mm",
+             {extent:.3} mm{scaled} (the diagonal of its box), so at most {:.3} mm",
             p.display(),
             MAX_VOXEL_OF_EXTENT * extent
         );
@@ -276,6 +284,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     check_voxel(
         "--voxel",
         args.voxel,
+        args.scale,
         &[&source, &target],
         &[&args.source, &args.target],
     )?;
