@@ -202,6 +202,46 @@ impl ScanColours {
         Some((bilinear(&view.image, px.x, px.y), cos))
     }
 
+    /// The texture's texels per triangle edge for `mesh`: about one texel per camera pixel on
+    /// the surface (a finer texture holds no more detail, and baking costs a projection into
+    /// every view per texel). The camera's pixel is `depth / fx` at the median depth the
+    /// first view saw; the mesh's mean edge over it, rounded, within 2 to 8.
+    pub fn texels_per_edge(&self, mesh: &sl_cloud::TriangleMesh) -> u32 {
+        let mut depths: Vec<f32> = self
+            .views
+            .first()
+            .map(|v| {
+                v.depth_mm
+                    .iter()
+                    .copied()
+                    .filter(|d| d.is_finite())
+                    .collect()
+            })
+            .unwrap_or_default();
+        if depths.is_empty() || mesh.triangles.is_empty() {
+            return 8;
+        }
+        let mid = depths.len() / 2;
+        let depth = f64::from(*depths.select_nth_unstable_by(mid, f32::total_cmp).1);
+        let pixel_mm = depth / self.camera.intrinsics.fx;
+        let at = |i: u32| mesh.vertices.get(i as usize).copied();
+        let (sum, n) = mesh.triangles.iter().fold((0.0, 0usize), |(s, n), t| {
+            match (at(t[0]), at(t[1]), at(t[2])) {
+                (Some(a), Some(b), Some(c)) => {
+                    (s + (b - a).norm() + (c - b).norm() + (a - c).norm(), n + 3)
+                }
+                _ => (s, n),
+            }
+        });
+        let edge_mm = sum / n.max(1) as f64;
+        let texels = (edge_mm / pixel_mm).round();
+        if texels.is_finite() {
+            texels.clamp(2.0, 8.0) as u32
+        } else {
+            8
+        }
+    }
+
     /// Colours of `points` with their unit `normals` (mid grey where no view sees one), in
     /// parallel.
     ///
@@ -261,7 +301,7 @@ pub fn placed_colours<'a>(
             Some(all) => all.views.extend(moved),
             None => {
                 out = Some(ScanColours {
-                    camera: colours.camera.clone(),
+                    camera: colours.camera,
                     views: moved.collect(),
                     config: colours.config,
                 });
@@ -512,6 +552,30 @@ mod tests {
         let acc = colour_accuracy(&points, &wrong, albedo).unwrap();
         assert!(acc.angle_p95_deg > 30.0, "{acc:?}");
         assert!(colour_accuracy(&points[3..], &shaded[3..], albedo).is_none());
+    }
+
+    #[test]
+    fn about_one_texel_per_camera_pixel() {
+        // 50 px focal length at 100 mm: 2 mm a pixel. Right triangles of legs 6 mm: mean edge
+        // (6 + 6 + 8.49) / 3 = 6.83 mm, 3.4 pixels: 3 texels an edge.
+        let (camera, v) = view(Isometry3::identity(), 100.0);
+        let colours = ScanColours {
+            camera,
+            views: vec![v],
+            config: ColourConfig::default(),
+        };
+        let mesh = |leg: f64| sl_cloud::TriangleMesh {
+            vertices: vec![
+                Point3::origin(),
+                Point3::new(leg, 0.0, 0.0),
+                Point3::new(0.0, leg, 0.0),
+            ],
+            triangles: vec![[0, 1, 2]],
+        };
+        assert_eq!(colours.texels_per_edge(&mesh(6.0)), 3);
+        // Within 2 to 8 texels.
+        assert_eq!(colours.texels_per_edge(&mesh(0.1)), 2);
+        assert_eq!(colours.texels_per_edge(&mesh(100.0)), 8);
     }
 
     #[test]

@@ -345,9 +345,11 @@ fn colour_mesh(
         .collect();
     let vertex_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = std::time::Instant::now();
-    let atlas = bake_texture(mesh, &TextureConfig::default(), |p, n| {
-        colours.colour_at(p, n)
-    })?;
+    let texture = TextureConfig {
+        texels_per_edge: colours.texels_per_edge(mesh),
+        ..TextureConfig::default()
+    };
+    let atlas = bake_texture(mesh, &texture, |p, n| colours.colour_at(p, n))?;
     let obj = "mesh.obj";
     let written = write_obj_textured(&out.join(obj), mesh, &atlas)?;
     files.obj = Some(obj.to_owned());

@@ -202,7 +202,7 @@ fn merge_views(
             })
             .collect();
         (!placed.is_empty()).then(|| ScanColours {
-            camera: camera.clone(),
+            camera: *camera,
             views: placed,
             config: config.colour,
         })

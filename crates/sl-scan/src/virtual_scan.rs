@@ -291,7 +291,7 @@ pub struct ScanResult {
     pub files: ScanFiles,
 }
 
-/// A colour scan's colours against the virtual scene's true albedo ([`colour_accuracy`]:
+/// A colour scan's colours against the virtual scene's true albedo ([`crate::colour_accuracy`]:
 /// one gain per channel fitted, then the RMS of the levels and the angle between measured
 /// and true colours).
 #[derive(Debug, Clone, serde::Serialize)]
