@@ -201,7 +201,7 @@ fn merge_views(
                 })
             })
             .collect();
-        (!placed.is_empty()).then(|| ScanColours {
+        (!placed.is_empty()).then_some(ScanColours {
             camera: *camera,
             views: placed,
             config: config.colour,
