@@ -320,3 +320,42 @@ fn capture_min(c: &CaptureSet) -> u8 {
     v.sort_unstable();
     v[v.len() / 20]
 }
+
+/// The colour of a real capture: SLMaster's grey frames read as colour give the fringes' mean
+/// (both sets start with a phase-shift block), grey in the three channels, and equal to the
+/// mean of the first block's frames read grey.
+#[test]
+fn a_real_capture_gives_its_fringe_mean_as_colour() {
+    for set in ["three_frequency_heterodyne", "shift_graycode"] {
+        let Some(frames) = data_dir(set) else {
+            return;
+        };
+        // The manifest pointed at the read-only frames (as `frames_dir`).
+        let tmp = tempfile::tempdir().unwrap();
+        let mut m = Manifest::load(&manifest(set)).unwrap();
+        m.frames_dir = Some(frames.clone());
+        let path = tmp.path().join("manifest.json");
+        m.save(&path).unwrap();
+        let colour = sl_codec::read_capture_colour(&path).unwrap();
+        assert_eq!(colour.source, sl_codec::ColourSource::FringeMean, "{set}");
+        assert!(!colour.has_chroma(), "{set}: grey frames give grey colours");
+        assert_eq!((colour.image.width(), colour.image.height()), (1280, 1024));
+        let capture = CaptureSet::load_with_frames_dir(&manifest(set), Some(&frames)).unwrap();
+        let steps = match &m.blocks[0].pattern {
+            Pattern::Phase(p) => p.steps as usize,
+            Pattern::Hybrid(h) => h.steps as usize,
+            Pattern::Gray(_) => panic!("{set}: expected fringes first"),
+        };
+        let images = capture.frames.into_images();
+        // Every 97th pixel: the rounded mean of the block's grey frames.
+        for i in (0..1280 * 1024).step_by(97) {
+            let (x, y) = (i % 1280, i / 1280);
+            let sum: u32 = images[..steps]
+                .iter()
+                .map(|f| u32::from(f.get(x, y).unwrap()))
+                .sum();
+            let mean = ((sum + steps as u32 / 2) / steps as u32) as u8;
+            assert_eq!(colour.image.get(x, y).unwrap()[0], mean, "{set} ({x}, {y})");
+        }
+    }
+}
