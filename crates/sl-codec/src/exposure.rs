@@ -518,25 +518,21 @@ pub fn choose_exposures(
             found_height: black.height(),
         });
     }
-    let full = f64::from(white.max_value());
-    let black_full = f64::from(black.max_value());
+    // Both at 16 bits (an 8-bit value `v` as `257 v`: the same fraction of full scale).
+    let (white, black) = (white.clone().into_u16(), black.clone().into_u16());
+    let full = f64::from(u16::MAX);
     let saturation = f64::from(DEFAULT_SATURATION_LEVEL) / 255.0 * full;
     let min_lit = f64::from(config.min_lit) / 255.0;
     // Light (fraction of full scale) of each lit pixel, its black level, and the saturated.
     let (mut light, mut blacks, mut saturated) = (Vec::new(), Vec::new(), 0usize);
-    for y in 0..white.height() {
-        for x in 0..white.width() {
-            let (Some(w), Some(b)) = (white.get(x, y), black.get(x, y)) else {
-                continue;
-            };
-            let (w, b) = (f64::from(w), f64::from(b) / black_full * full);
-            let l = (w - b) / full;
-            if l > min_lit {
-                light.push(l);
-                blacks.push(b / full);
-                if w >= saturation {
-                    saturated += 1;
-                }
+    for (&w, &b) in white.data().iter().zip(black.data()) {
+        let (w, b) = (f64::from(w), f64::from(b));
+        let l = (w - b) / full;
+        if l > min_lit {
+            light.push(l);
+            blacks.push(b / full);
+            if w >= saturation {
+                saturated += 1;
             }
         }
     }

@@ -45,14 +45,13 @@ use sl_cloud::PointCloud;
 use sl_codec::{BitDepth, ImageSize, Manifest};
 use sl_rig::{
     Camera, CaptureTiming, DEFAULT_DISPLAY_LATENCY, Latency, LatencyConfig, Projector,
-    SessionConfig, SessionDevices, SessionPlan, SessionSummary, Turntable, measure_exposures,
-    measure_latency,
+    SessionConfig, SessionDevices, SessionPlan, SessionSummary, Turntable, measure_latency,
 };
 
 #[cfg(feature = "mesh")]
 use crate::colour::placed_colours;
 use crate::error::{io, stage_err};
-use crate::exposures::{Exposures, session_exposures};
+use crate::exposures::{Exposures, measure_at_first_view, session_exposures};
 #[cfg(feature = "mesh")]
 use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_coloured, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
@@ -265,19 +264,16 @@ where
     let (exposures, exposure_plan) =
         session_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite, |auto| {
             let t = Instant::now();
-            let first = angles_deg.first().copied().unwrap_or_default();
-            turntable.rotate_to(first)?;
             let timing = CaptureTiming {
                 settle: session.display_latency,
                 flush_frames: session.flush_frames,
             };
-            let plan = measure_exposures(
-                camera,
-                projector,
+            let plan = measure_at_first_view(
+                (&mut *camera, &mut *projector, &mut *turntable),
+                angles_deg.first().copied().unwrap_or_default(),
                 auto,
                 timing,
                 AUTO_EXPOSURE_START_MS,
-                |_, _| {},
             )?;
             stages.push(StageTime::since("choose exposures", t));
             Ok(plan)

@@ -8,7 +8,10 @@ use sl_codec::{
     AutoExposureConfig, CaptureSet, EXPOSURES_FILE, ExposureFrames, ExposurePlan, ExposureRecord,
     FusionSettings, FusionSummary, MANIFEST_FILE, fuse_exposures, write_png_grey,
 };
-use sl_rig::{SessionExposures, read_session_plan};
+use sl_rig::{
+    Camera, CaptureTiming, Projector, SessionExposures, Turntable, measure_exposures,
+    read_session_plan,
+};
 
 use crate::ScanError;
 
@@ -75,23 +78,73 @@ pub(crate) fn session_exposures(
     overwrite: bool,
     measure: impl FnOnce(&AutoExposureConfig) -> Result<ExposurePlan, ScanError>,
 ) -> Result<(SessionExposures, Option<ExposurePlan>), ScanError> {
-    match exposures {
-        Exposures::Camera => Ok((SessionExposures::default(), None)),
-        Exposures::Fixed(times) => Ok((SessionExposures::new(times.clone(), fusion)?, None)),
-        Exposures::Auto(auto) => {
-            if !overwrite
-                && let Ok(plan) = read_session_plan(dir)
-                && !plan.exposures.is_single()
-            {
-                return Ok((plan.exposures, None));
-            }
-            let plan = measure(auto)?;
-            Ok((
-                SessionExposures::new(plan.exposures_ms.clone(), fusion)?,
-                Some(plan),
-            ))
-        }
+    if let Exposures::Auto(auto) = exposures
+        && recorded_exposures(dir, overwrite).is_none()
+    {
+        let plan = measure(auto)?;
+        return Ok((
+            SessionExposures::new(plan.exposures_ms.clone(), fusion)?,
+            Some(plan),
+        ));
     }
+    Ok((planned_exposures(dir, exposures, fusion, overwrite)?, None))
+}
+
+/// The exposures the session in `dir` is planned with before anything is measured: `Fixed` as
+/// given, `Camera` none, `Auto` those already recorded in `dir` and else one (the automatic
+/// ones are measured once the devices run, [`session_exposures`]).
+pub(crate) fn planned_exposures(
+    dir: &Path,
+    exposures: &Exposures,
+    fusion: FusionSettings,
+    overwrite: bool,
+) -> Result<SessionExposures, ScanError> {
+    match exposures {
+        Exposures::Camera => Ok(SessionExposures::default()),
+        Exposures::Fixed(times) => Ok(SessionExposures::new(times.clone(), fusion)?),
+        Exposures::Auto(_) => Ok(recorded_exposures(dir, overwrite).unwrap_or_default()),
+    }
+}
+
+/// The several exposures a session already in `dir` was started with (kept when it resumes;
+/// none with `overwrite`).
+fn recorded_exposures(dir: &Path, overwrite: bool) -> Option<SessionExposures> {
+    if overwrite {
+        return None;
+    }
+    read_session_plan(dir)
+        .ok()
+        .map(|plan| plan.exposures)
+        .filter(|e| !e.is_single())
+}
+
+/// Measures the automatic exposures `auto` through the devices with the turntable at
+/// `first_deg` (the session's first view), showing and capturing with `timing`; a camera that
+/// does not report its exposure starts at `start_ms`.
+///
+/// # Errors
+/// The devices' failures.
+pub(crate) fn measure_at_first_view<C, P, T>(
+    (camera, projector, turntable): (&mut C, &mut P, &mut T),
+    first_deg: f64,
+    auto: &AutoExposureConfig,
+    timing: CaptureTiming,
+    start_ms: f64,
+) -> Result<ExposurePlan, ScanError>
+where
+    C: Camera + ?Sized,
+    P: Projector + ?Sized,
+    T: Turntable + ?Sized,
+{
+    turntable.rotate_to(first_deg)?;
+    Ok(measure_exposures(
+        camera,
+        projector,
+        auto,
+        timing,
+        start_ms,
+        |_, _| {},
+    )?)
 }
 
 /// Fuses the capture folder `dir` from the exposures its `exposures.json` lists (see

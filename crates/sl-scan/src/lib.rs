@@ -169,7 +169,9 @@ pub use mesh::{
     mesh_stage, mesh_stage_coloured, mesh_stage_with, scan_poisson_config, write_mesh_pictures,
 };
 #[cfg(feature = "mesh")]
-pub use mesh_chain::{FarPointsDropped, MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain};
+pub use mesh_chain::{
+    COLOUR_NEIGHBOURS, FarPointsDropped, MeshChain, MeshChainConfig, MeshSmoothing, mesh_chain,
+};
 pub use output_folder::{Inputs, OutputError, OutputFolder};
 pub use placements::{
     MAX_PLACEMENTS, PLACEMENT_SESSION_DIR, PlacementAlignment, PlacementConfig, PlacementRig,

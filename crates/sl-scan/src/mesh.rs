@@ -249,10 +249,13 @@ pub fn mesh_stage_coloured(
         Some(c) => Some(colour_mesh(mesh, c, out, &mut files)?),
         None => None,
     };
-    match &coloured {
-        Some((_, vertex_colours)) => {
-            write_ply_mesh_coloured(&out.join(&files.ply), mesh, vertex_colours)?;
-        }
+    // The views' blend when the scan has them, else the cloud's own colours, if any.
+    let vertex_colours = coloured
+        .as_ref()
+        .map(|(_, c)| c.as_slice())
+        .or(chain.vertex_colours.as_deref());
+    match vertex_colours {
+        Some(c) => write_ply_mesh_coloured(&out.join(&files.ply), mesh, c)?,
         None => write_ply_mesh(&out.join(&files.ply), mesh)?,
     }
     write_stl(&out.join(&files.stl), mesh)?;
@@ -281,7 +284,7 @@ pub fn mesh_stage_coloured(
                 errors_mm: accuracy_vertices
                     .as_ref()
                     .map(|r| r.signed_distances_mm.as_slice()),
-                colours: coloured.as_ref().map(|(_, c)| c.as_slice()),
+                colours: vertex_colours,
             },
             ViewerLayer::Cloud {
                 name: "merged cloud",
@@ -372,7 +375,8 @@ fn colour_mesh(
 }
 
 /// Writes the pictures of a mesh into `out`: `preview.png` (shaded, seen from `view`),
-/// `mesh.html` (the interactive 3-D page titled `title`, coloured by `errors_mm` when given)
+/// `mesh.html` (the interactive 3-D page titled `title`, coloured by `errors_mm` when given,
+/// in the vertex `colours` when given)
 /// and, with errors, `error_map.png` (the signed error at the vertices on the scale of the
 /// cloud's error maps, with its legend). Returns the page's path.
 ///
@@ -383,6 +387,7 @@ pub fn write_mesh_pictures(
     out: &Path,
     mesh: &TriangleMesh,
     errors_mm: Option<&[f32]>,
+    colours: Option<&[[u8; 3]]>,
     view: &PreviewConfig,
     title: String,
 ) -> Result<PathBuf, ScanError> {
@@ -394,7 +399,7 @@ pub fn write_mesh_pictures(
             name: "mesh",
             mesh,
             errors_mm,
-            colours: None,
+            colours,
         }],
         &ViewerConfig {
             title,
@@ -435,7 +440,8 @@ pub struct MeshOutputs {
 }
 
 impl crate::MeshChain {
-    /// Writes the chain's mesh into `out` (`mesh.ply`, `mesh.stl`), measures it against
+    /// Writes the chain's mesh into `out` (`mesh.ply`, with the vertex colours when the cloud
+    /// had colours; `mesh.stl`), measures it against
     /// `truth` when given (at its vertices and over its area) and draws its pictures
     /// ([`write_mesh_pictures`], coloured by the error at the vertices when measured).
     ///
@@ -454,7 +460,10 @@ impl crate::MeshChain {
         };
         let (ply, stl) = (out.join("mesh.ply"), out.join("mesh.stl"));
         let t = std::time::Instant::now();
-        write_ply_mesh(&ply, &self.mesh)?;
+        match &self.vertex_colours {
+            Some(c) => write_ply_mesh_coloured(&ply, &self.mesh, c)?,
+            None => write_ply_mesh(&ply, &self.mesh)?,
+        }
         write_stl(&stl, &self.mesh)?;
         timed("write", t);
         let measured = match truth {
@@ -472,7 +481,14 @@ impl crate::MeshChain {
         let errors = measured
             .as_ref()
             .map(|(v, _)| v.signed_distances_mm.as_slice());
-        let page = write_mesh_pictures(out, &self.mesh, errors, view, title)?;
+        let page = write_mesh_pictures(
+            out,
+            &self.mesh,
+            errors,
+            self.vertex_colours.as_deref(),
+            view,
+            title,
+        )?;
         timed("preview", t);
         Ok(MeshOutputs {
             ply,

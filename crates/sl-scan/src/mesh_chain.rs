@@ -122,6 +122,11 @@ pub struct MeshChain {
     pub decimated: Option<Decimation>,
     /// Per-step timings, in the order run.
     pub stages: Vec<StageTime>,
+    /// The mesh's vertex colours from the cloud's, when it has colours: each vertex the mean
+    /// of its [`COLOUR_NEIGHBOURS`] nearest points' (`slscan mesh` of a colour scan's
+    /// `merged.ply`; a scan itself blends its views' images instead,
+    /// [`ScanColours`](crate::ScanColours)).
+    pub vertex_colours: Option<Vec<[u8; 3]>>,
 }
 
 /// The far points [`mesh_chain`] dropped (`sl_cloud::remove_far_points`).
@@ -482,6 +487,12 @@ fn run_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain, Sca
             ),
         });
     }
+    let vertex_colours = match cloud.colors() {
+        Some(colours) => Some(timed(&mut stages, "colour", || {
+            colours_from_cloud(cloud.positions(), colours, &mesh.vertices)
+        })?),
+        None => None,
+    };
     let topology = timed(&mut stages, "check", || check_topology(&mesh));
     Ok(MeshChain {
         mesh,
@@ -498,9 +509,72 @@ fn run_chain(cloud: &PointCloud, cfg: &MeshChainConfig) -> Result<MeshChain, Sca
         simplified,
         faired,
         remeshed,
+        vertex_colours,
         holes,
         small_pieces_removed,
         decimated,
         stages,
     })
+}
+
+/// Nearest cloud points whose colours a mesh vertex takes the mean of
+/// ([`MeshChain::vertex_colours`]): a few, so that one point's noise does not show, the
+/// colour blurred by no more than the cloud's spacing.
+pub const COLOUR_NEIGHBOURS: usize = 4;
+
+/// Each of `vertices` coloured with the rounded mean colour of its [`COLOUR_NEIGHBOURS`]
+/// nearest `points` (whose colours are `colours`).
+///
+/// # Errors
+/// [`ScanError::Cloud`] when the points cannot be indexed.
+fn colours_from_cloud(
+    points: &[nalgebra::Point3<f64>],
+    colours: &[[u8; 3]],
+    vertices: &[nalgebra::Point3<f64>],
+) -> Result<Vec<[u8; 3]>, ScanError> {
+    use rayon::prelude::*;
+    let index = sl_cloud::KdIndex::new(points)?;
+    Ok(vertices
+        .par_iter()
+        .map_init(Vec::new, |near, v| {
+            index.knn_into(v, COLOUR_NEIGHBOURS, near);
+            let mut sum = [0u32; 3];
+            for n in near.iter() {
+                let c = colours
+                    .get(n.index)
+                    .copied()
+                    .unwrap_or(crate::UNSEEN_COLOUR);
+                for k in 0..3 {
+                    sum[k] += u32::from(c[k]);
+                }
+            }
+            let n = near.len().max(1) as u32;
+            sum.map(|s| ((s + n / 2) / n) as u8)
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod colour_tests {
+    use super::*;
+    use nalgebra::Point3;
+
+    #[test]
+    fn vertices_take_their_nearest_points_colours() {
+        // Red points at x < 0, blue at x > 0, on a line 1 mm apart.
+        let points: Vec<Point3<f64>> = (-10..=10)
+            .filter(|&i| i != 0)
+            .map(|i| Point3::new(f64::from(i), 0.0, 0.0))
+            .collect();
+        let colours: Vec<[u8; 3]> = points
+            .iter()
+            .map(|p| if p.x < 0.0 { [200, 0, 0] } else { [0, 0, 200] })
+            .collect();
+        let vertices = [Point3::new(-7.2, 0.3, 0.0), Point3::new(6.6, 0.0, -0.2)];
+        let got = colours_from_cloud(&points, &colours, &vertices).unwrap();
+        assert_eq!(got, vec![[200, 0, 0], [0, 0, 200]]);
+        // At the boundary, the mean of two of each.
+        let mid = colours_from_cloud(&points, &colours, &[Point3::origin()]).unwrap();
+        assert_eq!(mid, vec![[100, 0, 100]]);
+    }
 }

@@ -14,17 +14,16 @@ use serde::Serialize;
 use sl_camera::{BinocularCalibration, Calibration, ImageSize};
 use sl_cloud::{PlyFormat, PointCloud, write_ply};
 use sl_codec::BitDepth;
-use sl_codec::ExposurePlan;
 use sl_metrology::{Report, Truth};
 use sl_rig::{
-    CaptureTiming, SessionConfig, SessionExposures, SessionPlan, SessionSummary, Turntable,
-    measure_exposures, turntable_angles, view_dir_name,
+    CaptureTiming, SessionConfig, SessionExposures, SessionPlan, SessionSummary, turntable_angles,
+    view_dir_name,
 };
 use sl_sim::{RigConfig, Scene, SecondCamera, VirtualRig};
 use sl_tri::{Binocular, BinocularConfig, Triangulator};
 
 use crate::error::{io, stage_err};
-use crate::exposures::{Exposures, session_exposures};
+use crate::exposures::{Exposures, measure_at_first_view, planned_exposures, session_exposures};
 use crate::mesh::{MeshConfig, MeshFiles, MeshSummary, mesh_stage_coloured, scan_poisson_config};
 use crate::virtual_calibrate::{calibrate_virtual_binocular_stage, calibrate_virtual_stage};
 use crate::{
@@ -399,10 +398,7 @@ pub(crate) fn check_virtual_sessions(
 ) -> Result<(), ScanError> {
     for (dir, angles) in dirs {
         // Automatic exposures are those of the session already there (none is measured yet).
-        let (exposures, _) =
-            session_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite, |_| {
-                Ok(ExposurePlan::default())
-            })?;
+        let exposures = planned_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite)?;
         let (plan, config) = virtual_session(
             rig,
             angles.clone(),
@@ -433,19 +429,17 @@ pub(crate) fn capture_virtual(
     let (exposures, _) =
         session_exposures(dir, &cfg.exposures, cfg.fusion, cfg.overwrite, |auto| {
             let (mut camera, mut projector, mut table) = rig.left.devices();
-            table.rotate_to(angles_deg.first().copied().unwrap_or_default())?;
             let timing = CaptureTiming {
                 settle: Duration::ZERO,
                 flush_frames: 0,
             };
-            Ok(measure_exposures(
-                &mut camera,
-                &mut projector,
+            measure_at_first_view(
+                (&mut camera, &mut projector, &mut table),
+                angles_deg.first().copied().unwrap_or_default(),
                 auto,
                 timing,
                 sl_sim::VIRTUAL_EXPOSURE_MS,
-                |_, _| {},
-            )?)
+            )
         })?;
     let (plan, config) = virtual_session(rig, angles_deg, turntable, cfg, calibration, exposures);
     match &rig.right {
