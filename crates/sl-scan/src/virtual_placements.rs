@@ -21,7 +21,7 @@ use sl_sim::{DEFAULT_WORKING_DISTANCE_MM, Scene, VirtualRig};
 use sl_tri::BinocularConfig;
 
 use crate::error::{io, stage_err};
-use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_with, scan_poisson_config};
+use crate::mesh::{MeshFiles, MeshSummary, mesh_stage_coloured, scan_poisson_config};
 use crate::placements::{PlacementAlignment, PlacementConfig, PlacementRig};
 use crate::virtual_calibrate::calibrate_virtual_stage;
 use crate::virtual_scan::{
@@ -297,8 +297,20 @@ pub fn scan_virtual_placements(
             let t = Instant::now();
             let poisson =
                 scan_poisson_config(&merged, session_cfg.merge.merge.output_voxel_size, depth);
-            let (summary, files) =
-                mesh_stage_with(&merged, None, None, &poisson, &cfg.mesh_options, out)?;
+            // In colour when the placements were captured in colour (`--colour`).
+            let colours = crate::placed_colours(
+                scan.sessions.iter().map(|s| s.colours.as_ref()),
+                &scan.merge.alignments,
+            )?;
+            let (summary, files) = mesh_stage_coloured(
+                &merged,
+                None,
+                None,
+                &poisson,
+                &cfg.mesh_options,
+                colours.as_ref(),
+                out,
+            )?;
             stages.push(StageTime::since("mesh", t));
             (Some(summary), Some(files))
         }
