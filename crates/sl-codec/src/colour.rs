@@ -151,6 +151,38 @@ pub fn read_capture_colour(manifest_path: &Path) -> Result<CaptureColour, CodecE
     })
 }
 
+/// Whether the capture whose `manifest.json` is `manifest_path` (or a folder holding one) was
+/// taken in colour: it names a `colour` frame, or its first frame is a colour file (its header
+/// alone is read, [`is_colour_image`](crate::is_colour_image)). A grey capture answers `false`
+/// without a pixel read.
+///
+/// # Errors
+/// The manifest's errors; [`CodecError::MissingFrame`] or [`CodecError::Image`] naming the
+/// first frame.
+pub fn capture_in_colour(manifest_path: &Path) -> Result<bool, CodecError> {
+    let manifest_path = if manifest_path.is_dir() {
+        manifest_path.join(MANIFEST_FILE)
+    } else {
+        manifest_path.to_path_buf()
+    };
+    let manifest = Manifest::load(&manifest_path)?;
+    if manifest.colour.is_some() {
+        return Ok(true);
+    }
+    let Some(first) = manifest.blocks.first().and_then(|b| b.frames.first()) else {
+        return Ok(false);
+    };
+    let path = resolve_frames_dir(&manifest_path, &manifest, None).join(first);
+    let found = find_image_file(&path).ok_or_else(|| CodecError::MissingFrame {
+        manifest: manifest_path.clone(),
+        block: 0,
+        index: 0,
+        file: first.clone(),
+        path: path.clone(),
+    })?;
+    crate::is_colour_image(&found)
+}
+
 /// How several frames become one colour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Combine {
@@ -303,6 +335,26 @@ mod tests {
         assert_eq!(c.source, ColourSource::Brightest);
         assert_eq!(c.files.len(), 2);
         assert!(c.image.data().iter().all(|&p| p == [255; 3]));
+    }
+
+    #[test]
+    fn a_capture_is_in_colour_by_its_colour_frame_or_its_files() {
+        let size = ImageSize::new(32, 16);
+        let dir = tempfile::tempdir().unwrap();
+        let mut manifest = hybrid(size).write(dir.path(), BitDepth::Eight).unwrap();
+        assert!(!capture_in_colour(dir.path()).unwrap(), "grey PNGs");
+        // The first frame saved in colour (grey content: the header says colour).
+        let first = dir.path().join(&manifest.blocks[0].frames[0]);
+        let grey = crate::read_image(&first).unwrap().into_u8();
+        let rgb: Vec<u8> = grey.data().iter().flat_map(|&g| [g, g, g]).collect();
+        image::save_buffer(&first, &rgb, 32, 16, image::ExtendedColorType::Rgb8).unwrap();
+        assert!(capture_in_colour(dir.path()).unwrap());
+        // A colour frame named by the manifest.
+        let dir2 = tempfile::tempdir().unwrap();
+        manifest = hybrid(size).write(dir2.path(), BitDepth::Eight).unwrap();
+        manifest.colour = Some("colour.png".into());
+        manifest.save(&dir2.path().join(MANIFEST_FILE)).unwrap();
+        assert!(capture_in_colour(dir2.path()).unwrap());
     }
 
     #[test]

@@ -198,6 +198,23 @@ pub fn read_image_size(path: &Path) -> Result<(u32, u32), CodecError> {
     reader.into_dimensions().map_err(decode_err(path))
 }
 
+/// Whether an image file holds colour channels, from its header alone (a grey file, or a
+/// colour one, whatever its pixels): a cheap check before reading a capture in colour.
+///
+/// # Errors
+/// [`CodecError::Image`] naming the file when it cannot be opened or its header read.
+pub fn is_colour_image(path: &Path) -> Result<bool, CodecError> {
+    let reader = reader(path)?;
+    if reader.format() == Some(ImageFormat::Tiff) {
+        // The `tiff` crate reads every TIFF's header, the grey float ones included.
+        let colour = tiff_decoder(path)?.colortype().map_err(tiff_err(path))?;
+        return Ok(!matches!(colour, tiff::ColorType::Gray(_)));
+    }
+    use image::ImageDecoder;
+    let decoder = reader.into_decoder().map_err(decode_err(path))?;
+    Ok(decoder.color_type().has_color())
+}
+
 /// A `tiff` decoder of `path` (a regular file: [`reader`] checked it).
 fn tiff_decoder(
     path: &Path,

@@ -99,7 +99,7 @@ pub use capture::CaptureSet;
 #[cfg(feature = "image-files")]
 pub use capture::load_frame;
 #[cfg(feature = "image-files")]
-pub use colour::{CaptureColour, ColourSource, read_capture_colour};
+pub use colour::{CaptureColour, ColourSource, capture_in_colour, read_capture_colour};
 pub use config::{
     DEFAULT_DIRECT_GLOBAL_BITS, DEFAULT_MIN_CONTRAST, DEFAULT_MIN_DIRECT, DEFAULT_MIN_MODULATION,
     DEFAULT_ROWS_PER_TASK, DEFAULT_SATURATION_LEVEL, DEFAULT_UNWRAP_TOLERANCE, DecodeConfig,
@@ -124,8 +124,8 @@ pub use gray::{GrayCodeSpec, GrayReference, MAX_GRAY_BITS, WEAK_RULE_MARGIN_SHIF
 pub use hybrid::{HybridSpec, RECOMMENDED_PERIOD_PX, RECOMMENDED_PHASE_STEPS, decode_hybrid};
 #[cfg(feature = "image-files")]
 pub use image_file::{
-    IMAGE_EXTENSIONS, find_image_file, is_image_file, not_a_regular_file, read_colour_image,
-    read_grey8, read_image, read_image_size,
+    IMAGE_EXTENSIONS, find_image_file, is_colour_image, is_image_file, not_a_regular_file,
+    read_colour_image, read_grey8, read_image, read_image_size,
 };
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT, MANIFEST_VERSION, Manifest, ManifestBlock};
 pub use pattern::{Axis, BitDepth, ImageSize, Pattern};

@@ -24,9 +24,10 @@ use crate::error::stage_err;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ColourMode {
-    /// Colour when the capture holds colour: a `colour` frame in its manifest, or frames in
-    /// colour (some pixel whose channels differ). A grey capture gives a cloud without
-    /// colours, as before colour existed.
+    /// Colour when the capture holds colour: a `colour` frame in its manifest, or frames
+    /// saved in colour (`sl_codec::capture_in_colour`, from the first frame's header) whose
+    /// channels differ somewhere. A grey capture gives a cloud without colours, as before
+    /// colour existed, and none of its frames is read twice.
     #[default]
     Auto,
     /// Always: grey captures give grey colours (from their white frame, fringe mean or

@@ -9,7 +9,8 @@ use sl_camera::{BinocularCalibration, Calibration, TurntableAxis};
 use sl_cloud::PointCloud;
 use sl_codec::{
     CaptureSet, ColourImage, ColourSource, CorrespondenceMap, DecodeConfig, MANIFEST_FILE,
-    SmoothConfig, decode, ramp_stair_codes, read_capture_colour, smooth_correspondences,
+    SmoothConfig, capture_in_colour, decode, ramp_stair_codes, read_capture_colour,
+    smooth_correspondences,
 };
 use sl_rig::{RIGHT_DIR, read_session_plan, view_dir_name};
 use sl_tri::{Binocular, BinocularConfig, Texture, TriConfig, Triangulator};
@@ -137,13 +138,14 @@ pub fn reconstruct_view_coloured(
     let set = CaptureSet::load(&manifest)?;
     let colour = match config.colour {
         ColourMode::Never => None,
-        mode => {
+        ColourMode::Always => Some(read_capture_colour(&manifest)?),
+        // A grey capture is told from its manifest and its first frame's header: its frames
+        // are not read twice.
+        ColourMode::Auto if capture_in_colour(&manifest)? => {
             let c = read_capture_colour(&manifest)?;
-            let keep = mode == ColourMode::Always
-                || c.source == ColourSource::ColourFrame
-                || c.has_chroma();
-            keep.then_some(c)
+            (c.source == ColourSource::ColourFrame || c.has_chroma()).then_some(c)
         }
+        ColourMode::Auto => None,
     };
     let map = decode(&set, &config.decode)?;
     drop(set);
