@@ -57,11 +57,7 @@ impl CaptureSet {
         manifest_path: &Path,
         frames_dir: Option<&Path>,
     ) -> Result<Self, CodecError> {
-        let manifest_path = if manifest_path.is_dir() {
-            manifest_path.join(MANIFEST_FILE)
-        } else {
-            manifest_path.to_path_buf()
-        };
+        let manifest_path = manifest_file(manifest_path);
         let manifest = Manifest::load(&manifest_path)?;
         let dir = resolve_frames_dir(&manifest_path, &manifest, frames_dir);
         let mut paths = Vec::with_capacity(manifest.frame_count());
@@ -121,6 +117,16 @@ impl CaptureSet {
             frames,
             frame_names,
         })
+    }
+}
+
+#[cfg(feature = "image-files")]
+/// `path` itself, or the `manifest.json` in it when it is a folder.
+pub(crate) fn manifest_file(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.join(MANIFEST_FILE)
+    } else {
+        path.to_path_buf()
     }
 }
 

@@ -16,9 +16,9 @@ use std::path::{Path, PathBuf};
 
 use sl_image::ColourImage;
 
-use crate::capture::resolve_frames_dir;
+use crate::capture::{manifest_file, resolve_frames_dir};
 use crate::image_file::{find_image_file, read_colour_image};
-use crate::{CodecError, GrayReference, MANIFEST_FILE, Manifest, Pattern};
+use crate::{CodecError, GrayReference, Manifest, Pattern};
 
 /// Where a capture's colour came from (see the module documentation for the order).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -93,11 +93,7 @@ impl CaptureColour {
 /// # Ok(()) }
 /// ```
 pub fn read_capture_colour(manifest_path: &Path) -> Result<CaptureColour, CodecError> {
-    let manifest_path = if manifest_path.is_dir() {
-        manifest_path.join(MANIFEST_FILE)
-    } else {
-        manifest_path.to_path_buf()
-    };
+    let manifest_path = manifest_file(manifest_path);
     let manifest = Manifest::load(&manifest_path)?;
     let dir = resolve_frames_dir(&manifest_path, &manifest, None);
     let find = |block: usize, index: usize, file: &str| -> Result<PathBuf, CodecError> {
@@ -160,11 +156,7 @@ pub fn read_capture_colour(manifest_path: &Path) -> Result<CaptureColour, CodecE
 /// The manifest's errors; [`CodecError::MissingFrame`] or [`CodecError::Image`] naming the
 /// first frame.
 pub fn capture_in_colour(manifest_path: &Path) -> Result<bool, CodecError> {
-    let manifest_path = if manifest_path.is_dir() {
-        manifest_path.join(MANIFEST_FILE)
-    } else {
-        manifest_path.to_path_buf()
-    };
+    let manifest_path = manifest_file(manifest_path);
     let manifest = Manifest::load(&manifest_path)?;
     if manifest.colour.is_some() {
         return Ok(true);
@@ -263,7 +255,9 @@ fn combine_images(images: &[ColourImage], how: Combine) -> Result<ColourImage, C
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Axis, BitDepth, GrayCodeSpec, HybridSpec, ImageSize, PatternSequence};
+    use crate::{
+        Axis, BitDepth, GrayCodeSpec, HybridSpec, ImageSize, MANIFEST_FILE, PatternSequence,
+    };
 
     fn hybrid(size: ImageSize) -> PatternSequence {
         PatternSequence::new(size)

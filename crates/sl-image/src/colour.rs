@@ -35,23 +35,7 @@ impl ColourImage {
     /// [`ImageError::BufferLength`] if `data.len() != width * height`, and
     /// [`ImageError::InvalidParameter`] if a dimension is zero.
     pub fn new(width: usize, height: usize, data: Vec<[u8; 3]>) -> Result<Self, ImageError> {
-        if width == 0 || height == 0 {
-            return Err(ImageError::invalid(
-                "width/height",
-                format!("an image must not be empty, got {width}x{height}"),
-            ));
-        }
-        let expected = width.checked_mul(height).ok_or_else(|| {
-            ImageError::invalid("width/height", format!("{width}x{height} overflows usize"))
-        })?;
-        if data.len() != expected {
-            return Err(ImageError::BufferLength {
-                width,
-                height,
-                expected,
-                found: data.len(),
-            });
-        }
+        crate::frame::check_buffer("an image", width, height, data.len())?;
         Ok(Self {
             width,
             height,

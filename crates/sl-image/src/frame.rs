@@ -80,6 +80,34 @@ impl Sample for u16 {
     }
 }
 
+/// Refuses an empty image (`what`: "a frame", "an image") or a buffer of `len` pixels that is
+/// not `width * height`.
+pub(crate) fn check_buffer(
+    what: &str,
+    width: usize,
+    height: usize,
+    len: usize,
+) -> Result<(), ImageError> {
+    if width == 0 || height == 0 {
+        return Err(ImageError::invalid(
+            "width/height",
+            format!("{what} must not be empty, got {width}x{height}"),
+        ));
+    }
+    let expected = width.checked_mul(height).ok_or_else(|| {
+        ImageError::invalid("width/height", format!("{width}x{height} overflows usize"))
+    })?;
+    if len != expected {
+        return Err(ImageError::BufferLength {
+            width,
+            height,
+            expected,
+            found: len,
+        });
+    }
+    Ok(())
+}
+
 /// One grey frame: `width * height` samples, row-major, no padding.
 ///
 /// Pixel `(x, y)` is at `data[y * width + x]`; `x` grows to the right and `y` downwards.
@@ -97,23 +125,7 @@ impl<T: Sample> Frame<T> {
     /// [`ImageError::BufferLength`] if `data.len() != width * height`, and
     /// [`ImageError::InvalidParameter`] if a dimension is zero.
     pub fn new(width: usize, height: usize, data: Vec<T>) -> Result<Self, ImageError> {
-        if width == 0 || height == 0 {
-            return Err(ImageError::invalid(
-                "width/height",
-                format!("a frame must not be empty, got {width}x{height}"),
-            ));
-        }
-        let expected = width.checked_mul(height).ok_or_else(|| {
-            ImageError::invalid("width/height", format!("{width}x{height} overflows usize"))
-        })?;
-        if data.len() != expected {
-            return Err(ImageError::BufferLength {
-                width,
-                height,
-                expected,
-                found: data.len(),
-            });
-        }
+        check_buffer("a frame", width, height, data.len())?;
         Ok(Self {
             width,
             height,

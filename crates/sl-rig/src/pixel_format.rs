@@ -135,6 +135,31 @@ impl FrameLayout {
     }
 }
 
+/// Refuses a layout of no pixel, naming `what` (the frame).
+fn check_size(layout: &FrameLayout, what: &str) -> Result<(), RigError> {
+    if layout.width == 0 || layout.height == 0 {
+        return Err(RigError::param(
+            "frame size",
+            format!("{what}: {}x{} has no pixel", layout.width, layout.height),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses an odd width for YUYV, whose pixels come in pairs.
+fn check_even_width(layout: &FrameLayout, what: &str) -> Result<(), RigError> {
+    if !layout.width.is_multiple_of(2) {
+        return Err(RigError::param(
+            "frame size",
+            format!(
+                "{what}: YUYV needs an even width (pixels come in pairs), got {}",
+                layout.width
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Converts one raw camera frame to a grey image: 8-bit for `GREY`, `YUYV` (the luma `Y`),
 /// `MJPG` (decoded, then its luma) and `RGB3` / `BGR3` (their luma by OpenCV's
 /// `COLOR_RGB2GRAY` rule, [`sl_image::luma`]), 16-bit for `Y16`.
@@ -164,12 +189,7 @@ pub fn convert_frame(
     layout: &FrameLayout,
     what: &str,
 ) -> Result<GreyImage, RigError> {
-    if layout.width == 0 || layout.height == 0 {
-        return Err(RigError::param(
-            "frame size",
-            format!("{what}: {}x{} has no pixel", layout.width, layout.height),
-        ));
-    }
+    check_size(layout, what)?;
     match layout.format {
         PixelFormat::Grey => {
             let rows = packed_rows(frame, layout, 1, what)?;
@@ -184,15 +204,7 @@ pub fn convert_frame(
             grey(layout.width, layout.height, values)
         }
         PixelFormat::Yuyv => {
-            if !layout.width.is_multiple_of(2) {
-                return Err(RigError::param(
-                    "frame size",
-                    format!(
-                        "{what}: YUYV needs an even width (pixels come in pairs), got {}",
-                        layout.width
-                    ),
-                ));
-            }
+            check_even_width(layout, what)?;
             let rows = packed_rows(frame, layout, 2, what)?;
             // Y0 U Y1 V: the luma of every pixel is at the even bytes.
             let luma = rows.iter().step_by(2).copied().collect();
@@ -241,12 +253,7 @@ pub fn convert_frame_colour(
     layout: &FrameLayout,
     what: &str,
 ) -> Result<ColourImage, RigError> {
-    if layout.width == 0 || layout.height == 0 {
-        return Err(RigError::param(
-            "frame size",
-            format!("{what}: {}x{} has no pixel", layout.width, layout.height),
-        ));
-    }
+    check_size(layout, what)?;
     let data: Vec<[u8; 3]> = match layout.format {
         PixelFormat::Grey => packed_rows(frame, layout, 1, what)?
             .into_iter()
@@ -260,15 +267,7 @@ pub fn convert_frame_colour(
             })
             .collect(),
         PixelFormat::Yuyv => {
-            if !layout.width.is_multiple_of(2) {
-                return Err(RigError::param(
-                    "frame size",
-                    format!(
-                        "{what}: YUYV needs an even width (pixels come in pairs), got {}",
-                        layout.width
-                    ),
-                ));
-            }
+            check_even_width(layout, what)?;
             packed_rows(frame, layout, 2, what)?
                 .chunks_exact(4)
                 .flat_map(|q| {

@@ -188,7 +188,9 @@ impl ScanColours {
         let tol = self.config.depth_tolerance_mm;
         let visible = (yi.saturating_sub(1)..=(yi + 1).min(h - 1)).any(|y| {
             (xi.saturating_sub(1)..=(xi + 1).min(w - 1)).any(|x| {
-                let d = f64::from(view.depth_mm[y * w + x]);
+                // A depth map of another size than the image (a view built by hand) sees
+                // nothing where it has no value.
+                let d = f64::from(view.depth_mm.get(y * w + x).copied().unwrap_or(f32::NAN));
                 d.is_finite() && (d - q.z).abs() <= tol
             })
         });
