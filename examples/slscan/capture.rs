@@ -517,7 +517,6 @@ mod tests {
     /// `slscan capture --finish coloured` on the virtual rig (colour implied), then `slscan
     /// reconstruct` of a view with the rig's calibration: the cloud takes its colours from the
     /// view's colour frame, and they are the patches' (against the rig's true albedo).
-    /// `--finish` is refused on devices and `--colour` needs nothing else.
     #[test]
     fn a_coloured_capture_reconstructs_in_its_colours() {
         let tmp = tempfile::tempdir().unwrap();
