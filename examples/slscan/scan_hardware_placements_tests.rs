@@ -129,7 +129,10 @@ fn two_placements_on_devices_with_enter_between() {
 }
 
 /// The same with `--placement-wait` (for scripts): the command says what to do and waits
-/// instead of reading the keyboard; the person re-places the object in that time.
+/// instead of reading the keyboard; the person re-places the object in that time. Only the
+/// wait differs from the test above, which measures the merged model: this one runs the two
+/// placements small (quarter resolution) and checks the sessions, the message, the
+/// keyboard left unread and the files of a merged scan.
 #[test]
 #[cfg_attr(
     debug_assertions,
@@ -137,12 +140,25 @@ fn two_placements_on_devices_with_enter_between() {
 )]
 fn two_placements_on_devices_with_placement_wait() {
     let mut keys: &[u8] = b"not read\n";
-    let screen = two_placements(&["--placement-wait", "0.5"], &mut keys);
+    let scan = scan_on_virtual_devices(
+        4,
+        8,
+        &["--placements", "2", "--placement-wait", "0.5"],
+        &mut keys,
+    );
     assert!(
-        screen.contains("placement 2 of 2: lay the object on its side; scanning again in 0.5 s"),
-        "{screen}"
+        scan.screen
+            .contains("placement 2 of 2: lay the object on its side; scanning again in 0.5 s"),
+        "{}",
+        scan.screen
     );
     assert_eq!(keys, b"not read\n");
+    assert_eq!(scan.sessions, 2);
+    assert_eq!(scan.replaced, 1);
+    for f in ["placement_2/merged.ply", "merged.ply", "mesh.ply"] {
+        assert!(scan.out.join(f).is_file(), "{f} missing");
+    }
+    assert_eq!(figures(&scan.out)["placements"], 2);
 }
 
 /// A scan run on the virtual devices, and the truth to measure it against.
@@ -166,10 +182,17 @@ struct DeviceScan {
 }
 
 /// Runs `slscan scan` on the virtual devices (the pebble standing on the table) with the
-/// options of a real rig, 8 views, and `extra`; `keys` is the keyboard.
-fn scan_on_virtual_devices(extra: &[&str], keys: &mut &[u8]) -> DeviceScan {
+/// options of a real rig, the rig at `1/downscale` of its resolution, `views` views, and
+/// `extra`; `keys` is the keyboard.
+fn scan_on_virtual_devices(
+    downscale: u32,
+    views: usize,
+    extra: &[&str],
+    keys: &mut &[u8],
+) -> DeviceScan {
     let tmp = tempfile::tempdir().unwrap();
-    let config = scaled_rig_config(DOWNSCALE);
+    let config = scaled_rig_config(downscale);
+    let views_arg = views.to_string();
     let calib = tmp.path().join("calibration.json");
     let calibration = config.calibration();
     calibration.save(&calib).unwrap();
@@ -189,7 +212,7 @@ fn scan_on_virtual_devices(extra: &[&str], keys: &mut &[u8]) -> DeviceScan {
             "--calib",
             calib.to_str().unwrap(),
             "--views",
-            "8",
+            &views_arg,
         ]
         .iter()
         .chain(extra)
@@ -227,7 +250,7 @@ fn scan_on_virtual_devices(extra: &[&str], keys: &mut &[u8]) -> DeviceScan {
         .filter(|p| p.ends_with("session/session.json"))
         .count();
 
-    let angles = full_turn_motor_angles(calibration.turntable.as_ref(), 8).unwrap();
+    let angles = full_turn_motor_angles(calibration.turntable.as_ref(), views).unwrap();
     let truth = standing
         .surface_mesh(&config.t_cam_table_at(angles[0]))
         .unwrap();
@@ -255,7 +278,7 @@ fn scan_on_virtual_devices(extra: &[&str], keys: &mut &[u8]) -> DeviceScan {
 /// what the screen showed.
 fn two_placements(extra: &[&str], keys: &mut &[u8]) -> String {
     let options: Vec<&str> = ["--placements", "2"].iter().chain(extra).copied().collect();
-    let scan = scan_on_virtual_devices(&options, keys);
+    let scan = scan_on_virtual_devices(DOWNSCALE, 8, &options, keys);
     let out = &scan.out;
 
     // Asked once, between the two sessions; the object was laid on its side once.
@@ -319,7 +342,7 @@ fn two_placements(extra: &[&str], keys: &mut &[u8]) -> String {
 #[test]
 fn one_placement_on_devices() {
     let mut keys: &[u8] = b"not read\n";
-    let scan = scan_on_virtual_devices(&["--no-fair"], &mut keys);
+    let scan = scan_on_virtual_devices(DOWNSCALE, 8, &["--no-fair"], &mut keys);
     assert_eq!(scan.sessions, 1);
     assert_eq!(scan.replaced, 0);
     assert!(!scan.screen.contains(LAY_ON_SIDE), "{}", scan.screen);
