@@ -497,22 +497,50 @@ mod tests {
         crate::run_cli(args)
     }
 
-    /// Renders a calibration session (`board/` poses with both projector axes coded,
-    /// `turntable/` views) and its `rig.json`, as `slscan simulate --scene board` does.
-    fn simulate(dir: &Path, poses: usize) -> VirtualRig {
-        simulate_with(
-            dir,
-            poses,
-            CalibrationSession::default().turntable_angles_deg,
-        )
+    /// Board poses of the shared session ([`rendered_session`]).
+    pub(super) const SESSION_POSES: usize = 10;
+
+    /// A rendered session kept in memory: its files (path relative to the session, bytes)
+    /// and the rig that rendered it.
+    struct Rendered {
+        rig: VirtualRig,
+        files: Vec<(std::path::PathBuf, Vec<u8>)>,
     }
 
-    /// [`simulate`] with the turntable at `turntable_angles_deg` (none: no `turntable/`).
-    pub(super) fn simulate_with(
-        dir: &Path,
-        poses: usize,
-        turntable_angles_deg: Vec<f64>,
-    ) -> VirtualRig {
+    /// Writes the calibration session the `calibrate` tests read into `dir` and returns the
+    /// rig that rendered it: [`SESSION_POSES`] `board/` poses with both projector axes
+    /// coded, the default `turntable/` views, and its `rig.json`, as `slscan simulate --scene
+    /// board` writes them. Rendered once per test process and kept in memory (rendering is
+    /// most of a `calibrate all` test's time); each test gets its own copy, which it may
+    /// change. A test that needs fewer poses reads the first ones.
+    pub(super) fn rendered_session(dir: &Path) -> VirtualRig {
+        static SESSION: std::sync::OnceLock<Rendered> = std::sync::OnceLock::new();
+        let rendered = SESSION.get_or_init(|| {
+            let tmp = tempfile::tempdir().unwrap();
+            let rig = simulate(tmp.path(), SESSION_POSES);
+            let files = crate::common::files_below(tmp.path())
+                .into_iter()
+                .map(|p| {
+                    let bytes = std::fs::read(&p).unwrap();
+                    (p.strip_prefix(tmp.path()).unwrap().to_path_buf(), bytes)
+                })
+                .collect();
+            Rendered { rig, files }
+        });
+        for (relative, bytes) in &rendered.files {
+            let path = dir.join(relative);
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent).unwrap();
+            }
+            std::fs::write(path, bytes).unwrap();
+        }
+        rendered.rig.clone()
+    }
+
+    /// Renders a calibration session (`board/` poses with both projector axes coded,
+    /// `turntable/` views at the default angles) and its `rig.json`, as `slscan simulate
+    /// --scene board` does.
+    fn simulate(dir: &Path, poses: usize) -> VirtualRig {
         let mut config = scaled_rig_config(DOWNSCALE);
         config.render.supersampling = 4;
         config.angle_scale = 1.02;
@@ -532,10 +560,7 @@ mod tests {
             .with(code(Axis::Column, p.width))
             .with(code(Axis::Row, p.height))
             .manifest(BitDepth::Eight);
-        let mut session = CalibrationSession {
-            turntable_angles_deg,
-            ..CalibrationSession::default()
-        };
+        let mut session = CalibrationSession::default();
         session.poses.count = poses;
         simulate_calibration(&rig, &session, &manifest, dir, |_| {}).unwrap();
         std::fs::write(
@@ -550,13 +575,12 @@ mod tests {
         sl_calib::load_grey(path).is_ok()
     }
 
-    /// The whole of `calibrate all` on 10 board poses and 7 table views (~9 s in debug on the
-    /// loaded 2-core machine).
+    /// The whole of `calibrate all` on 10 board poses and 7 table views.
     #[test]
     fn calibrate_all_writes_a_calibration_near_the_truth_and_its_pictures() {
         let tmp = tempfile::tempdir().unwrap();
         let session = tmp.path().join("session");
-        let rig = simulate(&session, 10);
+        let rig = rendered_session(&session);
         let out = tmp.path().join("calib");
         slscan(&[
             "calibrate",
@@ -633,7 +657,7 @@ mod tests {
     fn calibrate_all_on_a_session_saved_as_bmp() {
         let tmp = tempfile::tempdir().unwrap();
         let session = tmp.path().join("session");
-        let rig = simulate(&session, 8);
+        let rig = rendered_session(&session);
         let mut converted = 0;
         for f in crate::common::files_below(&session) {
             if f.extension().is_some_and(|e| e == "png") {
@@ -643,7 +667,10 @@ mod tests {
                 converted += 1;
             }
         }
-        assert!(converted > 8 * 2, "{converted} files converted");
+        assert!(
+            converted > SESSION_POSES * 2,
+            "{converted} files converted"
+        );
         let out = tmp.path().join("calib");
         slscan(&[
             "calibrate",
@@ -658,7 +685,7 @@ mod tests {
         )
         .unwrap();
         let images = procam["figures"]["board_images"].as_array().unwrap();
-        assert_eq!(images.len(), 8);
+        assert_eq!(images.len(), SESSION_POSES);
         for b in images {
             assert_eq!(b["board_image"].as_str(), Some("white.bmp"), "{b}");
         }
@@ -687,7 +714,7 @@ mod tests {
     fn calibrate_projector_without_white_frames_uses_the_fringe_mean() {
         let tmp = tempfile::tempdir().unwrap();
         let session = tmp.path().join("session");
-        let rig = simulate(&session, 8);
+        let rig = rendered_session(&session);
         let run = |out: &str| {
             let out = tmp.path().join(out);
             slscan(&[
@@ -714,10 +741,10 @@ mod tests {
                 deleted += 1;
             }
         }
-        assert_eq!(deleted, 8);
+        assert_eq!(deleted, SESSION_POSES);
         let (without, calib) = run("fringe_mean");
         let images = without["figures"]["board_images"].as_array().unwrap();
-        assert_eq!(images.len(), 8);
+        assert_eq!(images.len(), SESSION_POSES);
         for b in images {
             let source = b["board_image"].as_str().unwrap();
             assert!(source.starts_with("fringe mean of block 0"), "{source}");

@@ -15,10 +15,12 @@ use sl_calib::sl_camera::Calibration;
 use sl_codec::{Frame, write_png_grey8};
 use sl_scan::LayoutError;
 
-use super::tests::{simulate_with, slscan};
+use super::tests::{SESSION_POSES, rendered_session, slscan};
 
-/// Board poses rendered; one of them loses its board (a blank white frame).
+/// Board poses of the shared rendered session taken; one of them loses its board (a blank
+/// white frame).
 const POSES: usize = 9;
+const _: () = assert!(POSES <= SESSION_POSES);
 
 /// The pose whose white frame is blanked.
 const BLANK_POSE: usize = 4;
@@ -102,7 +104,7 @@ fn kamino_like(rendered: &Path, session: &Path, layout_dir: &Path) -> PathBuf {
 fn calibrate_all_reads_another_programs_layout_where_it_is() {
     let tmp = tempfile::tempdir().unwrap();
     let rendered = tmp.path().join("rendered");
-    let rig = simulate_with(&rendered, POSES, Vec::new());
+    let rig = rendered_session(&rendered);
     // Glob characters in the session's own path are taken literally.
     let session = tmp.path().join("their session [v2]");
     let layout = kamino_like(&rendered, &session, &tmp.path().join("layout"));
