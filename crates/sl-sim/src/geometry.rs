@@ -222,7 +222,7 @@ impl<P: Lens> Caster<'_, P> {
         if cos <= 0.0 {
             return unlit;
         }
-        let p_proj = self.t_cam_proj.inverse_transform_point(&hit.point);
+        let p_proj = crate::raycast::inverse_transform(self.t_cam_proj, &hit.point);
         let Some(q) = self.projector.project(&p_proj) else {
             return unlit;
         };
