@@ -667,10 +667,7 @@ mod tests {
                 converted += 1;
             }
         }
-        assert!(
-            converted > SESSION_POSES * 2,
-            "{converted} files converted"
-        );
+        assert!(converted > SESSION_POSES * 2, "{converted} files converted");
         let out = tmp.path().join("calib");
         slscan(&[
             "calibrate",

@@ -351,9 +351,17 @@ impl Placed {
     /// parry's `cast_ray_and_get_normal(&t_cam_shape, ray, max, true)` (the ray into the
     /// shape's frame, cast there, the normal back), with the transforms inlined.
     #[inline(always)]
-    fn cast_shape<S: RayCast>(&self, shape: &S, ray: &Ray, max: f64) -> Option<(f64, Vector3<f64>)> {
+    fn cast_shape<S: RayCast>(
+        &self,
+        shape: &S,
+        ray: &Ray,
+        max: f64,
+    ) -> Option<(f64, Vector3<f64>)> {
         let m = &self.t_cam_shape;
-        let local = Ray::new(inverse_transform(m, &ray.origin), inverse_rotate(m, &ray.dir));
+        let local = Ray::new(
+            inverse_transform(m, &ray.origin),
+            inverse_rotate(m, &ray.dir),
+        );
         let i = shape.cast_local_ray_and_get_normal(&local, max, true)?;
         hit(Some(parry3d_f64::query::RayIntersection {
             normal: rotate(m, &i.normal),
