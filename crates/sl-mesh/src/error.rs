@@ -103,7 +103,7 @@ pub enum MeshError {
         path: PathBuf,
         /// The encoder's error.
         #[source]
-        source: image::ImageError,
+        source: png::EncodingError,
     },
 }
 

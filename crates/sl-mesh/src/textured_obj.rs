@@ -169,25 +169,22 @@ pub fn write_obj_textured(
 /// The PNG of `image` (8-bit RGB); `path` names the file in errors.
 #[cfg(feature = "image-files")]
 fn png_bytes(image: &sl_image::ColourImage, path: &Path) -> Result<Vec<u8>, MeshError> {
-    use image::ImageEncoder as _;
     let png_error = |source| MeshError::Png {
         path: path.to_path_buf(),
         source,
     };
     let (Ok(w), Ok(h)) = (u32::try_from(image.width()), u32::try_from(image.height())) else {
-        return Err(png_error(image::ImageError::Limits(
-            image::error::LimitError::from_kind(image::error::LimitErrorKind::DimensionError),
-        )));
+        return Err(png_error(png::EncodingError::LimitsExceeded));
     };
     let mut out = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut out)
-        .write_image(
-            image.data().as_flattened(),
-            w,
-            h,
-            image::ExtendedColorType::Rgb8,
-        )
+    let mut encoder = png::Encoder::new(&mut out, w, h);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(png_error)?;
+    writer
+        .write_image_data(image.data().as_flattened())
         .map_err(png_error)?;
+    writer.finish().map_err(png_error)?;
     Ok(out)
 }
 

@@ -2,7 +2,7 @@
 //! view (geometry cache and ground truth), and rendering a 44-frame Gray-code set (11 column bits and 11 row bits for a
 //! 1920×1080 projector, each with its inverse) from the cache, camera effects included.
 //!
-//! `cargo bench -p sl-rig --bench render -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench -p sl-sim --bench render -- --warm-up-time 1 --measurement-time 3`
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_image::Frame;
