@@ -21,17 +21,19 @@ const SHADOW_RAY_OFFSET_MM: f64 = 1e-6;
 #[inline(always)]
 pub(crate) fn inverse_rotate(iso: &Isometry3<f64>, v: &Vector3<f64>) -> Vector3<f64> {
     let q = iso.rotation.quaternion();
-    let (a, w) = (-q.imag(), q.w);
-    let t = a.cross(v) * 2.0;
-    let c = a.cross(&t);
-    t * w + c + v
+    quaternion_rotate(&-q.imag(), q.w, v)
 }
 
 /// `iso.transform_vector(v)` (`q * v`), as [`inverse_rotate`] (bit for bit nalgebra's result).
 #[inline(always)]
 fn rotate(iso: &Isometry3<f64>, v: &Vector3<f64>) -> Vector3<f64> {
     let q = iso.rotation.quaternion();
-    let (a, w) = (q.imag(), q.w);
+    quaternion_rotate(&q.imag(), q.w, v)
+}
+
+/// `v` rotated by the unit quaternion `(a, w)`, as nalgebra computes `q * v`.
+#[inline(always)]
+fn quaternion_rotate(a: &Vector3<f64>, w: f64, v: &Vector3<f64>) -> Vector3<f64> {
     let t = a.cross(v) * 2.0;
     let c = a.cross(&t);
     t * w + c + v
