@@ -558,35 +558,40 @@ struct Tally {
 
 /// Parallel fold over `0..n` into a fixed-size accumulator; `add` returns the squared
 /// distance of the correspondence it used, or `None` to skip the point.
+///
+/// The same bits whatever the number of threads and however the work is stolen: the points
+/// are summed in fixed blocks of [`MIN_TASK`], each block in order, and the blocks' sums are
+/// added in order. (A rayon `fold` and `reduce` group the floating-point sums as the work
+/// happened to be split, so a registration's last digits changed with the machine's cores,
+/// and from one run to the next.)
 fn fold<A, M, F>(n: usize, zero: A, merge: M, add: F) -> (A, Tally)
 where
     A: Copy + Send + Sync,
     M: Fn(A, A) -> A + Sync + Send,
     F: Fn(&mut A, usize) -> Option<f64> + Sync + Send,
 {
-    (0..n)
+    let blocks: Vec<(A, Tally)> = (0..n.div_ceil(MIN_TASK))
         .into_par_iter()
-        .with_min_len(MIN_TASK)
-        .fold(
-            || (zero, Tally::default()),
-            |(mut acc, mut tally), i| {
+        .map(|b| {
+            let (mut acc, mut tally) = (zero, Tally::default());
+            for i in b * MIN_TASK..n.min((b + 1) * MIN_TASK) {
                 if let Some(d2) = add(&mut acc, i) {
                     tally.count += 1;
                     tally.sum_d2 += d2;
                 }
-                (acc, tally)
-            },
-        )
-        .reduce(
-            || (zero, Tally::default()),
-            |(a, ta), (b, tb)| {
-                (
-                    merge(a, b),
-                    Tally {
-                        count: ta.count + tb.count,
-                        sum_d2: ta.sum_d2 + tb.sum_d2,
-                    },
-                )
-            },
-        )
+            }
+            (acc, tally)
+        })
+        .collect();
+    blocks
+        .into_iter()
+        .fold((zero, Tally::default()), |(a, ta), (b, tb)| {
+            (
+                merge(a, b),
+                Tally {
+                    count: ta.count + tb.count,
+                    sum_d2: ta.sum_d2 + tb.sum_d2,
+                },
+            )
+        })
 }
