@@ -17,8 +17,9 @@ use crate::{Association, IcpConfig, IcpError, Metric, PreparedCloud, Trimming};
 /// cloud of fewer points cannot be registered.
 pub const MIN_CORRESPONDENCES: usize = 6;
 
-/// Smallest number of points a rayon task handles: ~50 µs of work, so that splitting and
-/// merging the fixed-size sums costs little next to the queries.
+/// Points per block of the parallel sums ([`sum_in_blocks`]), and the fewest a rayon task
+/// handles elsewhere: ~50 µs of work, so that handing out tasks and merging their fixed-size
+/// sums costs little next to the queries.
 const MIN_TASK: usize = 2048;
 
 /// Marks a source point without a correspondence.
@@ -558,34 +559,16 @@ struct Tally {
 
 /// Parallel fold over `0..n` into a fixed-size accumulator; `add` returns the squared
 /// distance of the correspondence it used, or `None` to skip the point.
-///
-/// The same bits whatever the number of threads and however the work is stolen: the points
-/// are summed in fixed blocks of [`MIN_TASK`], each block in order, and the blocks' sums are
-/// added in order. (A rayon `fold` and `reduce` group the floating-point sums as the work
-/// happened to be split, so a registration's last digits changed with the machine's cores,
-/// and from one run to the next.)
 fn fold<A, M, F>(n: usize, zero: A, merge: M, add: F) -> (A, Tally)
 where
     A: Copy + Send + Sync,
     M: Fn(A, A) -> A + Sync + Send,
     F: Fn(&mut A, usize) -> Option<f64> + Sync + Send,
 {
-    let blocks: Vec<(A, Tally)> = (0..n.div_ceil(MIN_TASK))
-        .into_par_iter()
-        .map(|b| {
-            let (mut acc, mut tally) = (zero, Tally::default());
-            for i in b * MIN_TASK..n.min((b + 1) * MIN_TASK) {
-                if let Some(d2) = add(&mut acc, i) {
-                    tally.count += 1;
-                    tally.sum_d2 += d2;
-                }
-            }
-            (acc, tally)
-        })
-        .collect();
-    blocks
-        .into_iter()
-        .fold((zero, Tally::default()), |(a, ta), (b, tb)| {
+    sum_in_blocks(
+        n,
+        (zero, Tally::default()),
+        |(a, ta), (b, tb)| {
             (
                 merge(a, b),
                 Tally {
@@ -593,5 +576,37 @@ where
                     sum_d2: ta.sum_d2 + tb.sum_d2,
                 },
             )
+        },
+        |(acc, tally), i| {
+            if let Some(d2) = add(acc, i) {
+                tally.count += 1;
+                tally.sum_d2 += d2;
+            }
+        },
+    )
+}
+
+/// Parallel sum over `0..n` into a fixed-size accumulator, the same bits whatever the number
+/// of threads and however the work is stolen: the indices are summed in fixed blocks of
+/// [`MIN_TASK`], each block in order, and the blocks' sums are merged in order. (A rayon
+/// `fold` and `reduce` group the floating-point sums as the work happened to be split, so a
+/// registration's last digits changed with the machine's cores, and from one run to the
+/// next.)
+pub(crate) fn sum_in_blocks<A, M, F>(n: usize, zero: A, merge: M, add: F) -> A
+where
+    A: Copy + Send + Sync,
+    M: Fn(A, A) -> A,
+    F: Fn(&mut A, usize) + Sync + Send,
+{
+    let blocks: Vec<A> = (0..n.div_ceil(MIN_TASK))
+        .into_par_iter()
+        .map(|b| {
+            let mut acc = zero;
+            for i in b * MIN_TASK..n.min((b + 1) * MIN_TASK) {
+                add(&mut acc, i);
+            }
+            acc
         })
+        .collect();
+    blocks.into_iter().fold(zero, merge)
 }

@@ -9,13 +9,10 @@
 //! correspondence, the information of such a motion is zero.
 
 use nalgebra::{Isometry3, Matrix6, Point3, SymmetricEigen, Vector3, Vector6};
-use rayon::prelude::*;
 
 use crate::PreparedCloud;
+use crate::icp::sum_in_blocks;
 use crate::se3::skew;
-
-/// Points per parallel block of the information sums.
-const BLOCK: usize = 2048;
 
 /// A direction of a registration's pose whose information is below this fraction of its
 /// largest one (rotations measured in mm at the correspondences' RMS radius) counts as
@@ -88,32 +85,27 @@ pub(crate) fn pair_information(
     let points = target.points();
     let index = target.index();
     let gate = max_distance * max_distance;
-    let zero = || (Matrix6::<f64>::zeros(), Vector3::<f64>::zeros(), 0usize);
-    // In fixed blocks, each summed in order, and the blocks' sums added in order: the same
-    // bits whatever the number of threads (rayon's `fold`/`reduce` group the sums as the
-    // work happened to be split).
-    let blocks: Vec<_> = source
-        .points()
-        .par_chunks(BLOCK)
-        .map(|block| {
-            block.iter().fold(zero(), |(mut h, mut sum, mut count), p| {
-                let moved = pose * p;
-                if let Some(nb) = index.nearest_within(&moved, gate)
-                    && let (Some(q), Some(n)) = (points.get(nb.index), normals.get(nb.index))
-                {
-                    let c = q.coords.cross(n);
-                    let j = Vector6::new(c.x, c.y, c.z, n.x, n.y, n.z);
-                    h += j * j.transpose();
-                    sum += q.coords;
-                    count += 1;
-                }
-                (h, sum, count)
-            })
-        })
-        .collect();
-    let (h, sum, count) = blocks
-        .into_iter()
-        .fold(zero(), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+    let source_points = source.points();
+    let (h, sum, count) = sum_in_blocks(
+        source_points.len(),
+        (Matrix6::<f64>::zeros(), Vector3::<f64>::zeros(), 0usize),
+        |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2),
+        |(h, sum, count), i| {
+            let Some(p) = source_points.get(i) else {
+                return;
+            };
+            let moved = pose * p;
+            if let Some(nb) = index.nearest_within(&moved, gate)
+                && let (Some(q), Some(n)) = (points.get(nb.index), normals.get(nb.index))
+            {
+                let c = q.coords.cross(n);
+                let j = Vector6::new(c.x, c.y, c.z, n.x, n.y, n.z);
+                *h += j * j.transpose();
+                *sum += q.coords;
+                *count += 1;
+            }
+        },
+    );
     if count < 6 {
         return None;
     }
